@@ -1,0 +1,153 @@
+// bake/bake.h - cone-map baking. The whole public API of the bake stage.
+//
+// No file I/O and no Vulkan: callers pass views of input and output memory.
+//
+// Conventions (normative: the tests, the exports and the renderer use exactly these)
+// - A W x H height map is row-major: texel (i, j) is row i, column j, stored at data[i * W + j].
+//   Heights are in [0, 1], 1 = top of the relief.
+// - Texel (i, j) has its centre at u = (j + 0.5) / W, v = (i + 0.5) / H. Distances are in uv:
+//   |q - c| = sqrt((dj / W)^2 + (di / H)^2) for a texel offset (di, dj).
+// - The cone ratio of texel c in sector k is the minimum, over texels q with h(q) > h(c) whose
+//   direction from c (azimuth atan2(dv, du) in [0, 2 pi)) lies in sector k of n equal sectors that
+//   start at azimuth 0 (a direction on a sector boundary belongs to both sectors), of
+//   |q - c| / (h(q) - h(c)), clamped to at most 1. With no such q the ratio is 1.
+//   n = 1 is cone step mapping (Dummer); n = 4 and n = 8 are anisotropic cone maps (Chen & Chuang).
+// - Address::wrap (the default) tiles the plane with the map and every periodic image of q counts.
+//   Because ratios are clamped to 1 and height gaps are at most 1, only images within uv distance 1
+//   of c can matter. Address::clamp treats everything outside the map as absent.
+// - A cone map stores its ratios interleaved: ratio of texel (i, j), sector k at
+//   data[(i * W + j) * n + k].
+// - A relaxed cone map (Policarpo & Oliveira) uses the same layout; see bake_relaxed.
+#pragma once
+
+#include <functional>
+#include <limits>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace displace::bake {
+
+enum class Address { wrap, clamp };
+enum class Mode { exact, original, paper_adaptive, budgeted };
+
+// Thrown for input the caller got wrong (NaN or out-of-range heights, empty maps, bad sector count).
+struct BakeError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct HeightView {
+  const float* data = nullptr;
+  int width = 0;
+  int height = 0;
+};
+
+struct ConeView {
+  float* data = nullptr;
+  int width = 0;
+  int height = 0;
+  int sector_count = 0;
+};
+
+// Texel rectangle: columns [x0, x1), rows [y0, y1).
+struct Rect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+struct BakeStats {
+  Mode mode = Mode::exact;
+  int width = 0, height = 0, sector_count = 0;
+  long long texels_refined = 0;   // texels whose ratios came from a search at full resolution
+  long long texels_fallback = 0;  // texels left with a conservative ratio from coarser levels
+  long long work = 0;             // blocker tests: texel pairs plus pyramid nodes examined
+  double milliseconds = 0.0;      // measured with the budget's clock (steady clock if none)
+  double mean_ratio = 0.0;        // over all texels and sectors
+};
+
+// Throws BakeError unless the map is non-empty, every height is finite and in [0, 1], and the
+// sector count is 1, 4 or 8 and the output view matches the map.
+void validate(HeightView heights, const ConeView& out);
+
+// The largest sector count a baker supports; the relaxed baker accepts 1 and 4.
+bool is_valid_sector_count(int sector_count);
+
+// Exact to the definition above (branch and bound over a max pyramid; tested against all pairs).
+BakeStats bake_exact(HeightView heights, Address address, ConeView out);
+
+// Chen & Chuang's per-texel search, as published: rings of growing radius, each sector stops when
+// no texel further out can lower its ratio. A baseline for the speed figures; exact.
+BakeStats bake_original(HeightView heights, Address address, ConeView out);
+
+// Chen & Chuang, Algorithm 1, as published: a max pyramid; the top level is searched; going down,
+// a texel whose height is within `similarity` of its parent's copies the parent's ratio, others
+// search with the parent's ratio as the initial short circuit. NOT conservative (see the tests):
+// the parent's ratio is measured between coarse texel centres.
+struct PaperAdaptiveSettings {
+  int levels = 3;            // coarse levels above the finest
+  float similarity = 0.05f;  // height difference (in [0, 1] units) below which a child copies
+};
+BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAdaptiveSettings& settings,
+                              ConeView out);
+
+// A time budget. The clock returns milliseconds and is injectable (tests use a fake clock); with no
+// clock a steady clock is used. max_work, when >= 0, also ends the refinement once that many work
+// units (see BakeStats::work) are spent - a deterministic budget for tests.
+// tolerance: a texel is refined only while its conservative ratio may be below (1 - tolerance) times
+// its exact ratio; every texel that refinement reaches is guaranteed within that factor of exact.
+// Tolerance 0 refines to the exact map.
+struct Budget {
+  double milliseconds = std::numeric_limits<double>::infinity();
+  std::function<double()> clock;
+  long long max_work = -1;
+  float tolerance = 0.1f;
+};
+
+// The product baker: hierarchical and adaptive, every emitted ratio is a lower bound of the exact
+// ratio at every budget (including zero), refinement continues across calls, and update() rebakes
+// only what a dirty region can have changed. Holds the state between frames.
+class BudgetedBaker {
+ public:
+  BudgetedBaker(int width, int height, int sector_count, Address address);
+  ~BudgetedBaker();
+  BudgetedBaker(BudgetedBaker&&) noexcept;
+  BudgetedBaker& operator=(BudgetedBaker&&) noexcept;
+
+  // A new frame where anything may have changed.
+  BakeStats bake(HeightView heights, const Budget& budget, ConeView out);
+  // A new frame whose heights differ from the previous call's only inside `dirty`. `out` must hold
+  // the map this baker emitted last time.
+  BakeStats update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out);
+  // Spends more budget refining the current frame; `out` must hold the map emitted last time.
+  BakeStats refine(const Budget& budget, ConeView out);
+  // Texels whose ratio may still be more than `tolerance` below exact (refinement would tighten them).
+  long long pending(float tolerance = 0.0f) const;
+
+  struct State;  // opaque: the previous frame's heights, pyramid and refinement queue
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
+// Convenience: one budgeted bake from scratch.
+BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budget, ConeView out);
+
+// Relaxed cone map (Policarpo & Oliveira, "Relaxed Cone Stepping for Relief Mapping"), for 1 or 4
+// sectors. The relaxed ratio of texel c in sector k is the largest r <= 1 such that every ray that
+// starts on the top plane (height 1) within the cone of ratio r above c and travels to c's apex
+// (c, h(c)), through directions of sector k, crosses the height field at most once: it never leaves
+// the relief after entering it. It is never smaller than the conservative ratio.
+BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
+
+// Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
+// texels, each the maximum of its (up to four) children; the last level is 1 x 1.
+struct MaxPyramid {
+  std::vector<int> widths, heights;
+  std::vector<std::vector<float>> levels;
+};
+MaxPyramid build_max_pyramid(HeightView heights);
+
+const char* mode_name(Mode mode);
+
+}  // namespace displace::bake

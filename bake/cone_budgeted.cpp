@@ -1,0 +1,502 @@
+// bake/cone_budgeted.cpp - the product baker: hierarchical, adaptive and conservative at every budget.
+//
+// Built on Chen & Chuang's adaptive hierarchical preprocessing (a max pyramid searched coarse to
+// fine), but it never copies a coarse ratio. Every ratio it emits is a minimum of pair ratios of
+// real texels and of bounds (distance to a pyramid block) / (block max - texel height), and such a
+// bound is never above the pair ratio of any texel inside the block (geometry.h), so every emitted
+// ratio is a lower bound of the exact one, whatever the budget.
+//
+// Stage A (always done, the fallback): texels are taken in groups of 8 x 8. For each group one
+// traversal of the pyramid collects candidate blockers: blocks near the group are opened down to
+// texels, blocks far from it (relative to their size) stay whole and act as bounds. Each texel then
+// scans the candidates in order of their group bound and stops as soon as none can lower it.
+// Stage B (while the budget lasts): texels whose bound may be loose by more than the tolerance are
+// refined by a branch and bound restricted to the coarse candidates. What is left over stays
+// conservative and is refined on the next call.
+// Incremental update: where heights rose, ratios around the dirty region are repaired in the same
+// call by an exact search over the dirty blocks; where they fell, stale ratios are still
+// conservative and are only marked for refinement.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstring>
+
+#include "bake/search.h"
+
+namespace displace::bake {
+
+namespace {
+
+using detail::Grid;
+using detail::Node;
+using detail::Pyramid;
+using detail::SearchContext;
+using detail::SectorMask;
+
+constexpr int group_level = 3;         // groups are 2^3 x 2^3 texels
+constexpr int group_size = 1 << group_level;
+constexpr int open_factor = 2;         // a block is opened while its gap to the group (texels) < factor * size
+
+struct Candidate {
+  int x0, x1, y0, y1;  // unrolled texel coordinates, inclusive
+  float max;           // block max height
+  float group_bound;   // lower bound for every texel of the group
+  Node node;
+};
+
+struct GroupRect {
+  int i0, i1, j0, j1;  // inclusive texel rows and columns
+};
+
+GroupRect group_rect(const Grid& grid, int group) {
+  const int groups_x = (grid.width + group_size - 1) / group_size;
+  const int gi = group / groups_x, gj = group % groups_x;
+  return {gi * group_size, std::min(grid.height, (gi + 1) * group_size) - 1, gj * group_size,
+          std::min(grid.width, (gj + 1) * group_size) - 1};
+}
+
+int group_count(const Grid& grid) {
+  return ((grid.width + group_size - 1) / group_size) * ((grid.height + group_size - 1) / group_size);
+}
+
+// One traversal of the pyramid for a group: every block that could hold a blocker for some texel of
+// the group ends up as a candidate, either opened down to a texel or kept whole when far enough.
+long long collect_candidates(const SearchContext& context, const GroupRect& g, float group_min,
+                             std::span<const Node> roots, std::vector<Candidate>& out) {
+  const Grid& grid = context.grid;
+  const Pyramid& pyramid = context.pyramid;
+  long long work = 0;
+  out.clear();
+  std::vector<Node> stack(roots.begin(), roots.end());
+  while (!stack.empty()) {
+    const Node node = stack.back();
+    stack.pop_back();
+    ++work;
+    const int count_x = pyramid.count_x(node.level), count_y = pyramid.count_y(node.level);
+    const int tile_x = detail::floor_div(node.nx, count_x), tile_y = detail::floor_div(node.ny, count_y);
+    const int bx = node.nx - tile_x * count_x, by = node.ny - tile_y * count_y;
+    const float block_max = pyramid.value(node.level, by, bx);
+    if (!(block_max > group_min)) continue;
+    int x0, x1, y0, y1;
+    detail::block_range(node.nx, node.level, count_x, grid.width, x0, x1);
+    detail::block_range(node.ny, node.level, count_y, grid.height, y0, y1);
+    // offsets q - c over every texel c of the group
+    const int gap_x = detail::interval_gap(x0 - g.j1, x1 - g.j0);
+    const int gap_y = detail::interval_gap(y0 - g.i1, y1 - g.i0);
+    const float bound = detail::pair_ratio(grid.distance(gap_x, gap_y), block_max - group_min);
+    if (!(bound < 1.0f)) continue;  // cannot beat the clamp
+    if (node.level > 0 && std::max(gap_x, gap_y) < open_factor * (1 << node.level)) {
+      const int level = node.level - 1;
+      const int child_count_x = pyramid.count_x(level), child_count_y = pyramid.count_y(level);
+      for (int dy = 0; dy < 2 && 2 * by + dy < child_count_y; ++dy)
+        for (int dx = 0; dx < 2 && 2 * bx + dx < child_count_x; ++dx)
+          stack.push_back({level, tile_x * child_count_x + 2 * bx + dx, tile_y * child_count_y + 2 * by + dy});
+      continue;
+    }
+    out.push_back({x0, x1, y0, y1, block_max, bound, node});
+  }
+  std::sort(out.begin(), out.end(),
+            [](const Candidate& a, const Candidate& b) { return a.group_bound < b.group_bound; });
+  return work;
+}
+
+// Scans a group's candidates for one texel. exact_best receives the pair-ratio minimum over the
+// candidate texels, coarse the minimum of the block bounds. Returns the work done.
+// With exact_only, the scan stops only when no candidate can lower exact_best (coarse bounds do not
+// end it), so exact_best is the minimum over every candidate texel that could matter.
+long long scan_candidates(const Grid& grid, std::span<const Candidate> candidates, int ci, int cj, float hc,
+                          bool exact_only, float* exact_best, float* coarse) {
+  const int sectors = grid.sector_count;
+  float largest = 1.0f;
+  long long work = 0;
+  for (const Candidate& c : candidates) {
+    if (!(c.group_bound < largest)) break;
+    ++work;
+    if (!(c.max > hc)) continue;
+    const int x0 = c.x0 - cj, x1 = c.x1 - cj, y0 = c.y0 - ci, y1 = c.y1 - ci;
+    const float ratio = detail::pair_ratio(
+        grid.distance(detail::interval_gap(x0, x1), detail::interval_gap(y0, y1)), c.max - hc);
+    const bool texel = c.node.level == 0;
+    const SectorMask mask = texel ? detail::point_sectors(grid, x0, y0) : detail::rect_sectors(grid, x0, x1, y0, y1);
+    float* target = texel ? exact_best : coarse;
+    bool lowered = false;
+    for (int k = 0; k < sectors; ++k)
+      if ((mask >> k & 1u) && ratio < target[k]) {
+        target[k] = ratio;
+        lowered = true;
+      }
+    if (lowered) {
+      largest = 0.0f;
+      for (int k = 0; k < sectors; ++k)
+        largest = std::max(largest, exact_only ? exact_best[k] : std::min(exact_best[k], coarse[k]));
+    }
+  }
+  return work;
+}
+
+}  // namespace
+
+struct BudgetedBaker::State {
+  Grid grid;
+  std::vector<float> heights;
+  Pyramid pyramid;
+  std::vector<Node> roots;
+  // per texel: emitted ratio / best known upper bound of the exact ratio (1 = known exact); the
+  // texel is refined while its slack is below 1 - tolerance
+  std::vector<float> slack;
+  std::vector<float> group_slack;  // smallest slack of each group
+  int cursor = 0;  // next group stage B looks at
+  State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
+};
+
+namespace {
+
+struct Clock {
+  std::function<double()> clock;
+  double start = 0.0;
+  double limit = 0.0;
+  long long max_work = -1;
+  std::atomic<long long> work{0};
+
+  explicit Clock(const Budget& budget) : clock(budget.clock), limit(budget.milliseconds), max_work(budget.max_work) {
+    if (!clock) {
+      clock = [] {
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
+            .count();
+      };
+    }
+    start = clock();
+  }
+  double elapsed() const { return clock() - start; }
+  bool exhausted() const {
+    if (max_work >= 0 && work.load(std::memory_order_relaxed) >= max_work) return true;
+    return !(elapsed() < limit);
+  }
+};
+
+// Stage A for one group: writes conservative ratios, flags texels whose bound may be loose.
+long long fallback_group(BudgetedBaker::State& state, int group, float keep, float* out,
+                         std::vector<Candidate>& candidates) {
+  const Grid& grid = state.grid;
+  const int sectors = grid.sector_count;
+  const SearchContext context{grid, state.pyramid};
+  const GroupRect g = group_rect(grid, group);
+  float group_min = 1.0f;
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) group_min = std::min(group_min, state.heights[std::size_t(i) * grid.width + j]);
+  long long work = collect_candidates(context, g, group_min, state.roots, candidates);
+  float group_slack = 1.0f;
+  float exact_best[8], coarse[8];
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) {
+      const std::size_t t = std::size_t(i) * grid.width + j;
+      std::fill_n(exact_best, sectors, 1.0f);
+      std::fill_n(coarse, sectors, 1.0f);
+      work += scan_candidates(grid, candidates, i, j, state.heights[t], false, exact_best, coarse);
+      float slack = 1.0f;
+      for (int k = 0; k < sectors; ++k) {
+        out[t * sectors + k] = std::min(exact_best[k], coarse[k]);
+        slack = std::min(slack, out[t * sectors + k] / exact_best[k]);
+      }
+      state.slack[t] = slack;
+      group_slack = std::min(group_slack, slack);
+    }
+  state.group_slack[group] = group_slack;
+  (void)keep;
+  return work;
+}
+
+// Stage B for one group: refines its pending texels with a search restricted to coarse candidates.
+long long refine_group(BudgetedBaker::State& state, int group, float keep, float* out,
+                       std::vector<Candidate>& candidates, long long& refined) {
+  const Grid& grid = state.grid;
+  const int sectors = grid.sector_count;
+  const SearchContext context{grid, state.pyramid};
+  const GroupRect g = group_rect(grid, group);
+  float group_min = 1.0f;
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) group_min = std::min(group_min, state.heights[std::size_t(i) * grid.width + j]);
+  long long work = collect_candidates(context, g, group_min, state.roots, candidates);
+  std::vector<Node> coarse_nodes;
+  float exact_best[8], coarse[8], floor[8];
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) {
+      const std::size_t t = std::size_t(i) * grid.width + j;
+      if (!(state.slack[t] < keep)) continue;
+      const float hc = state.heights[t];
+      std::fill_n(exact_best, sectors, 1.0f);
+      std::fill_n(coarse, sectors, 1.0f);
+      work += scan_candidates(grid, candidates, i, j, hc, true, exact_best, coarse);
+      // open the coarse candidates that may hold a better blocker than the texel candidates
+      float largest = 0.0f;
+      for (int k = 0; k < sectors; ++k) largest = std::max(largest, exact_best[k]);
+      coarse_nodes.clear();
+      for (const Candidate& c : candidates) {
+        if (!(c.group_bound < largest)) break;
+        if (c.node.level > 0 && c.max > hc) coarse_nodes.push_back(c.node);
+      }
+      std::fill_n(floor, sectors, 1.0f);
+      work += detail::search_texel_within(context, i, j, hc, coarse_nodes, keep, exact_best, floor);
+      float slack = 1.0f;
+      for (int k = 0; k < sectors; ++k) {
+        out[t * sectors + k] = std::min(exact_best[k], floor[k]);
+        slack = std::min(slack, out[t * sectors + k] / exact_best[k]);
+      }
+      state.slack[t] = slack;
+      ++refined;
+    }
+  float group_slack = 1.0f;
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) group_slack = std::min(group_slack, state.slack[std::size_t(i) * grid.width + j]);
+  state.group_slack[group] = group_slack;
+  return work;
+}
+
+}  // namespace
+
+BudgetedBaker::BudgetedBaker(int width, int height, int sector_count, Address address) {
+  if (width <= 0 || height <= 0) throw BakeError("budgeted baker needs a non-empty map");
+  if (!is_valid_sector_count(sector_count))
+    throw BakeError("sector count " + std::to_string(sector_count) + " is not supported (use 1, 4 or 8)");
+  state_ = std::make_unique<State>(width, height, sector_count, address);
+}
+BudgetedBaker::~BudgetedBaker() = default;
+BudgetedBaker::BudgetedBaker(BudgetedBaker&&) noexcept = default;
+BudgetedBaker& BudgetedBaker::operator=(BudgetedBaker&&) noexcept = default;
+
+long long BudgetedBaker::pending(float tolerance) const {
+  long long count = 0;
+  for (float slack : state_->slack) count += slack < 1.0f - tolerance;
+  return count;
+}
+
+namespace {
+
+void check_view(const BudgetedBaker::State& state, HeightView heights, const ConeView& out) {
+  validate(heights, out);
+  if (heights.width != state.grid.width || heights.height != state.grid.height ||
+      out.sector_count != state.grid.sector_count) {
+    throw BakeError("budgeted baker was made for a different map size or sector count");
+  }
+}
+
+void set_heights(BudgetedBaker::State& state, HeightView heights) {
+  state.heights.assign(heights.data, heights.data + std::size_t(heights.width) * heights.height);
+  state.pyramid = detail::make_pyramid(heights);
+  const SearchContext context{state.grid, state.pyramid};
+  state.roots = detail::root_nodes(context);
+}
+
+float keep_of(const Budget& budget) {
+  if (!(budget.tolerance >= 0.0f && budget.tolerance < 1.0f))
+    throw BakeError("budget tolerance must be in [0, 1)");
+  return 1.0f - budget.tolerance;
+}
+
+// Stage B over the pending groups, starting at the cursor, until the budget runs out.
+void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float* out, long long& refined) {
+  const int groups = group_count(state.grid);
+  std::vector<int> order;
+  for (int n = 0; n < groups; ++n) {
+    const int group = (state.cursor + n) % groups;
+    if (state.group_slack[group] < keep) order.push_back(group);
+  }
+  if (order.empty()) return;
+  std::atomic<long long> refined_total{0};
+  std::atomic<int> last_started{-1};
+  tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1), [&](const tbb::blocked_range<int>& range) {
+    std::vector<Candidate> candidates;
+    long long local_refined = 0;
+    for (int n = range.begin(); n < range.end(); ++n) {
+      if (clock.exhausted()) break;
+      int seen = last_started.load();
+      while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
+      }
+      clock.work += refine_group(state, order[n], keep, out, candidates, local_refined);
+    }
+    refined_total += local_refined;
+  });
+  refined += refined_total;
+  // continue after the furthest group started; groups skipped before it keep their pending flag
+  if (last_started >= 0) state.cursor = (order[last_started] + 1) % groups;
+}
+
+BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined, float* out) {
+  BakeStats stats;
+  stats.mode = Mode::budgeted;
+  stats.width = state.grid.width;
+  stats.height = state.grid.height;
+  stats.sector_count = state.grid.sector_count;
+  long long pending = 0;
+  for (float slack : state.slack) pending += slack < keep;
+  stats.texels_fallback = pending;
+  stats.texels_refined = refined;
+  stats.work = clock.work;
+  stats.milliseconds = clock.elapsed();
+  stats.mean_ratio = detail::mean_of(out, state.heights.size() * state.grid.sector_count);
+  return stats;
+}
+
+}  // namespace
+
+BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView out) {
+  State& state = *state_;
+  check_view(state, heights, out);
+  const float keep = keep_of(budget);
+  Clock clock(budget);
+  set_heights(state, heights);
+  const int groups = group_count(state.grid);
+  state.slack.assign(state.heights.size(), 1.0f);
+  state.group_slack.assign(groups, 1.0f);
+  state.cursor = 0;
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
+    std::vector<Candidate> candidates;
+    long long work = 0;
+    for (int group = range.begin(); group < range.end(); ++group)
+      work += fallback_group(state, group, keep, out.data, candidates);
+    clock.work += work;
+  });
+  long long refined = 0;
+  run_refinement(state, clock, keep, out.data, refined);
+  return finish(state, clock, keep, refined, out.data);
+}
+
+BakeStats BudgetedBaker::refine(const Budget& budget, ConeView out) {
+  State& state = *state_;
+  if (state.heights.empty()) throw BakeError("refine() needs a previous bake() or update()");
+  if (out.data == nullptr || out.width != state.grid.width || out.height != state.grid.height ||
+      out.sector_count != state.grid.sector_count)
+    throw BakeError("cone map output does not match the baker");
+  const float keep = keep_of(budget);
+  Clock clock(budget);
+  long long refined = 0;
+  run_refinement(state, clock, keep, out.data, refined);
+  return finish(state, clock, keep, refined, out.data);
+}
+
+BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget,
+                                ConeView out) {
+  State& state = *state_;
+  if (state.heights.empty()) return bake(heights, budget, out);
+  check_view(state, heights, out);
+  const float keep = keep_of(budget);
+  Clock clock(budget);
+  const Grid& grid = state.grid;
+  const int sectors = grid.sector_count;
+  const int width = grid.width, height = grid.height;
+
+  // clip the dirty rectangles, and check that nothing changed outside them
+  std::vector<Rect> rects;
+  std::vector<std::uint8_t> inside(state.heights.size(), 0);
+  for (Rect r : dirty) {
+    r.x0 = std::clamp(r.x0, 0, width), r.x1 = std::clamp(r.x1, 0, width);
+    r.y0 = std::clamp(r.y0, 0, height), r.y1 = std::clamp(r.y1, 0, height);
+    if (r.x0 >= r.x1 || r.y0 >= r.y1) continue;
+    rects.push_back(r);
+    for (int i = r.y0; i < r.y1; ++i) std::memset(&inside[std::size_t(i) * width + r.x0], 1, r.x1 - r.x0);
+  }
+  for (std::size_t t = 0; t < state.heights.size(); ++t)
+    if (!inside[t] && heights.data[t] != state.heights[t])
+      throw BakeError("height changed outside the dirty region at texel (" + std::to_string(t / width) + ", " +
+                      std::to_string(t % width) + ")");
+
+  // per rectangle: the largest new height, and the largest height that fell (old value)
+  struct DirtyInfo {
+    Rect rect;
+    float new_max = 0.0f;
+    float fallen_max = -1.0f;  // < 0: nothing fell
+  };
+  std::vector<DirtyInfo> infos;
+  for (const Rect& r : rects) {
+    DirtyInfo info{r};
+    for (int i = r.y0; i < r.y1; ++i)
+      for (int j = r.x0; j < r.x1; ++j) {
+        const std::size_t t = std::size_t(i) * width + j;
+        info.new_max = std::max(info.new_max, heights.data[t]);
+        if (heights.data[t] < state.heights[t]) info.fallen_max = std::max(info.fallen_max, state.heights[t]);
+      }
+    infos.push_back(info);
+  }
+  set_heights(state, heights);
+  const SearchContext context{grid, state.pyramid};
+
+  const int groups = group_count(grid);
+  const int tiles = grid.address == Address::wrap ? 1 : 0;
+  // group-level bound of a dirty rectangle with height `top` against texels of height >= group_min
+  auto rect_bound = [&](const GroupRect& g, const Rect& r, float top, float group_min) {
+    float bound = 1.0f;
+    if (!(top > group_min)) return bound;
+    for (int ty = -tiles; ty <= tiles; ++ty)
+      for (int tx = -tiles; tx <= tiles; ++tx) {
+        const int x0 = r.x0 + tx * width, x1 = r.x1 - 1 + tx * width;
+        const int y0 = r.y0 + ty * height, y1 = r.y1 - 1 + ty * height;
+        const int gap_x = detail::interval_gap(x0 - g.j1, x1 - g.j0);
+        const int gap_y = detail::interval_gap(y0 - g.i1, y1 - g.i0);
+        bound = std::min(bound, detail::pair_ratio(grid.distance(gap_x, gap_y), top - group_min));
+      }
+    return bound;
+  };
+
+  long long refined = 0;
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
+    std::vector<Candidate> candidates;
+    std::vector<Node> dirty_nodes;
+    long long work = 0;
+    float best[8];
+    for (int group = range.begin(); group < range.end(); ++group) {
+      const GroupRect g = group_rect(grid, group);
+      bool touches = false;
+      float group_min = 1.0f, group_max_ratio = 0.0f;
+      for (int i = g.i0; i <= g.i1; ++i)
+        for (int j = g.j0; j <= g.j1; ++j) {
+          const std::size_t t = std::size_t(i) * width + j;
+          touches |= inside[t] != 0;
+          group_min = std::min(group_min, heights.data[t]);
+          for (int k = 0; k < sectors; ++k) group_max_ratio = std::max(group_max_ratio, out.data[t * sectors + k]);
+        }
+      if (touches) {  // the group's own heights changed: recompute it
+        work += fallback_group(state, group, keep, out.data, candidates);
+        continue;
+      }
+      bool raised = false, fell = false;
+      for (const DirtyInfo& info : infos) {
+        ++work;
+        raised |= rect_bound(g, info.rect, info.new_max, group_min) < group_max_ratio;
+        fell |= info.fallen_max >= 0.0f && rect_bound(g, info.rect, info.fallen_max, group_min) <= group_max_ratio;
+      }
+      if (raised) {  // repair now: exact search over the dirty blocks, starting from the stored ratios
+        for (const DirtyInfo& info : infos) {
+          const std::vector<Node> nodes = detail::nodes_covering(context, info.rect, group_level);
+          dirty_nodes.insert(dirty_nodes.end(), nodes.begin(), nodes.end());
+        }
+        for (int i = g.i0; i <= g.i1; ++i)
+          for (int j = g.j0; j <= g.j1; ++j) {
+            const std::size_t t = std::size_t(i) * width + j;
+            std::copy_n(out.data + t * sectors, sectors, best);
+            work += detail::search_texel(context, i, j, heights.data[t], dirty_nodes, best);
+            std::copy_n(best, sectors, out.data + t * sectors);
+          }
+        dirty_nodes.clear();
+      }
+      if (fell) {  // stale ratios stay conservative; tighten them later
+        for (int i = g.i0; i <= g.i1; ++i)
+          for (int j = g.j0; j <= g.j1; ++j) state.slack[std::size_t(i) * width + j] = 0.0f;
+        state.group_slack[group] = 0.0f;
+      }
+    }
+    clock.work += work;
+  });
+  run_refinement(state, clock, keep, out.data, refined);
+  return finish(state, clock, keep, refined, out.data);
+}
+
+BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budget, ConeView out) {
+  validate(heights, out);
+  BudgetedBaker baker(heights.width, heights.height, out.sector_count, address);
+  return baker.bake(heights, budget, out);
+}
+
+}  // namespace displace::bake

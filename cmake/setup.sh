@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
+# builds in ./build (Release), then runs what was asked:
+#   bash cmake/setup.sh main    # the main job on the built-in default scene (writes out/)
+#   bash cmake/setup.sh test    # the whole test suite (ctest)
+#   bash cmake/setup.sh build   # only install + configure + build
+set -euo pipefail
+mode="${1:-build}"
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${DISPLACE_BUILD_DIR:-$root/build}"
+
+packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev)
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing missing Debian packages: ${missing[*]}"
+  sudo_cmd=()
+  if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+jobs="$(nproc 2>/dev/null || echo 2)"
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j "$jobs"
+
+case "$mode" in
+  build) ;;
+  main)
+    cd "$root"
+    "$build/displace" demo ;;
+  test)
+    cd "$build"
+    ctest --output-on-failure -j "$jobs" ;;
+  *)
+    echo "setup: unknown mode '$mode' (use main, test or build)" >&2
+    exit 2 ;;
+esac

@@ -1,0 +1,403 @@
+// demos/commands.cpp - the `displace` subcommands: sim (synthesize and write raw heights), bake
+// (heights from a file or a source to a cone map), demo (the default ocean scene end to end).
+//
+// The one fact to know: a PNG cone map is baked from the heights quantized to 8 bits, the heights
+// it stores, so its cones are conservative for what an engine reads back (see cone_export.h).
+#include "demos/commands.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+namespace displace::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double milliseconds_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::string format(const char* pattern, auto... values) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof buffer, pattern, values...);
+  return buffer;
+}
+
+const char* source_name(SourceKind kind) { return kind == SourceKind::ocean ? "ocean" : "sinusoids"; }
+const char* spectrum_name(sim::Spectrum spectrum) {
+  return spectrum == sim::Spectrum::phillips ? "phillips" : "jonswap";
+}
+
+Metadata synthesis_metadata(const SourceSettings& source, const sim::HeightMapping& mapping) {
+  Metadata metadata = {
+      {"displace:units", std::string("metres")},
+      {"displace:source", std::string(source_name(source.kind))},
+      {"displace:time", source.time},
+      {"displace:height_scale", mapping.scale},
+      {"displace:height_bias", mapping.bias},
+  };
+  if (source.kind == SourceKind::ocean) {
+    const sim::OceanParams& ocean = source.ocean;
+    const Metadata ocean_metadata = {
+        {"displace:seed", std::to_string(ocean.seed)},
+        {"displace:patch_size", ocean.patch_size},
+        {"displace:spectrum", std::string(spectrum_name(ocean.spectrum))},
+        {"displace:wind_speed", ocean.wind_speed},
+        {"displace:wind_direction", ocean.wind_direction},
+        {"displace:fetch", ocean.fetch},
+        {"displace:peak_enhancement", ocean.peak_enhancement},
+        {"displace:spreading", ocean.spreading},
+        {"displace:phillips_amplitude", ocean.phillips_amplitude},
+        {"displace:small_wave_cutoff", ocean.small_wave_cutoff},
+        {"displace:choppiness", ocean.choppiness},
+        {"displace:gravity", ocean.gravity},
+    };
+    metadata.insert(metadata.end(), ocean_metadata.begin(), ocean_metadata.end());
+  } else {
+    const sim::SinusoidParams& waves = source.sinusoids;
+    const Metadata wave_metadata = {
+        {"displace:seed", std::to_string(waves.seed)},
+        {"displace:patch_size", waves.patch_size},
+        {"displace:wave_count", waves.wave_count},
+        {"displace:wavelength_min", waves.wavelength_min},
+        {"displace:wavelength_max", waves.wavelength_max},
+        {"displace:steepness", waves.steepness},
+        {"displace:wind_direction", waves.wind_direction},
+        {"displace:direction_spread", waves.direction_spread},
+        {"displace:tileable", waves.tileable ? 1 : 0},
+        {"displace:gravity", waves.gravity},
+    };
+    metadata.insert(metadata.end(), wave_metadata.begin(), wave_metadata.end());
+  }
+  return metadata;
+}
+
+// The attributes of the heights, renamed for a cone map whose own `height` channel is in [0, 1].
+Metadata source_attributes_for_cones(const Metadata& metadata) {
+  Metadata renamed;
+  for (Attribute attribute : metadata) {
+    if (attribute.name == "displace:height_scale") attribute.name = "displace:source_height_scale";
+    if (attribute.name == "displace:height_bias") attribute.name = "displace:source_height_bias";
+    if (attribute.name == "displace:units") continue;
+    renamed.push_back(std::move(attribute));
+  }
+  return renamed;
+}
+
+std::string mapping_phrase(const sim::HeightMapping& mapping) {
+  return format("raw * %.6g %c %.6g", double(mapping.scale), mapping.bias < 0.0f ? '-' : '+',
+                std::abs(double(mapping.bias)));
+}
+
+std::string clamped_phrase(std::size_t clamped) {
+  return clamped ? format(", %zu clamped", clamped) : std::string();
+}
+
+std::string budget_phrase(double milliseconds) {
+  return std::isinf(milliseconds) ? std::string("unlimited budget") : format("%.6g ms budget", milliseconds);
+}
+
+std::string stats_phrase(const bake::BakeStats& stats) {
+  return format("%.1f ms, mean ratio %.4f, %lld texels refined, %lld fallback", stats.milliseconds,
+                stats.mean_ratio, stats.texels_refined, stats.texels_fallback);
+}
+
+void make_output_directory(const std::filesystem::path& directory) {
+  std::error_code error;
+  std::filesystem::create_directories(directory, error);
+  if (error || !std::filesystem::is_directory(directory)) {
+    throw runtime_error("cannot create the directory '" + directory.string() +
+                        "': " + (error ? error.message() : std::string("not a directory")));
+  }
+}
+
+}  // namespace
+
+SynthesizedHeights synthesize(const SourceSettings& source) {
+  const auto start = Clock::now();
+  SynthesizedHeights result;
+  result.width = source.size;
+  result.height = source.size;
+  try {
+    if (source.kind == SourceKind::ocean) {
+      sim::OceanParams params = source.ocean;
+      params.size = source.size;
+      sim::Ocean ocean(params);
+      sim::OceanFrame frame;
+      ocean.evaluate(source.time, sim::ocean_heights, frame);
+      result.raw = std::move(frame.height);
+      result.mapping = ocean.mapping();
+    } else {
+      const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(source.sinusoids);
+      result.raw.resize(std::size_t(source.size) * std::size_t(source.size));
+      sim::sinusoid_heights(waves, source.sinusoids.patch_size, source.time, source.size, source.size,
+                            result.raw);
+      result.mapping = sim::sinusoid_mapping(waves);
+    }
+  } catch (const std::invalid_argument& error) {
+    throw usage_error(std::string("bad ") + source_name(source.kind) + " parameters: " + error.what());
+  }
+  result.milliseconds = milliseconds_since(start);
+
+  if (result.raw.size() != std::size_t(result.width) * std::size_t(result.height)) {
+    throw runtime_error(std::string("the ") + source_name(source.kind) + " source returned " +
+                        std::to_string(result.raw.size()) + " heights for a " + std::to_string(source.size) +
+                        " x " + std::to_string(source.size) + " grid");
+  }
+  for (float h : result.raw) {
+    if (!std::isfinite(h))
+      throw runtime_error(std::string("the ") + source_name(source.kind) +
+                          " source produced a non-finite height");
+  }
+  if (!std::isfinite(result.mapping.scale) || !std::isfinite(result.mapping.bias)) {
+    throw runtime_error(std::string("the ") + source_name(source.kind) +
+                        " source has no finite height mapping");
+  }
+  result.metadata = synthesis_metadata(source, result.mapping);
+  return result;
+}
+
+void write_height_exr(const std::filesystem::path& file, const SynthesizedHeights& heights) {
+  const ExrChannel channel{"height", heights.raw};
+  write_exr(file, heights.width, heights.height, std::span(&channel, 1), heights.metadata);
+}
+
+BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& input) {
+  BakeInput prepared;
+  if (const auto* file = std::get_if<FileInput>(&input)) {
+    LoadedHeights loaded = load_heights(file->path, file->load);
+    prepared.width = loaded.width;
+    prepared.height = loaded.height;
+    prepared.heights = std::move(loaded.heights);
+    const char* format_name = loaded.format == SampleFormat::uint8    ? "8-bit"
+                              : loaded.format == SampleFormat::uint16 ? "16-bit"
+                                                                      : "float";
+    prepared.description = std::string("'") + file->path.string() + "' (" + format_name + " channel '" +
+                           loaded.channel_name + "', h = " + mapping_phrase(loaded.mapping) +
+                           (loaded.inverted ? ", inverted" : "") + clamped_phrase(loaded.clamped) + ")";
+    prepared.metadata = {
+        {"displace:input", file->path.string()},
+        {"displace:input_channel", loaded.channel_name},
+        {"displace:source_height_scale", loaded.mapping.scale},
+        {"displace:source_height_bias", loaded.mapping.bias},
+        {"displace:source_inverted", loaded.inverted ? 1 : 0},
+    };
+  } else {
+    const SourceSettings& source = std::get<SourceSettings>(input);
+    SynthesizedHeights synthesized = synthesize(source);
+    prepared.width = synthesized.width;
+    prepared.height = synthesized.height;
+    prepared.heights.resize(synthesized.raw.size());
+    const std::size_t clamped = sim::apply_mapping(synthesized.mapping, synthesized.raw, prepared.heights);
+    prepared.description = std::string(source_name(source.kind)) +
+                           format(" at t = %g s (h = ", double(source.time)) +
+                           mapping_phrase(synthesized.mapping) + clamped_phrase(clamped) + ")";
+    prepared.metadata = source_attributes_for_cones(synthesized.metadata);
+  }
+  return prepared;
+}
+
+BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                      bake::Address address, double budget_milliseconds) {
+  if (baker == Baker::relaxed && sector_count != 1 && sector_count != 4) {
+    throw usage_error("the relaxed baker supports 1 or 4 sectors, not " + std::to_string(sector_count));
+  }
+  BakedCones baked;
+  baked.ratios.assign(std::size_t(width) * std::size_t(height) * std::size_t(sector_count), 0.0f);
+  const bake::HeightView view{heights.data(), width, height};
+  const bake::ConeView cones{baked.ratios.data(), width, height, sector_count};
+
+  const auto start = Clock::now();
+  switch (baker) {
+    case Baker::exact:
+      baked.stats = bake::bake_exact(view, address, cones);
+      break;
+    case Baker::original:
+      baked.stats = bake::bake_original(view, address, cones);
+      break;
+    case Baker::paper_adaptive:
+      baked.stats = bake::bake_paper_adaptive(view, address, bake::PaperAdaptiveSettings{}, cones);
+      break;
+    case Baker::budgeted: {
+      bake::Budget budget;
+      budget.milliseconds = budget_milliseconds;
+      baked.stats = bake::bake_budgeted(view, address, budget, cones);
+      break;
+    }
+    case Baker::relaxed:
+      baked.stats = bake::bake_relaxed(view, address, cones);
+      break;
+  }
+  const double elapsed = milliseconds_since(start);
+  if (!(baked.stats.milliseconds > 0.0) || !std::isfinite(baked.stats.milliseconds)) {
+    baked.stats.milliseconds = elapsed;
+  }
+  baked.stats.width = width;
+  baked.stats.height = height;
+  baked.stats.sector_count = sector_count;
+  return baked;
+}
+
+std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address) {
+  const auto finite = [](double value) { return std::isfinite(value) ? value : 0.0; };
+  return format(
+      "{\"mode\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\",\"milliseconds\":%.6f,"
+      "\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%.9g}",
+      baker_name(baker), stats.width, stats.height, stats.sector_count, address_name(address),
+      finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback, stats.work,
+      finite(stats.mean_ratio));
+}
+
+void run_sim(const SimSettings& settings, std::ostream& out) {
+  const SynthesizedHeights heights = synthesize(settings.source);
+  write_height_exr(settings.output, heights);
+  out << "displace: synthesized " << source_name(settings.source.kind) << " heights " << heights.width
+      << " x " << heights.height
+      << format(" at t = %g s in %.1f ms (h01 = ", double(settings.source.time), heights.milliseconds)
+      << mapping_phrase(heights.mapping) << "); wrote raw metres to '" << settings.output.string() << "'\n";
+}
+
+void run_bake(const BakeSettings& settings, std::ostream& out) {
+  BakeInput input = prepare_bake_input(settings.input);
+  const bool png = settings.output_format == ImageFormat::png;
+  if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
+
+  const BakedCones baked = bake_cones(input.heights, input.width, input.height, settings.sector_count,
+                                      settings.baker, settings.address, settings.budget_milliseconds);
+  const ConeMapExport cones{input.width,  input.height,     settings.sector_count, input.heights,
+                            baked.ratios, settings.address, settings.baker};
+  Metadata metadata = input.metadata;
+  metadata.push_back({"displace:heights_quantized_8bit", png ? 1 : 0});
+  if (png) {
+    write_cone_png(settings.output, cones, metadata);
+  } else {
+    write_cone_exr(settings.output, cones, metadata);
+  }
+
+  if (settings.stats) {
+    out << stats_json(baked.stats, settings.baker, settings.address) << '\n';
+  } else {
+    out << "displace: baked " << settings.sector_count << "-sector cones for " << input.width << " x "
+        << input.height << " heights from " << input.description << " with the " << baker_name(settings.baker)
+        << " baker (" << address_name(settings.address)
+        << (settings.baker == Baker::budgeted ? ", " + budget_phrase(settings.budget_milliseconds) : "")
+        << "): " << stats_phrase(baked.stats) << "; wrote '" << settings.output.string() << "'"
+        << (png ? " (heights quantized to 8 bits before baking)" : "") << '\n';
+  }
+}
+
+void run_demo(const DemoSettings& settings, std::ostream& out) {
+  constexpr int demo_sectors = 4;
+  const bake::Address address = bake::Address::wrap;  // an FFT ocean tiles
+  make_output_directory(settings.output_directory);
+  const std::filesystem::path height_file = settings.output_directory / "ocean_height.exr";
+  const std::filesystem::path exr_file = settings.output_directory / "ocean_cone4.exr";
+  const std::filesystem::path png_file = settings.output_directory / "ocean_cone4.png";
+
+  // synthesize the default ocean frame
+  SourceSettings source;
+  source.kind = SourceKind::ocean;
+  source.size = settings.size;
+  source.time = 0.0f;
+  source.ocean.size = settings.size;
+  const SynthesizedHeights ocean = synthesize(source);
+  write_height_exr(height_file, ocean);
+  out << format(
+      "displace demo: FFT ocean %d x %d (%g m patch, %s spectrum, wind %g m/s), t = 0 s, "
+      "synthesized in %.1f ms\n",
+      ocean.width, ocean.height, double(source.ocean.patch_size), spectrum_name(source.ocean.spectrum),
+      double(source.ocean.wind_speed), ocean.milliseconds);
+  out << "  wrote " << height_file.string() << " (raw metres, channel height)\n";
+
+  // map to [0, 1] with the spectrum's fixed mapping
+  std::vector<float> heights(ocean.raw.size());
+  const std::size_t clamped = sim::apply_mapping(ocean.mapping, ocean.raw, heights);
+  out << "  mapped to [0, 1] as h = " << mapping_phrase(ocean.mapping) << " (+-3 sigma of the spectrum), "
+      << clamped << " samples clamped\n";
+
+  // bake and write the float cone map
+  const Metadata metadata = source_attributes_for_cones(ocean.metadata);
+  const double unlimited = std::numeric_limits<double>::infinity();
+  const BakedCones baked =
+      bake_cones(heights, ocean.width, ocean.height, demo_sectors, Baker::budgeted, address, unlimited);
+  write_cone_exr(exr_file,
+                 {ocean.width, ocean.height, demo_sectors, heights, baked.ratios, address, Baker::budgeted},
+                 metadata);
+  out << "  baked 4-sector cones (budgeted, unlimited budget, wrap): " << stats_phrase(baked.stats) << '\n';
+  out << "  wrote " << exr_file.string() << " (channels height, cone0..cone3)\n";
+
+  // bake the 8-bit heights again for the PNG, so its cones hold for the heights it stores
+  std::vector<float> heights_8bit = heights;
+  quantize_heights_8bit(heights_8bit);
+  const BakedCones baked_8bit =
+      bake_cones(heights_8bit, ocean.width, ocean.height, demo_sectors, Baker::budgeted, address, unlimited);
+  Metadata png_metadata = metadata;
+  png_metadata.push_back({"displace:heights_quantized_8bit", 1});
+  write_cone_png(
+      png_file,
+      {ocean.width, ocean.height, demo_sectors, heights_8bit, baked_8bit.ratios, address, Baker::budgeted},
+      png_metadata);
+  out << "  baked the 8-bit heights again for the PNG: " << stats_phrase(baked_8bit.stats) << '\n';
+  out << "  wrote " << png_file.string() << " (" << 2 * ocean.width << " x " << ocean.height
+      << ": cone panel RGBA = sqrt(ratio) of sectors 0..3, then height panel R = height)\n";
+}
+
+std::string usage_text() {
+  return R"(displace - height fields, cone maps and their export
+
+usage:
+  displace sim --source ocean|sinusoids --size N --time T [synthesis options] --output F.exr
+      Synthesize heights and write raw metres to channel `height`, with the source parameters and
+      the [0, 1] mapping (displace:height_scale, displace:height_bias) as EXR attributes.
+
+  displace bake (--input H.png|H.exr [--channel C] [--invert] [--height-range LO,HI]
+                | --source ocean|sinusoids --size N --time T [synthesis options])
+                --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] | --relaxed)
+                [--address wrap|clamp] --output C.exr|C.png [--stats]
+      Bake a cone map. --input: 8/16-bit images map as value / maximum; float images map their
+      min..max to 0..1 unless --height-range LO,HI is given or the file was written by
+      `displace sim`. --channel takes a name or an index (default: `height`, or the only grey
+      channel). --invert: the image stores depth (1 = deepest). --relaxed bakes relaxed cones
+      (sectors 1 or 4). A .png output quantizes the heights to 8 bits before baking so that its
+      cones are conservative for the heights it stores. --stats prints one JSON line.
+
+  displace demo [--size N] [--output-dir DIR]
+      Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
+      out/ocean_cone4.png, baked with the budgeted baker and an unlimited budget.
+
+  displace help | --help
+
+synthesis options:
+  --seed S               random seed (non-negative integer)
+  --patch-size M         metres covered by the map (ocean 200, sinusoids 4)
+  --wind-direction DEG   azimuth of the wind / mean wave direction, degrees
+  --wind-speed V         ocean: m/s at 10 m (default 12)
+  --spectrum S           ocean: phillips (default) or jonswap
+  --fetch KM             ocean, jonswap only: fetch in km (default 200)
+  --spreading S          ocean: directional spreading exponent (default 2)
+  --choppiness L         ocean: horizontal displacement scale, recorded only (default 1)
+  --waves K              sinusoids: number of waves (default 12)
+
+exit status: 0 success, 1 runtime error (files, images, baking), 2 usage error.
+)";
+}
+
+int run_command(const CommandSettings& settings, std::ostream& out) {
+  if (std::holds_alternative<HelpSettings>(settings)) {
+    out << usage_text();
+  } else if (const auto* sim_settings = std::get_if<SimSettings>(&settings)) {
+    run_sim(*sim_settings, out);
+  } else if (const auto* bake_settings = std::get_if<BakeSettings>(&settings)) {
+    run_bake(*bake_settings, out);
+  } else {
+    run_demo(std::get<DemoSettings>(settings), out);
+  }
+  out.flush();
+  return 0;
+}
+
+}  // namespace displace::app

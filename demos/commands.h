@@ -1,0 +1,65 @@
+// demos/commands.h - the `displace` subcommands as named stages that take typed settings.
+//
+// Each stage is callable alone (the tests do): synthesize a height field, map it to [0, 1], bake
+// cones, export. The run_* functions chain them for one subcommand and print what they did.
+// Failures throw AppError (std::invalid_argument from sim and bake::BakeError pass through to the
+// CLI boundary in displace_main.cpp).
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "bake/bake.h"
+#include "demos/cone_export.h"
+#include "demos/image_io.h"
+#include "demos/options.h"
+#include "sim/sim.h"
+
+namespace displace::app {
+
+// Raw heights in metres from a source, with the source's fixed mapping to [0, 1] and the
+// attributes that describe it (source, time, seed, patch size, spectrum, scale, bias).
+struct SynthesizedHeights {
+  int width = 0;
+  int height = 0;
+  std::vector<float> raw;  // metres
+  sim::HeightMapping mapping;
+  Metadata metadata;
+  double milliseconds = 0.0;
+};
+SynthesizedHeights synthesize(const SourceSettings& source);
+
+// Writes raw metres to channel `height` with the synthesis attributes.
+void write_height_exr(const std::filesystem::path& file, const SynthesizedHeights& heights);
+
+// Heights in [0, 1] ready to bake, whatever they came from.
+struct BakeInput {
+  int width = 0;
+  int height = 0;
+  std::vector<float> heights;
+  std::string description;  // one phrase for the human line: where the heights came from
+  Metadata metadata;        // passed on to the exported cone map
+};
+BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& input);
+
+struct BakedCones {
+  std::vector<float> ratios;  // interleaved, width * height * sector_count
+  bake::BakeStats stats;
+};
+BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                      bake::Address address, double budget_milliseconds);
+
+// The --stats JSON line (no trailing newline).
+std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address);
+
+void run_sim(const SimSettings& settings, std::ostream& out);
+void run_bake(const BakeSettings& settings, std::ostream& out);
+void run_demo(const DemoSettings& settings, std::ostream& out);
+
+std::string usage_text();
+
+// Runs one parsed command; returns the exit status.
+int run_command(const CommandSettings& settings, std::ostream& out);
+
+}  // namespace displace::app

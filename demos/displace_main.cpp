@@ -1,0 +1,54 @@
+// demos/displace_main.cpp - the `displace` CLI: parse, run, and the one place errors are caught.
+//
+// A user sees "displace: error: <message>" on stderr and exit status 2 (usage) or 1 (runtime),
+// never a stack trace.
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <new>
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+#include "bake/bake.h"
+#include "demos/commands.h"
+#include "demos/error.h"
+#include "demos/options.h"
+
+namespace {
+
+constexpr int exit_runtime_error = 1;
+constexpr int exit_usage_error = 2;
+
+int report(std::string_view message, int status) {
+  std::cerr << "displace: error: " << message << '\n';
+  if (status == exit_usage_error) std::cerr << "run 'displace --help' for usage\n";
+  return status;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace displace;
+  const std::vector<std::string_view> args(argv + 1, argv + argc);
+  if (args.empty()) {
+    std::cerr << app::usage_text();
+    return exit_usage_error;
+  }
+  try {
+    const app::CommandSettings settings = app::parse_command_line(args);
+    return app::run_command(settings, std::cout);
+  } catch (const app::AppError& error) {
+    return report(error.what(), error.kind == app::ErrorKind::usage ? exit_usage_error : exit_runtime_error);
+  } catch (const bake::BakeError& error) {
+    return report(std::string("bake: ") + error.what(), exit_runtime_error);
+  } catch (const std::invalid_argument& error) {
+    return report(error.what(), exit_usage_error);
+  } catch (const std::bad_alloc&) {
+    return report("out of memory", exit_runtime_error);
+  } catch (const std::exception& error) {
+    return report(error.what(), exit_runtime_error);
+  } catch (...) {
+    return report("unexpected failure", exit_runtime_error);
+  }
+}

@@ -1,0 +1,27 @@
+// demos/error.h - the one exception type of the application layer.
+//
+// Everything the user or the environment got wrong (bad flag, missing file, unreadable image) is
+// thrown as AppError with a message that names the flag or file; `main` catches it at the CLI
+// boundary, prints "displace: error: <message>" and exits 2 for usage errors, 1 for runtime errors.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace displace::app {
+
+enum class ErrorKind {
+  usage,    // the command line is wrong (exit status 2)
+  runtime,  // the command line was fine but the work failed: files, images, bakers (exit status 1)
+};
+
+struct AppError : std::runtime_error {
+  AppError(ErrorKind error_kind, const std::string& message)
+      : std::runtime_error(message), kind(error_kind) {}
+  ErrorKind kind;
+};
+
+inline AppError usage_error(const std::string& message) { return AppError(ErrorKind::usage, message); }
+inline AppError runtime_error(const std::string& message) { return AppError(ErrorKind::runtime, message); }
+
+}  // namespace displace::app

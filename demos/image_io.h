@@ -1,0 +1,117 @@
+// demos/image_io.h - height images in, float EXR and RGBA8 PNG out (OpenImageIO).
+//
+// The one fact to know: a loaded height map is in [0, 1] with 1 = top, and the mapping from the
+// file's samples to that range is always explicit and recorded (LoadedHeights::mapping):
+//   h01 = clamp(raw * scale + bias, 0, 1), then h01 = 1 - h01 when `invert` is set.
+// - 8-bit and 16-bit integer samples: raw is the integer, scale = 1 / (2^bits - 1), bias = 0.
+// - float samples (half, float, double): an explicit range [lo, hi] maps to [0, 1]; it is, in order
+//   of preference, the user's --height-range, the mapping recorded by `displace sim` in the file
+//   (attributes displace:height_scale / displace:height_bias, for a channel named `height`), or the
+//   image's own min / max (a flat image maps to 0).
+// Every failure throws AppError naming the file.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "demos/error.h"
+#include "sim/sim.h"
+
+namespace displace::app {
+
+// Which channel holds the heights. Neither set: the channel named `height` if there is one, else
+// the only channel (or the grey channel of grey + alpha).
+struct ChannelChoice {
+  int index = -1;    // >= 0: this channel index
+  std::string name;  // non-empty: the channel with this name
+};
+
+// Raw float values [low, high] that map to [0, 1].
+struct HeightRange {
+  float low = 0.0f;
+  float high = 1.0f;
+};
+
+struct HeightLoadSettings {
+  ChannelChoice channel;
+  bool invert = false;               // the file stores depth: 1 = deepest
+  std::optional<HeightRange> range;  // float images only
+};
+
+enum class SampleFormat { uint8, uint16, floating };
+
+// Where LoadedHeights::mapping came from.
+enum class MappingOrigin { integer_max, user_range, file_metadata, image_min_max };
+
+struct LoadedHeights {
+  int width = 0;
+  int height = 0;
+  std::vector<float> heights;  // width * height, row-major, in [0, 1], 1 = top
+  sim::HeightMapping mapping;  // h01 = raw * scale + bias before inversion
+  MappingOrigin mapping_origin = MappingOrigin::integer_max;
+  bool inverted = false;
+  SampleFormat format = SampleFormat::uint8;
+  int channel_index = 0;
+  std::string channel_name;
+  std::size_t clamped = 0;  // samples outside the mapped range, clamped to 0 or 1
+};
+
+// The largest width or height the application layer accepts (texels).
+inline constexpr int max_image_side = 16384;
+
+LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings);
+
+// Image attributes: EXR header attributes or PNG text chunks.
+using AttributeValue = std::variant<std::string, float, int>;
+struct Attribute {
+  std::string name;
+  AttributeValue value;
+};
+using Metadata = std::vector<Attribute>;
+
+const Attribute* find_attribute(const Metadata& metadata, std::string_view name);
+
+// One planar float channel of width * height samples.
+struct ExrChannel {
+  std::string name;
+  std::span<const float> samples;
+};
+
+// Writes a float32 EXR (zip compressed) with the named channels and attributes.
+void write_exr(const std::filesystem::path& file, int width, int height, std::span<const ExrChannel> channels,
+               const Metadata& metadata);
+
+// Writes an 8-bit RGBA PNG from interleaved, unassociated (straight) RGBA samples; the attributes
+// become text chunks (numbers in decimal). No colour conversion and no colour chunk: the bytes are
+// stored as given.
+void write_png_rgba8(const std::filesystem::path& file, int width, int height,
+                     std::span<const std::uint8_t> rgba, const Metadata& metadata);
+
+// Any image, every channel converted to float, interleaved.
+struct FloatImage {
+  int width = 0;
+  int height = 0;
+  std::vector<std::string> channel_names;
+  std::vector<float> pixels;
+  Metadata metadata;
+
+  // The planar samples of one channel; throws AppError when there is no such channel.
+  std::vector<float> channel(std::string_view name) const;
+};
+FloatImage read_float_image(const std::filesystem::path& file);
+
+// An 8-bit, 4-channel image exactly as stored (alpha is not applied to the colour channels).
+struct Rgba8Image {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> pixels;  // interleaved RGBA
+  Metadata metadata;
+};
+Rgba8Image read_rgba8_image(const std::filesystem::path& file);
+
+}  // namespace displace::app

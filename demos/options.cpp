@@ -1,0 +1,428 @@
+// demos/options.cpp - parses `displace` argv into the typed settings of options.h.
+//
+// Flags take their value as the next argument or after '=' (--size 512, --size=512). Each flag may
+// be given once; a flag that does not apply to the chosen source or mode is an error, not ignored.
+#include "demos/options.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <set>
+#include <string>
+
+namespace displace::app {
+namespace {
+
+// Bounds on numbers a user may reasonably mean (anything outside is a typo or an attack).
+constexpr int max_wave_count = 4096;             // sinusoid waves
+constexpr double max_budget_milliseconds = 1e9;  // about 11 days
+
+std::string quoted(std::string_view text) { return "'" + std::string(text) + "'"; }
+
+// Walks argv one flag at a time.
+class FlagReader {
+ public:
+  explicit FlagReader(std::span<const std::string_view> args) : args_(args) {}
+
+  bool done() const { return position_ >= args_.size(); }
+
+  // The next flag's name; throws unless it looks like --name. Rejects repeated flags.
+  std::string_view next_flag() {
+    std::string_view argument = args_[position_++];
+    inline_value_.reset();
+    if (argument.size() < 3 || argument.substr(0, 2) != "--") {
+      throw usage_error("unexpected argument " + quoted(argument) + " (flags start with --)");
+    }
+    if (const auto equals = argument.find('='); equals != std::string_view::npos) {
+      inline_value_ = argument.substr(equals + 1);
+      argument = argument.substr(0, equals);
+    }
+    flag_ = argument;
+    if (!seen_.insert(std::string(flag_)).second) throw usage_error(std::string(flag_) + " is given twice");
+    return flag_;
+  }
+
+  // The current flag's value.
+  std::string_view value() {
+    if (inline_value_) {
+      if (inline_value_->empty()) throw usage_error(std::string(flag_) + " needs a value");
+      return *inline_value_;
+    }
+    if (done() || args_[position_].starts_with("--"))
+      throw usage_error(std::string(flag_) + " needs a value");
+    return args_[position_++];
+  }
+
+  // The current flag is a switch and must not carry a value.
+  void no_value() const {
+    if (inline_value_) throw usage_error(std::string(flag_) + " takes no value");
+  }
+
+ private:
+  std::span<const std::string_view> args_;
+  std::size_t position_ = 0;
+  std::string_view flag_;
+  std::optional<std::string_view> inline_value_;
+  std::set<std::string> seen_;
+};
+
+// numbers
+template <typename Integer>
+Integer parse_integer(std::string_view flag, std::string_view text, Integer minimum, Integer maximum,
+                      const char* what) {
+  Integer value{};
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error == std::errc::result_out_of_range ||
+      (error == std::errc{} && end == text.data() + text.size() && (value < minimum || value > maximum))) {
+    throw usage_error(std::string(flag) + " must be " + what + " between " + std::to_string(minimum) +
+                      " and " + std::to_string(maximum) + ", got " + quoted(text));
+  }
+  if (error != std::errc{} || end != text.data() + text.size()) {
+    throw usage_error(std::string(flag) + " expects " + what + ", got " + quoted(text));
+  }
+  return value;
+}
+
+int parse_int(std::string_view flag, std::string_view text, int minimum, int maximum) {
+  return parse_integer<int>(flag, text, minimum, maximum, "an integer");
+}
+
+std::uint64_t parse_seed(std::string_view flag, std::string_view text) {
+  return parse_integer<std::uint64_t>(flag, text, 0, std::numeric_limits<std::uint64_t>::max(),
+                                      "a non-negative integer");
+}
+
+double parse_number(std::string_view flag, std::string_view text) {
+  double value = 0.0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error != std::errc{} || end != text.data() + text.size() || !std::isfinite(value)) {
+    throw usage_error(std::string(flag) + " expects a finite number, got " + quoted(text));
+  }
+  return value;
+}
+
+enum class Sign { any, non_negative, positive };
+
+float parse_float(std::string_view flag, std::string_view text, Sign sign = Sign::any) {
+  const double value = parse_number(flag, text);
+  if (std::abs(value) > double(std::numeric_limits<float>::max())) {
+    throw usage_error(std::string(flag) + " is out of range, got " + quoted(text));
+  }
+  if (sign == Sign::non_negative && value < 0.0) {
+    throw usage_error(std::string(flag) + " must not be negative, got " + quoted(text));
+  }
+  if (sign == Sign::positive && !(value > 0.0)) {
+    throw usage_error(std::string(flag) + " must be positive, got " + quoted(text));
+  }
+  return float(value);
+}
+
+// words
+template <typename Enum, std::size_t count>
+Enum parse_word(std::string_view flag, std::string_view text,
+                const std::pair<std::string_view, Enum> (&table)[count]) {
+  std::string choices;
+  for (const auto& [word, value] : table) {
+    if (word == text) return value;
+    if (!choices.empty()) choices += '|';
+    choices += word;
+  }
+  throw usage_error(std::string(flag) + " must be one of " + choices + ", got " + quoted(text));
+}
+
+constexpr std::pair<std::string_view, SourceKind> source_words[] = {{"ocean", SourceKind::ocean},
+                                                                    {"sinusoids", SourceKind::sinusoids}};
+constexpr std::pair<std::string_view, sim::Spectrum> spectrum_words[] = {
+    {"phillips", sim::Spectrum::phillips}, {"jonswap", sim::Spectrum::jonswap}};
+constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::exact},
+                                                             {"original", Baker::original},
+                                                             {"paper-adaptive", Baker::paper_adaptive},
+                                                             {"budgeted", Baker::budgeted}};
+constexpr std::pair<std::string_view, bake::Address> address_words[] = {{"wrap", bake::Address::wrap},
+                                                                        {"clamp", bake::Address::clamp}};
+
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return extension;
+}
+
+std::filesystem::path parse_output(std::string_view flag, std::string_view text, ImageFormat& format,
+                                   bool png_allowed) {
+  std::filesystem::path path{std::string(text)};
+  const std::string extension = lower_extension(path);
+  if (extension == ".exr") {
+    format = ImageFormat::exr;
+  } else if (extension == ".png" && png_allowed) {
+    format = ImageFormat::png;
+  } else {
+    throw usage_error(std::string(flag) + " must name a " + (png_allowed ? ".exr or .png" : ".exr") +
+                      " file, got " + quoted(text));
+  }
+  return path;
+}
+
+// The synthesis flags shared by `sim` and `bake --source`, collected before they are checked
+// against the source they apply to.
+struct SourceDraft {
+  std::optional<SourceKind> kind;
+  std::optional<int> size;
+  std::optional<float> time;
+  std::optional<std::uint64_t> seed;
+  std::optional<float> patch_size, wind_speed, wind_direction_degrees, fetch, spreading, choppiness;
+  std::optional<sim::Spectrum> spectrum;
+  std::optional<int> wave_count;
+  std::string first_flag;  // the first synthesis flag given, for error messages
+
+  bool any_besides_kind() const {
+    return size || time || seed || patch_size || wind_speed || wind_direction_degrees || fetch || spreading ||
+           choppiness || spectrum || wave_count;
+  }
+};
+
+// Takes `flag` if it is a synthesis flag; false otherwise.
+bool take_source_flag(std::string_view flag, FlagReader& reader, SourceDraft& draft) {
+  const bool was_empty = !draft.any_besides_kind();
+  if (flag == "--source") {
+    draft.kind = parse_word(flag, reader.value(), source_words);
+    return true;
+  } else if (flag == "--size") {
+    draft.size = parse_int(flag, reader.value(), 1, max_image_side);
+  } else if (flag == "--time") {
+    draft.time = parse_float(flag, reader.value());
+  } else if (flag == "--seed") {
+    draft.seed = parse_seed(flag, reader.value());
+  } else if (flag == "--patch-size") {
+    draft.patch_size = parse_float(flag, reader.value(), Sign::positive);
+  } else if (flag == "--wind-speed") {
+    draft.wind_speed = parse_float(flag, reader.value(), Sign::non_negative);
+  } else if (flag == "--wind-direction") {
+    draft.wind_direction_degrees = parse_float(flag, reader.value());
+  } else if (flag == "--fetch") {
+    draft.fetch = parse_float(flag, reader.value(), Sign::positive);
+  } else if (flag == "--spectrum") {
+    draft.spectrum = parse_word(flag, reader.value(), spectrum_words);
+  } else if (flag == "--spreading") {
+    draft.spreading = parse_float(flag, reader.value(), Sign::non_negative);
+  } else if (flag == "--choppiness") {
+    draft.choppiness = parse_float(flag, reader.value(), Sign::non_negative);
+  } else if (flag == "--waves") {
+    draft.wave_count = parse_int(flag, reader.value(), 1, max_wave_count);
+  } else {
+    return false;
+  }
+  if (was_empty) draft.first_flag = std::string(flag);
+  return true;
+}
+
+SourceSettings finish_source(const SourceDraft& draft) {
+  SourceSettings source;
+  source.kind = *draft.kind;
+  if (!draft.size) throw usage_error("--source needs --size N (samples along u and v)");
+  if (!draft.time) throw usage_error("--source needs --time T (seconds)");
+  source.size = *draft.size;
+  source.time = *draft.time;
+  const float degrees_to_radians = std::numbers::pi_v<float> / 180.0f;
+
+  if (source.kind == SourceKind::ocean) {
+    if (draft.wave_count) throw usage_error("--waves applies to --source sinusoids only");
+    if (source.size < 2) throw usage_error("--source ocean needs --size of at least 2");
+    sim::OceanParams& ocean = source.ocean;
+    ocean.size = source.size;
+    if (draft.seed) ocean.seed = *draft.seed;
+    if (draft.patch_size) ocean.patch_size = *draft.patch_size;
+    if (draft.wind_speed) ocean.wind_speed = *draft.wind_speed;
+    if (draft.wind_direction_degrees)
+      ocean.wind_direction = *draft.wind_direction_degrees * degrees_to_radians;
+    if (draft.spectrum) ocean.spectrum = *draft.spectrum;
+    if (draft.fetch) {
+      if (ocean.spectrum != sim::Spectrum::jonswap)
+        throw usage_error("--fetch applies to --spectrum jonswap only");
+      ocean.fetch = *draft.fetch;
+    }
+    if (draft.spreading) ocean.spreading = *draft.spreading;
+    if (draft.choppiness) ocean.choppiness = *draft.choppiness;
+  } else {
+    for (const auto& [given, name] :
+         {std::pair{bool(draft.wind_speed), "--wind-speed"}, std::pair{bool(draft.fetch), "--fetch"},
+          std::pair{bool(draft.spectrum), "--spectrum"}, std::pair{bool(draft.spreading), "--spreading"},
+          std::pair{bool(draft.choppiness), "--choppiness"}}) {
+      if (given) throw usage_error(std::string(name) + " applies to --source ocean only");
+    }
+    sim::SinusoidParams& sinusoids = source.sinusoids;
+    if (draft.seed) sinusoids.seed = *draft.seed;
+    if (draft.patch_size) sinusoids.patch_size = *draft.patch_size;
+    if (draft.wind_direction_degrees)
+      sinusoids.wind_direction = *draft.wind_direction_degrees * degrees_to_radians;
+    if (draft.wave_count) sinusoids.wave_count = *draft.wave_count;
+  }
+  return source;
+}
+
+bool is_help_flag(std::string_view argument) {
+  return argument == "--help" || argument == "-h" || argument == "help";
+}
+
+SimSettings parse_sim(std::span<const std::string_view> args) {
+  FlagReader reader(args);
+  SourceDraft draft;
+  std::optional<std::filesystem::path> output;
+  while (!reader.done()) {
+    const std::string_view flag = reader.next_flag();
+    if (take_source_flag(flag, reader, draft)) continue;
+    if (flag == "--output") {
+      ImageFormat format{};
+      output = parse_output(flag, reader.value(), format, false);
+    } else {
+      throw usage_error("unknown flag " + quoted(flag) + " for 'displace sim'");
+    }
+  }
+  if (!draft.kind) throw usage_error("'displace sim' needs --source ocean|sinusoids");
+  if (!output) throw usage_error("'displace sim' needs --output FILE.exr");
+  return {finish_source(draft), *output};
+}
+
+BakeSettings parse_bake(std::span<const std::string_view> args) {
+  FlagReader reader(args);
+  BakeSettings settings;
+  SourceDraft draft;
+  std::optional<std::filesystem::path> input, output;
+  HeightLoadSettings load;
+  bool load_flag_given = false;
+  std::optional<int> sectors;
+  std::optional<Baker> mode;
+  std::optional<double> budget;
+  bool relaxed = false;
+
+  while (!reader.done()) {
+    const std::string_view flag = reader.next_flag();
+    if (take_source_flag(flag, reader, draft)) continue;
+    if (flag == "--input") {
+      input = std::filesystem::path(std::string(reader.value()));
+    } else if (flag == "--channel") {
+      const std::string_view text = reader.value();
+      if (std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+        load.channel.index = parse_int(flag, text, 0, 1 << 16);
+      } else {
+        load.channel.name = std::string(text);
+      }
+      load_flag_given = true;
+    } else if (flag == "--invert") {
+      reader.no_value();
+      load.invert = true;
+      load_flag_given = true;
+    } else if (flag == "--height-range") {
+      const std::string_view text = reader.value();
+      const auto comma = text.find(',');
+      if (comma == std::string_view::npos)
+        throw usage_error("--height-range expects LOW,HIGH, got " + quoted(text));
+      const float low = parse_float(flag, text.substr(0, comma));
+      const float high = parse_float(flag, text.substr(comma + 1));
+      if (!(high > low) || !std::isfinite(high - low)) {
+        throw usage_error("--height-range needs LOW < HIGH, got " + quoted(text));
+      }
+      load.range = HeightRange{low, high};
+      load_flag_given = true;
+    } else if (flag == "--sectors") {
+      const int value =
+          parse_int(flag, reader.value(), std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
+      if (!bake::is_valid_sector_count(value)) {
+        throw usage_error("--sectors must be 1, 4 or 8, got " + std::to_string(value));
+      }
+      sectors = value;
+    } else if (flag == "--mode") {
+      mode = parse_word(flag, reader.value(), mode_words);
+    } else if (flag == "--budget-ms") {
+      const double value = parse_number(flag, reader.value());
+      if (value < 0.0 || value > max_budget_milliseconds) {
+        throw usage_error("--budget-ms must be between 0 and " + std::to_string(max_budget_milliseconds) +
+                          ", got " + std::to_string(value));
+      }
+      budget = value;
+    } else if (flag == "--address") {
+      settings.address = parse_word(flag, reader.value(), address_words);
+    } else if (flag == "--relaxed") {
+      reader.no_value();
+      relaxed = true;
+    } else if (flag == "--output") {
+      output = parse_output(flag, reader.value(), settings.output_format, true);
+    } else if (flag == "--stats") {
+      reader.no_value();
+      settings.stats = true;
+    } else {
+      throw usage_error("unknown flag " + quoted(flag) + " for 'displace bake'");
+    }
+  }
+
+  // the heights: a file or a source, never both
+  if (input && draft.kind) throw usage_error("give either --input or --source, not both");
+  if (input) {
+    if (draft.any_besides_kind())
+      throw usage_error(draft.first_flag + " applies to --source only, not --input");
+    settings.input = FileInput{*input, load};
+  } else if (draft.kind) {
+    if (load_flag_given) throw usage_error("--channel, --invert and --height-range apply to --input only");
+    settings.input = finish_source(draft);
+  } else {
+    throw usage_error("'displace bake' needs --input FILE or --source ocean|sinusoids");
+  }
+
+  // the baker
+  if (!sectors) throw usage_error("'displace bake' needs --sectors 1|4|8");
+  settings.sector_count = *sectors;
+  if (relaxed) {
+    if (settings.sector_count != 1 && settings.sector_count != 4) {
+      throw usage_error("--relaxed supports --sectors 1 or 4, got " + std::to_string(settings.sector_count));
+    }
+    if (mode) throw usage_error("--relaxed is its own baker; drop --mode");
+    settings.baker = Baker::relaxed;
+  } else {
+    if (!mode)
+      throw usage_error("'displace bake' needs --mode exact|original|paper-adaptive|budgeted (or --relaxed)");
+    settings.baker = *mode;
+  }
+  if (budget) {
+    if (settings.baker != Baker::budgeted) throw usage_error("--budget-ms applies to --mode budgeted only");
+    settings.budget_milliseconds = *budget;
+  }
+  if (!output) throw usage_error("'displace bake' needs --output FILE.exr|FILE.png");
+  settings.output = *output;
+  return settings;
+}
+
+DemoSettings parse_demo(std::span<const std::string_view> args) {
+  FlagReader reader(args);
+  DemoSettings settings;
+  while (!reader.done()) {
+    const std::string_view flag = reader.next_flag();
+    if (flag == "--size") {
+      settings.size = parse_int(flag, reader.value(), 2, max_image_side);
+    } else if (flag == "--output-dir") {
+      settings.output_directory = std::filesystem::path(std::string(reader.value()));
+    } else {
+      throw usage_error("unknown flag " + quoted(flag) + " for 'displace demo'");
+    }
+  }
+  return settings;
+}
+
+}  // namespace
+
+CommandSettings parse_command_line(std::span<const std::string_view> args) {
+  if (args.empty()) throw usage_error("no command given");
+  const std::string_view command = args.front();
+  const auto rest = args.subspan(1);
+  if (is_help_flag(command) ||
+      std::any_of(rest.begin(), rest.end(), [](std::string_view a) { return a == "--help" || a == "-h"; })) {
+    return HelpSettings{};
+  }
+  if (command == "sim") return parse_sim(rest);
+  if (command == "bake") return parse_bake(rest);
+  if (command == "demo") return parse_demo(rest);
+  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, demo, help)");
+}
+
+}  // namespace displace::app

@@ -1,0 +1,69 @@
+// demos/options.h - the `displace` command line, parsed into typed settings.
+//
+// This is the only place that looks at argv strings: every flag is checked here (unknown flags,
+// missing values, bad or absurd numbers) and becomes a typed value; the commands take these structs.
+// Every problem throws AppError of kind usage (exit status 2).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <span>
+#include <string_view>
+#include <variant>
+
+#include "bake/bake.h"
+#include "demos/cone_export.h"
+#include "demos/image_io.h"
+#include "sim/sim.h"
+
+namespace displace::app {
+
+enum class SourceKind { ocean, sinusoids };
+
+// A synthesized height field: `size` x `size` samples at `time`.
+struct SourceSettings {
+  SourceKind kind = SourceKind::ocean;
+  int size = 0;                   // samples along u and along v
+  float time = 0.0f;              // seconds
+  sim::OceanParams ocean;         // kind == ocean; ocean.size == size
+  sim::SinusoidParams sinusoids;  // kind == sinusoids
+};
+
+// A height image on disk and how to read it.
+struct FileInput {
+  std::filesystem::path path;
+  HeightLoadSettings load;
+};
+
+enum class ImageFormat { exr, png };
+
+struct HelpSettings {};
+
+struct SimSettings {
+  SourceSettings source;
+  std::filesystem::path output;  // .exr
+};
+
+struct BakeSettings {
+  std::variant<FileInput, SourceSettings> input;
+  int sector_count = 4;
+  Baker baker = Baker::budgeted;
+  double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only
+  bake::Address address = bake::Address::wrap;
+  std::filesystem::path output;
+  ImageFormat output_format = ImageFormat::exr;
+  bool stats = false;  // one JSON line on stdout instead of the human line
+};
+
+struct DemoSettings {
+  int size = 512;  // ocean samples along u and v
+  std::filesystem::path output_directory = "out";
+};
+
+using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings>;
+
+// `args` excludes the program name and must not be empty.
+CommandSettings parse_command_line(std::span<const std::string_view> args);
+
+}  // namespace displace::app

@@ -1,0 +1,146 @@
+// sim/sim.h - height-field synthesis. The whole public API of the sim stage.
+//
+// No file I/O and no Vulkan: callers pass output memory and the functions fill it.
+//
+// Units and conventions
+// - A height field is a W x H grid stored row-major: sample (i, j) is row i, column j, at
+//   data[i * W + j]. Row i runs along v, column j along u; the sample sits at the texel centre
+//   u = (j + 0.5) / W, v = (i + 0.5) / H of a patch that is `patch_size` metres wide in both u and v.
+// - Raw heights are in metres, positive up.
+// - The baker and the renderer want heights in [0, 1] with 1 = top. HeightMapping turns raw
+//   heights into that range; for animated sources the mapping is derived from the source's
+//   parameters (spectrum, amplitudes), never from one frame, so that it is fixed over time.
+#pragma once
+
+#include <complex>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace displace::sim {
+
+// h01 = clamp(raw * scale + bias, 0, 1). Records how a source range became [0, 1] (the SCALE/BIAS of
+// Premecz's iterative parallax mapping, inverted).
+struct HeightMapping {
+  float scale = 1.0f;
+  float bias = 0.0f;
+};
+
+// Applies the mapping to `raw` in place of `out` (same length). Returns how many samples were clamped.
+std::size_t apply_mapping(const HeightMapping& mapping, std::span<const float> raw, std::span<float> out);
+
+// ---------------------------------------------------------------------------------------------
+// Sinusoid water (Chen & Chuang's dynamic displacement example): a seeded sum of directional
+// sinusoids h(x, t) = sum_i a_i sin(k_i . x - w_i t + phi_i), deep-water dispersion w_i^2 = g |k_i|.
+struct SinusoidParams {
+  int wave_count = 12;
+  float patch_size = 4.0f;        // metres covered by the map along u and along v
+  float wavelength_min = 0.25f;   // metres
+  float wavelength_max = 1.5f;    // metres
+  float steepness = 0.4f;         // a_i * |k_i| summed over waves stays below this (no overhangs)
+  float wind_direction = 0.0f;    // radians, azimuth of the mean travel direction in (u, v)
+  float direction_spread = 1.0f;  // radians, half-width of the uniform spread around wind_direction
+  std::uint64_t seed = 1;
+  bool tileable = true;           // snap wave vectors to the patch lattice so the field tiles
+  float gravity = 9.81f;          // m/s^2
+};
+
+struct Wave {
+  float kx, ky;      // wave vector, radians per metre
+  float amplitude;   // metres
+  float omega;       // radians per second
+  float phase;       // radians
+};
+
+// Deterministic for a given seed. Throws std::invalid_argument on absurd parameters.
+std::vector<Wave> make_sinusoid_waves(const SinusoidParams& params);
+
+// Closed-form height in metres at a point (x, y in metres) and time t (seconds).
+float sinusoid_height_at(std::span<const Wave> waves, float x, float y, float time);
+
+// Fills out (width * height) with raw heights at the texel centres of a patch `patch_size` wide.
+void sinusoid_heights(std::span<const Wave> waves, float patch_size, float time, int width, int height,
+                      std::span<float> out);
+
+// bias 0.5, scale 0.5 / sum(amplitudes): never clamps, fixed over time.
+HeightMapping sinusoid_mapping(std::span<const Wave> waves);
+
+// ---------------------------------------------------------------------------------------------
+// FFT ocean (Tessendorf, "Simulating Ocean Water").
+enum class Spectrum { phillips, jonswap };
+
+struct OceanParams {
+  int size = 256;                 // N x N grid, N >= 2
+  float patch_size = 200.0f;      // metres
+  Spectrum spectrum = Spectrum::phillips;
+  float wind_speed = 12.0f;       // m/s at 10 m
+  float wind_direction = 0.0f;    // radians, azimuth in (u, v)
+  float fetch = 200.0f;           // km, JONSWAP only
+  float peak_enhancement = 3.3f;  // JONSWAP gamma
+  float spreading = 2.0f;         // directional spreading exponent s of cos^(2s)(theta / 2)
+  float phillips_amplitude = 3e-7f;  // Phillips constant A (m^2 scale factor)
+  float small_wave_cutoff = 0.0f; // metres; Phillips damping length l (0 = patch/N/2)
+  float choppiness = 1.0f;        // lambda, scales the horizontal displacement; > 0 sharpens crests
+  std::uint64_t seed = 1;
+  float gravity = 9.81f;          // m/s^2
+};
+
+// Outputs beyond heights are computed only when requested; requesting none costs nothing.
+enum OceanOutput : unsigned {
+  ocean_heights = 1u << 0,
+  ocean_slopes = 1u << 1,        // dh/dx, dh/dy (spectral derivatives)
+  ocean_displacement = 1u << 2,  // choppy horizontal displacement dx, dy (metres):
+                                 // D = lambda sum_k i k/|k| h~(k, t) exp(i k.x), Gerstner-like
+  ocean_foam = 1u << 3,          // Jacobian determinant of the choppy map (foam where < threshold)
+};
+
+struct OceanFrame {
+  int size = 0;
+  std::vector<float> height;               // metres, size*size, when ocean_heights requested
+  std::vector<float> slope_x, slope_y;     // when ocean_slopes requested
+  std::vector<float> displacement_x, displacement_y;  // when ocean_displacement requested
+  std::vector<float> jacobian;             // when ocean_foam requested
+};
+
+class Ocean {
+ public:
+  // Validates the parameters (throws std::invalid_argument with a clear message), draws the
+  // Gaussian spectrum amplitudes h0 from the seed and creates single-precision FFTW plans once.
+  explicit Ocean(const OceanParams& params);
+  ~Ocean();
+  Ocean(Ocean&&) noexcept;
+  Ocean& operator=(Ocean&&) noexcept;
+  Ocean(const Ocean&) = delete;
+  Ocean& operator=(const Ocean&) = delete;
+
+  // Computes the requested outputs at time t (seconds), independently of any other frame.
+  void evaluate(float time, unsigned outputs, OceanFrame& frame);
+
+  int size() const;
+  float patch_size() const;
+  const OceanParams& params() const;
+
+  // Expected height variance (m^2) over the ensemble, from the spectrum amplitudes.
+  double height_variance() const;
+  // Maps +-3 standard deviations of the spectrum's height onto [0, 1]; fixed over time.
+  HeightMapping mapping() const;
+
+  // Fourier coefficients h~(k, t) of the height at time t, N*N complex values in FFTW's
+  // unshifted order (index (i, j) holds wave numbers (ky, kx) = 2 pi / L * (i', j') with
+  // i' = i < N/2 ? i : i - N). height(x) = sum_k h~(k, t) exp(i k.x) with x in metres from the patch
+  // corner, so output sample (i, j) is this sum at its texel centre x = ((j + 0.5) L / N, (i + 0.5) L / N).
+  // The Nyquist row and column (i or j = N/2) and k = 0 are zero, so the sum is real.
+  std::vector<std::complex<float>> height_spectrum(float time) const;
+  // Angular frequency w(k) = sqrt(g |k|) of the mode at index (i, j).
+  float omega(int i, int j) const;
+
+  // Work counter: inverse FFTs executed since construction.
+  long long fft_count() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace displace::sim

@@ -1,0 +1,571 @@
+// tests/app_test.cpp - the application layer: image I/O round trips, the conservative PNG cone
+// encoding, and the `displace` binary meeting bad input with one clear error, never a crash.
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bake/bake.h"
+#include "demos/commands.h"
+#include "demos/cone_export.h"
+#include "demos/image_io.h"
+#include "demos/options.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace displace::app;
+
+// A fresh directory under the system temp directory, removed with everything in it.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("displace_app_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  fs::path path_;
+};
+
+// Writes an image with OpenImageIO directly, independently of image_io.
+void write_with_oiio(const fs::path& file, int width, int height, int channels, OIIO::TypeDesc type,
+                     const void* pixels, const std::vector<std::string>& names = {},
+                     const std::vector<std::pair<std::string, float>>& attributes = {}) {
+  OIIO::ImageSpec spec(width, height, channels, type);
+  if (!names.empty()) spec.channelnames = names;
+  for (const auto& [name, value] : attributes) spec.attribute(name, value);
+  auto output = OIIO::ImageOutput::create(file.string());
+  ASSERT_TRUE(output) << OIIO::geterror();
+  ASSERT_TRUE(output->open(file.string(), spec)) << output->geterror();
+  ASSERT_TRUE(output->write_image(type, pixels)) << output->geterror();
+  ASSERT_TRUE(output->close());
+}
+
+void write_bytes(const fs::path& file, const std::string& bytes) {
+  std::ofstream stream(file, std::ios::binary);
+  stream << bytes;
+}
+
+std::string read_text(const fs::path& file) {
+  std::ifstream stream(file);
+  std::stringstream text;
+  text << stream.rdbuf();
+  return text.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// image_io
+
+TEST(ImageIo, Loads8BitWithValueOverMax) {
+  TempDir dir;
+  const std::vector<std::uint8_t> values = {0, 1, 2, 127, 128, 200, 254, 255};
+  write_with_oiio(dir / "h.png", 4, 2, 1, OIIO::TypeDesc::UINT8, values.data());
+  const LoadedHeights loaded = load_heights(dir / "h.png", {});
+  EXPECT_EQ(loaded.width, 4);
+  EXPECT_EQ(loaded.height, 2);
+  EXPECT_EQ(loaded.format, SampleFormat::uint8);
+  EXPECT_EQ(loaded.mapping_origin, MappingOrigin::integer_max);
+  EXPECT_FLOAT_EQ(loaded.mapping.scale, 1.0f / 255.0f);
+  EXPECT_EQ(loaded.mapping.bias, 0.0f);
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    EXPECT_EQ(loaded.heights[k], float(values[k]) * loaded.mapping.scale + loaded.mapping.bias);
+    EXPECT_NEAR(loaded.heights[k], values[k] / 255.0, 1e-7);
+  }
+  EXPECT_EQ(loaded.heights.back(), 1.0f);
+}
+
+TEST(ImageIo, Loads16Bit) {
+  TempDir dir;
+  const std::vector<std::uint16_t> values = {0, 1, 256, 32767, 40000, 65534, 65535, 12345, 7};
+  write_with_oiio(dir / "h.png", 3, 3, 1, OIIO::TypeDesc::UINT16, values.data());
+  const LoadedHeights loaded = load_heights(dir / "h.png", {});
+  EXPECT_EQ(loaded.format, SampleFormat::uint16);
+  EXPECT_FLOAT_EQ(loaded.mapping.scale, 1.0f / 65535.0f);
+  for (std::size_t k = 0; k < values.size(); ++k) EXPECT_NEAR(loaded.heights[k], values[k] / 65535.0, 1e-7);
+}
+
+TEST(ImageIo, FloatMapsMinMaxOrTheGivenRange) {
+  TempDir dir;
+  const std::vector<float> values = {-2.0f, 0.0f, 1.0f, 6.0f, 3.5f, -1.0f};
+  write_with_oiio(dir / "h.exr", 3, 2, 1, OIIO::TypeDesc::FLOAT, values.data());
+
+  const LoadedHeights by_min_max = load_heights(dir / "h.exr", {});
+  EXPECT_EQ(by_min_max.format, SampleFormat::floating);
+  EXPECT_EQ(by_min_max.mapping_origin, MappingOrigin::image_min_max);
+  EXPECT_FLOAT_EQ(by_min_max.mapping.scale, 1.0f / 8.0f);
+  EXPECT_FLOAT_EQ(by_min_max.mapping.bias, 0.25f);
+  EXPECT_EQ(by_min_max.heights[0], 0.0f);
+  EXPECT_EQ(by_min_max.heights[3], 1.0f);
+  EXPECT_FLOAT_EQ(by_min_max.heights[4], 5.5f / 8.0f);
+  EXPECT_EQ(by_min_max.clamped, 0u);
+
+  HeightLoadSettings ranged;
+  ranged.range = HeightRange{0.0f, 4.0f};
+  const LoadedHeights by_range = load_heights(dir / "h.exr", ranged);
+  EXPECT_EQ(by_range.mapping_origin, MappingOrigin::user_range);
+  EXPECT_FLOAT_EQ(by_range.mapping.scale, 0.25f);
+  EXPECT_EQ(by_range.mapping.bias, 0.0f);
+  EXPECT_EQ(by_range.heights[0], 0.0f);  // -2 clamps
+  EXPECT_EQ(by_range.heights[2], 0.25f);
+  EXPECT_EQ(by_range.heights[3], 1.0f);  // 6 clamps
+  EXPECT_EQ(by_range.clamped, 3u);
+
+  // an integer image rejects a float range
+  const std::vector<std::uint8_t> bytes = {0, 255};
+  write_with_oiio(dir / "b.png", 2, 1, 1, OIIO::TypeDesc::UINT8, bytes.data());
+  EXPECT_THROW(load_heights(dir / "b.png", ranged), AppError);
+}
+
+TEST(ImageIo, UsesTheMappingDisplaceSimRecorded) {
+  TempDir dir;
+  const std::vector<float> metres = {-1.0f, 0.0f, 1.0f, 0.5f};
+  write_with_oiio(dir / "h.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, metres.data(), {"height"},
+                  {{"displace:height_scale", 0.25f}, {"displace:height_bias", 0.5f}});
+  const LoadedHeights loaded = load_heights(dir / "h.exr", {});
+  EXPECT_EQ(loaded.mapping_origin, MappingOrigin::file_metadata);
+  EXPECT_EQ(loaded.mapping.scale, 0.25f);
+  EXPECT_EQ(loaded.mapping.bias, 0.5f);
+  EXPECT_EQ(loaded.heights, (std::vector<float>{0.25f, 0.5f, 0.75f, 0.625f}));
+}
+
+TEST(ImageIo, InvertTurnsDepthIntoHeight) {
+  TempDir dir;
+  const std::vector<std::uint8_t> depth = {0, 51, 255, 102};
+  write_with_oiio(dir / "d.png", 2, 2, 1, OIIO::TypeDesc::UINT8, depth.data());
+  HeightLoadSettings settings;
+  settings.invert = true;
+  const LoadedHeights loaded = load_heights(dir / "d.png", settings);
+  EXPECT_TRUE(loaded.inverted);
+  EXPECT_FLOAT_EQ(loaded.mapping.scale, 1.0f / 255.0f);  // recorded before the inversion
+  for (std::size_t k = 0; k < depth.size(); ++k) EXPECT_NEAR(loaded.heights[k], 1.0 - depth[k] / 255.0, 1e-7);
+}
+
+TEST(ImageIo, ChoosesAChannelByIndexOrName) {
+  TempDir dir;
+  // RGB, heights in G, noise elsewhere
+  const std::vector<std::uint8_t> rgb = {9, 10, 200, 9, 20, 200, 9, 30, 200, 9, 40, 200};
+  write_with_oiio(dir / "c.png", 2, 2, 3, OIIO::TypeDesc::UINT8, rgb.data());
+  HeightLoadSettings by_index;
+  by_index.channel.index = 1;
+  HeightLoadSettings by_name;
+  by_name.channel.name = "G";
+  const LoadedHeights a = load_heights(dir / "c.png", by_index);
+  const LoadedHeights b = load_heights(dir / "c.png", by_name);
+  EXPECT_EQ(a.channel_name, "G");
+  EXPECT_EQ(a.heights, b.heights);
+  EXPECT_NEAR(a.heights[3], 40.0 / 255.0, 1e-7);
+
+  // no choice on a colour image, a missing name and an index out of range are clear errors
+  EXPECT_THROW(load_heights(dir / "c.png", {}), AppError);
+  HeightLoadSettings missing;
+  missing.channel.name = "Z";
+  try {
+    load_heights(dir / "c.png", missing);
+    FAIL() << "a missing channel was accepted";
+  } catch (const AppError& error) {
+    EXPECT_NE(std::string(error.what()).find("c.png"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("'Z'"), std::string::npos) << error.what();
+  }
+  HeightLoadSettings beyond;
+  beyond.channel.index = 3;
+  EXPECT_THROW(load_heights(dir / "c.png", beyond), AppError);
+}
+
+TEST(ImageIo, BadFilesThrowOneErrorNamingTheFile) {
+  TempDir dir;
+  write_bytes(dir / "corrupt.png", std::string("\x89PNG\r\n\x1a\n this is not a png at all", 32));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<float> with_nan = {0.0f, nan, 1.0f, 0.5f};
+  write_with_oiio(dir / "nan.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_nan.data());
+  const std::vector<float> with_inf = {0.0f, std::numeric_limits<float>::infinity(), 1.0f, 0.5f};
+  write_with_oiio(dir / "inf.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_inf.data());
+  for (const char* name : {"missing.png", "corrupt.png", "nan.exr", "inf.exr"}) {
+    try {
+      load_heights(dir / name, {});
+      ADD_FAILURE() << name << " was accepted";
+    } catch (const AppError& error) {
+      EXPECT_EQ(error.kind, ErrorKind::runtime);
+      EXPECT_NE(std::string(error.what()).find(name), std::string::npos) << error.what();
+    }
+  }
+}
+
+TEST(ImageIo, ExrRoundTripIsExact) {
+  TempDir dir;
+  const std::vector<float> a = {0.0f,        -0.0f,     1e-30f, std::numeric_limits<float>::denorm_min(),
+                                1.0f / 3.0f, 12345.678f};
+  const std::vector<float> b = {1.0f, 2.0f, 3.0f, 4.0f, 5.0f, -6.5f};
+  const ExrChannel channels[] = {{"height", a}, {"cone0", b}};
+  const Metadata metadata = {
+      {"displace:text", std::string("hello")}, {"displace:number", 0.1f}, {"displace:count", 7}};
+  write_exr(dir / "x.exr", 3, 2, channels, metadata);
+  const FloatImage image = read_float_image(dir / "x.exr");
+  EXPECT_EQ(image.width, 3);
+  EXPECT_EQ(image.height, 2);
+  const std::vector<float> height = image.channel("height"), cone = image.channel("cone0");
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(std::signbit(height[k]), std::signbit(a[k]));
+    EXPECT_EQ(height[k], a[k]);
+    EXPECT_EQ(cone[k], b[k]);
+  }
+  ASSERT_NE(find_attribute(image.metadata, "displace:text"), nullptr);
+  EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:text")->value), "hello");
+  EXPECT_EQ(std::get<float>(find_attribute(image.metadata, "displace:number")->value), 0.1f);
+  EXPECT_EQ(std::get<int>(find_attribute(image.metadata, "displace:count")->value), 7);
+}
+
+// ---------------------------------------------------------------------------------------------
+// cone_export
+
+std::vector<float> awkward_ratios() {
+  std::vector<float> ratios = {0.0f,
+                               1.0f,
+                               std::numeric_limits<float>::denorm_min(),
+                               std::numeric_limits<float>::min(),
+                               1e-9f,
+                               1e-6f,
+                               1.0f / (255.0f * 255.0f),
+                               0.5f,
+                               0.999999f};
+  // every quantization boundary and its float neighbours
+  for (int q = 0; q <= 255; ++q) {
+    const float boundary = (float(q) / 255.0f) * (float(q) / 255.0f);
+    ratios.push_back(boundary);
+    ratios.push_back(std::nextafter(boundary, 0.0f));
+    ratios.push_back(std::min(1.0f, std::nextafter(boundary, 2.0f)));
+  }
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  for (int k = 0; k < 20000; ++k) ratios.push_back(uniform(random));
+  for (int k = 0; k < 2000; ++k) ratios.push_back(std::pow(uniform(random), 8.0f));  // tiny values
+  return ratios;
+}
+
+TEST(ConeExport, RatioBytesNeverExceedTheRatioAndLoseAtMostOneStep) {
+  for (const float ratio : awkward_ratios()) {
+    const std::uint8_t byte = encode_ratio(ratio);
+    const float decoded = decode_ratio(byte);
+    EXPECT_LE(decoded, ratio) << "ratio " << ratio << " byte " << int(byte);
+    if (byte < 255) {
+      EXPECT_GT(decode_ratio(std::uint8_t(byte + 1)), ratio) << "ratio " << ratio;
+    }
+    EXPECT_LE(std::sqrt(double(ratio)) - std::sqrt(double(decoded)), 1.0 / 255.0 + 1e-6);
+  }
+  EXPECT_EQ(encode_ratio(1.0f), 255);
+  EXPECT_EQ(encode_ratio(0.0f), 0);
+}
+
+struct RandomConeMap {
+  int width, height, sector_count;
+  std::vector<float> heights, ratios;
+  ConeMapExport view() const {
+    return {width, height, sector_count, heights, ratios, displace::bake::Address::clamp, Baker::exact};
+  }
+};
+
+RandomConeMap random_cone_map(int width, int height, int sector_count, unsigned seed) {
+  RandomConeMap map{width, height, sector_count, {}, {}};
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  const std::vector<float> awkward = awkward_ratios();
+  for (int k = 0; k < width * height; ++k) map.heights.push_back(uniform(random));
+  for (int k = 0; k < width * height * sector_count; ++k) {
+    map.ratios.push_back(k % 3 == 0 ? awkward[std::size_t(k) % 300] : uniform(random));
+  }
+  map.ratios[3 % map.ratios.size()] = 0.0f;  // alpha 0 with colour set: must not be premultiplied
+  return map;
+}
+
+TEST(ConeExport, PngDecodesToConservativeRatiosAndItsLayout) {
+  TempDir dir;
+  for (const int sectors : {1, 4, 8}) {
+    const RandomConeMap map = random_cone_map(7, 5, sectors, unsigned(sectors));
+    const fs::path file = dir / ("cones" + std::to_string(sectors) + ".png");
+    write_cone_png(file, map.view());
+
+    const DecodedConeMap decoded = read_cone_png(file);
+    ASSERT_EQ(decoded.width, 7);
+    ASSERT_EQ(decoded.height, 5);
+    ASSERT_EQ(decoded.sector_count, sectors);
+    for (std::size_t k = 0; k < map.ratios.size(); ++k) {
+      EXPECT_LE(decoded.ratios[k], map.ratios[k]) << sectors << " sectors, sample " << k;
+      EXPECT_LE(std::sqrt(map.ratios[k]) - std::sqrt(decoded.ratios[k]), 1.0f / 255.0f + 1e-6f);
+    }
+    for (std::size_t k = 0; k < map.heights.size(); ++k) {
+      EXPECT_EQ(decoded.heights[k], std::round(map.heights[k] * 255.0f) / 255.0f);
+    }
+
+    // the raw layout: (panels + 1) * W wide; unused cone channels 0 with alpha 255; height G = B = 0, A = 255
+    const Rgba8Image image = read_rgba8_image(file);
+    const int panels = (sectors + 3) / 4;
+    ASSERT_EQ(image.width, (panels + 1) * 7);
+    for (int i = 0; i < 5; ++i) {
+      for (int j = 0; j < 7; ++j) {
+        const std::uint8_t* height_pixel = &image.pixels[std::size_t(i * image.width + panels * 7 + j) * 4];
+        EXPECT_EQ(height_pixel[0], std::lround(map.heights[std::size_t(i * 7 + j)] * 255.0f));
+        EXPECT_EQ(height_pixel[1], 0);
+        EXPECT_EQ(height_pixel[2], 0);
+        EXPECT_EQ(height_pixel[3], 255);
+        if (sectors == 1) {
+          const std::uint8_t* cone_pixel = &image.pixels[std::size_t(i * image.width + j) * 4];
+          EXPECT_EQ(cone_pixel[1], 0);
+          EXPECT_EQ(cone_pixel[2], 0);
+          EXPECT_EQ(cone_pixel[3], 255);
+        }
+      }
+    }
+  }
+}
+
+TEST(ConeExport, ExrRoundTripIsExact) {
+  TempDir dir;
+  const RandomConeMap map = random_cone_map(6, 4, 8, 11);
+  write_cone_exr(dir / "cones.exr", map.view());
+  const FloatImage image = read_float_image(dir / "cones.exr");
+  EXPECT_EQ(image.channel("height"), map.heights);
+  for (int s = 0; s < 8; ++s) {
+    const std::vector<float> plane = image.channel("cone" + std::to_string(s));
+    for (std::size_t k = 0; k < plane.size(); ++k) EXPECT_EQ(plane[k], map.ratios[k * 8 + std::size_t(s)]);
+  }
+  EXPECT_EQ(std::get<int>(find_attribute(image.metadata, "displace:sectors")->value), 8);
+  EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:address")->value), "clamp");
+  EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:mode")->value), "exact");
+}
+
+TEST(ConeExport, QuantizedHeightsAreWhatThePngStores) {
+  std::vector<float> heights = {0.0f, 1.0f, 0.5f, 0.123f, 0.998f, 0.002f};
+  quantize_heights_8bit(heights);
+  for (float h : heights) EXPECT_EQ(h, std::round(h * 255.0f) / 255.0f);
+  EXPECT_EQ(heights[2], 128.0f / 255.0f);
+}
+
+// ---------------------------------------------------------------------------------------------
+// options
+
+CommandSettings parse(std::initializer_list<std::string_view> args) {
+  const std::vector<std::string_view> list(args);
+  return parse_command_line(list);
+}
+
+TEST(Options, ParsesABakeCommandIntoTypedSettings) {
+  const CommandSettings settings =
+      parse({"bake", "--input", "h.exr", "--channel", "2", "--height-range=-1,3", "--sectors", "8", "--mode",
+             "budgeted", "--budget-ms", "4.5", "--address", "clamp", "--output", "c.PNG", "--stats"});
+  const BakeSettings& bake = std::get<BakeSettings>(settings);
+  const FileInput& input = std::get<FileInput>(bake.input);
+  EXPECT_EQ(input.path, "h.exr");
+  EXPECT_EQ(input.load.channel.index, 2);
+  EXPECT_EQ(input.load.range->low, -1.0f);
+  EXPECT_EQ(input.load.range->high, 3.0f);
+  EXPECT_EQ(bake.sector_count, 8);
+  EXPECT_EQ(bake.baker, Baker::budgeted);
+  EXPECT_EQ(bake.budget_milliseconds, 4.5);
+  EXPECT_EQ(bake.address, displace::bake::Address::clamp);
+  EXPECT_EQ(bake.output_format, ImageFormat::png);
+  EXPECT_TRUE(bake.stats);
+}
+
+TEST(Options, RejectsWhatDoesNotApply) {
+  const auto usage = [](std::initializer_list<std::string_view> args) {
+    try {
+      parse(args);
+    } catch (const AppError& error) {
+      return error.kind == ErrorKind::usage;
+    }
+    return false;
+  };
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact"}));  // no output
+  EXPECT_TRUE(usage(
+      {"bake", "--input", "h.exr", "--size", "4", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"bake", "--source", "ocean", "--size", "8", "--time", "0", "--invert", "--sectors", "4",
+                     "--mode", "exact", "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "sinusoids", "--size", "8", "--time", "0", "--spectrum", "jonswap",
+                     "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "8", "--time", "inf", "--output", "h.exr"}));
+  EXPECT_TRUE(
+      usage({"sim", "--source", "ocean", "--size", "8", "--time", "0", "--seed", "-3", "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "20000", "--time", "0", "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "8", "--time", "0", "--output", "h.png"}));
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--budget-ms", "3",
+                     "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--mode", "original",
+                     "--output", "c.exr"}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// the binary
+
+struct RunResult {
+  bool exited = false;  // exited normally (not killed by a signal)
+  int exit_code = -1;
+  std::string out, err;
+};
+
+RunResult run_displace(const TempDir& dir, const std::string& arguments) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string command = "'" + std::string(DISPLACE_BINARY) + "' " + arguments + " >'" + out.string() +
+                              "' 2>'" + err.string() + "'";
+  const int status = std::system(command.c_str());
+  RunResult result;
+  result.exited = status != -1 && WIFEXITED(status);
+  result.exit_code = result.exited ? WEXITSTATUS(status) : -1;
+  result.out = read_text(out);
+  result.err = read_text(err);
+  return result;
+}
+
+// A PNG whose header says 0 x 0 (CRC-correct, so only the size is wrong).
+std::string zero_size_png() {
+  const auto crc32 = [](const std::string& bytes) {
+    std::uint32_t crc = 0xffffffffu;
+    for (unsigned char byte : bytes) {
+      crc ^= byte;
+      for (int bit = 0; bit < 8; ++bit) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    return crc ^ 0xffffffffu;
+  };
+  const auto big_endian = [](std::uint32_t value) {
+    return std::string{char(value >> 24), char(value >> 16), char(value >> 8), char(value)};
+  };
+  const std::string ihdr =
+      std::string("IHDR") + big_endian(0) + big_endian(0) + std::string("\x08\x00\x00\x00\x00", 5);
+  const std::string iend = "IEND";
+  return std::string("\x89PNG\r\n\x1a\n", 8) + big_endian(13) + ihdr + big_endian(crc32(ihdr)) +
+         big_endian(0) + iend + big_endian(crc32(iend));
+}
+
+TEST(Cli, HelpAndNoArguments) {
+  TempDir dir;
+  const RunResult help = run_displace(dir, "--help");
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_NE(help.out.find("displace bake"), std::string::npos);
+  EXPECT_EQ(run_displace(dir, "help").exit_code, 0);
+  const RunResult none = run_displace(dir, "");
+  EXPECT_EQ(none.exit_code, 2);
+  EXPECT_NE(none.err.find("usage"), std::string::npos);
+}
+
+TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
+  TempDir dir;
+  std::mt19937 random(3);
+  std::string noise(4096, '\0');
+  for (char& c : noise) c = char(random());
+  write_bytes(dir / "corrupt.png", noise);
+  write_bytes(dir / "empty.png", "");
+  write_bytes(dir / "zero.png", zero_size_png());
+  // a real PNG cut in half
+  std::vector<std::uint8_t> pixels(64 * 64);
+  for (auto& p : pixels) p = std::uint8_t(random());
+  write_with_oiio(dir / "whole.png", 64, 64, 1, OIIO::TypeDesc::UINT8, pixels.data());
+  const std::string whole = read_text(dir / "whole.png");
+  write_bytes(dir / "truncated.png", whole.substr(0, whole.size() / 2));
+  const std::vector<float> with_nan = {0.0f, std::numeric_limits<float>::quiet_NaN(), 1.0f, 0.5f};
+  write_with_oiio(dir / "nan.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_nan.data());
+
+  const std::string to = " --sectors 4 --mode exact --output '" + (dir / "c.exr").string() + "'";
+  const auto input = [&](const std::string& name) {
+    return "bake --input '" + (dir / name).string() + "'" + to;
+  };
+  const struct {
+    std::string arguments;
+    int exit_code;
+  } cases[] = {
+      {input("missing.png"), 1},
+      {input("corrupt.png"), 1},
+      {input("empty.png"), 1},
+      {input("zero.png"), 1},
+      {input("truncated.png"), 1},
+      {input("nan.exr"), 1},
+      {"bake --input '" + (dir / "whole.png").string() + "' --sectors 3 --mode exact --output c.exr", 2},
+      {input("whole.png") + " --frobnicate", 2},
+      {"sim --source ocean --size -5 --time 0 --output h.exr", 2},
+      {"bake --input '" + (dir / "whole.png").string() + "' --relaxed --sectors 8 --output c.exr", 2},
+      {"sim --source ocean --size 16 --time nan --output h.exr", 2},
+      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact", 2},
+      {"unknown-command", 2},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments);
+    EXPECT_TRUE(result.exited) << test.arguments;
+    EXPECT_EQ(result.exit_code, test.exit_code) << test.arguments << "\n" << result.err;
+    EXPECT_NE(result.err.find("displace: error: "), std::string::npos) << test.arguments << "\n"
+                                                                       << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+}
+
+TEST(Cli, BakesAPngWhoseConesHoldForItsHeights) {
+  TempDir dir;
+  std::mt19937 random(5);
+  std::vector<std::uint8_t> pixels(16 * 12);
+  for (auto& p : pixels) p = std::uint8_t(random());
+  write_with_oiio(dir / "h.png", 16, 12, 1, OIIO::TypeDesc::UINT8, pixels.data());
+
+  const RunResult result = run_displace(dir, "bake --input '" + (dir / "h.png").string() +
+                                                 "' --sectors 4 --mode exact --address clamp --output '" +
+                                                 (dir / "c.png").string() + "' --stats");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_EQ(std::count(result.out.begin(), result.out.end(), '\n'), 1) << result.out;
+  for (const char* key :
+       {"\"mode\":\"exact\"", "\"width\":16", "\"height\":12", "\"sectors\":4", "\"address\":\"clamp\"",
+        "\"milliseconds\":", "\"texels_refined\":", "\"texels_fallback\":", "\"work\":", "\"mean_ratio\":"}) {
+    EXPECT_NE(result.out.find(key), std::string::npos) << key << " in " << result.out;
+  }
+
+  // the stored cones are conservative for the stored heights
+  const DecodedConeMap decoded = read_cone_png(dir / "c.png");
+  ASSERT_EQ(decoded.width, 16);
+  std::vector<float> exact(16 * 12 * 4);
+  displace::bake::bake_exact({decoded.heights.data(), 16, 12}, displace::bake::Address::clamp,
+                             {exact.data(), 16, 12, 4});
+  for (std::size_t k = 0; k < exact.size(); ++k) EXPECT_LE(decoded.ratios[k], exact[k]) << k;
+  for (std::size_t k = 0; k < pixels.size(); ++k) EXPECT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
+}
+
+TEST(Cli, SimWritesMetresWithItsMapping) {
+  TempDir dir;
+  const RunResult result =
+      run_displace(dir, "sim --source sinusoids --size 24 --time 0.5 --seed 9 --output '" +
+                            (dir / "h.exr").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const FloatImage image = read_float_image(dir / "h.exr");
+  ASSERT_EQ(image.channel_names, std::vector<std::string>{"height"});
+  EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:source")->value), "sinusoids");
+  EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:seed")->value), "9");
+  EXPECT_EQ(std::get<float>(find_attribute(image.metadata, "displace:time")->value), 0.5f);
+
+  // the same heights and mapping as the in-process stage, and bake --input picks the mapping up
+  SourceSettings source;
+  source.kind = SourceKind::sinusoids;
+  source.size = 24;
+  source.time = 0.5f;
+  source.sinusoids.seed = 9;
+  const SynthesizedHeights expected = synthesize(source);
+  EXPECT_EQ(image.channel("height"), expected.raw);
+  const LoadedHeights loaded = load_heights(dir / "h.exr", {});
+  EXPECT_EQ(loaded.mapping_origin, MappingOrigin::file_metadata);
+  EXPECT_EQ(loaded.mapping.scale, expected.mapping.scale);
+  EXPECT_EQ(loaded.mapping.bias, expected.mapping.bias);
+}
+
+}  // namespace

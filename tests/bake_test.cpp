@@ -1,0 +1,438 @@
+// tests/bake_test.cpp - every baker against the definition in bake/bake.h.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <cstdio>
+#include <numbers>
+#include <vector>
+
+#include "bake/bake.h"
+#include "tests/test_maps.h"
+
+namespace displace::bake {
+namespace {
+
+using test::Map;
+
+struct ConeMap {
+  int width = 0, height = 0, sectors = 0;
+  std::vector<float> ratios;
+  ConeView view() { return {ratios.data(), width, height, sectors}; }
+  float at(int i, int j, int k) const { return ratios[(std::size_t(i) * width + j) * sectors + k]; }
+};
+
+ConeMap make_cone_map(const Map& map, int sectors) {
+  return {map.width, map.height, sectors, std::vector<float>(std::size_t(map.width) * map.height * sectors)};
+}
+HeightView view_of(const Map& map) { return {map.values.data(), map.width, map.height}; }
+
+// All pairs, written straight from the definition with its own arithmetic (double, atan2).
+ConeMap brute_force(const Map& map, int sectors, Address address) {
+  ConeMap cones = make_cone_map(map, sectors);
+  const double two_pi = 2.0 * std::numbers::pi;
+  const int tiles = address == Address::wrap ? 1 : 0;
+  for (int ci = 0; ci < map.height; ++ci)
+    for (int cj = 0; cj < map.width; ++cj) {
+      const double hc = map.values[std::size_t(ci) * map.width + cj];
+      std::vector<double> best(sectors, 1.0);
+      for (int qi = 0; qi < map.height; ++qi)
+        for (int qj = 0; qj < map.width; ++qj) {
+          const double hq = map.values[std::size_t(qi) * map.width + qj];
+          if (!(hq > hc)) continue;
+          for (int ty = -tiles; ty <= tiles; ++ty)
+            for (int tx = -tiles; tx <= tiles; ++tx) {
+              const double du = double(qj + tx * map.width - cj) / map.width;
+              const double dv = double(qi + ty * map.height - ci) / map.height;
+              const double ratio = std::sqrt(du * du + dv * dv) / (hq - hc);
+              double azimuth = std::atan2(dv, du);
+              if (azimuth < 0) azimuth += two_pi;
+              const double sector_width = two_pi / sectors;
+              for (int k = 0; k < sectors; ++k) {
+                const double lo = k * sector_width, hi = (k + 1) * sector_width;
+                const double eps = 1e-10;
+                const bool inside = (azimuth >= lo - eps && azimuth <= hi + eps) ||
+                                    (k == sectors - 1 && azimuth <= eps) || (k == 0 && azimuth >= two_pi - eps);
+                if (inside && ratio < best[k]) best[k] = ratio;
+              }
+            }
+        }
+      for (int k = 0; k < sectors; ++k) cones.ratios[(std::size_t(ci) * map.width + cj) * sectors + k] = float(best[k]);
+    }
+  return cones;
+}
+
+std::vector<Map> hard_maps() {
+  return {test::make_spikes(24, 24),       test::make_terraces(20, 16),  test::make_checkerboard(16, 16),
+          test::make_fractal_cliff(32, 32), test::make_flat(12, 12),      test::make_near_flat_step(17, 13),
+          test::make_flat(1, 1),            test::make_fractal_cliff(13, 7), test::make_bricks(30, 18),
+          test::make_spikes(1, 9)};
+}
+
+const char* address_name(Address a) { return a == Address::wrap ? "wrap" : "clamp"; }
+
+TEST(ExactBaker, MatchesAllPairsOnHardMaps) {
+  for (const Map& map : hard_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const ConeMap reference = brute_force(map, sectors, address);
+        ConeMap exact = make_cone_map(map, sectors);
+        bake_exact(view_of(map), address, exact.view());
+        for (std::size_t n = 0; n < exact.ratios.size(); ++n)
+          ASSERT_NEAR(exact.ratios[n], reference.ratios[n], 1e-5f * reference.ratios[n] + 1e-7f)
+              << map.name << " " << map.width << "x" << map.height << " sectors " << sectors << " "
+              << address_name(address) << " texel " << n / sectors << " sector " << n % sectors;
+      }
+}
+
+TEST(OriginalBaker, EqualsExactBitForBit) {
+  for (const Map& map : hard_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        ConeMap exact = make_cone_map(map, sectors), original = make_cone_map(map, sectors);
+        bake_exact(view_of(map), address, exact.view());
+        bake_original(view_of(map), address, original.view());
+        ASSERT_EQ(exact.ratios, original.ratios) << map.name << " sectors " << sectors << " " << address_name(address);
+      }
+}
+
+
+ConeMap exact_of(const Map& map, int sectors, Address address) {
+  ConeMap exact = make_cone_map(map, sectors);
+  bake_exact(view_of(map), address, exact.view());
+  return exact;
+}
+
+// Number of ratios above the exact ones (bit for bit) and the largest over-claim factor.
+struct Violations {
+  long long count = 0;
+  double worst = 1.0;
+};
+Violations violations(const ConeMap& cones, const ConeMap& exact) {
+  Violations v;
+  for (std::size_t n = 0; n < cones.ratios.size(); ++n)
+    if (cones.ratios[n] > exact.ratios[n]) {
+      ++v.count;
+      v.worst = std::max(v.worst, double(cones.ratios[n]) / double(exact.ratios[n]));
+    }
+  return v;
+}
+
+TEST(MaxPyramid, ParentsAreMaximaOfChildrenForOddSizes) {
+  const Map map = test::make_fractal_cliff(13, 7);
+  const MaxPyramid pyramid = build_max_pyramid(view_of(map));
+  ASSERT_EQ(pyramid.widths.back(), 1);
+  ASSERT_EQ(pyramid.heights.back(), 1);
+  for (std::size_t level = 1; level < pyramid.levels.size(); ++level) {
+    const int w = pyramid.widths[level], h = pyramid.heights[level];
+    const int fw = pyramid.widths[level - 1], fh = pyramid.heights[level - 1];
+    EXPECT_EQ(w, (fw + 1) / 2);
+    EXPECT_EQ(h, (fh + 1) / 2);
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) {
+        float m = 0.0f;
+        for (int di = 0; di < 2; ++di)
+          for (int dj = 0; dj < 2; ++dj)
+            if (2 * i + di < fh && 2 * j + dj < fw)
+              m = std::max(m, pyramid.levels[level - 1][std::size_t(2 * i + di) * fw + 2 * j + dj]);
+        EXPECT_EQ(pyramid.levels[level][std::size_t(i) * w + j], m);
+      }
+  }
+  EXPECT_EQ(pyramid.levels.back()[0], *std::max_element(map.values.begin(), map.values.end()));
+}
+
+TEST(PaperAdaptiveBaker, IsNotConservativeAndTheViolationsAreCounted) {
+  // Equal heights only (similarity 0): the copy rule still over-claims, because a child can sit
+  // half a coarse texel closer to a blocker than its parent's centre.
+  long long equal_height_violations = 0;
+  double equal_height_worst = 1.0, loose_worst = 1.0;
+  for (const Map& map : hard_maps())
+    for (int sectors : {1, 4, 8}) {
+      const ConeMap exact = exact_of(map, sectors, Address::wrap);
+      ConeMap strict = make_cone_map(map, sectors), loose = make_cone_map(map, sectors);
+      bake_paper_adaptive(view_of(map), Address::wrap, {3, 0.0f}, strict.view());
+      bake_paper_adaptive(view_of(map), Address::wrap, {3, 0.25f}, loose.view());
+      const Violations vs = violations(strict, exact), vl = violations(loose, exact);
+      std::printf("paper-adaptive %-22s %2dx%-2d n=%d: similarity 0: %lld violations (worst x%.2f); "
+                  "similarity 0.25: %lld violations (worst x%.2f)\n",
+                  map.name.c_str(), map.width, map.height, sectors, vs.count, vs.worst, vl.count, vl.worst);
+      equal_height_violations += vs.count;
+      equal_height_worst = std::max(equal_height_worst, vs.worst);
+      loose_worst = std::max(loose_worst, vl.worst);
+    }
+  EXPECT_GT(equal_height_violations, 0);
+  EXPECT_GE(equal_height_worst, 1.5);
+  EXPECT_GE(loose_worst, 5.0);
+}
+
+// A clock that advances by `step` milliseconds at every reading (thread safe).
+struct FakeClock {
+  std::shared_ptr<std::atomic<long long>> ticks = std::make_shared<std::atomic<long long>>(0);
+  double step = 1.0;
+  std::function<double()> function() const {
+    auto t = ticks;
+    const double s = step;
+    return [t, s] { return double(t->fetch_add(1)) * s; };
+  }
+};
+
+TEST(BudgetedBaker, ConservativeAtEveryBudget) {
+  for (const Map& map : hard_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const ConeMap exact = exact_of(map, sectors, address);
+        for (int budget_kind = 0; budget_kind < 4; ++budget_kind) {
+          Budget budget;
+          if (budget_kind == 0) budget.milliseconds = 0.0;                     // zero: fallback only
+          if (budget_kind == 1) budget.max_work = 50;                          // tiny
+          if (budget_kind == 2) budget.clock = FakeClock{}.function(), budget.milliseconds = 3.0;
+          ConeMap cones = make_cone_map(map, sectors);
+          const BakeStats stats = bake_budgeted(view_of(map), address, budget, cones.view());
+          const Violations v = violations(cones, exact);
+          ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " sectors " << sectors
+                                << " " << address_name(address) << " budget kind " << budget_kind;
+          for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << "a zero ratio would stall a cone stepper";
+          EXPECT_EQ(stats.texels_refined + stats.texels_fallback <= (long long)map.width * map.height, true);
+          if (budget_kind == 3) {  // unlimited: within the tolerance of exact everywhere
+            EXPECT_EQ(stats.texels_fallback, 0);
+            for (std::size_t n = 0; n < cones.ratios.size(); ++n)
+              ASSERT_GE(cones.ratios[n], (1.0f - budget.tolerance) * exact.ratios[n] * (1.0f - 1e-6f))
+                  << map.name << " texel " << n / sectors;
+          }
+        }
+      }
+}
+
+TEST(BudgetedBaker, UnlimitedWithZeroToleranceIsExact) {
+  for (const Map& map : hard_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        Budget budget;
+        budget.tolerance = 0.0f;
+        ConeMap cones = make_cone_map(map, sectors);
+        bake_budgeted(view_of(map), address, budget, cones.view());
+        ASSERT_EQ(cones.ratios, exact_of(map, sectors, address).ratios) << map.name << " sectors " << sectors;
+      }
+}
+
+TEST(BudgetedBaker, RefinementContinuesAcrossCallsUntilDone) {
+  const Map map = test::make_fractal_cliff(64, 48);
+  const ConeMap exact = exact_of(map, 4, Address::wrap);
+  BudgetedBaker baker(map.width, map.height, 4, Address::wrap);
+  ConeMap cones = make_cone_map(map, 4);
+  Budget budget;
+  budget.tolerance = 0.0f;
+  budget.max_work = 20000;  // a deterministic per-call budget
+  BakeStats stats = baker.bake(view_of(map), budget, cones.view());
+  long long pending = baker.pending();
+  ASSERT_GT(pending, 0) << "the test needs a budget that runs out";
+  EXPECT_EQ(violations(cones, exact).count, 0);
+  int calls = 0;
+  while (baker.pending() > 0 && calls < 1000) {
+    stats = baker.refine(budget, cones.view());
+    EXPECT_EQ(violations(cones, exact).count, 0);
+    EXPECT_LE(baker.pending(), pending);
+    pending = baker.pending();
+    ++calls;
+  }
+  EXPECT_EQ(baker.pending(), 0);
+  EXPECT_EQ(cones.ratios, exact.ratios);
+}
+
+TEST(BudgetedBaker, FakeClockBudgetStopsRefinement) {
+  const Map map = test::make_fractal_cliff(64, 64);
+  FakeClock clock;
+  clock.step = 1.0;
+  Budget budget;
+  budget.tolerance = 0.0f;
+  budget.clock = clock.function();
+  budget.milliseconds = 10.0;  // ten clock readings
+  ConeMap cones = make_cone_map(map, 4);
+  BudgetedBaker baker(map.width, map.height, 4, Address::wrap);
+  const BakeStats stats = baker.bake(view_of(map), budget, cones.view());
+  EXPECT_GT(stats.texels_fallback, 0);
+  EXPECT_LT(stats.texels_refined, 64 * 64);
+  EXPECT_GE(stats.milliseconds, 10.0);
+  EXPECT_EQ(violations(cones, exact_of(map, 4, Address::wrap)).count, 0);
+}
+
+TEST(BudgetedBaker, IncrementalUpdatesStayConservativeAndConverge) {
+  std::uint64_t seed = 99;
+  for (int sectors : {1, 4, 8})
+    for (Address address : {Address::wrap, Address::clamp}) {
+      Map map = test::make_fractal_cliff(40, 32, seed);
+      BudgetedBaker baker(map.width, map.height, sectors, address);
+      ConeMap cones = make_cone_map(map, sectors);
+      Budget unlimited;
+      unlimited.tolerance = 0.0f;
+      baker.bake(view_of(map), unlimited, cones.view());
+      for (int frame = 0; frame < 12; ++frame) {
+        // a random local raise or lowering
+        const int w = 1 + int(test::hash01(seed, frame, 1) * 6), h = 1 + int(test::hash01(seed, frame, 2) * 6);
+        const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
+        const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
+        const bool raise = frame % 3 != 1;
+        for (int i = y0; i < y0 + h; ++i)
+          for (int j = x0; j < x0 + w; ++j) {
+            float& value = map.at(i, j);
+            value = raise ? std::min(1.0f, value + 0.3f * test::hash01(seed, i, j + frame))
+                          : std::max(0.0f, value - 0.3f * test::hash01(seed, i, j + frame));
+          }
+        const Rect dirty{x0, y0, x0 + w, y0 + h};
+        Budget none;
+        none.milliseconds = 0.0;
+        baker.update(view_of(map), std::span<const Rect>(&dirty, 1), none, cones.view());
+        const ConeMap exact = exact_of(map, sectors, address);
+        ASSERT_EQ(violations(cones, exact).count, 0)
+            << "frame " << frame << (raise ? " raise" : " lower") << " sectors " << sectors << " "
+            << address_name(address);
+        if (frame % 4 == 3) {  // later frames converge to the full rebake
+          baker.refine(unlimited, cones.view());
+          EXPECT_EQ(baker.pending(), 0);
+          ASSERT_EQ(cones.ratios, exact.ratios) << "frame " << frame;
+        }
+      }
+    }
+}
+
+TEST(BudgetedBaker, RejectsHeightsChangedOutsideTheDirtyRegion) {
+  Map map = test::make_bricks(16, 16);
+  BudgetedBaker baker(16, 16, 4, Address::wrap);
+  ConeMap cones = make_cone_map(map, 4);
+  baker.bake(view_of(map), {}, cones.view());
+  map.at(0, 0) += 0.01f;
+  const Rect dirty{8, 8, 10, 10};
+  EXPECT_THROW(baker.update(view_of(map), std::span<const Rect>(&dirty, 1), {}, cones.view()), BakeError);
+}
+
+// A smooth dome: rays aimed down its flank enter the relief and stay inside for long, so the relaxed
+// cones there are much wider than the conservative ones.
+Map make_dome(int w, int h) {
+  Map m{"dome", w, h, std::vector<float>(std::size_t(w) * h)};
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const float x = (j + 0.5f) / w - 0.5f, y = (i + 0.5f) / h - 0.5f;
+      m.at(i, j) = 0.9f * std::exp(-(x * x + y * y) / 0.03f);
+    }
+  return m;
+}
+
+TEST(RelaxedBaker, NeverBelowConservativeAndWiderOnSmoothSlopes) {
+  for (const Map& map : {make_dome(24, 24), test::make_spikes(24, 24), test::make_bricks(24, 24),
+                         test::make_fractal_cliff(20, 20)})
+    for (int sectors : {1, 4}) {
+      const ConeMap exact = exact_of(map, sectors, Address::wrap);
+      ConeMap relaxed = make_cone_map(map, sectors);
+      bake_relaxed(view_of(map), Address::wrap, relaxed.view());
+      double relaxed_sum = 0, exact_sum = 0;
+      for (std::size_t n = 0; n < relaxed.ratios.size(); ++n) {
+        ASSERT_GE(relaxed.ratios[n], exact.ratios[n]);
+        ASSERT_LE(relaxed.ratios[n], 1.0f);
+        relaxed_sum += relaxed.ratios[n];
+        exact_sum += exact.ratios[n];
+      }
+      std::printf("relaxed %-14s n=%d: mean relaxed / mean conservative = %.3f\n", map.name.c_str(), sectors,
+                  relaxed_sum / exact_sum);
+      if (map.name == "dome") {
+        EXPECT_GT(relaxed_sum, exact_sum * 1.05) << "sectors " << sectors;
+      }
+    }
+}
+
+// The definition, brute force in double: for every texel c and every texel d (with wrap images), the
+// ray from (c, 1) through (d, h(d)) is followed at an eighth of a texel until it leaves the relief;
+// the relaxed ratio is the smallest |E - c| / (h(E) - h(c)) over exits E above c, per sector.
+TEST(RelaxedBaker, MatchesTheDefinitionByBruteForce) {
+  for (const Map& map : {make_dome(16, 12), test::make_fractal_cliff(14, 14)}) {
+    const int sectors = 4;
+    ConeMap relaxed = make_cone_map(map, sectors);
+    bake_relaxed(view_of(map), Address::wrap, relaxed.view());
+    auto height_at = [&](double x, double y) {  // texel units, texel (i, j) centred at (j, i)
+      const int j = int(std::floor(x)), i = int(std::floor(y));
+      const double tx = x - j, ty = y - i;
+      auto at = [&](int a, int b) {
+        return double(map.values[std::size_t(((a % map.height) + map.height) % map.height) * map.width +
+                                 ((b % map.width) + map.width) % map.width]);
+      };
+      return (at(i, j) * (1 - tx) + at(i, j + 1) * tx) * (1 - ty) + (at(i + 1, j) * (1 - tx) + at(i + 1, j + 1) * tx) * ty;
+    };
+    double worst = 0.0;
+    int far_off = 0, count = 0;
+    for (int ci = 0; ci < map.height; ++ci)
+      for (int cj = 0; cj < map.width; ++cj) {
+        const double hc = map.values[std::size_t(ci) * map.width + cj];
+        double best[4] = {1, 1, 1, 1};
+        for (int dy = -map.height - ci; dy < 2 * map.height - ci; ++dy)
+          for (int dx = -map.width - cj; dx < 2 * map.width - cj; ++dx) {
+            if (dx == 0 && dy == 0) continue;
+            const double hd = height_at(cj + dx, ci + dy);
+            if (!(hd > hc)) continue;
+            const double len = std::sqrt(double(dx) * dx + double(dy) * dy);
+            double s_inside = 1.0;
+            bool constrained = true;
+            if (hd < 1.0) {
+              for (double s = 1.0 + 0.01 / len;; s += 0.01 / len) {
+                const double z = 1.0 - (1.0 - hd) * s;
+                if (z <= hc) { constrained = false; break; }
+                if (height_at(cj + s * dx, ci + s * dy) <= z) break;
+                s_inside = s;
+              }
+            }
+            if (!constrained) continue;
+            const double z = 1.0 - (1.0 - hd) * s_inside;
+            const double du = s_inside * dx / map.width, dv = s_inside * dy / map.height;
+            const double ratio = std::min(1.0, std::sqrt(du * du + dv * dv) / (z - hc));
+            double azimuth = std::atan2(double(dy) / map.height, double(dx) / map.width);
+            if (azimuth < 0) azimuth += 2 * std::numbers::pi;
+            for (int k = 0; k < 4; ++k) {
+              const double lo = k * std::numbers::pi / 2, hi = (k + 1) * std::numbers::pi / 2;
+              if ((azimuth >= lo - 1e-12 && azimuth <= hi + 1e-12) || (k == 0 && azimuth >= 2 * std::numbers::pi - 1e-12) ||
+                  (k == 3 && azimuth <= 1e-12))
+                best[k] = std::min(best[k], ratio);
+            }
+          }
+        for (int k = 0; k < 4; ++k) {
+          // never wider than the fine march allows: an exit the march finds is never missed
+          EXPECT_LE(relaxed.at(ci, cj, k), best[k] * 1.02) << map.name << " texel " << ci << "," << cj;
+          const double diff = std::fabs(relaxed.at(ci, cj, k) - best[k]) / best[k];
+          far_off += diff > 0.02;
+          worst = std::max(worst, diff);
+          ++count;
+        }
+      }
+    std::printf("relaxed %s: largest relative difference to the brute-force definition %.4f, %d of %d off by "
+                "more than 2%%\n", map.name.c_str(), worst, far_off, count);
+    // the baker solves each bilinear cell exactly; the reference marches at 1/100 texel and can step
+    // over an exit thinner than that
+    EXPECT_LE(far_off, count / 100) << map.name;
+  }
+}
+
+TEST(Validation, RejectsBadInput) {
+  std::vector<float> ratios(16 * 4);
+  Map nan_map = test::make_flat(4, 4);
+  nan_map.at(1, 2) = std::nanf("");
+  EXPECT_THROW(bake_exact(view_of(nan_map), Address::wrap, {ratios.data(), 4, 4, 4}), BakeError);
+  Map high = test::make_flat(4, 4);
+  high.at(0, 0) = 1.5f;
+  EXPECT_THROW(bake_budgeted(view_of(high), Address::wrap, {}, {ratios.data(), 4, 4, 4}), BakeError);
+  EXPECT_THROW(bake_exact({nullptr, 0, 0}, Address::wrap, {ratios.data(), 0, 0, 4}), BakeError);
+  const Map ok = test::make_flat(4, 4);
+  EXPECT_THROW(bake_exact(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 3}), BakeError);
+  EXPECT_THROW(bake_relaxed(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 8}), BakeError);
+  EXPECT_THROW(bake_exact(view_of(ok), Address::wrap, {ratios.data(), 4, 5, 4}), BakeError);
+  EXPECT_THROW(BudgetedBaker(0, 4, 4, Address::wrap), BakeError);
+}
+
+TEST(ExactBaker, FlatAndOneByOneMapsHaveNoBlockers) {
+  for (const Map& map : {test::make_flat(9, 5), test::make_flat(1, 1), test::make_flat(1, 7)}) {
+    const ConeMap exact = exact_of(map, 8, Address::wrap);
+    for (float r : exact.ratios) EXPECT_EQ(r, 1.0f);
+  }
+}
+
+}  // namespace
+}  // namespace displace::bake
