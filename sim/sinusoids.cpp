@@ -143,12 +143,13 @@ float sinusoid_height_at(std::span<const Wave> waves, float x, float y, float ti
 void sinusoid_heights(std::span<const Wave> waves, float patch_size, float time, int width, int height,
                       std::span<float> out) {
   if (width < 1 || height < 1) throw std::invalid_argument("sinusoid_heights: width and height must be >= 1");
-  if (!positive_finite(patch_size))
+  if (!positive_finite(patch_size)) {
     throw std::invalid_argument("sinusoid_heights: patch_size must be positive");
+  }
   if (out.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height)) {
     throw std::invalid_argument("sinusoid_heights: out must hold width * height samples");
   }
-  // per-wave tables along x and along y (time and phase folded into y), in double
+  // per-wave sin and cos tables along x (amplitude folded in) and along y (time and phase folded in)
   const std::size_t wave_count = waves.size();
   std::vector<float> sin_x(wave_count * width), cos_x(wave_count * width);
   std::vector<float> sin_y(wave_count * height), cos_y(wave_count * height);
