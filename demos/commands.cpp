@@ -202,7 +202,7 @@ BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& inpu
 }
 
 BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
-                      bake::Address address, double budget_milliseconds) {
+                      bake::Address address, double budget_milliseconds, float tolerance) {
   if (baker == Baker::relaxed && sector_count != 1 && sector_count != 4) {
     throw usage_error("the relaxed baker supports 1 or 4 sectors, not " + std::to_string(sector_count));
   }
@@ -225,6 +225,7 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
     case Baker::budgeted: {
       bake::Budget budget;
       budget.milliseconds = budget_milliseconds;
+      budget.tolerance = tolerance;
       baked.stats = bake::bake_budgeted(view, address, budget, cones);
       break;
     }
@@ -267,7 +268,8 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
 
   const BakedCones baked = bake_cones(input.heights, input.width, input.height, settings.sector_count,
-                                      settings.baker, settings.address, settings.budget_milliseconds);
+                                      settings.baker, settings.address, settings.budget_milliseconds,
+                                      settings.tolerance);
   const ConeMapExport cones{input.width,  input.height,     settings.sector_count, input.heights,
                             baked.ratios, settings.address, settings.baker};
   Metadata metadata = input.metadata;
@@ -356,14 +358,18 @@ usage:
 
   displace bake (--input H.png|H.exr [--channel C] [--invert] [--height-range LO,HI]
                 | --source ocean|sinusoids --size N --time T [synthesis options])
-                --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] | --relaxed)
+                --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] [--tolerance T]
+                                 | --relaxed)
                 [--address wrap|clamp] --output C.exr|C.png [--stats]
       Bake a cone map. --input: 8/16-bit images map as value / maximum; float images map their
       min..max to 0..1 unless --height-range LO,HI is given or the file was written by
       `displace sim`. --channel takes a name or an index (default: `height`, or the only grey
       channel). --invert: the image stores depth (1 = deepest). --relaxed bakes relaxed cones
       (sectors 1 or 4). A .png output quantizes the heights to 8 bits before baking so that its
-      cones are conservative for the heights it stores. --stats prints one JSON line.
+      cones are conservative for the heights it stores. --budget-ms: refinement time per frame
+      (the conservative fallback is always completed). --tolerance T (default 0.1): refine only
+      while a ratio may be more than T below exact; 0 refines to the exact map. --stats prints one
+      JSON line.
 
   displace demo [--size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and

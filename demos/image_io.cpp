@@ -61,6 +61,10 @@ std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file) 
     throw runtime_error(quoted(file) + " is an empty image (" + std::to_string(spec.width) + " x " +
                         std::to_string(spec.height) + ")");
   }
+  if (spec.width < 2 || spec.height < 2) {
+    throw runtime_error(quoted(file) + " is " + std::to_string(spec.width) + " x " + std::to_string(spec.height) +
+                        ": a height map needs at least 2 x 2 texels to displace anything");
+  }
   if (spec.width > max_image_side || spec.height > max_image_side) {
     throw runtime_error(quoted(file) + " is " + std::to_string(spec.width) + " x " +
                         std::to_string(spec.height) + "; the largest supported side is " +

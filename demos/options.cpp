@@ -190,7 +190,8 @@ bool take_source_flag(std::string_view flag, FlagReader& reader, SourceDraft& dr
     draft.kind = parse_word(flag, reader.value(), source_words);
     return true;
   } else if (flag == "--size") {
-    draft.size = parse_int(flag, reader.value(), 1, max_image_side);
+    // a single texel (or a single row) has no relief to displace: at least 2 x 2
+    draft.size = parse_int(flag, reader.value(), 2, max_image_side);
   } else if (flag == "--time") {
     draft.time = parse_float(flag, reader.value());
   } else if (flag == "--seed") {
@@ -295,6 +296,7 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   std::optional<int> sectors;
   std::optional<Baker> mode;
   std::optional<double> budget;
+  std::optional<double> tolerance;
   bool relaxed = false;
 
   while (!reader.done()) {
@@ -342,6 +344,12 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
                           ", got " + std::to_string(value));
       }
       budget = value;
+    } else if (flag == "--tolerance") {
+      const double value = parse_number(flag, reader.value());
+      if (!(value >= 0.0 && value < 1.0)) {
+        throw usage_error("--tolerance must be in [0, 1), got " + std::to_string(value));
+      }
+      tolerance = value;
     } else if (flag == "--address") {
       settings.address = parse_word(flag, reader.value(), address_words);
     } else if (flag == "--relaxed") {
@@ -387,6 +395,10 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   if (budget) {
     if (settings.baker != Baker::budgeted) throw usage_error("--budget-ms applies to --mode budgeted only");
     settings.budget_milliseconds = *budget;
+  }
+  if (tolerance) {
+    if (settings.baker != Baker::budgeted) throw usage_error("--tolerance applies to --mode budgeted only");
+    settings.tolerance = float(*tolerance);
   }
   if (!output) throw usage_error("'displace bake' needs --output FILE.exr|FILE.png");
   settings.output = *output;

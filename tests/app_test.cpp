@@ -196,6 +196,8 @@ TEST(ImageIo, BadFilesThrowOneErrorNamingTheFile) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const std::vector<float> with_nan = {0.0f, nan, 1.0f, 0.5f};
   write_with_oiio(dir / "nan.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_nan.data());
+  const std::uint8_t one_texel = 200;
+  write_with_oiio(dir / "one.png", 1, 1, 1, OIIO::TypeDesc::UINT8, &one_texel);
   const std::vector<float> with_inf = {0.0f, std::numeric_limits<float>::infinity(), 1.0f, 0.5f};
   write_with_oiio(dir / "inf.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_inf.data());
   for (const char* name : {"missing.png", "corrupt.png", "nan.exr", "inf.exr"}) {
@@ -480,6 +482,8 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
   write_bytes(dir / "truncated.png", whole.substr(0, whole.size() / 2));
   const std::vector<float> with_nan = {0.0f, std::numeric_limits<float>::quiet_NaN(), 1.0f, 0.5f};
   write_with_oiio(dir / "nan.exr", 2, 2, 1, OIIO::TypeDesc::FLOAT, with_nan.data());
+  const std::uint8_t one_texel = 200;
+  write_with_oiio(dir / "one.png", 1, 1, 1, OIIO::TypeDesc::UINT8, &one_texel);
 
   const std::string to = " --sectors 4 --mode exact --output '" + (dir / "c.exr").string() + "'";
   const auto input = [&](const std::string& name) {
@@ -495,6 +499,7 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
       {input("zero.png"), 1},
       {input("truncated.png"), 1},
       {input("nan.exr"), 1},
+      {input("one.png"), 1},
       {"bake --input '" + (dir / "whole.png").string() + "' --sectors 3 --mode exact --output c.exr", 2},
       {input("whole.png") + " --frobnicate", 2},
       {"sim --source ocean --size -5 --time 0 --output h.exr", 2},
@@ -502,6 +507,9 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
       {"sim --source ocean --size 16 --time nan --output h.exr", 2},
       {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact", 2},
       {"unknown-command", 2},
+      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output c.exr", 2},
+      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact --tolerance 0 --output c.exr", 2},
+      {"bake --source sinusoids --size 1 --time 0 --sectors 4 --mode budgeted --output c.exr", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
