@@ -11,8 +11,8 @@
 // texels, blocks far from it (relative to their size) stay whole and act as bounds. Each texel then
 // scans the candidates in order of their group bound and stops as soon as none can lower it.
 // Stage B (while the budget lasts): texels whose bound may be loose by more than the tolerance are
-// refined by a branch and bound restricted to the coarse candidates. What is left over stays
-// conservative and is refined on the next call.
+// refined by a branch and bound over the pyramid that stops opening blocks once they are within
+// the tolerance. What is left over stays conservative and is refined on the next call.
 // Incremental update: where heights rose, ratios around the dirty region are repaired in the same
 // call by an exact search over the dirty blocks; where they fell, stale ratios are still
 // conservative and are only marked for refinement.
@@ -105,10 +105,8 @@ long long collect_candidates(const SearchContext& context, const GroupRect& g, f
 
 // Scans a group's candidates for one texel. exact_best receives the pair-ratio minimum over the
 // candidate texels, coarse the minimum of the block bounds. Returns the work done.
-// With exact_only, the scan stops only when no candidate can lower exact_best (coarse bounds do not
-// end it), so exact_best is the minimum over every candidate texel that could matter.
 long long scan_candidates(const Grid& grid, std::span<const Candidate> candidates, int ci, int cj, float hc,
-                          bool exact_only, float* exact_best, float* coarse) {
+                          float* exact_best, float* coarse) {
   const int sectors = grid.sector_count;
   float largest = 1.0f;
   long long work = 0;
@@ -130,8 +128,7 @@ long long scan_candidates(const Grid& grid, std::span<const Candidate> candidate
       }
     if (lowered) {
       largest = 0.0f;
-      for (int k = 0; k < sectors; ++k)
-        largest = std::max(largest, exact_only ? exact_best[k] : std::min(exact_best[k], coarse[k]));
+      for (int k = 0; k < sectors; ++k) largest = std::max(largest, std::min(exact_best[k], coarse[k]));
     }
   }
   return work;
@@ -195,7 +192,7 @@ long long fallback_group(BudgetedBaker::State& state, int group, float keep, flo
       const std::size_t t = std::size_t(i) * grid.width + j;
       std::fill_n(exact_best, sectors, 1.0f);
       std::fill_n(coarse, sectors, 1.0f);
-      work += scan_candidates(grid, candidates, i, j, state.heights[t], false, exact_best, coarse);
+      work += scan_candidates(grid, candidates, i, j, state.heights[t], exact_best, coarse);
       float slack = 1.0f;
       for (int k = 0; k < sectors; ++k) {
         out[t * sectors + k] = std::min(exact_best[k], coarse[k]);
@@ -209,37 +206,23 @@ long long fallback_group(BudgetedBaker::State& state, int group, float keep, flo
   return work;
 }
 
-// Stage B for one group: refines its pending texels with a search restricted to coarse candidates.
-long long refine_group(BudgetedBaker::State& state, int group, float keep, float* out,
-                       std::vector<Candidate>& candidates, long long& refined) {
+// Stage B for one group: refines its pending texels with a branch and bound over the whole pyramid
+// that leaves a block unopened once its bound is within the tolerance of the best blocker found.
+long long refine_group(BudgetedBaker::State& state, int group, float keep, float* out, long long& refined) {
   const Grid& grid = state.grid;
   const int sectors = grid.sector_count;
   const SearchContext context{grid, state.pyramid};
   const GroupRect g = group_rect(grid, group);
-  float group_min = 1.0f;
-  for (int i = g.i0; i <= g.i1; ++i)
-    for (int j = g.j0; j <= g.j1; ++j) group_min = std::min(group_min, state.heights[std::size_t(i) * grid.width + j]);
-  long long work = collect_candidates(context, g, group_min, state.roots, candidates);
-  std::vector<Node> coarse_nodes;
-  float exact_best[8], coarse[8], floor[8];
+  long long work = 0;
+  float exact_best[8], floor[8];
   for (int i = g.i0; i <= g.i1; ++i)
     for (int j = g.j0; j <= g.j1; ++j) {
       const std::size_t t = std::size_t(i) * grid.width + j;
       if (!(state.slack[t] < keep)) continue;
       const float hc = state.heights[t];
       std::fill_n(exact_best, sectors, 1.0f);
-      std::fill_n(coarse, sectors, 1.0f);
-      work += scan_candidates(grid, candidates, i, j, hc, true, exact_best, coarse);
-      // open the coarse candidates that may hold a better blocker than the texel candidates
-      float largest = 0.0f;
-      for (int k = 0; k < sectors; ++k) largest = std::max(largest, exact_best[k]);
-      coarse_nodes.clear();
-      for (const Candidate& c : candidates) {
-        if (!(c.group_bound < largest)) break;
-        if (c.node.level > 0 && c.max > hc) coarse_nodes.push_back(c.node);
-      }
       std::fill_n(floor, sectors, 1.0f);
-      work += detail::search_texel_within(context, i, j, hc, coarse_nodes, keep, exact_best, floor);
+      work += detail::search_texel_within(context, i, j, hc, state.roots, keep, exact_best, floor);
       float slack = 1.0f;
       for (int k = 0; k < sectors; ++k) {
         out[t * sectors + k] = std::min(exact_best[k], floor[k]);
@@ -308,14 +291,13 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
   std::atomic<long long> refined_total{0};
   std::atomic<int> last_started{-1};
   tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1), [&](const tbb::blocked_range<int>& range) {
-    std::vector<Candidate> candidates;
     long long local_refined = 0;
     for (int n = range.begin(); n < range.end(); ++n) {
       if (clock.exhausted()) break;
       int seen = last_started.load();
       while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
       }
-      clock.work += refine_group(state, order[n], keep, out, candidates, local_refined);
+      clock.work += refine_group(state, order[n], keep, out, local_refined);
     }
     refined_total += local_refined;
   });

@@ -137,8 +137,8 @@ long long search_texel_leaves(const SearchContext& context, int ci, int cj, floa
         if (examine({level, tile_x * count_x + cx, tile_y * count_y + cy}, children[child_count])) ++child_count;
       }
     }
-    std::sort(children, children + child_count,
-              [](const StackEntry& a, const StackEntry& b) { return a.bound > b.bound; });
+    for (int a = 1; a < child_count; ++a)  // insertion sort, largest bound first
+      for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) std::swap(children[b - 1], children[b]);
     for (int c = 0; c < child_count; ++c) stack.push_back(children[c]);
   }
   return work;
