@@ -145,7 +145,12 @@ struct BudgetedBaker::State {
   // texel is refined while its slack is below 1 - tolerance
   std::vector<float> slack;
   std::vector<float> group_slack;  // smallest slack of each group
-  int cursor = 0;  // next group stage B looks at
+  std::vector<std::uint8_t> group_stage;  // 0: only the O(N) floor so far, 1: stage A done
+  // stage 0: for each level L >= 1, the max over the 3 x 3 level-L blocks around each block, and the
+  // uv distance below which no texel outside a texel's level-(L-1) neighbourhood can lie
+  std::vector<std::vector<float>> ring_max;
+  std::vector<float> ring_distance;
+  int cursor = 0;  // next group the refinement looks at
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
 
@@ -174,9 +179,87 @@ struct Clock {
   }
 };
 
-// Stage A for one group: writes conservative ratios, flags texels whose bound may be loose.
-long long fallback_group(BudgetedBaker::State& state, int group, float keep, float* out,
-                         std::vector<Candidate>& candidates) {
+// Stage 0, the O(N) floor that every call completes whatever the budget: the eight neighbours
+// exactly, and for every level L one bound for all texels between the level-(L-1) and level-L
+// 3 x 3 block neighbourhoods: (smallest distance to leave the inner one) / (largest height in the
+// outer one - texel height). Every texel other than c lies in one of these rings (or beyond uv
+// distance 1, where it cannot matter), so the result is conservative; coarse, but never zero.
+void prepare_stage0(BudgetedBaker::State& state) {
+  const Grid& grid = state.grid;
+  const Pyramid& pyramid = state.pyramid;
+  const bool wrap = grid.address == Address::wrap;
+  state.ring_max.assign(pyramid.levels, {});
+  state.ring_distance.assign(pyramid.levels, 0.0f);
+  for (int level = 0; level < pyramid.levels; ++level) {
+    const int cx = pyramid.count_x(level), cy = pyramid.count_y(level);
+    // narrowest block of this level along each axis (the last one of a row may be partial)
+    const int narrow_x = std::min(1 << level, grid.width - (cx - 1) * (1 << level));
+    const int narrow_y = std::min(1 << level, grid.height - (cy - 1) * (1 << level));
+    state.ring_distance[level] = std::min(grid.distance(narrow_x + 1, 0), grid.distance(0, narrow_y + 1));
+    if (level == 0) continue;
+    std::vector<float>& ring = state.ring_max[level];
+    ring.assign(std::size_t(cx) * cy, 0.0f);
+    for (int by = 0; by < cy; ++by)
+      for (int bx = 0; bx < cx; ++bx) {
+        float m = 0.0f;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            int ny = by + dy, nx = bx + dx;
+            if (wrap) {
+              ny = (ny + cy) % cy, nx = (nx + cx) % cx;
+            } else if (ny < 0 || ny >= cy || nx < 0 || nx >= cx) {
+              continue;
+            }
+            m = std::max(m, pyramid.value(level, ny, nx));
+          }
+        ring[std::size_t(by) * cx + bx] = m;
+      }
+  }
+}
+
+void stage0_group(BudgetedBaker::State& state, int group, float* out) {
+  const Grid& grid = state.grid;
+  const Pyramid& pyramid = state.pyramid;
+  const int sectors = grid.sector_count;
+  const bool wrap = grid.address == Address::wrap;
+  const GroupRect g = group_rect(grid, group);
+  float best[8];
+  for (int i = g.i0; i <= g.i1; ++i)
+    for (int j = g.j0; j <= g.j1; ++j) {
+      const std::size_t t = std::size_t(i) * grid.width + j;
+      const float hc = state.heights[t];
+      float ring_bound = 1.0f;
+      for (int level = 1; level < pyramid.levels; ++level) {
+        const float m = state.ring_max[level][std::size_t(i >> level) * pyramid.count_x(level) + (j >> level)];
+        if (m > hc) ring_bound = std::min(ring_bound, detail::pair_ratio(state.ring_distance[level - 1], m - hc));
+      }
+      std::fill_n(best, sectors, ring_bound);
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0) continue;
+          int qi = i + dy, qj = j + dx;
+          if (wrap) {
+            qi = (qi + grid.height) % grid.height, qj = (qj + grid.width) % grid.width;
+          } else if (qi < 0 || qi >= grid.height || qj < 0 || qj >= grid.width) {
+            continue;
+          }
+          const float hq = state.heights[std::size_t(qi) * grid.width + qj];
+          if (!(hq > hc)) continue;
+          const float ratio = detail::pair_ratio(grid.distance(dx, dy), hq - hc);
+          const SectorMask mask = detail::point_sectors(grid, dx, dy);
+          for (int k = 0; k < sectors; ++k)
+            if (mask >> k & 1u) best[k] = std::min(best[k], ratio);
+        }
+      std::copy_n(best, sectors, out + t * sectors);
+      state.slack[t] = 0.0f;
+    }
+  state.group_stage[group] = 0;
+  state.group_slack[group] = 0.0f;
+}
+
+// Stage A for one group: tightens the stage-0 ratios (out holds them) with the group's candidates
+// and records how loose each texel may still be.
+long long fallback_group(BudgetedBaker::State& state, int group, float* out, std::vector<Candidate>& candidates) {
   const Grid& grid = state.grid;
   const int sectors = grid.sector_count;
   const SearchContext context{grid, state.pyramid};
@@ -195,14 +278,16 @@ long long fallback_group(BudgetedBaker::State& state, int group, float keep, flo
       work += scan_candidates(grid, candidates, i, j, state.heights[t], exact_best, coarse);
       float slack = 1.0f;
       for (int k = 0; k < sectors; ++k) {
-        out[t * sectors + k] = std::min(exact_best[k], coarse[k]);
-        slack = std::min(slack, out[t * sectors + k] / exact_best[k]);
+        // both this and the stage-0 value below are lower bounds: keep the larger
+        float& ratio = out[t * sectors + k];
+        ratio = std::max(ratio, std::min(exact_best[k], coarse[k]));
+        slack = std::min(slack, ratio / exact_best[k]);
       }
       state.slack[t] = slack;
       group_slack = std::min(group_slack, slack);
     }
   state.group_slack[group] = group_slack;
-  (void)keep;
+  state.group_stage[group] = 1;
   return work;
 }
 
@@ -271,6 +356,7 @@ void set_heights(BudgetedBaker::State& state, HeightView heights) {
   state.pyramid = detail::make_pyramid(heights);
   const SearchContext context{state.grid, state.pyramid};
   state.roots = detail::root_nodes(context);
+  prepare_stage0(state);
 }
 
 float keep_of(const Budget& budget) {
@@ -280,30 +366,39 @@ float keep_of(const Budget& budget) {
 }
 
 // Stage B over the pending groups, starting at the cursor, until the budget runs out.
+// Advances groups in cursor order while the budget lasts: first stage A for every group that only
+// has the stage-0 floor, then stage B for groups with texels looser than the tolerance.
 void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float* out, long long& refined) {
   const int groups = group_count(state.grid);
-  std::vector<int> order;
-  for (int n = 0; n < groups; ++n) {
-    const int group = (state.cursor + n) % groups;
-    if (state.group_slack[group] < keep) order.push_back(group);
-  }
-  if (order.empty()) return;
-  std::atomic<long long> refined_total{0};
-  std::atomic<int> last_started{-1};
-  tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1), [&](const tbb::blocked_range<int>& range) {
-    long long local_refined = 0;
-    for (int n = range.begin(); n < range.end(); ++n) {
-      if (clock.exhausted()) break;
-      int seen = last_started.load();
-      while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
-      }
-      clock.work += refine_group(state, order[n], keep, out, local_refined);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<int> order;
+    for (int n = 0; n < groups; ++n) {
+      const int group = (state.cursor + n) % groups;
+      const bool wanted = pass == 0 ? state.group_stage[group] == 0
+                                    : state.group_stage[group] == 1 && state.group_slack[group] < keep;
+      if (wanted) order.push_back(group);
     }
-    refined_total += local_refined;
-  });
-  refined += refined_total;
-  // continue after the furthest group started; groups skipped before it keep their pending flag
-  if (last_started >= 0) state.cursor = (order[last_started] + 1) % groups;
+    if (order.empty()) continue;
+    std::atomic<long long> refined_total{0};
+    std::atomic<int> last_started{-1};
+    tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1), [&](const tbb::blocked_range<int>& range) {
+      std::vector<Candidate> candidates;
+      long long local_refined = 0;
+      for (int n = range.begin(); n < range.end(); ++n) {
+        if (clock.exhausted()) break;
+        int seen = last_started.load();
+        while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
+        }
+        clock.work += pass == 0 ? fallback_group(state, order[n], out, candidates)
+                                : refine_group(state, order[n], keep, out, local_refined);
+      }
+      refined_total += local_refined;
+    });
+    refined += refined_total;
+    // continue after the furthest group started; groups skipped before it stay pending
+    if (last_started >= 0) state.cursor = (order[last_started] + 1) % groups;
+    if (clock.exhausted()) return;
+  }
 }
 
 BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined, float* out) {
@@ -331,15 +426,12 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   Clock clock(budget);
   set_heights(state, heights);
   const int groups = group_count(state.grid);
-  state.slack.assign(state.heights.size(), 1.0f);
-  state.group_slack.assign(groups, 1.0f);
+  state.slack.assign(state.heights.size(), 0.0f);
+  state.group_slack.assign(groups, 0.0f);
+  state.group_stage.assign(groups, 0);
   state.cursor = 0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
-    std::vector<Candidate> candidates;
-    long long work = 0;
-    for (int group = range.begin(); group < range.end(); ++group)
-      work += fallback_group(state, group, keep, out.data, candidates);
-    clock.work += work;
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 16), [&](const tbb::blocked_range<int>& range) {
+    for (int group = range.begin(); group < range.end(); ++group) stage0_group(state, group, out.data);
   });
   long long refined = 0;
   run_refinement(state, clock, keep, out.data, refined);
@@ -439,8 +531,8 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
           group_min = std::min(group_min, heights.data[t]);
           for (int k = 0; k < sectors; ++k) group_max_ratio = std::max(group_max_ratio, out.data[t * sectors + k]);
         }
-      if (touches) {  // the group's own heights changed: recompute it
-        work += fallback_group(state, group, keep, out.data, candidates);
+      if (touches) {  // the group's own heights changed: its floor now, the rest within the budget
+        stage0_group(state, group, out.data);
         continue;
       }
       bool raised = false, fell = false;

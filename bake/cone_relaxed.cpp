@@ -85,7 +85,7 @@ double exit_parameter(const Surface& surface, double x0, double y0, double dx, d
         if (q != 0.0) roots[root_count++] = qc / q;
       }
     }
-    std::sort(roots, roots + root_count);
+    if (root_count == 2 && roots[1] < roots[0]) std::swap(roots[0], roots[1]);
     const double probe = std::min(s_end, s + 1e-6 * (s_end - s) + 1e-12);
     if (f(probe) <= 0.0) return s;  // leaves right away
     for (int n = 0; n < root_count; ++n)

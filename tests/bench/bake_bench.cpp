@@ -76,7 +76,8 @@ const Reference& reference(MapKind kind, int size) {
   return entry;
 }
 
-enum class Baker { exact, original, paper_adaptive, budgeted, budgeted_zero };
+enum class Baker { exact, original, paper_adaptive, budgeted, budgeted_zero, budgeted_frame };
+constexpr double frame_budget_ms = 16.0;  // one 60 Hz frame
 
 void run(benchmark::State& state, MapKind kind, Baker baker) {
   const int size = int(state.range(0));
@@ -93,9 +94,10 @@ void run(benchmark::State& state, MapKind kind, Baker baker) {
         stats = bake::bake_paper_adaptive(heights, bake::Address::wrap, {}, out);
         break;
       case Baker::budgeted: stats = bake::bake_budgeted(heights, bake::Address::wrap, {}, out); break;
-      case Baker::budgeted_zero: {
+      case Baker::budgeted_zero:
+      case Baker::budgeted_frame: {
         bake::Budget budget;
-        budget.milliseconds = 0.0;
+        budget.milliseconds = baker == Baker::budgeted_zero ? 0.0 : frame_budget_ms;
         stats = bake::bake_budgeted(heights, bake::Address::wrap, budget, out);
         break;
       }
@@ -114,6 +116,7 @@ struct Registration {
   Registration() {
     const std::pair<Baker, const char*> bakers[] = {{Baker::budgeted, "budgeted"},
                                                     {Baker::budgeted_zero, "budgeted-0ms"},
+                                                    {Baker::budgeted_frame, "budgeted-16ms"},
                                                     {Baker::paper_adaptive, "paper-adaptive"},
                                                     {Baker::exact, "exact"},
                                                     {Baker::original, "original"}};
