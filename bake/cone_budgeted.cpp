@@ -199,60 +199,83 @@ void prepare_stage0(BudgetedBaker::State& state) {
     if (level == 0) continue;
     std::vector<float>& ring = state.ring_max[level];
     ring.assign(std::size_t(cx) * cy, 0.0f);
+    // separable 3 x 3 maximum: along rows, then along columns
+    const std::vector<float>& blocks = pyramid.max.levels[level];
+    std::vector<float> rows_max(blocks.size());
+    auto neighbour = [wrap](int n, int count) { return wrap ? (n + count) % count : std::clamp(n, 0, count - 1); };
     for (int by = 0; by < cy; ++by)
       for (int bx = 0; bx < cx; ++bx) {
-        float m = 0.0f;
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            int ny = by + dy, nx = bx + dx;
-            if (wrap) {
-              ny = (ny + cy) % cy, nx = (nx + cx) % cx;
-            } else if (ny < 0 || ny >= cy || nx < 0 || nx >= cx) {
-              continue;
-            }
-            m = std::max(m, pyramid.value(level, ny, nx));
-          }
-        ring[std::size_t(by) * cx + bx] = m;
+        const float* row = &blocks[std::size_t(by) * cx];
+        rows_max[std::size_t(by) * cx + bx] =
+            std::max(row[bx], std::max(row[neighbour(bx - 1, cx)], row[neighbour(bx + 1, cx)]));
       }
+    for (int by = 0; by < cy; ++by)
+      for (int bx = 0; bx < cx; ++bx)
+        ring[std::size_t(by) * cx + bx] =
+            std::max(rows_max[std::size_t(by) * cx + bx],
+                     std::max(rows_max[std::size_t(neighbour(by - 1, cy)) * cx + bx],
+                              rows_max[std::size_t(neighbour(by + 1, cy)) * cx + bx]));
+  }
+}
+
+// Stage 0 over texel rows [i0, i1] and columns [j0, j1] (inclusive), a row at a time so that the
+// column loops vectorise. Works with slopes (gap / distance) and divides once per sector, with a
+// margin that covers the rounding of that reciprocal, so the ratios stay below exact bit for bit.
+void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, float* out) {
+  const Grid& grid = state.grid;
+  const Pyramid& pyramid = state.pyramid;
+  const int sectors = grid.sector_count;
+  const int width = grid.width, height = grid.height;
+  const bool wrap = grid.address == Address::wrap;
+  constexpr float margin = 1.0f - 1e-6f;
+  const int span = j1 - j0 + 1;
+  std::vector<float> slope(std::size_t(sectors) * span), ring(span), neighbour_row(span);
+  for (int i = i0; i <= i1; ++i) {
+    const float* h = &state.heights[std::size_t(i) * width + j0];
+    // rings: the largest slope towards each level's 3 x 3 block neighbourhood maximum
+    std::fill(ring.begin(), ring.end(), 0.0f);
+    for (int level = 1; level < pyramid.levels; ++level) {
+      const float inverse = 1.0f / state.ring_distance[level - 1];
+      const float* ring_row = &state.ring_max[level][std::size_t(i >> level) * pyramid.count_x(level)];
+      for (int n = 0; n < span; ++n) ring[n] = std::max(ring[n], (ring_row[(j0 + n) >> level] - h[n]) * inverse);
+    }
+    for (int k = 0; k < sectors; ++k) std::copy(ring.begin(), ring.end(), slope.begin() + std::size_t(k) * span);
+    // the eight neighbours, exactly
+    for (int dy = -1; dy <= 1; ++dy) {
+      int qi = i + dy;
+      if (wrap) qi = (qi + height) % height;
+      if (qi < 0 || qi >= height) continue;  // clamp: absent
+      const float* row = &state.heights[std::size_t(qi) * width];
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (dx == 0 && dy == 0) continue;
+        const float inverse = 1.0f / grid.distance(dx, dy);
+        const SectorMask mask = detail::point_sectors(grid, dx, dy);
+        for (int n = 0; n < span; ++n) {
+          int qj = j0 + n + dx;
+          if (qj < 0 || qj >= width) qj = wrap ? (qj + width) % width : -1;
+          neighbour_row[n] = qj < 0 ? 0.0f : (row[qj] - h[n]) * inverse;
+        }
+        for (int k = 0; k < sectors; ++k) {
+          if (!(mask >> k & 1u)) continue;
+          float* sector_slope = &slope[std::size_t(k) * span];
+          for (int n = 0; n < span; ++n) sector_slope[n] = std::max(sector_slope[n], neighbour_row[n]);
+        }
+      }
+    }
+    for (int n = 0; n < span; ++n) {
+      const std::size_t t = std::size_t(i) * width + j0 + n;
+      for (int k = 0; k < sectors; ++k) {
+        const float sector_slope = slope[std::size_t(k) * span + n];
+        out[t * sectors + k] = sector_slope > 1.0f ? margin / sector_slope : 1.0f;
+      }
+      state.slack[t] = 0.0f;
+    }
   }
 }
 
 void stage0_group(BudgetedBaker::State& state, int group, float* out) {
-  const Grid& grid = state.grid;
-  const Pyramid& pyramid = state.pyramid;
-  const int sectors = grid.sector_count;
-  const bool wrap = grid.address == Address::wrap;
-  const GroupRect g = group_rect(grid, group);
-  float best[8];
-  for (int i = g.i0; i <= g.i1; ++i)
-    for (int j = g.j0; j <= g.j1; ++j) {
-      const std::size_t t = std::size_t(i) * grid.width + j;
-      const float hc = state.heights[t];
-      float ring_bound = 1.0f;
-      for (int level = 1; level < pyramid.levels; ++level) {
-        const float m = state.ring_max[level][std::size_t(i >> level) * pyramid.count_x(level) + (j >> level)];
-        if (m > hc) ring_bound = std::min(ring_bound, detail::pair_ratio(state.ring_distance[level - 1], m - hc));
-      }
-      std::fill_n(best, sectors, ring_bound);
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          if (dx == 0 && dy == 0) continue;
-          int qi = i + dy, qj = j + dx;
-          if (wrap) {
-            qi = (qi + grid.height) % grid.height, qj = (qj + grid.width) % grid.width;
-          } else if (qi < 0 || qi >= grid.height || qj < 0 || qj >= grid.width) {
-            continue;
-          }
-          const float hq = state.heights[std::size_t(qi) * grid.width + qj];
-          if (!(hq > hc)) continue;
-          const float ratio = detail::pair_ratio(grid.distance(dx, dy), hq - hc);
-          const SectorMask mask = detail::point_sectors(grid, dx, dy);
-          for (int k = 0; k < sectors; ++k)
-            if (mask >> k & 1u) best[k] = std::min(best[k], ratio);
-        }
-      std::copy_n(best, sectors, out + t * sectors);
-      state.slack[t] = 0.0f;
-    }
+  const GroupRect g = group_rect(state.grid, group);
+  stage0_rect(state, g.i0, g.i1, g.j0, g.j1, out);
   state.group_stage[group] = 0;
   state.group_slack[group] = 0.0f;
 }
@@ -430,8 +453,8 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   state.group_slack.assign(groups, 0.0f);
   state.group_stage.assign(groups, 0);
   state.cursor = 0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 16), [&](const tbb::blocked_range<int>& range) {
-    for (int group = range.begin(); group < range.end(); ++group) stage0_group(state, group, out.data);
+  tbb::parallel_for(tbb::blocked_range<int>(0, state.grid.height, 16), [&](const tbb::blocked_range<int>& rows) {
+    stage0_rect(state, rows.begin(), rows.end() - 1, 0, state.grid.width - 1, out.data);
   });
   long long refined = 0;
   run_refinement(state, clock, keep, out.data, refined);
