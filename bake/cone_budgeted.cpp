@@ -20,6 +20,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -146,10 +147,13 @@ struct BudgetedBaker::State {
   std::vector<float> slack;
   std::vector<float> group_slack;  // smallest slack of each group
   std::vector<std::uint8_t> group_stage;  // 0: only the O(N) floor so far, 1: stage A done
-  // stage 0: for each level L >= 1, the max over the 3 x 3 level-L blocks around each block, and the
-  // uv distance below which no texel outside a texel's level-(L-1) neighbourhood can lie
-  std::vector<std::vector<float>> ring_max;
-  std::vector<float> ring_distance;
+  // stage 0, per level L >= 1: the max over the level-L blocks that a quadrant of directions from a
+  // texel can reach inside its 3 x 3 level-L neighbourhood (quadrant q = sector q of 4), and per
+  // column / row the inverse of the distance a texel must travel, in each direction, to leave its
+  // level-(L-1) neighbourhood
+  std::vector<std::array<std::vector<float>, 4>> quadrant_max;
+  std::vector<std::array<std::vector<float>, 2>> inverse_exit_x;  // [level][0: towards +u, 1: -u][column]
+  std::vector<std::array<std::vector<float>, 2>> inverse_exit_y;  // [level][0: towards +v, 1: -v][row]
   int cursor = 0;  // next group the refinement looks at
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
@@ -184,37 +188,72 @@ struct Clock {
 // 3 x 3 block neighbourhoods: (smallest distance to leave the inner one) / (largest height in the
 // outer one - texel height). Every texel other than c lies in one of these rings (or beyond uv
 // distance 1, where it cannot matter), so the result is conservative; coarse, but never zero.
+// Inverse distances to leave the level-(level - 1) neighbourhood along one axis, per texel index.
+// Blocks are unrolled like the pyramid (the last block of a tile may be partial); with clamp there is
+// nothing beyond the map, so that side's inverse is 0 (no blocker).
+void exit_inverses(const Grid& grid, int level, int size, bool along_u, std::array<std::vector<float>, 2>& out) {
+  const int fine = level - 1;
+  const int count = (size + (1 << fine) - 1) >> fine;
+  const bool wrap = grid.address == Address::wrap;
+  out[0].assign(size, 0.0f);
+  out[1].assign(size, 0.0f);
+  for (int x = 0; x < size; ++x) {
+    const int b = x >> fine;
+    int first, last;
+    if (wrap || b + 1 < count) {
+      detail::block_range(b + 1, fine, count, size, first, last);
+      const int exit = last + 1 - x;
+      out[0][x] = 1.0f / (along_u ? grid.distance(exit, 0) : grid.distance(0, exit));
+    }
+    if (wrap || b - 1 >= 0) {
+      detail::block_range(b - 1, fine, count, size, first, last);
+      const int exit = x - (first - 1);
+      out[1][x] = 1.0f / (along_u ? grid.distance(exit, 0) : grid.distance(0, exit));
+    }
+  }
+}
+
 void prepare_stage0(BudgetedBaker::State& state) {
   const Grid& grid = state.grid;
   const Pyramid& pyramid = state.pyramid;
   const bool wrap = grid.address == Address::wrap;
-  state.ring_max.assign(pyramid.levels, {});
-  state.ring_distance.assign(pyramid.levels, 0.0f);
-  for (int level = 0; level < pyramid.levels; ++level) {
+  state.quadrant_max.resize(pyramid.levels);
+  state.inverse_exit_x.resize(pyramid.levels);
+  state.inverse_exit_y.resize(pyramid.levels);
+  for (int level = 1; level < pyramid.levels; ++level) {
+    exit_inverses(grid, level, grid.width, true, state.inverse_exit_x[level]);
+    exit_inverses(grid, level, grid.height, false, state.inverse_exit_y[level]);
     const int cx = pyramid.count_x(level), cy = pyramid.count_y(level);
-    // narrowest block of this level along each axis (the last one of a row may be partial)
-    const int narrow_x = std::min(1 << level, grid.width - (cx - 1) * (1 << level));
-    const int narrow_y = std::min(1 << level, grid.height - (cy - 1) * (1 << level));
-    state.ring_distance[level] = std::min(grid.distance(narrow_x + 1, 0), grid.distance(0, narrow_y + 1));
-    if (level == 0) continue;
-    std::vector<float>& ring = state.ring_max[level];
-    ring.assign(std::size_t(cx) * cy, 0.0f);
-    // separable 3 x 3 maximum: along rows, then along columns
     const std::vector<float>& blocks = pyramid.max.levels[level];
-    std::vector<float> rows_max(blocks.size());
-    auto neighbour = [wrap](int n, int count) { return wrap ? (n + count) % count : std::clamp(n, 0, count - 1); };
-    for (int by = 0; by < cy; ++by)
-      for (int bx = 0; bx < cx; ++bx) {
+    // separable: the max with the next block along u (towards +u and towards -u), then along v; a
+    // missing neighbour (clamp) is the block itself, which changes no maximum
+    std::array<std::vector<float>, 2> along_u;
+    for (int side = 0; side < 2; ++side) {
+      along_u[side].resize(blocks.size());
+      for (int by = 0; by < cy; ++by) {
         const float* row = &blocks[std::size_t(by) * cx];
-        rows_max[std::size_t(by) * cx + bx] =
-            std::max(row[bx], std::max(row[neighbour(bx - 1, cx)], row[neighbour(bx + 1, cx)]));
+        float* target = &along_u[side][std::size_t(by) * cx];
+        for (int bx = 0; bx < cx; ++bx) {
+          int other = side == 0 ? bx + 1 : bx - 1;
+          if (other < 0 || other >= cx) other = wrap ? (other + cx) % cx : bx;
+          target[bx] = std::max(row[bx], row[other]);
+        }
       }
-    for (int by = 0; by < cy; ++by)
-      for (int bx = 0; bx < cx; ++bx)
-        ring[std::size_t(by) * cx + bx] =
-            std::max(rows_max[std::size_t(by) * cx + bx],
-                     std::max(rows_max[std::size_t(neighbour(by - 1, cy)) * cx + bx],
-                              rows_max[std::size_t(neighbour(by + 1, cy)) * cx + bx]));
+    }
+    constexpr int u_side[4] = {0, 1, 1, 0}, v_step[4] = {1, 1, -1, -1};  // quadrant q: +u/-u, +v/-v
+    for (int q = 0; q < 4; ++q) {
+      const std::vector<float>& source = along_u[u_side[q]];
+      std::vector<float>& quadrant = state.quadrant_max[level][q];
+      quadrant.resize(blocks.size());
+      for (int by = 0; by < cy; ++by) {
+        int other = by + v_step[q];
+        if (other < 0 || other >= cy) other = wrap ? (other + cy) % cy : by;
+        const float* row = &source[std::size_t(by) * cx];
+        const float* other_row = &source[std::size_t(other) * cx];
+        float* target = &quadrant[std::size_t(by) * cx];
+        for (int bx = 0; bx < cx; ++bx) target[bx] = std::max(row[bx], other_row[bx]);
+      }
+    }
   }
 }
 
@@ -229,17 +268,39 @@ void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, fl
   const bool wrap = grid.address == Address::wrap;
   constexpr float margin = 1.0f - 1e-6f;
   const int span = j1 - j0 + 1;
-  std::vector<float> slope(std::size_t(sectors) * span), ring(span), neighbour_row(span);
+  std::vector<float> slope(std::size_t(sectors) * span), ring(4 * std::size_t(span)), neighbour_row(span);
+  constexpr int x_side[4] = {0, 1, 1, 0}, y_side[4] = {0, 0, 1, 1};  // quadrant q: +u/-u and +v/-v
   for (int i = i0; i <= i1; ++i) {
     const float* h = &state.heights[std::size_t(i) * width + j0];
-    // rings: the largest slope towards each level's 3 x 3 block neighbourhood maximum
+    // rings: per quadrant, the largest slope from the texel to the highest block it can reach in the
+    // ring between its level-(L-1) and level-L neighbourhoods
     std::fill(ring.begin(), ring.end(), 0.0f);
-    for (int level = 1; level < pyramid.levels; ++level) {
-      const float inverse = 1.0f / state.ring_distance[level - 1];
-      const float* ring_row = &state.ring_max[level][std::size_t(i >> level) * pyramid.count_x(level)];
-      for (int n = 0; n < span; ++n) ring[n] = std::max(ring[n], (ring_row[(j0 + n) >> level] - h[n]) * inverse);
+    for (int level = 1; level < pyramid.levels; ++level)
+      for (int q = 0; q < 4; ++q) {
+        const float* quadrant_row = &state.quadrant_max[level][q][std::size_t(i >> level) * pyramid.count_x(level)];
+        const float* exit_x = &state.inverse_exit_x[level][x_side[q]][j0];
+        const float inverse_y = state.inverse_exit_y[level][y_side[q]][i];
+        float* ring_q = &ring[std::size_t(q) * span];
+        for (int block_start = 0; block_start < span;) {  // one block of constant maximum at a time
+          const int block = (j0 + block_start) >> level;
+          const int block_end = std::min(span, ((block + 1) << level) - j0);
+          const float top = quadrant_row[block];
+          for (int n = block_start; n < block_end; ++n)
+            ring_q[n] = std::max(ring_q[n], (top - h[n]) * std::max(exit_x[n], inverse_y));
+          block_start = block_end;
+        }
+      }
+    // a sector takes the quadrant that contains it (n = 8) or all four (n = 1)
+    for (int k = 0; k < sectors; ++k) {
+      float* sector_slope = &slope[std::size_t(k) * span];
+      if (sectors == 1) {
+        for (int n = 0; n < span; ++n)
+          sector_slope[n] = std::max(std::max(ring[n], ring[span + n]), std::max(ring[2 * span + n], ring[3 * span + n]));
+      } else {
+        const int q = sectors == 4 ? k : k / 2;
+        std::copy_n(&ring[std::size_t(q) * span], span, sector_slope);
+      }
     }
-    for (int k = 0; k < sectors; ++k) std::copy(ring.begin(), ring.end(), slope.begin() + std::size_t(k) * span);
     // the eight neighbours, exactly
     for (int dy = -1; dy <= 1; ++dy) {
       int qi = i + dy;

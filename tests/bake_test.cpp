@@ -206,6 +206,23 @@ TEST(BudgetedBaker, ConservativeAtEveryBudget) {
       }
 }
 
+// The O(N) floor's rings on bigger, odd-sized maps (more pyramid levels, partial blocks at the seams).
+TEST(BudgetedBaker, ZeroBudgetFloorIsConservativeOnLargerOddMaps) {
+  for (const Map& map : {test::make_fractal_cliff(100, 60, 5), test::make_spikes(77, 129, 3), test::make_bricks(96, 96)})
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        Budget budget;
+        budget.milliseconds = 0.0;
+        ConeMap cones = make_cone_map(map, sectors);
+        const BakeStats stats = bake_budgeted(view_of(map), address, budget, cones.view());
+        EXPECT_EQ(stats.texels_refined, 0);
+        const Violations v = violations(cones, exact_of(map, sectors, address));
+        ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " sectors " << sectors << " "
+                              << address_name(address) << " worst x" << v.worst;
+        for (float r : cones.ratios) ASSERT_GT(r, 0.0f);
+      }
+}
+
 TEST(BudgetedBaker, UnlimitedWithZeroToleranceIsExact) {
   for (const Map& map : hard_maps())
     for (int sectors : {1, 4, 8})
