@@ -13,6 +13,13 @@
 
 #include "bake/bake.h"
 
+// Hot loops that vectorise get one clone per x86-64 level (AVX-512, AVX2, SSE2), picked at load time.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define DISPLACE_BAKE_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define DISPLACE_BAKE_SIMD_CLONES
+#endif
+
 namespace displace::bake::detail {
 
 // uv geometry of a W x H map. Directions are tested on the integer vector (dx * H, dy * W), which
