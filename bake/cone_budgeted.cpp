@@ -26,6 +26,7 @@
 #include <cstring>
 
 #include "bake/search.h"
+#include "bake/sweep.h"
 
 namespace displace::bake {
 
@@ -154,6 +155,7 @@ struct BudgetedBaker::State {
   std::vector<std::array<std::vector<float>, 4>> quadrant_max;
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_x;  // [level][0: towards +u, 1: -u][column]
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_y;  // [level][0: towards +v, 1: -v][row]
+  std::array<std::vector<float>, 4> quadrant_ratio;  // stage S: per quadrant, per texel
   int cursor = 0;  // next group the refinement looks at
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
@@ -451,6 +453,37 @@ float keep_of(const Budget& budget) {
 }
 
 // Stage B over the pending groups, starting at the cursor, until the budget runs out.
+// Stage S: the four quadrant sweeps (two at a time on two cores), each stopping where the budget
+// runs out, then every sector takes the larger of its ratio and its quadrant's sweep ratio (an
+// octant takes the quadrant that holds it, one sector takes the smallest of the four).
+void run_sweeps(BudgetedBaker::State& state, Clock& clock, float* out) {
+  const Grid& grid = state.grid;
+  const std::size_t count = state.heights.size();
+  const auto [low, high] = std::minmax_element(state.heights.begin(), state.heights.end());
+  const float range = *high - *low;
+  const std::function<bool()> stop = [&clock] { return clock.exhausted(); };
+  tbb::parallel_for(0, 4, [&](int quadrant) {
+    std::vector<float>& ratios = state.quadrant_ratio[quadrant];
+    ratios.assign(count, 0.0f);
+    if (!clock.exhausted()) detail::sweep_quadrant(grid, state.heights.data(), range, quadrant, stop, ratios.data());
+  });
+  const int sectors = grid.sector_count;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& texels) {
+    for (std::size_t t = texels.begin(); t < texels.end(); ++t)
+      for (int k = 0; k < sectors; ++k) {
+        float swept;
+        if (sectors == 1) {
+          swept = std::min(std::min(state.quadrant_ratio[0][t], state.quadrant_ratio[1][t]),
+                           std::min(state.quadrant_ratio[2][t], state.quadrant_ratio[3][t]));
+        } else {
+          swept = state.quadrant_ratio[sectors == 4 ? k : k / 2][t];
+        }
+        out[t * sectors + k] = std::max(out[t * sectors + k], swept);
+      }
+  });
+  clock.work += (long long)count * 4;
+}
+
 // Advances groups in cursor order while the budget lasts: first stage A for every group that only
 // has the stage-0 floor, then stage B for groups with texels looser than the tolerance.
 void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float* out, long long& refined) {
@@ -518,6 +551,7 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   tbb::parallel_for(tbb::blocked_range<int>(0, state.grid.height, 16), [&](const tbb::blocked_range<int>& rows) {
     stage0_rect(state, rows.begin(), rows.end() - 1, 0, state.grid.width - 1, out.data);
   });
+  if (!clock.exhausted()) run_sweeps(state, clock, out.data);
   long long refined = 0;
   run_refinement(state, clock, keep, out.data, refined);
   return finish(state, clock, keep, refined, out.data);
