@@ -400,7 +400,8 @@ long long refine_group(BudgetedBaker::State& state, int group, float keep, float
         out[t * sectors + k] = std::min(exact_best[k], floor[k]);
         slack = std::min(slack, out[t * sectors + k] / exact_best[k]);
       }
-      state.slack[t] = slack;
+      // within the tolerance by construction; the division above can round just below keep
+      state.slack[t] = std::max(slack, keep);
       ++refined;
     }
   float group_slack = 1.0f;
