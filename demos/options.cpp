@@ -4,6 +4,7 @@
 // be given once; a flag that does not apply to the chosen source or mode is an error, not ignored.
 #include "demos/options.h"
 
+#include <cstdio>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -18,6 +19,16 @@ namespace {
 // Bounds on numbers a user may reasonably mean (anything outside is a typo or an attack).
 constexpr int max_wave_count = 4096;             // sinusoid waves
 constexpr double max_budget_milliseconds = 1e9;  // about 11 days
+struct Range {
+  double low, high;
+  const char* unit;
+};
+constexpr Range time_range{-1e6, 1e6, "s"};          // beyond, float phases w t lose the wave shape
+constexpr Range patch_size_range{1e-2, 1e5, "m"};    // a centimetre to a hundred kilometres
+constexpr Range wind_speed_range{0.1, 100.0, "m/s"};  // calm air to beyond a hurricane
+constexpr Range fetch_range{0.1, 1e5, "km"};
+constexpr Range spreading_range{0.0, 100.0, ""};      // exponent s of cos^(2s)
+constexpr Range choppiness_range{0.0, 10.0, ""};
 
 std::string quoted(std::string_view text) { return "'" + std::string(text) + "'"; }
 
@@ -119,6 +130,16 @@ float parse_float(std::string_view flag, std::string_view text, Sign sign = Sign
   return float(value);
 }
 
+float parse_float_in(std::string_view flag, std::string_view text, const Range& range) {
+  const double value = parse_number(flag, text);
+  if (!(value >= range.low && value <= range.high)) {
+    char bounds[96];
+    std::snprintf(bounds, sizeof bounds, "%g and %g%s%s", range.low, range.high, range.unit[0] ? " " : "", range.unit);
+    throw usage_error(std::string(flag) + " must be between " + bounds + ", got " + quoted(text));
+  }
+  return float(value);
+}
+
 // words
 template <typename Enum, std::size_t count>
 Enum parse_word(std::string_view flag, std::string_view text,
@@ -193,23 +214,23 @@ bool take_source_flag(std::string_view flag, FlagReader& reader, SourceDraft& dr
     // a single texel (or a single row) has no relief to displace: at least 2 x 2
     draft.size = parse_int(flag, reader.value(), 2, max_image_side);
   } else if (flag == "--time") {
-    draft.time = parse_float(flag, reader.value());
+    draft.time = parse_float_in(flag, reader.value(), time_range);
   } else if (flag == "--seed") {
     draft.seed = parse_seed(flag, reader.value());
   } else if (flag == "--patch-size") {
-    draft.patch_size = parse_float(flag, reader.value(), Sign::positive);
+    draft.patch_size = parse_float_in(flag, reader.value(), patch_size_range);
   } else if (flag == "--wind-speed") {
-    draft.wind_speed = parse_float(flag, reader.value(), Sign::non_negative);
+    draft.wind_speed = parse_float_in(flag, reader.value(), wind_speed_range);
   } else if (flag == "--wind-direction") {
     draft.wind_direction_degrees = parse_float(flag, reader.value());
   } else if (flag == "--fetch") {
-    draft.fetch = parse_float(flag, reader.value(), Sign::positive);
+    draft.fetch = parse_float_in(flag, reader.value(), fetch_range);
   } else if (flag == "--spectrum") {
     draft.spectrum = parse_word(flag, reader.value(), spectrum_words);
   } else if (flag == "--spreading") {
-    draft.spreading = parse_float(flag, reader.value(), Sign::non_negative);
+    draft.spreading = parse_float_in(flag, reader.value(), spreading_range);
   } else if (flag == "--choppiness") {
-    draft.choppiness = parse_float(flag, reader.value(), Sign::non_negative);
+    draft.choppiness = parse_float_in(flag, reader.value(), choppiness_range);
   } else if (flag == "--waves") {
     draft.wave_count = parse_int(flag, reader.value(), 1, max_wave_count);
   } else {

@@ -510,6 +510,9 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
       {"bake --source ocean --size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output c.exr", 2},
       {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact --tolerance 0 --output c.exr", 2},
       {"bake --source sinusoids --size 1 --time 0 --sectors 4 --mode budgeted --output c.exr", 2},
+      {"sim --source ocean --size 16 --time 1e30 --output h.exr", 2},
+      {"sim --source ocean --size 16 --time 0 --wind-speed 1e30 --output h.exr", 2},
+      {"sim --source ocean --size 16 --time 0 --patch-size 1e-30 --output h.exr", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
