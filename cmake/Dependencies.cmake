@@ -10,21 +10,16 @@ macro(displace_require_package name debian_package)
 endmacro()
 
 displace_require_package(TBB libtbb-dev CONFIG)
-displace_require_package(OpenImageIO libopenimageio-dev CONFIG)
-# Debian's OpenImageIO config lists /usr/include/opencv4 even when OpenCV's headers are not
-# installed; keep only the include directories that exist.
-get_target_property(_oiio_includes OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
-set(_oiio_existing)
-foreach(_dir IN LISTS _oiio_includes)
-  if(EXISTS "${_dir}")
-    list(APPEND _oiio_existing "${_dir}")
-  endif()
-endforeach()
-set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_oiio_existing}")
 displace_require_package(PkgConfig pkg-config)
 pkg_check_modules(FFTW3F QUIET IMPORTED_TARGET fftw3f)
 if(NOT FFTW3F_FOUND)
   message(FATAL_ERROR "fftw3f (single precision FFTW) not found: install the Debian package 'libfftw3-dev'")
+endif()
+# OpenImageIO through pkg-config: Debian's CMake config for it also demands the command-line tools
+# (openimageio-tools, which pulls in Qt) and an OpenCV include directory, neither of which we use.
+pkg_check_modules(OPENIMAGEIO QUIET IMPORTED_TARGET OpenImageIO)
+if(NOT OPENIMAGEIO_FOUND)
+  message(FATAL_ERROR "OpenImageIO not found: install the Debian package 'libopenimageio-dev'")
 endif()
 find_package(Threads REQUIRED)
 
