@@ -156,6 +156,9 @@ struct BudgetedBaker::State {
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_x;  // [level][0: towards +u, 1: -u][column]
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_y;  // [level][0: towards +v, 1: -v][row]
   std::array<std::vector<float>, 4> quadrant_ratio;  // stage S: per quadrant, per texel
+  // per texel and sector: the smallest pair ratio of a real blocker found so far (an upper bound of
+  // the exact ratio, 1 when none), which starts stage B's search with a tight bound
+  std::vector<float> upper;
   int cursor = 0;  // next group the refinement looks at
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
@@ -370,6 +373,7 @@ long long fallback_group(BudgetedBaker::State& state, int group, float* out, std
         ratio = std::max(ratio, std::min(exact_best[k], coarse[k]));
         slack = std::min(slack, ratio / exact_best[k]);
       }
+      std::copy_n(exact_best, sectors, &state.upper[t * sectors]);
       state.slack[t] = slack;
       group_slack = std::min(group_slack, slack);
     }
@@ -392,9 +396,10 @@ long long refine_group(BudgetedBaker::State& state, int group, float keep, float
       const std::size_t t = std::size_t(i) * grid.width + j;
       if (!(state.slack[t] < keep)) continue;
       const float hc = state.heights[t];
-      std::fill_n(exact_best, sectors, 1.0f);
+      std::copy_n(&state.upper[t * sectors], sectors, exact_best);
       std::fill_n(floor, sectors, 1.0f);
       work += detail::search_texel_within(context, i, j, hc, state.roots, keep, exact_best, floor);
+      std::copy_n(exact_best, sectors, &state.upper[t * sectors]);
       float slack = 1.0f;
       for (int k = 0; k < sectors; ++k) {
         out[t * sectors + k] = std::min(exact_best[k], floor[k]);
@@ -546,6 +551,7 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   set_heights(state, heights);
   const int groups = group_count(state.grid);
   state.slack.assign(state.heights.size(), 0.0f);
+  state.upper.assign(state.heights.size() * state.grid.sector_count, 1.0f);
   state.group_slack.assign(groups, 0.0f);
   state.group_stage.assign(groups, 0);
   state.cursor = 0;
@@ -616,6 +622,9 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
   }
   set_heights(state, heights);
   const SearchContext context{grid, state.pyramid};
+  // a blocker that fell may have been some texel's best upper bound: forget them all
+  if (std::any_of(infos.begin(), infos.end(), [](const DirtyInfo& info) { return info.fallen_max >= 0.0f; }))
+    std::fill(state.upper.begin(), state.upper.end(), 1.0f);
 
   const int groups = group_count(grid);
   const int tiles = grid.address == Address::wrap ? 1 : 0;
