@@ -3,19 +3,24 @@
 // Built on Chen & Chuang's adaptive hierarchical preprocessing (a max pyramid searched coarse to
 // fine), but it never copies a coarse ratio. Every ratio it emits is a minimum of pair ratios of
 // real texels and of bounds (distance to a pyramid block) / (block max - texel height), and such a
-// bound is never above the pair ratio of any texel inside the block (geometry.h), so every emitted
-// ratio is a lower bound of the exact one, whatever the budget.
+// bound is never above the pair ratio of any texel inside the block (geometry.h); the stages that
+// work with reciprocals of slopes keep a relative margin for their rounding. So every emitted ratio
+// is a lower bound of the exact one, whatever the budget.
 //
-// Stage A (always done, the fallback): texels are taken in groups of 8 x 8. For each group one
-// traversal of the pyramid collects candidate blockers: blocks near the group are opened down to
-// texels, blocks far from it (relative to their size) stay whole and act as bounds. Each texel then
-// scans the candidates in order of their group bound and stops as soon as none can lower it.
-// Stage B (while the budget lasts): texels whose bound may be loose by more than the tolerance are
-// refined by a branch and bound over the pyramid that stops opening blocks once they are within
-// the tolerance. What is left over stays conservative and is refined on the next call.
-// Incremental update: where heights rose, ratios around the dirty region are repaired in the same
-// call by an exact search over the dirty blocks; where they fell, stale ratios are still
-// conservative and are only marked for refinement.
+// Stage 0 (always completed, O(N)): the eight neighbours exactly and, per pyramid level and
+// quadrant, one bound for the ring of blocks between a texel's level-(L-1) and level-L 3 x 3
+// neighbourhoods. Everything after it runs while the budget lasts and keeps the larger bound:
+// Stage S: quadrant dilation sweeps over a set of ratio lanes (cone_sweep.cpp).
+// Stage A: texels in groups of 8 x 8. One traversal of the pyramid per group collects candidate
+// blockers - blocks near the group opened down to texels, far blocks kept whole - and each texel
+// scans them in order of their group bound, stopping when none can lower it. The real blockers it
+// meets certify how loose each texel may still be.
+// Stage B: texels that may be looser than the tolerance get a branch and bound over the pyramid that
+// stops opening blocks once they are within the tolerance. What is left stays conservative and the
+// next call continues.
+// Incremental update: groups whose heights changed fall back to stage 0; where heights rose, ratios
+// around the dirty region are repaired in the same call by an exact search over the dirty blocks;
+// where they fell, stale ratios are still conservative and are only marked for refinement.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
