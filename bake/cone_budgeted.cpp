@@ -464,35 +464,39 @@ float keep_of(const Budget& budget) {
 }
 
 // Stage B over the pending groups, starting at the cursor, until the budget runs out.
-// Stage S: the four quadrant sweeps (two at a time on two cores), each stopping where the budget
-// runs out, then every sector takes the larger of its ratio and its quadrant's sweep ratio (an
-// octant takes the quadrant that holds it, one sector takes the smallest of the four).
+// Stage S: the quadrant sweeps, band by band (two quadrants at a time on two cores), each stopping
+// where the budget runs out; after each band every sector takes the larger of its ratio and its
+// quadrant's sweep ratio (an octant takes the quadrant that holds it, one sector the smallest of
+// the four).
 void run_sweeps(BudgetedBaker::State& state, Clock& clock, float* out) {
   const Grid& grid = state.grid;
   const std::size_t count = state.heights.size();
   const auto [low, high] = std::minmax_element(state.heights.begin(), state.heights.end());
   const float range = *high - *low;
   const std::function<bool()> stop = [&clock] { return clock.exhausted(); };
-  tbb::parallel_for(0, 4, [&](int quadrant) {
-    std::vector<float>& ratios = state.quadrant_ratio[quadrant];
-    ratios.assign(count, 0.0f);
-    if (!clock.exhausted()) detail::sweep_quadrant(grid, state.heights.data(), range, quadrant, stop, ratios.data());
-  });
   const int sectors = grid.sector_count;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& texels) {
-    for (std::size_t t = texels.begin(); t < texels.end(); ++t)
-      for (int k = 0; k < sectors; ++k) {
-        float swept;
-        if (sectors == 1) {
-          swept = std::min(std::min(state.quadrant_ratio[0][t], state.quadrant_ratio[1][t]),
-                           std::min(state.quadrant_ratio[2][t], state.quadrant_ratio[3][t]));
-        } else {
-          swept = state.quadrant_ratio[sectors == 4 ? k : k / 2][t];
+  for (std::vector<float>& ratios : state.quadrant_ratio) ratios.assign(count, 0.0f);
+  for (int band = 0; band < detail::sweep_band_count && !clock.exhausted(); ++band) {
+    tbb::parallel_for(0, 4, [&](int quadrant) {
+      if (!clock.exhausted())
+        detail::sweep_quadrant(grid, state.heights.data(), range, quadrant, band, stop,
+                               state.quadrant_ratio[quadrant].data());
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& texels) {
+      for (std::size_t t = texels.begin(); t < texels.end(); ++t)
+        for (int k = 0; k < sectors; ++k) {
+          float swept;
+          if (sectors == 1) {
+            swept = std::min(std::min(state.quadrant_ratio[0][t], state.quadrant_ratio[1][t]),
+                             std::min(state.quadrant_ratio[2][t], state.quadrant_ratio[3][t]));
+          } else {
+            swept = state.quadrant_ratio[sectors == 4 ? k : k / 2][t];
+          }
+          out[t * sectors + k] = std::max(out[t * sectors + k], swept);
         }
-        out[t * sectors + k] = std::max(out[t * sectors + k], swept);
-      }
-  });
-  clock.work += (long long)count * 4;
+    });
+    clock.work += (long long)count * 4;
+  }
 }
 
 // Advances groups in cursor order while the budget lasts: first stage A for every group that only

@@ -24,21 +24,23 @@ constexpr int rows_between_checks = 8;           // how often a sweep asks wheth
 
 }  // namespace
 
-std::array<float, sweep_lane_count> sweep_lanes() {
+std::array<float, sweep_lane_count> sweep_lanes(int band) {
+  const float low = sweep_band_edges[band], high = sweep_band_edges[band + 1];
   std::array<float, sweep_lane_count> lanes;
-  for (int l = 0; l < sweep_lane_count; ++l)
-    lanes[l] = sweep_lowest_ratio * std::pow(1.0f / sweep_lowest_ratio, float(l) / float(sweep_lane_count - 1));
+  // the low band stops one step short of the high band's first lane
+  const int steps = band + 1 < sweep_band_count ? sweep_lane_count : sweep_lane_count - 1;
+  for (int l = 0; l < sweep_lane_count; ++l) lanes[l] = low * std::pow(high / low, float(l) / float(steps));
   return lanes;
 }
 
 DISPLACE_BAKE_SIMD_CLONES
-void sweep_quadrant(const Grid& grid, const float* heights, float height_range, int quadrant,
+void sweep_quadrant(const Grid& grid, const float* heights, float height_range, int quadrant, int band,
                     const std::function<bool()>& stop, float* out) {
   constexpr int L = sweep_lane_count;
   const int width = grid.width, height = grid.height;
   const bool wrap = grid.address == Address::wrap;
   const bool flip_x = quadrant == 1 || quadrant == 2, flip_y = quadrant >= 2;
-  const std::array<float, L> lanes = sweep_lanes();
+  const std::array<float, L> lanes = sweep_lanes(band);
   alignas(64) float step_x[L], step_y[L], step_diagonal[L], step_l1_x[L], step_l1_y[L], lanes_margin[L];
   for (int l = 0; l < L; ++l) {
     lanes_margin[l] = lanes[l] * rounding_margin;
@@ -99,9 +101,8 @@ void sweep_quadrant(const Grid& grid, const float* heights, float height_range, 
         passes[l] = std::min(inf, l1) <= hc ? lanes_margin[l] : 0.0f;
       }
       if (vi < height && vj < width) {
-        float ratio = 0.0f;
+        float& ratio = out[texel_index(vi, vj)];
         for (int l = 0; l < L; ++l) ratio = std::max(ratio, passes[l]);
-        out[texel_index(vi, vj)] = ratio;
       }
     }
     below_ray.swap(row_ray);

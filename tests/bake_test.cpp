@@ -238,8 +238,10 @@ TEST(QuadrantSweep, LowerBoundsTheExactQuadrantRatio) {
       const auto [low, high] = std::minmax_element(map.values.begin(), map.values.end());
       double swept_sum = 0.0, exact_sum = 0.0;
       for (int quadrant = 0; quadrant < 4; ++quadrant) {
-        std::vector<float> swept(map.values.size(), -1.0f);
-        detail::sweep_quadrant(grid, map.values.data(), *high - *low, quadrant, [] { return false; }, swept.data());
+        std::vector<float> swept(map.values.size(), 0.0f);
+        for (int band = 0; band < detail::sweep_band_count; ++band)
+          detail::sweep_quadrant(grid, map.values.data(), *high - *low, quadrant, band, [] { return false; },
+                                 swept.data());
         for (int i = 0; i < map.height; ++i)
           for (int j = 0; j < map.width; ++j) {
             const float value = swept[std::size_t(i) * map.width + j];
@@ -260,7 +262,7 @@ TEST(QuadrantSweep, LowerBoundsTheExactQuadrantRatio) {
   // stopped at once: nothing written
   const Map map = test::make_bricks(32, 32);
   std::vector<float> swept(map.values.size(), -1.0f);
-  detail::sweep_quadrant(detail::Grid(32, 32, 4, Address::wrap), map.values.data(), 1.0f, 0, [] { return true; },
+  detail::sweep_quadrant(detail::Grid(32, 32, 4, Address::wrap), map.values.data(), 1.0f, 0, 0, [] { return true; },
                          swept.data());
   for (float v : swept) EXPECT_EQ(v, -1.0f);
 }
