@@ -324,25 +324,29 @@ std::vector<int> even_chunk_starts(int count, int chunks) {
 
 }  // namespace
 
+// FFTW_ESTIMATE, not FFTW_MEASURE: measured plans are picked by timing, so the same seed could give
+// heights that differ in the last bit from one run (or machine load) to the next.
+constexpr unsigned plan_rigor = FFTW_ESTIMATE;
+
 void Ocean::Impl::make_plans() {
   const int chunks = std::min(tbb::info::default_concurrency(), max_fft_chunks);
   column_starts = even_chunk_starts(half, chunks);
   row_starts = even_chunk_starts(n, chunks);
   fftwf_complex* spectrum = spectra[grid_height].get();
   float* real = scratch[grid_height].get();
-  // FFTW_MEASURE overwrites the arrays, so this runs before anything is stored in them
+  // planning may overwrite the arrays, so this runs before anything is stored in them
   std::lock_guard lock(fftw_planner_mutex());
   for (std::size_t chunk = 0; chunk + 1 < column_starts.size(); ++chunk) {
     const int start = column_starts[chunk];
     fftwf_complex* first = spectrum + start;
     column_plans.push_back(fftwf_plan_many_dft(1, &n, column_starts[chunk + 1] - start, first, nullptr, half,
-                                               1, first, nullptr, half, 1, FFTW_BACKWARD, FFTW_MEASURE));
+                                               1, first, nullptr, half, 1, FFTW_BACKWARD, plan_rigor));
   }
   for (std::size_t chunk = 0; chunk + 1 < row_starts.size(); ++chunk) {
     const int start = row_starts[chunk];
     row_plans.push_back(fftwf_plan_many_dft_c2r(
         1, &n, row_starts[chunk + 1] - start, spectrum + static_cast<std::size_t>(start) * half, nullptr, 1,
-        half, real + static_cast<std::size_t>(start) * n, nullptr, 1, n, FFTW_MEASURE));
+        half, real + static_cast<std::size_t>(start) * n, nullptr, 1, n, plan_rigor));
   }
   for (fftwf_plan plan : column_plans) {
     if (plan == nullptr) throw std::runtime_error("Ocean: FFTW could not plan the inverse FFT along y");
