@@ -9,14 +9,12 @@
 #include <atomic>
 #include <chrono>
 
-#include "bake/geometry.h"
+#include "bake/search.h"
 
 namespace displace::bake {
 
 namespace detail {
 
-// Ring search for texel (ci, cj) of a map given by `heights` (any W x H grid, e.g. a pyramid level).
-// best[] holds the initial short-circuit ratios and receives the result. Returns texels examined.
 long long ring_search(const Grid& grid, const float* heights, float global_max, int ci, int cj, float* best) {
   const float hc = heights[std::size_t(ci) * grid.width + cj];
   const int sectors = grid.sector_count;

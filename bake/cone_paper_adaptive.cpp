@@ -11,13 +11,10 @@
 #include <chrono>
 #include <cmath>
 
-#include "bake/geometry.h"
+#include "bake/search.h"
 
 namespace displace::bake {
 
-namespace detail {
-long long ring_search(const Grid& grid, const float* heights, float global_max, int ci, int cj, float* best);
-}
 
 BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAdaptiveSettings& settings,
                               ConeView out) {

@@ -129,7 +129,7 @@ inline void block_range(int n, int level, int count, int size, int& first, int& 
   last = tile * size + std::min((b + 1) << level, size) - 1;
 }
 
-// Work per texel for a ratio written in all sectors of `ratios` (length sector_count).
+// Mean of `count` ratios (BakeStats::mean_ratio).
 inline double mean_of(const float* data, std::size_t count) {
   double sum = 0.0;
   for (std::size_t i = 0; i < count; ++i) sum += data[i];

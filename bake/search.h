@@ -49,4 +49,9 @@ using LeafRatio = std::function<float(int dx, int dy, float hq)>;
 long long search_texel_leaves(const SearchContext& context, int ci, int cj, float hc, std::span<const Node> roots,
                               float keep, float* best, float* floor, const LeafRatio* leaf);
 
+// Chen & Chuang's ring search for texel (ci, cj) of any W x H grid (a map or a pyramid level):
+// best[] holds the initial short-circuit ratios and receives the result (cone_original.cpp).
+// Returns the texels examined.
+long long ring_search(const Grid& grid, const float* heights, float global_max, int ci, int cj, float* best);
+
 }  // namespace displace::bake::detail
