@@ -23,6 +23,7 @@
 // where they fell, stale ratios are still conservative and are only marked for refinement.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -280,27 +281,37 @@ void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, fl
   constexpr float margin = 1.0f - 1e-6f;
   const int span = j1 - j0 + 1;
   std::vector<float> slope(std::size_t(sectors) * span), ring(4 * std::size_t(span)), neighbour_row(span);
-  constexpr int x_side[4] = {0, 1, 1, 0}, y_side[4] = {0, 0, 1, 1};  // quadrant q: +u/-u and +v/-v
   for (int i = i0; i <= i1; ++i) {
     const float* h = &state.heights[std::size_t(i) * width + j0];
     // rings: per quadrant, the largest slope from the texel to the highest block it can reach in the
     // ring between its level-(L-1) and level-L neighbourhoods
     std::fill(ring.begin(), ring.end(), 0.0f);
-    for (int level = 1; level < pyramid.levels; ++level)
-      for (int q = 0; q < 4; ++q) {
-        const float* quadrant_row = &state.quadrant_max[level][q][std::size_t(i >> level) * pyramid.count_x(level)];
-        const float* exit_x = &state.inverse_exit_x[level][x_side[q]][j0];
-        const float inverse_y = state.inverse_exit_y[level][y_side[q]][i];
-        float* ring_q = &ring[std::size_t(q) * span];
-        for (int block_start = 0; block_start < span;) {  // one block of constant maximum at a time
-          const int block = (j0 + block_start) >> level;
-          const int block_end = std::min(span, ((block + 1) << level) - j0);
-          const float top = quadrant_row[block];
-          for (int n = block_start; n < block_end; ++n)
-            ring_q[n] = std::max(ring_q[n], (top - h[n]) * std::max(exit_x[n], inverse_y));
-          block_start = block_end;
+    float* ring0 = &ring[0];
+    float* ring1 = &ring[std::size_t(span)];
+    float* ring2 = &ring[2 * std::size_t(span)];
+    float* ring3 = &ring[3 * std::size_t(span)];
+    for (int level = 1; level < pyramid.levels; ++level) {
+      const std::size_t row_offset = std::size_t(i >> level) * pyramid.count_x(level);
+      const float* top0 = &state.quadrant_max[level][0][row_offset];
+      const float* top1 = &state.quadrant_max[level][1][row_offset];
+      const float* top2 = &state.quadrant_max[level][2][row_offset];
+      const float* top3 = &state.quadrant_max[level][3][row_offset];
+      const float* exit_plus = &state.inverse_exit_x[level][0][j0];
+      const float* exit_minus = &state.inverse_exit_x[level][1][j0];
+      const float down = state.inverse_exit_y[level][0][i], up = state.inverse_exit_y[level][1][i];
+      for (int block_start = 0; block_start < span;) {  // one block of constant maxima at a time
+        const int block = (j0 + block_start) >> level;
+        const int block_end = std::min(span, ((block + 1) << level) - j0);
+        const float t0 = top0[block], t1 = top1[block], t2 = top2[block], t3 = top3[block];
+        for (int n = block_start; n < block_end; ++n) {  // quadrants 0..3: (+u,+v) (-u,+v) (-u,-v) (+u,-v)
+          ring0[n] = std::max(ring0[n], (t0 - h[n]) * std::max(exit_plus[n], down));
+          ring1[n] = std::max(ring1[n], (t1 - h[n]) * std::max(exit_minus[n], down));
+          ring2[n] = std::max(ring2[n], (t2 - h[n]) * std::max(exit_minus[n], up));
+          ring3[n] = std::max(ring3[n], (t3 - h[n]) * std::max(exit_plus[n], up));
         }
+        block_start = block_end;
       }
+    }
     // a sector takes the quadrant that contains it (n = 8) or all four (n = 1)
     for (int k = 0; k < sectors; ++k) {
       float* sector_slope = &slope[std::size_t(k) * span];
@@ -540,13 +551,33 @@ BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float ke
   stats.width = state.grid.width;
   stats.height = state.grid.height;
   stats.sector_count = state.grid.sector_count;
-  long long pending = 0;
-  for (float slack : state.slack) pending += slack < keep;
-  stats.texels_fallback = pending;
+  // pending texels and the sum of the ratios, in parallel (both are a full pass over the map)
+  const int sectors = state.grid.sector_count;
+  struct Totals {
+    long long pending = 0;
+    double ratio_sum = 0.0;
+  };
+  const Totals totals = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, state.slack.size(), 16384), Totals{},
+      [&](const tbb::blocked_range<std::size_t>& texels, Totals partial) {
+        for (std::size_t t = texels.begin(); t < texels.end(); ++t) {
+          partial.pending += state.slack[t] < keep;
+          float row_sum = 0.0f;
+          for (int k = 0; k < sectors; ++k) row_sum += out[t * sectors + k];
+          partial.ratio_sum += row_sum;
+        }
+        return partial;
+      },
+      [](Totals a, const Totals& b) {
+        a.pending += b.pending;
+        a.ratio_sum += b.ratio_sum;
+        return a;
+      });
+  stats.texels_fallback = totals.pending;
   stats.texels_refined = refined;
   stats.work = clock.work;
+  stats.mean_ratio = totals.ratio_sum / double(state.slack.size() * sectors);
   stats.milliseconds = clock.elapsed();
-  stats.mean_ratio = detail::mean_of(out, state.heights.size() * state.grid.sector_count);
   return stats;
 }
 
