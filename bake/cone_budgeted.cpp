@@ -333,10 +333,17 @@ void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, fl
         if (dx == 0 && dy == 0) continue;
         const float inverse = 1.0f / grid.distance(dx, dy);
         const SectorMask mask = detail::point_sectors(grid, dx, dy);
+        // the texels whose neighbour lies inside the map, then the (at most two) edge texels
+        const int inner_begin = std::max(0, -(j0 + dx)), inner_end = std::min(span, width - j0 - dx);
+        const float* neighbour = row + j0 + dx;
+        for (int n = inner_begin; n < inner_end; ++n) neighbour_row[n] = (neighbour[n] - h[n]) * inverse;
         for (int n = 0; n < span; ++n) {
-          int qj = j0 + n + dx;
-          if (qj < 0 || qj >= width) qj = wrap ? (qj + width) % width : -1;
-          neighbour_row[n] = qj < 0 ? 0.0f : (row[qj] - h[n]) * inverse;
+          if (n >= inner_begin && n < inner_end) {
+            n = inner_end - 1;
+            continue;
+          }
+          const int qj = j0 + n + dx;
+          neighbour_row[n] = wrap ? (row[(qj + width) % width] - h[n]) * inverse : 0.0f;  // clamp: absent
         }
         for (int k = 0; k < sectors; ++k) {
           if (!(mask >> k & 1u)) continue;
