@@ -114,18 +114,10 @@ double parse_number(std::string_view flag, std::string_view text) {
   return value;
 }
 
-enum class Sign { any, non_negative, positive };
-
-float parse_float(std::string_view flag, std::string_view text, Sign sign = Sign::any) {
+float parse_float(std::string_view flag, std::string_view text) {
   const double value = parse_number(flag, text);
   if (std::abs(value) > double(std::numeric_limits<float>::max())) {
     throw usage_error(std::string(flag) + " is out of range, got " + quoted(text));
-  }
-  if (sign == Sign::non_negative && value < 0.0) {
-    throw usage_error(std::string(flag) + " must not be negative, got " + quoted(text));
-  }
-  if (sign == Sign::positive && !(value > 0.0)) {
-    throw usage_error(std::string(flag) + " must be positive, got " + quoted(text));
   }
   return float(value);
 }
