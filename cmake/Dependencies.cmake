@@ -23,6 +23,19 @@ if(NOT OPENIMAGEIO_FOUND)
 endif()
 find_package(Threads REQUIRED)
 
+# render/: Vulkan (loader + headers), GLM, and glslang's compiler for the shaders at build time.
+# The CPU driver (mesa-vulkan-drivers: lavapipe) and the validation layers are runtime packages;
+# cmake/setup.sh installs them too.
+find_package(Vulkan QUIET)
+if(NOT Vulkan_FOUND)
+  message(FATAL_ERROR "Vulkan not found: install the Debian package 'libvulkan-dev'")
+endif()
+displace_require_package(glm libglm-dev CONFIG)
+find_program(GLSLANG_VALIDATOR glslangValidator)
+if(NOT GLSLANG_VALIDATOR)
+  message(FATAL_ERROR "glslangValidator not found: install the Debian package 'glslang-tools'")
+endif()
+
 if(DISPLACE_TESTS)
   displace_require_package(GTest libgtest-dev CONFIG)
 endif()

@@ -1,0 +1,66 @@
+// render/camera.cpp - the pinhole camera shared by the GPU (view-projection matrix) and the CPU
+// (pixel rays for tests and the exact reference trace). Both use the same basis, so a pixel's ray on
+// the CPU is the ray its fragment traces on the GPU.
+#include <cmath>
+#include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "render/render.h"
+
+namespace displace::render {
+namespace {
+
+constexpr int max_image_side = 16384;  // pixels
+constexpr float min_fov_degrees = 0.01f;
+constexpr float max_fov_degrees = 179.0f;
+
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+struct Basis {
+  glm::dvec3 forward, right, up;
+};
+
+Basis basis(const Camera& camera) {
+  const glm::dvec3 forward = glm::normalize(glm::dvec3(camera.look_at) - glm::dvec3(camera.eye));
+  const glm::dvec3 right = glm::normalize(glm::cross(forward, glm::dvec3(camera.up)));
+  return {forward, right, glm::cross(right, forward)};
+}
+
+}  // namespace
+
+void Camera::validate() const {
+  if (width < 1 || height < 1 || width > max_image_side || height > max_image_side) {
+    throw RenderError("image size must be between 1x1 and " + std::to_string(max_image_side) + "x" +
+                      std::to_string(max_image_side) + ", got " + std::to_string(width) + "x" + std::to_string(height));
+  }
+  if (!finite(eye) || !finite(look_at) || !finite(up)) throw RenderError("camera vectors must be finite");
+  if (!(fov_y_degrees >= min_fov_degrees && fov_y_degrees <= max_fov_degrees)) {
+    throw RenderError("--fov-y must be between 0.01 and 179 degrees");
+  }
+  const glm::dvec3 forward = glm::dvec3(look_at) - glm::dvec3(eye);
+  if (glm::length(forward) < 1e-9) throw RenderError("--eye and --look-at must differ");
+  if (glm::length(glm::cross(glm::normalize(forward), glm::dvec3(up))) < 1e-6 * glm::length(glm::dvec3(up)) ||
+      glm::length(glm::dvec3(up)) < 1e-12) {
+    throw RenderError("--up must not be zero or parallel to the view direction");
+  }
+}
+
+glm::mat4 Camera::view_projection(float near_plane, float far_plane) const {
+  glm::mat4 projection =
+      glm::perspective(glm::radians(fov_y_degrees), float(width) / float(height), near_plane, far_plane);
+  projection[1][1] *= -1.0f;  // Vulkan's framebuffer y points down: row 0 is the top
+  const Basis b = basis(*this);
+  return projection * glm::lookAt(eye, eye + glm::vec3(b.forward), glm::vec3(b.up));
+}
+
+Ray Camera::pixel_ray(double px, double py) const {
+  const Basis b = basis(*this);
+  const double tan_half = std::tan(glm::radians(double(fov_y_degrees)) * 0.5);
+  const double aspect = double(width) / double(height);
+  const double x = (2.0 * px / width - 1.0) * tan_half * aspect;
+  const double y = (1.0 - 2.0 * py / height) * tan_half;
+  return {glm::dvec3(eye), glm::normalize(b.forward + x * b.right + y * b.up)};
+}
+
+}  // namespace displace::render

@@ -1,0 +1,40 @@
+// render/methods.cpp - the method table: the --method words, their shader ids and what they need.
+#include <algorithm>
+#include <iterator>
+
+#include "render/render.h"
+#include "render/shaders/config.h"
+
+namespace displace::render {
+namespace {
+
+constexpr MethodInfo methods[] = {
+    {Method::bump, "bump", METHOD_BUMP, MethodFamily::surface, 0, false},
+    {Method::parallax, "parallax", METHOD_PARALLAX, MethodFamily::surface, 0, false},
+    {Method::parallax_limited, "parallax-limited", METHOD_PARALLAX_LIMITED, MethodFamily::surface, 0, false},
+    {Method::pom, "pom", METHOD_POM, MethodFamily::linear_search, 0, true},
+    {Method::relief, "relief", METHOD_RELIEF, MethodFamily::linear_search, 0, true},
+    {Method::csm, "csm", METHOD_CSM, MethodFamily::cone, 1, true},
+    {Method::acm4, "acm4", METHOD_ACM4, MethodFamily::cone, 4, true},
+    {Method::acm8, "acm8", METHOD_ACM8, MethodFamily::cone, 8, true},
+    {Method::reference, "reference", METHOD_REFERENCE, MethodFamily::reference, 0, true},
+};
+
+}  // namespace
+
+std::span<const MethodInfo> method_table() { return methods; }
+
+const MethodInfo& method_info(Method method) {
+  const auto found = std::find_if(std::begin(methods), std::end(methods),
+                                  [&](const MethodInfo& info) { return info.method == method; });
+  if (found == std::end(methods)) throw RenderError("method is not implemented");
+  return *found;
+}
+
+const MethodInfo* find_method(std::string_view name) {
+  const auto found = std::find_if(std::begin(methods), std::end(methods),
+                                  [&](const MethodInfo& info) { return name == info.name; });
+  return found == std::end(methods) ? nullptr : &*found;
+}
+
+}  // namespace displace::render

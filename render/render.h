@@ -1,0 +1,193 @@
+// render/render.h - the Vulkan renderer. The whole public API of the render stage.
+//
+// Every per-pixel displacement method of render/shaders/methods.inc.glsl, side by side with a
+// true-displacement reference, on the same camera and the same shading, so that differences in the
+// pictures come only from the hit points.
+//
+// Geometry and camera (normative: the tests and the README use exactly these)
+// - World is z-up. The plane surface covers world x in [0, 1] (texture u) and y in [0, 1] (texture v);
+//   `tile` K repeats the texture K times over it, so texture coordinates run over [0, K].
+// - The base polygon is the TOP of the relief: height 1 lies on the polygon (z = 0), height 0 lies
+//   `depth_scale` D below it. Heights are bilinearly interpolated between texel centres with the
+//   bake's address mode (bake/bake.h has the texel conventions).
+// - The camera looks from `eye` at `look_at`, `up` gives the image's up direction, `fov_y_degrees` is
+//   the full vertical field of view. Pixel (px, py) is sampled at its centre; image row 0 is the top.
+// - Methods trace in texture space (u, v, h): a world direction d becomes (du, dv, dh) through the
+//   tangent frame (dP/du, dP/dv, D * N), so that ray parameters are world distances.
+// - Shading is the same for every method: a procedural grid albedo, Lambert + Blinn-Phong with one
+//   directional light, the normal taken from the height field at the hit.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "bake/bake.h"
+
+namespace displace::render {
+
+// What the environment or the caller got wrong: no Vulkan device, a failed Vulkan call, bad input.
+struct RenderError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+enum class Method {
+  bump,
+  parallax,
+  parallax_limited,
+  pom,
+  relief,
+  csm,
+  acm4,
+  acm8,
+  reference,
+};
+
+enum class MethodFamily {
+  surface,        // no search: bump and the parallax family (one formula per pixel)
+  linear_search,  // fixed steps along the ray, then a refinement
+  cone,           // steps bounded by a cone map
+  reference,      // the tessellated height field, rasterized
+};
+
+struct MethodInfo {
+  Method method;
+  const char* name;   // the --method word
+  int shader_id;      // METHOD_* in render/shaders/config.h
+  MethodFamily family;
+  int cone_sectors;   // 0: the method reads no cone map
+  bool exact_class;   // converges to the true hit as steps grow
+};
+
+// The implemented methods, in display order. A method that is not implemented is not listed.
+std::span<const MethodInfo> method_table();
+const MethodInfo& method_info(Method method);
+const MethodInfo* find_method(std::string_view name);  // nullptr when unknown
+
+struct Ray {
+  glm::dvec3 origin;
+  glm::dvec3 direction;  // unit length
+};
+
+struct Camera {
+  glm::vec3 eye{0.5f, -0.35f, 0.75f};
+  glm::vec3 look_at{0.5f, 0.45f, -0.05f};
+  glm::vec3 up{0.0f, 0.0f, 1.0f};
+  float fov_y_degrees = 45.0f;
+  int width = 512;
+  int height = 512;
+
+  // Throws RenderError when the camera is degenerate (eye at look_at, up parallel to the view, bad fov).
+  void validate() const;
+  // Vulkan clip space: depth in [0, 1], y down (row 0 of the image is the top).
+  glm::mat4 view_projection(float near_plane, float far_plane) const;
+  // The world-space ray through pixel (px, py) (pixel centres at +0.5).
+  Ray pixel_ray(double px, double py) const;
+};
+
+struct View {
+  Camera camera;
+  int tile = 1;                  // texture repeats over the plane; > 1 needs Address::wrap
+  float depth_scale = 0.1f;      // world units between height 1 and height 0
+  bake::Address address = bake::Address::wrap;
+  glm::vec3 light_direction{0.35f, 0.25f, 1.0f};  // towards the light; normalized when used
+};
+
+struct MethodSettings {
+  Method method = Method::relief;
+  int steps = 32;   // linear-search steps, or the maximum number of cone steps
+  int refine = 8;   // binary or secant refinement steps after the search
+};
+
+// One rendered frame read back to the CPU. Row 0 is the top of the image.
+struct Frame {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> color;  // RGBA8, 4 per pixel
+  std::vector<float> uv;            // u, v, hit: 3 per pixel; u, v unwrapped in [0, tile]; 0, 0, 0 off the relief
+  std::vector<float> depth;         // world distance from the eye to the hit; 0 off the relief
+  std::vector<float> iterations;    // search-loop iterations per pixel
+  std::vector<float> fetches;       // height and cone texture reads per pixel
+  double gpu_milliseconds = 0.0;    // the draw, from GPU timestamps (0 when the device has none)
+};
+
+struct DeviceInfo {
+  int index = 0;
+  std::string name;
+  std::string type;  // "discrete-gpu", "integrated-gpu", "virtual-gpu", "cpu", "other"
+};
+
+struct RendererOptions {
+  // Empty: the best device (a discrete GPU, else an integrated one, else any, else the CPU driver).
+  // Otherwise a device index or a case-insensitive part of its name.
+  std::string device;
+  bool validate = false;  // Khronos validation layer; every message is printed and counted
+};
+
+// Devices the Vulkan loader sees. Throws RenderError (saying what to install) when there is none.
+std::vector<DeviceInfo> list_devices();
+
+// The baked maps a method needs, made from the heights with the foundation's bakers.
+struct HeightField {
+  int width = 0;
+  int height = 0;
+  std::vector<float> heights;  // [0, 1], row-major, bake conventions
+};
+
+class Renderer {
+ public:
+  // Creates the instance, device, descriptor layouts and render targets' layouts once.
+  explicit Renderer(const RendererOptions& options = {});
+  ~Renderer();
+  Renderer(Renderer&&) noexcept;
+  Renderer& operator=(Renderer&&) noexcept;
+
+  const DeviceInfo& device() const;
+
+  // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
+  // them, with the budgeted baker and no limit, and kept until the heights change.
+  void set_height_field(const HeightField& field);
+
+  // Renders one frame; pipelines are made once per method and kept.
+  Frame render(const View& view, const MethodSettings& method);
+
+  // Validation messages seen so far (only counted with options.validate).
+  long long validation_messages() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Image error of a frame against a reference frame, over the pixels the reference hit, in 8-bit
+// output units (each channel of RGB counted; a pixel where only one frame hit counts its full
+// difference against the background).
+struct ImageError {
+  double rmse = 0.0;
+  double max_error = 0.0;
+  double fraction_over_10 = 0.0;  // pixels with any channel off by more than 10
+  long long pixels = 0;
+};
+ImageError compare(const Frame& frame, const Frame& reference);
+
+// The exact ray-height-field intersection on the CPU (fine march plus bisection on the bilinear
+// surface) for the plane, for tests: the texture coordinates (u, v, h) of the first hit of the ray
+// through pixel (px, py), or hit = false when the ray misses the relief of the [0, tile]^2 patch.
+struct CpuHit {
+  bool hit = false;
+  glm::dvec3 texture;  // u, v, h
+  double distance = 0.0;
+};
+CpuHit cpu_trace(const HeightField& field, const View& view, double px, double py);
+// The bilinear height the renderer samples at texture coordinates (u, v) (texel centres at
+// (j + 0.5) / W), with the address mode.
+double bilinear_height(const HeightField& field, bake::Address address, double u, double v);
+
+}  // namespace displace::render

@@ -1,0 +1,29 @@
+// render/shaders/reference.vert.glsl - true displacement: the height field tessellated at one vertex
+// per texel centre (plus the patch border), each vertex moved to its sampled height.
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "config.h"
+
+layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
+
+layout(location = 0) in vec2 in_uv;  // texture coordinates in [0, tile]
+
+layout(location = 0) out vec3 out_world;
+layout(location = 1) out vec2 out_uv;
+layout(location = 2) out vec3 out_tangent_u;
+layout(location = 3) out vec3 out_tangent_v;
+layout(location = 4) out vec3 out_normal;
+layout(location = 5) out float out_h;
+
+void main() {
+  float h = textureLod(height_map, in_uv, 0.0).r;
+  vec3 world = vec3(in_uv * frame.surface.z, (h - 1.0) * frame.surface.y);
+  out_world = world;
+  out_uv = in_uv;
+  out_tangent_u = vec3(frame.surface.z, 0.0, 0.0);
+  out_tangent_v = vec3(0.0, frame.surface.z, 0.0);
+  out_normal = vec3(0.0, 0.0, 1.0);
+  out_h = h;
+  gl_Position = frame.view_projection * vec4(world, 1.0);
+}

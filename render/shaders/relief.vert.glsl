@@ -1,0 +1,28 @@
+// render/shaders/relief.vert.glsl - the base polygon of the per-pixel methods: the plane's two
+// triangles, generated from the vertex index, with the tangent frame the fragment shader traces in.
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "config.h"
+
+layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+
+layout(location = 0) out vec3 out_world;
+layout(location = 1) out vec2 out_uv;
+layout(location = 2) out vec3 out_tangent_u;  // dP/du
+layout(location = 3) out vec3 out_tangent_v;  // dP/dv
+layout(location = 4) out vec3 out_normal;     // unit, pointing out of the relief
+layout(location = 5) out float out_h;         // height of this point: 1 on the base polygon
+
+const vec2 corners[6] = vec2[](vec2(0, 0), vec2(1, 0), vec2(1, 1), vec2(0, 0), vec2(1, 1), vec2(0, 1));
+
+void main() {
+  vec2 corner = corners[gl_VertexIndex];
+  vec3 world = vec3(corner, 0.0);
+  out_world = world;
+  out_uv = corner * frame.surface.x;
+  out_tangent_u = vec3(frame.surface.z, 0.0, 0.0);
+  out_tangent_v = vec3(0.0, frame.surface.z, 0.0);
+  out_normal = vec3(0.0, 0.0, 1.0);
+  out_h = 1.0;
+  gl_Position = frame.view_projection * vec4(world, 1.0);
+}

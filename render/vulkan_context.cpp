@@ -1,0 +1,358 @@
+// render/vulkan_context.cpp - headless instance and device creation, device choice, validation
+// messages, and the RAII owners of buffers and images.
+#include "render/vulkan_context.h"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cstdio>
+#include <cstring>
+#include <vector>
+
+namespace displace::render {
+namespace {
+
+constexpr const char* validation_layer = "VK_LAYER_KHRONOS_validation";
+constexpr const char* install_hint =
+    "install a Vulkan driver: 'apt-get install mesa-vulkan-drivers' gives lavapipe, the CPU driver";
+
+const char* result_name(VkResult result) {
+  switch (result) {
+    case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
+    case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
+    case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
+    case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
+    case VK_ERROR_LAYER_NOT_PRESENT: return "VK_ERROR_LAYER_NOT_PRESENT";
+    case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
+    case VK_ERROR_FEATURE_NOT_PRESENT: return "VK_ERROR_FEATURE_NOT_PRESENT";
+    case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
+    case VK_ERROR_FORMAT_NOT_SUPPORTED: return "VK_ERROR_FORMAT_NOT_SUPPORTED";
+    case VK_TIMEOUT: return "VK_TIMEOUT";
+    default: return "VkResult error";
+  }
+}
+
+const char* type_name(VkPhysicalDeviceType type) {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete-gpu";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated-gpu";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual-gpu";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
+    default: return "other";
+  }
+}
+
+int type_rank(VkPhysicalDeviceType type) {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 4;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 3;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 1;
+    default: return 0;
+  }
+}
+
+VKAPI_ATTR VkBool32 VKAPI_CALL on_validation_message(VkDebugUtilsMessageSeverityFlagBitsEXT,
+                                                     VkDebugUtilsMessageTypeFlagsEXT,
+                                                     const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                                     void* user) {
+  static_cast<std::atomic<long long>*>(user)->fetch_add(1);
+  std::fprintf(stderr, "displace: vulkan validation: %s\n", data && data->pMessage ? data->pMessage : "(no text)");
+  return VK_FALSE;
+}
+
+bool has_layer(const char* name) {
+  std::uint32_t count = 0;
+  vkEnumerateInstanceLayerProperties(&count, nullptr);
+  std::vector<VkLayerProperties> layers(count);
+  vkEnumerateInstanceLayerProperties(&count, layers.data());
+  return std::any_of(layers.begin(), layers.end(),
+                     [&](const VkLayerProperties& layer) { return std::strcmp(layer.layerName, name) == 0; });
+}
+
+VkInstance create_instance(bool validate) {
+  VkApplicationInfo application{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  application.pApplicationName = "displace";
+  application.apiVersion = VK_API_VERSION_1_2;
+  VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  info.pApplicationInfo = &application;
+  const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+  if (validate) {
+    if (!has_layer(validation_layer)) {
+      throw RenderError("--validate needs the Khronos validation layer: 'apt-get install vulkan-validationlayers'");
+    }
+    info.enabledLayerCount = 1;
+    info.ppEnabledLayerNames = &validation_layer;
+    info.enabledExtensionCount = 1;
+    info.ppEnabledExtensionNames = &extension;
+  }
+  VkInstance instance = VK_NULL_HANDLE;
+  const VkResult result = vkCreateInstance(&info, nullptr, &instance);
+  if (result == VK_ERROR_INCOMPATIBLE_DRIVER) throw RenderError(std::string("no Vulkan 1.2 driver found; ") + install_hint);
+  check_vk(result, "vkCreateInstance", __FILE__, __LINE__);
+  return instance;
+}
+
+std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
+  std::uint32_t count = 0;
+  DISPLACE_VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, nullptr));
+  std::vector<VkPhysicalDevice> devices(count);
+  DISPLACE_VK_CHECK(vkEnumeratePhysicalDevices(instance, &count, devices.data()));
+  devices.resize(count);
+  return devices;
+}
+
+int graphics_queue_family(VkPhysicalDevice device) {
+  std::uint32_t count = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(device, &count, nullptr);
+  std::vector<VkQueueFamilyProperties> families(count);
+  vkGetPhysicalDeviceQueueFamilyProperties(device, &count, families.data());
+  for (std::uint32_t i = 0; i < count; ++i) {
+    if (families[i].queueFlags & VK_QUEUE_GRAPHICS_BIT) return int(i);
+  }
+  return -1;
+}
+
+std::string lower(std::string text) {
+  for (char& c : text) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+struct Candidate {
+  VkPhysicalDevice device;
+  DeviceInfo info;
+  int rank;
+};
+
+std::vector<Candidate> candidates(VkInstance instance) {
+  std::vector<Candidate> result;
+  int index = 0;
+  for (VkPhysicalDevice device : physical_devices(instance)) {
+    VkPhysicalDeviceProperties properties;
+    vkGetPhysicalDeviceProperties(device, &properties);
+    const bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && graphics_queue_family(device) >= 0;
+    DeviceInfo info{index++, properties.deviceName, type_name(properties.deviceType)};
+    result.push_back({device, info, usable ? type_rank(properties.deviceType) : -1});
+  }
+  return result;
+}
+
+Candidate choose_device(VkInstance instance, const std::string& wanted) {
+  const std::vector<Candidate> all = candidates(instance);
+  if (all.empty()) throw RenderError(std::string("no Vulkan device found; ") + install_hint);
+  if (wanted.empty()) {
+    const auto best = std::max_element(all.begin(), all.end(),
+                                       [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
+    if (best->rank < 0) throw RenderError(std::string("no Vulkan 1.2 device with graphics found; ") + install_hint);
+    return *best;
+  }
+  std::string names;
+  for (const Candidate& candidate : all) {
+    int index = -1;
+    const auto [end, error] = std::from_chars(wanted.data(), wanted.data() + wanted.size(), index);
+    const bool by_index = error == std::errc{} && end == wanted.data() + wanted.size() && index == candidate.info.index;
+    const bool by_name = lower(candidate.info.name).find(lower(wanted)) != std::string::npos;
+    if (by_index || by_name) {
+      if (candidate.rank < 0) throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics");
+      return candidate;
+    }
+    names += (names.empty() ? "" : ", ") + std::to_string(candidate.info.index) + ": " + candidate.info.name;
+  }
+  throw RenderError("--device '" + wanted + "' matches no Vulkan device (have " + names + ")");
+}
+
+}  // namespace
+
+void check_vk(VkResult result, const char* call, const char* file, int line) {
+  if (result == VK_SUCCESS) return;
+  throw RenderError(std::string(call) + " failed with " + result_name(result) + " (" + std::to_string(int(result)) +
+                    ") at " + file + ":" + std::to_string(line));
+}
+
+std::vector<DeviceInfo> list_devices() {
+  VkInstance instance = create_instance(false);
+  std::vector<DeviceInfo> result;
+  try {
+    for (const Candidate& candidate : candidates(instance)) result.push_back(candidate.info);
+  } catch (...) {
+    vkDestroyInstance(instance, nullptr);
+    throw;
+  }
+  vkDestroyInstance(instance, nullptr);
+  if (result.empty()) throw RenderError(std::string("no Vulkan device found; ") + install_hint);
+  return result;
+}
+
+Context::Context(const RendererOptions& options) {
+  instance_ = create_instance(options.validate);
+  try {
+    if (options.validate) {
+      VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+      info.messageSeverity =
+          VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+      info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                         VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+      info.pfnUserCallback = on_validation_message;
+      info.pUserData = validation_messages_.get();
+      auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+          vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
+      if (!create) throw RenderError("the validation layer offers no VK_EXT_debug_utils messenger");
+      DISPLACE_VK_CHECK(create(instance_, &info, nullptr, &messenger_));
+    }
+
+    const Candidate chosen = choose_device(instance_, options.device);
+    physical_device_ = chosen.device;
+    info_ = chosen.info;
+    queue_family_ = std::uint32_t(graphics_queue_family(physical_device_));
+    vkGetPhysicalDeviceMemoryProperties(physical_device_, &memory_properties_);
+
+    VkPhysicalDeviceProperties properties;
+    vkGetPhysicalDeviceProperties(physical_device_, &properties);
+    std::uint32_t family_count = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &family_count, nullptr);
+    std::vector<VkQueueFamilyProperties> families(family_count);
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &family_count, families.data());
+    has_timestamps_ = properties.limits.timestampComputeAndGraphics && families[queue_family_].timestampValidBits > 0;
+    timestamp_period_ns_ = properties.limits.timestampPeriod;
+
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queue_info.queueFamilyIndex = queue_family_;
+    queue_info.queueCount = 1;
+    queue_info.pQueuePriorities = &priority;
+    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    device_info.queueCreateInfoCount = 1;
+    device_info.pQueueCreateInfos = &queue_info;
+    DISPLACE_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
+    vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+
+    VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pool_info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT | VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
+    pool_info.queueFamilyIndex = queue_family_;
+    DISPLACE_VK_CHECK(vkCreateCommandPool(device_, &pool_info, nullptr, &command_pool_));
+    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    DISPLACE_VK_CHECK(vkCreateFence(device_, &fence_info, nullptr, &fence_));
+  } catch (...) {
+    destroy();
+    throw;
+  }
+}
+
+Context::~Context() { destroy(); }
+
+void Context::destroy() noexcept {
+  if (device_) {
+    vkDeviceWaitIdle(device_);
+    if (fence_) vkDestroyFence(device_, fence_, nullptr);
+    if (command_pool_) vkDestroyCommandPool(device_, command_pool_, nullptr);
+    vkDestroyDevice(device_, nullptr);
+    device_ = VK_NULL_HANDLE;
+  }
+  if (messenger_) {
+    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
+    if (destroy) destroy(instance_, messenger_, nullptr);
+    messenger_ = VK_NULL_HANDLE;
+  }
+  if (instance_) {
+    vkDestroyInstance(instance_, nullptr);
+    instance_ = VK_NULL_HANDLE;
+  }
+}
+
+std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const {
+  for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
+    if ((type_bits & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
+      return i;
+    }
+  }
+  throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
+}
+
+VkCommandBuffer Context::begin_commands() const {
+  VkCommandBufferAllocateInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  info.commandPool = command_pool_;
+  info.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  info.commandBufferCount = 1;
+  VkCommandBuffer commands = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkAllocateCommandBuffers(device_, &info, &commands));
+  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  DISPLACE_VK_CHECK(vkBeginCommandBuffer(commands, &begin));
+  return commands;
+}
+
+void Context::end_submit_wait(VkCommandBuffer commands) const {
+  DISPLACE_VK_CHECK(vkEndCommandBuffer(commands));
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &commands;
+  DISPLACE_VK_CHECK(vkResetFences(device_, 1, &fence_));
+  DISPLACE_VK_CHECK(vkQueueSubmit(queue_, 1, &submit, fence_));
+  DISPLACE_VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+  vkFreeCommandBuffers(device_, command_pool_, 1, &commands);
+}
+
+Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags properties)
+    : device_(context.device()), size_(size) {
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.size = size;
+  info.usage = usage;
+  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  DISPLACE_VK_CHECK(vkCreateBuffer(device_, &info, nullptr, &buffer_));
+  VkMemoryRequirements requirements;
+  vkGetBufferMemoryRequirements(device_, buffer_, &requirements);
+  VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  allocate.allocationSize = requirements.size;
+  allocate.memoryTypeIndex = context.memory_type(requirements.memoryTypeBits, properties);
+  DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory_));
+  DISPLACE_VK_CHECK(vkBindBufferMemory(device_, buffer_, memory_, 0));
+  if (properties & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
+    DISPLACE_VK_CHECK(vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+  }
+}
+
+Buffer::~Buffer() {
+  if (!device_) return;
+  if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
+  if (memory_) vkFreeMemory(device_, memory_, nullptr);
+}
+
+Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
+             VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type)
+    : device_(context.device()), format_(format), width_(width), height_(height), layers_(layers) {
+  VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  info.imageType = VK_IMAGE_TYPE_2D;
+  info.format = format;
+  info.extent = {width, height, 1};
+  info.mipLevels = 1;
+  info.arrayLayers = layers;
+  info.samples = VK_SAMPLE_COUNT_1_BIT;
+  info.tiling = VK_IMAGE_TILING_OPTIMAL;
+  info.usage = usage;
+  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  info.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  DISPLACE_VK_CHECK(vkCreateImage(device_, &info, nullptr, &image_));
+  VkMemoryRequirements requirements;
+  vkGetImageMemoryRequirements(device_, image_, &requirements);
+  VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  allocate.allocationSize = requirements.size;
+  allocate.memoryTypeIndex = context.memory_type(requirements.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory_));
+  DISPLACE_VK_CHECK(vkBindImageMemory(device_, image_, memory_, 0));
+  VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+  view.image = image_;
+  view.viewType = view_type;
+  view.format = format;
+  view.subresourceRange = {aspect, 0, 1, 0, layers};
+  DISPLACE_VK_CHECK(vkCreateImageView(device_, &view, nullptr, &view_));
+}
+
+Image::~Image() {
+  if (!device_) return;
+  if (view_) vkDestroyImageView(device_, view_, nullptr);
+  if (image_) vkDestroyImage(device_, image_, nullptr);
+  if (memory_) vkFreeMemory(device_, memory_, nullptr);
+}
+
+}  // namespace displace::render

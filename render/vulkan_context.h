@@ -1,0 +1,174 @@
+// render/vulkan_context.h - the one place that creates the headless Vulkan instance and device, and
+// move-only RAII owners for buffers and images (each with its memory), destroyed in reverse order.
+// Internal to render/.
+#pragma once
+
+#include <vulkan/vulkan.h>
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+
+#include "render/render.h"
+
+namespace displace::render {
+
+// Throws RenderError naming the call, file and line when a Vulkan call fails.
+void check_vk(VkResult result, const char* call, const char* file, int line);
+#define DISPLACE_VK_CHECK(call) ::displace::render::check_vk((call), #call, __FILE__, __LINE__)
+
+class Context {
+ public:
+  explicit Context(const RendererOptions& options);
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  VkDevice device() const { return device_; }
+  VkPhysicalDevice physical_device() const { return physical_device_; }
+  VkQueue queue() const { return queue_; }
+  std::uint32_t queue_family() const { return queue_family_; }
+  VkCommandPool command_pool() const { return command_pool_; }
+  const DeviceInfo& info() const { return info_; }
+  float timestamp_period_ns() const { return timestamp_period_ns_; }
+  bool has_timestamps() const { return has_timestamps_; }
+  long long validation_messages() const { return validation_messages_->load(); }
+
+  std::uint32_t memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const;
+
+  // Records with `record`, submits and waits.
+  template <typename Record>
+  void submit_and_wait(Record&& record) const {
+    VkCommandBuffer commands = begin_commands();
+    std::forward<Record>(record)(commands);
+    end_submit_wait(commands);
+  }
+
+ private:
+  void destroy() noexcept;
+  VkCommandBuffer begin_commands() const;
+  void end_submit_wait(VkCommandBuffer commands) const;
+
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_device_ = VK_NULL_HANDLE;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  std::uint32_t queue_family_ = 0;
+  VkCommandPool command_pool_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
+  DeviceInfo info_;
+  float timestamp_period_ns_ = 0.0f;
+  bool has_timestamps_ = false;
+  VkPhysicalDeviceMemoryProperties memory_properties_{};
+  std::unique_ptr<std::atomic<long long>> validation_messages_ = std::make_unique<std::atomic<long long>>(0);
+};
+
+// A buffer with its own memory; host-visible buffers stay mapped.
+class Buffer {
+ public:
+  Buffer() = default;
+  Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags properties);
+  ~Buffer();
+  Buffer(Buffer&& other) noexcept { swap(other); }
+  Buffer& operator=(Buffer&& other) noexcept {
+    Buffer moved(std::move(other));
+    swap(moved);
+    return *this;
+  }
+
+  VkBuffer handle() const { return buffer_; }
+  VkDeviceSize size() const { return size_; }
+  void* mapped() const { return mapped_; }
+
+ private:
+  void swap(Buffer& other) noexcept {
+    std::swap(device_, other.device_);
+    std::swap(buffer_, other.buffer_);
+    std::swap(memory_, other.memory_);
+    std::swap(size_, other.size_);
+    std::swap(mapped_, other.mapped_);
+  }
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkDeviceSize size_ = 0;
+  void* mapped_ = nullptr;
+};
+
+// A 2D (array) image with its memory and a view over all its layers.
+class Image {
+ public:
+  Image() = default;
+  Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
+        VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type);
+  ~Image();
+  Image(Image&& other) noexcept { swap(other); }
+  Image& operator=(Image&& other) noexcept {
+    Image moved(std::move(other));
+    swap(moved);
+    return *this;
+  }
+
+  VkImage handle() const { return image_; }
+  VkImageView view() const { return view_; }
+  VkFormat format() const { return format_; }
+  std::uint32_t width() const { return width_; }
+  std::uint32_t height() const { return height_; }
+  std::uint32_t layers() const { return layers_; }
+
+ private:
+  void swap(Image& other) noexcept {
+    std::swap(device_, other.device_);
+    std::swap(image_, other.image_);
+    std::swap(memory_, other.memory_);
+    std::swap(view_, other.view_);
+    std::swap(format_, other.format_);
+    std::swap(width_, other.width_);
+    std::swap(height_, other.height_);
+    std::swap(layers_, other.layers_);
+  }
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkImage image_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkImageView view_ = VK_NULL_HANDLE;
+  VkFormat format_ = VK_FORMAT_UNDEFINED;
+  std::uint32_t width_ = 0, height_ = 0, layers_ = 0;
+};
+
+// Move-only owner of one Vulkan handle destroyed with vkDestroy*(device, handle, nullptr).
+template <typename Handle, void (*destroy)(VkDevice, Handle, const VkAllocationCallbacks*)>
+class Owned {
+ public:
+  Owned() = default;
+  Owned(VkDevice device, Handle handle) : device_(device), handle_(handle) {}
+  ~Owned() {
+    if (handle_ != VK_NULL_HANDLE) destroy(device_, handle_, nullptr);
+  }
+  Owned(Owned&& other) noexcept : device_(other.device_), handle_(std::exchange(other.handle_, VK_NULL_HANDLE)) {}
+  Owned& operator=(Owned&& other) noexcept {
+    Owned moved(std::move(other));
+    std::swap(device_, moved.device_);
+    std::swap(handle_, moved.handle_);
+    return *this;
+  }
+  Handle get() const { return handle_; }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  Handle handle_ = VK_NULL_HANDLE;
+};
+
+using OwnedPipeline = Owned<VkPipeline, vkDestroyPipeline>;
+using OwnedPipelineLayout = Owned<VkPipelineLayout, vkDestroyPipelineLayout>;
+using OwnedDescriptorSetLayout = Owned<VkDescriptorSetLayout, vkDestroyDescriptorSetLayout>;
+using OwnedDescriptorPool = Owned<VkDescriptorPool, vkDestroyDescriptorPool>;
+using OwnedRenderPass = Owned<VkRenderPass, vkDestroyRenderPass>;
+using OwnedFramebuffer = Owned<VkFramebuffer, vkDestroyFramebuffer>;
+using OwnedShaderModule = Owned<VkShaderModule, vkDestroyShaderModule>;
+using OwnedSampler = Owned<VkSampler, vkDestroySampler>;
+using OwnedQueryPool = Owned<VkQueryPool, vkDestroyQueryPool>;
+
+}  // namespace displace::render

@@ -1,0 +1,243 @@
+// tests/render_test.cpp - the Vulkan renderer on lavapipe (or whatever device the loader offers),
+// with the validation layer on: every method against the exact CPU intersection on analytic fields,
+// numerical stability at grazing, vertical, axis and sector-boundary rays, and zero validation
+// messages.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "render/render.h"
+
+namespace {
+
+using namespace displace;
+using render::Frame;
+using render::HeightField;
+using render::Method;
+using render::MethodInfo;
+using render::View;
+
+// One renderer for the whole suite: device creation and pipelines are made once, as in the app.
+render::Renderer& shared_renderer() {
+  static std::unique_ptr<render::Renderer> renderer =
+      std::make_unique<render::Renderer>(render::RendererOptions{"", true});
+  return *renderer;
+}
+
+HeightField field_of(int width, int height, auto&& height_at) {
+  HeightField field{width, height, std::vector<float>(std::size_t(width) * height)};
+  for (int i = 0; i < height; ++i)
+    for (int j = 0; j < width; ++j) field.heights[std::size_t(i) * width + j] = float(height_at(i, j));
+  return field;
+}
+
+HeightField constant_field(int size, float value) {
+  return field_of(size, size, [&](int, int) { return value; });
+}
+HeightField ramp_field(int size) {
+  return field_of(size, size, [&](int, int j) { return 0.1 + 0.8 * (j + 0.5) / size; });
+}
+HeightField step_field(int size) {
+  return field_of(size, size, [&](int, int j) { return j < size / 2 ? 0.2 : 0.8; });
+}
+HeightField spike_field(int size) {
+  return field_of(size, size, [&](int i, int j) { return (i % 8 == 3 && j % 8 == 5) ? 1.0 : 0.1; });
+}
+
+View oblique_view(int pixels) {
+  View view;
+  view.camera.eye = {0.5f, -0.3f, 0.6f};
+  view.camera.look_at = {0.5f, 0.5f, -0.05f};
+  view.camera.width = pixels;
+  view.camera.height = pixels;
+  view.camera.fov_y_degrees = 30.0f;
+  view.depth_scale = 0.1f;
+  return view;
+}
+
+Frame render_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
+  render::Renderer& renderer = shared_renderer();
+  renderer.set_height_field(field);
+  return renderer.render(view, {method, steps, refine});
+}
+
+bool all_finite(const Frame& frame) {
+  auto finite = [](const std::vector<float>& values) {
+    return std::all_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
+  };
+  return finite(frame.uv) && finite(frame.depth) && finite(frame.iterations) && finite(frame.fetches);
+}
+
+struct HitError {
+  double max_texels = 0.0;        // worst |uv - truth| over pixels both hit, in texels
+  long long over_half_texel = 0;  // pixels whose hit is more than half a texel from the truth
+  long long compared = 0;
+  long long hit_mismatch = 0;     // pixels where exactly one of GPU and CPU hit the patch
+};
+
+HitError hit_error(const Frame& frame, const HeightField& field, const View& view) {
+  HitError error;
+  for (int py = 0; py < frame.height; ++py) {
+    for (int px = 0; px < frame.width; ++px) {
+      const std::size_t p = std::size_t(py) * frame.width + px;
+      const render::CpuHit truth = render::cpu_trace(field, view, px + 0.5, py + 0.5);
+      const bool gpu_hit = frame.uv[p * 3 + 2] > 0.5f;
+      if (gpu_hit != truth.hit) {
+        ++error.hit_mismatch;
+        continue;
+      }
+      if (!truth.hit) continue;
+      const double du = (frame.uv[p * 3 + 0] - truth.texture.x) * field.width;
+      const double dv = (frame.uv[p * 3 + 1] - truth.texture.y) * field.height;
+      const double texels = std::hypot(du, dv);
+      error.max_texels = std::max(error.max_texels, texels);
+      if (texels > 0.5) ++error.over_half_texel;
+      ++error.compared;
+    }
+  }
+  return error;
+}
+
+TEST(Renderer, ReportsItsDevice) {
+  const render::DeviceInfo& device = shared_renderer().device();
+  EXPECT_FALSE(device.name.empty());
+  std::printf("device: %s (%s)\n", device.name.c_str(), device.type.c_str());
+}
+
+TEST(Renderer, ExactClassMethodsHitWithinHalfATexelOfTheTruth) {
+  const int size = 32;
+  const std::vector<std::pair<std::string, HeightField>> fields = {{"constant", constant_field(size, 0.4f)},
+                                                                   {"ramp", ramp_field(size)},
+                                                                   {"step", step_field(size)},
+                                                                   {"spikes", spike_field(size)}};
+  const View view = oblique_view(48);
+  for (const auto& [name, field] : fields) {
+    for (const MethodInfo& info : render::method_table()) {
+      if (!info.exact_class) continue;
+      const Frame frame = render_frame(field, view, info.method, 256, 16);
+      const HitError error = hit_error(frame, field, view);
+      SCOPED_TRACE(name + " / " + info.name);
+      std::printf("%-9s %-10s max %.3f texels, %lld over half a texel, %lld hit mismatches, of %lld\n",
+                  name.c_str(), info.name, error.max_texels, error.over_half_texel, error.hit_mismatch,
+                  error.compared);
+      ASSERT_GT(error.compared, 1000);
+      // A pixel whose ray grazes an edge may land on either side of it; allow 1% of pixels there.
+      EXPECT_LE(error.over_half_texel + error.hit_mismatch, error.compared / 100)
+          << "max " << error.max_texels << " texels, " << error.over_half_texel << " over half a texel, "
+          << error.hit_mismatch << " hit mismatches of " << error.compared;
+      if (name == "constant" || name == "ramp") {
+        EXPECT_LE(error.max_texels, 0.5);
+      }
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+TEST(Renderer, ParallaxFamilyMatchesItsFormulaOnConstantHeight) {
+  const int size = 16;
+  const float h0 = 0.3f;
+  const HeightField field = constant_field(size, h0);
+  const View view = oblique_view(40);
+  const Frame parallax = render_frame(field, view, Method::parallax, 1, 0);
+  const Frame limited = render_frame(field, view, Method::parallax_limited, 1, 0);
+  const Frame bump = render_frame(field, view, Method::bump, 1, 0);
+  int checked = 0;
+  for (int py = 0; py < view.camera.height; ++py) {
+    for (int px = 0; px < view.camera.width; ++px) {
+      const std::size_t p = std::size_t(py) * view.camera.width + px;
+      const render::Ray ray = view.camera.pixel_ray(px + 0.5, py + 0.5);
+      const double t = -ray.origin.z / ray.direction.z;
+      const glm::dvec3 entry = ray.origin + t * ray.direction;
+      if (entry.x < 0.02 || entry.x > 0.98 || entry.y < 0.02 || entry.y > 0.98) continue;
+      // parallax: the ray meets the plane h = h0 (exact on constant height)
+      const double descent = (1.0 - h0) * view.depth_scale;  // world depth below the polygon
+      const double s_world = descent / -ray.direction.z;
+      const glm::dvec3 parallax_point = entry + s_world * ray.direction;
+      if (parallax_point.x < 0.0 || parallax_point.x > 1.0 || parallax_point.y < 0.0 || parallax_point.y > 1.0) {
+        continue;  // the offset leaves the patch: discarded, like a ray leaving through a side
+      }
+      EXPECT_NEAR(parallax.uv[p * 3 + 0], parallax_point.x, 1e-4);
+      EXPECT_NEAR(parallax.uv[p * 3 + 1], parallax_point.y, 1e-4);
+      // offset limiting: the same offset scaled by cos(view angle)
+      const double cos_view = -ray.direction.z;
+      EXPECT_NEAR(limited.uv[p * 3 + 0], entry.x + (parallax_point.x - entry.x) * cos_view, 1e-4);
+      EXPECT_NEAR(limited.uv[p * 3 + 1], entry.y + (parallax_point.y - entry.y) * cos_view, 1e-4);
+      // bump: no displacement at all
+      EXPECT_NEAR(bump.uv[p * 3 + 0], entry.x, 1e-4);
+      EXPECT_NEAR(bump.uv[p * 3 + 1], entry.y, 1e-4);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+// Views whose centre pixel (odd image sizes put a pixel centre on the axis) sees the plane along a
+// chosen direction: exactly vertical, 0.01 degrees above grazing, along an axis, along a sector
+// boundary of the 8-sector map.
+std::vector<std::pair<std::string, View>> hard_views() {
+  std::vector<std::pair<std::string, View>> views;
+  auto aimed = [](double azimuth_degrees, double elevation_degrees, double distance) {
+    View view;
+    const double a = glm::radians(azimuth_degrees), e = glm::radians(elevation_degrees);
+    const glm::dvec3 target(0.5, 0.5, 0.0);
+    const glm::dvec3 eye = target - distance * glm::dvec3(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a),
+                                                          -std::sin(e));
+    view.camera.eye = glm::vec3(eye);
+    view.camera.look_at = glm::vec3(target);
+    view.camera.up = elevation_degrees >= 89.999 ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
+    view.camera.width = 33;
+    view.camera.height = 33;
+    view.camera.fov_y_degrees = 20.0f;
+    return view;
+  };
+  views.emplace_back("vertical", aimed(0.0, 90.0, 1.0));
+  views.emplace_back("grazing", aimed(30.0, 0.01, 0.6));
+  views.emplace_back("along-u", aimed(0.0, 35.0, 1.0));
+  views.emplace_back("along-v", aimed(90.0, 35.0, 1.0));
+  views.emplace_back("against-u", aimed(180.0, 35.0, 1.0));
+  for (int k = 0; k < 8; ++k) views.emplace_back("sector-boundary-" + std::to_string(k * 45), aimed(k * 45.0, 20.0, 1.0));
+  return views;
+}
+
+TEST(Renderer, NoNanOrInfOnHardRaysAndFlatMaps) {
+  const std::vector<std::pair<std::string, HeightField>> fields = {{"all-zero", constant_field(16, 0.0f)},
+                                                                   {"all-one", constant_field(16, 1.0f)},
+                                                                   {"flat-half", constant_field(16, 0.5f)},
+                                                                   {"step", step_field(16)}};
+  const auto views = hard_views();
+  for (const auto& [field_name, field] : fields) {
+    shared_renderer().set_height_field(field);
+    for (const auto& [view_name, view] : views) {
+      for (const MethodInfo& info : render::method_table()) {
+        const Frame frame = shared_renderer().render(view, {info.method, 16, 6});
+        EXPECT_TRUE(all_finite(frame)) << field_name << " / " << view_name << " / " << info.name;
+      }
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+TEST(Renderer, RejectsBadViewsWithAClearError) {
+  shared_renderer().set_height_field(constant_field(4, 0.5f));
+  View view = oblique_view(8);
+  view.camera.look_at = view.camera.eye;
+  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
+  view = oblique_view(8);
+  view.depth_scale = std::nanf("");
+  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
+  view = oblique_view(8);
+  view.tile = 2;
+  view.address = bake::Address::clamp;
+  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
+  EXPECT_THROW(shared_renderer().render(oblique_view(8), {Method::pom, 0, 0}), render::RenderError);
+  HeightField bad = constant_field(4, 0.5f);
+  bad.heights[3] = std::nanf("");
+  EXPECT_THROW(shared_renderer().set_height_field(bad), render::RenderError);
+}
+
+}  // namespace
