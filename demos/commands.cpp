@@ -5,6 +5,8 @@
 // it stores, so its cones are conservative for what an engine reads back (see cone_export.h).
 #include "demos/commands.h"
 
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -292,6 +294,139 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   }
 }
 
+namespace {
+
+std::string lower_case_extension(const std::filesystem::path& file) {
+  std::string extension = file.extension().string();
+  for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+
+// Blue -> cyan -> green -> yellow -> red over [0, maximum]: the iterations heatmap (as in Figure 5 of
+// Risser et al.'s interval mapping paper). Pixels off the relief stay black.
+std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const float> uv_hit, float maximum) {
+  constexpr float stops[5][3] = {{0, 0, 1}, {0, 1, 1}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}};
+  std::vector<std::uint8_t> rgba(values.size() * 4, 0);
+  for (std::size_t p = 0; p < values.size(); ++p) {
+    rgba[p * 4 + 3] = 255;
+    if (uv_hit[p * 3 + 2] < 0.5f) continue;
+    const float x = std::clamp(maximum > 0.0f ? values[p] / maximum : 0.0f, 0.0f, 1.0f) * 4.0f;
+    const int stop = std::min(int(x), 3);
+    const float f = x - float(stop);
+    for (int c = 0; c < 3; ++c) {
+      rgba[p * 4 + c] = std::uint8_t(std::lround(255.0f * (stops[stop][c] * (1 - f) + stops[stop + 1][c] * f)));
+    }
+  }
+  return rgba;
+}
+
+struct FrameSummary {
+  double mean_iterations = 0.0, mean_fetches = 0.0, p99_fetches = 0.0, max_iterations = 0.0;
+  long long hit_pixels = 0;
+};
+
+FrameSummary summarize(const render::Frame& frame) {
+  FrameSummary summary;
+  std::vector<float> fetches;
+  for (std::size_t p = 0; p < frame.fetches.size(); ++p) {
+    if (frame.uv[p * 3 + 2] < 0.5f) continue;
+    summary.mean_iterations += frame.iterations[p];
+    summary.mean_fetches += frame.fetches[p];
+    summary.max_iterations = std::max(summary.max_iterations, double(frame.iterations[p]));
+    fetches.push_back(frame.fetches[p]);
+  }
+  summary.hit_pixels = (long long)fetches.size();
+  if (!fetches.empty()) {
+    summary.mean_iterations /= double(fetches.size());
+    summary.mean_fetches /= double(fetches.size());
+    const std::size_t rank = std::min(fetches.size() - 1, std::size_t(0.99 * double(fetches.size())));
+    std::nth_element(fetches.begin(), fetches.begin() + std::ptrdiff_t(rank), fetches.end());
+    summary.p99_fetches = fetches[rank];
+  }
+  return summary;
+}
+
+void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata) {
+  if (lower_case_extension(file) == ".png") {
+    write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
+    return;
+  }
+  const std::size_t pixels = std::size_t(frame.width) * frame.height;
+  std::vector<float> channels[4];
+  for (auto& channel : channels) channel.resize(pixels);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    for (int c = 0; c < 4; ++c) channels[c][p] = float(frame.color[p * 4 + c]) / 255.0f;
+  }
+  const ExrChannel exr[] = {{"R", channels[0]}, {"G", channels[1]}, {"B", channels[2]}, {"A", channels[3]}};
+  write_exr(file, frame.width, frame.height, exr, metadata);
+}
+
+void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata) {
+  const std::size_t pixels = std::size_t(frame.width) * frame.height;
+  if (aov.aov == Aov::uv) {
+    std::vector<float> u(pixels), v(pixels), hit(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+      u[p] = frame.uv[p * 3 + 0];
+      v[p] = frame.uv[p * 3 + 1];
+      hit[p] = frame.uv[p * 3 + 2];
+    }
+    const ExrChannel exr[] = {{"u", u}, {"v", v}, {"hit", hit}};
+    write_exr(aov.file, frame.width, frame.height, exr, metadata);
+    return;
+  }
+  if (aov.aov == Aov::depth) {
+    const ExrChannel exr[] = {{"depth", frame.depth}};
+    write_exr(aov.file, frame.width, frame.height, exr, metadata);
+    return;
+  }
+  const bool iterations = aov.aov == Aov::iterations;
+  const std::vector<float>& values = iterations ? frame.iterations : frame.fetches;
+  if (lower_case_extension(aov.file) == ".png") {
+    const float maximum = values.empty() ? 0.0f : *std::max_element(values.begin(), values.end());
+    Metadata heat_metadata = metadata;
+    heat_metadata.push_back({"displace:heatmap_maximum", maximum});
+    write_png_rgba8(aov.file, frame.width, frame.height, heatmap(values, frame.uv, maximum), heat_metadata);
+    return;
+  }
+  const ExrChannel exr[] = {{iterations ? "iterations" : "fetches", values}};
+  write_exr(aov.file, frame.width, frame.height, exr, metadata);
+}
+
+}  // namespace
+
+void run_render(const RenderSettings& settings, std::ostream& out) {
+  BakeInput input = prepare_bake_input(settings.input);
+  render::Renderer renderer(settings.renderer);
+  renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+  const render::MethodInfo& info = render::method_info(settings.method.method);
+  const render::Frame frame = renderer.render(settings.view, settings.method);
+  Metadata metadata = input.metadata;
+  metadata.push_back({"displace:method", std::string(info.name)});
+  metadata.push_back({"displace:steps", settings.method.steps});
+  metadata.push_back({"displace:refine", settings.method.refine});
+  write_frame_image(settings.output, frame, metadata);
+  for (const AovOutput& aov : settings.aovs) write_aov(aov, frame, metadata);
+  const FrameSummary summary = summarize(frame);
+  out << format("displace render: %s, %d steps, %d refine, on %s (%s): %d x %d, %lld pixels hit, "
+                "%.2f ms on the device; per pixel: %.1f iterations, %.1f fetches (p99 %.0f)\n",
+                info.name, settings.method.steps, settings.method.refine, renderer.device().name.c_str(),
+                renderer.device().type.c_str(), frame.width, frame.height, summary.hit_pixels,
+                frame.gpu_milliseconds, summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
+  out << "  wrote " << settings.output.string();
+  for (const AovOutput& aov : settings.aovs) out << ", " << aov.file.string();
+  out << '\n';
+  if (settings.compare_reference) {
+    const render::Frame reference = renderer.render(settings.view, {render::Method::reference, 1, 0});
+    const render::ImageError error = render::compare(frame, reference);
+    out << format("  compare reference: rmse %.3f, max error %.0f, %.3f%% of %lld pixels off by more than 10 "
+                  "(8-bit units)\n",
+                  error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
+  }
+  if (settings.renderer.validate && renderer.validation_messages() > 0) {
+    throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
+  }
+}
+
 void run_demo(const DemoSettings& settings, std::ostream& out) {
   constexpr int demo_sectors = 4;
   const bake::Address address = bake::Address::wrap;  // an FFT ocean tiles
@@ -349,7 +484,12 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
 }
 
 std::string usage_text() {
-  return R"(displace - height fields, cone maps and their export
+  std::string methods;
+  for (const render::MethodInfo& info : render::method_table()) {
+    if (!methods.empty()) methods += ", ";
+    methods += info.name;
+  }
+  std::string text = R"(displace - height fields, cone maps and their export
 
 usage:
   displace sim --source ocean|sinusoids --size N --time T [synthesis options] --output F.exr
@@ -371,6 +511,21 @@ usage:
       while a ratio may be more than T below exact; 0 refines to the exact map. --stats prints one
       JSON line.
 
+  displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
+                  --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
+                  [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
+                  [--light X,Y,Z] [--size WxH] --output F.png|F.exr [--aov NAME=FILE ...]
+                  [--compare reference] [--device N|NAME] [--validate]
+      Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
+      at z = -D) with one per-pixel method, baking the maps it needs (budgeted baker, no limit).
+      Methods: METHODS.
+      --steps: linear-search steps or maximum cone steps (default 32); --refine: binary or secant
+      steps (default 8). AOVs: uv=F.exr (u, v, hit), depth=F.exr, iterations=F.exr|F.png (a .png
+      is a heatmap), fetches=F.exr|F.png. --compare reference also renders the tessellated height
+      field and prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
+      --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the
+      Khronos validation layer and fails on any message.
+
   displace demo [--size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
       out/ocean_cone4.png, baked with the budgeted baker and an unlimited budget.
@@ -388,8 +543,10 @@ synthesis options:
   --choppiness L         ocean: horizontal displacement scale, recorded only (default 1)
   --waves K              sinusoids: number of waves (default 12)
 
-exit status: 0 success, 1 runtime error (files, images, baking), 2 usage error.
+exit status: 0 success, 1 runtime error (files, images, baking, no Vulkan device), 2 usage error.
 )";
+  text.replace(text.find("METHODS"), 7, methods);
+  return text;
 }
 
 int run_command(const CommandSettings& settings, std::ostream& out) {
@@ -399,6 +556,8 @@ int run_command(const CommandSettings& settings, std::ostream& out) {
     run_sim(*sim_settings, out);
   } else if (const auto* bake_settings = std::get_if<BakeSettings>(&settings)) {
     run_bake(*bake_settings, out);
+  } else if (const auto* render_settings = std::get_if<RenderSettings>(&settings)) {
+    run_render(*render_settings, out);
   } else {
     run_demo(std::get<DemoSettings>(settings), out);
   }

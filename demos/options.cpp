@@ -51,7 +51,9 @@ class FlagReader {
       argument = argument.substr(0, equals);
     }
     flag_ = argument;
-    if (!seen_.insert(std::string(flag_)).second) throw usage_error(std::string(flag_) + " is given twice");
+    if (flag_ != "--aov" && !seen_.insert(std::string(flag_)).second) {  // --aov may repeat
+      throw usage_error(std::string(flag_) + " is given twice");
+    }
     return flag_;
   }
 
@@ -202,7 +204,7 @@ bool take_source_flag(std::string_view flag, FlagReader& reader, SourceDraft& dr
   if (flag == "--source") {
     draft.kind = parse_word(flag, reader.value(), source_words);
     return true;
-  } else if (flag == "--size") {
+  } else if (flag == "--size" || flag == "--map-size") {
     // a single texel (or a single row) has no relief to displace: at least 2 x 2
     draft.size = parse_int(flag, reader.value(), 2, max_image_side);
   } else if (flag == "--time") {
@@ -299,13 +301,67 @@ SimSettings parse_sim(std::span<const std::string_view> args) {
   return {finish_source(draft), *output};
 }
 
+// The height input every command that bakes reads: --input FILE with its load flags, or --source with
+// the sim flags (never both).
+struct InputDraft {
+  SourceDraft source;
+  std::optional<std::filesystem::path> file;
+  HeightLoadSettings load;
+  bool load_flag_given = false;
+};
+
+bool take_input_flag(std::string_view flag, FlagReader& reader, InputDraft& draft) {
+  if (take_source_flag(flag, reader, draft.source)) return true;
+  if (flag == "--input") {
+    draft.file = std::filesystem::path(std::string(reader.value()));
+  } else if (flag == "--channel") {
+    const std::string_view text = reader.value();
+    if (std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      draft.load.channel.index = parse_int(flag, text, 0, 1 << 16);
+    } else {
+      draft.load.channel.name = std::string(text);
+    }
+    draft.load_flag_given = true;
+  } else if (flag == "--invert") {
+    reader.no_value();
+    draft.load.invert = true;
+    draft.load_flag_given = true;
+  } else if (flag == "--height-range") {
+    const std::string_view text = reader.value();
+    const auto comma = text.find(',');
+    if (comma == std::string_view::npos) throw usage_error("--height-range expects LOW,HIGH, got " + quoted(text));
+    const float low = parse_float(flag, text.substr(0, comma));
+    const float high = parse_float(flag, text.substr(comma + 1));
+    if (!(high > low) || !std::isfinite(high - low)) {
+      throw usage_error("--height-range needs LOW < HIGH, got " + quoted(text));
+    }
+    draft.load.range = HeightRange{low, high};
+    draft.load_flag_given = true;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+std::variant<FileInput, SourceSettings> finish_input(const InputDraft& draft, const std::string& command) {
+  if (draft.file && draft.source.kind) throw usage_error("give either --input or --source, not both");
+  if (draft.file) {
+    if (draft.source.any_besides_kind())
+      throw usage_error(draft.source.first_flag + " applies to --source only, not --input");
+    return FileInput{*draft.file, draft.load};
+  }
+  if (draft.source.kind) {
+    if (draft.load_flag_given) throw usage_error("--channel, --invert and --height-range apply to --input only");
+    return finish_source(draft.source);
+  }
+  throw usage_error("'displace " + command + "' needs --input FILE or --source ocean|sinusoids");
+}
+
 BakeSettings parse_bake(std::span<const std::string_view> args) {
   FlagReader reader(args);
   BakeSettings settings;
-  SourceDraft draft;
-  std::optional<std::filesystem::path> input, output;
-  HeightLoadSettings load;
-  bool load_flag_given = false;
+  InputDraft input;
+  std::optional<std::filesystem::path> output;
   std::optional<int> sectors;
   std::optional<Baker> mode;
   std::optional<double> budget;
@@ -314,34 +370,8 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
 
   while (!reader.done()) {
     const std::string_view flag = reader.next_flag();
-    if (take_source_flag(flag, reader, draft)) continue;
-    if (flag == "--input") {
-      input = std::filesystem::path(std::string(reader.value()));
-    } else if (flag == "--channel") {
-      const std::string_view text = reader.value();
-      if (std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-        load.channel.index = parse_int(flag, text, 0, 1 << 16);
-      } else {
-        load.channel.name = std::string(text);
-      }
-      load_flag_given = true;
-    } else if (flag == "--invert") {
-      reader.no_value();
-      load.invert = true;
-      load_flag_given = true;
-    } else if (flag == "--height-range") {
-      const std::string_view text = reader.value();
-      const auto comma = text.find(',');
-      if (comma == std::string_view::npos)
-        throw usage_error("--height-range expects LOW,HIGH, got " + quoted(text));
-      const float low = parse_float(flag, text.substr(0, comma));
-      const float high = parse_float(flag, text.substr(comma + 1));
-      if (!(high > low) || !std::isfinite(high - low)) {
-        throw usage_error("--height-range needs LOW < HIGH, got " + quoted(text));
-      }
-      load.range = HeightRange{low, high};
-      load_flag_given = true;
-    } else if (flag == "--sectors") {
+    if (take_input_flag(flag, reader, input)) continue;
+    if (flag == "--sectors") {
       const int value =
           parse_int(flag, reader.value(), std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
       if (!bake::is_valid_sector_count(value)) {
@@ -378,18 +408,7 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
     }
   }
 
-  // the heights: a file or a source, never both
-  if (input && draft.kind) throw usage_error("give either --input or --source, not both");
-  if (input) {
-    if (draft.any_besides_kind())
-      throw usage_error(draft.first_flag + " applies to --source only, not --input");
-    settings.input = FileInput{*input, load};
-  } else if (draft.kind) {
-    if (load_flag_given) throw usage_error("--channel, --invert and --height-range apply to --input only");
-    settings.input = finish_source(draft);
-  } else {
-    throw usage_error("'displace bake' needs --input FILE or --source ocean|sinusoids");
-  }
+  settings.input = finish_input(input, "bake");
 
   // the baker
   if (!sectors) throw usage_error("'displace bake' needs --sectors 1|4|8");
@@ -415,6 +434,114 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   }
   if (!output) throw usage_error("'displace bake' needs --output FILE.exr|FILE.png");
   settings.output = *output;
+  return settings;
+}
+
+// "x,y,z"
+glm::vec3 parse_vector(std::string_view flag, std::string_view text) {
+  glm::vec3 value;
+  std::string_view rest = text;
+  for (int c = 0; c < 3; ++c) {
+    const auto comma = rest.find(',');
+    if ((c < 2) == (comma == std::string_view::npos)) throw usage_error(std::string(flag) + " expects X,Y,Z, got " + quoted(text));
+    value[c] = parse_float(flag, rest.substr(0, comma));
+    rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
+  }
+  return value;
+}
+
+constexpr std::pair<std::string_view, Aov> aov_words[] = {
+    {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
+
+RenderSettings parse_render(std::span<const std::string_view> args) {
+  FlagReader reader(args);
+  RenderSettings settings;
+  InputDraft input;
+  std::optional<std::filesystem::path> output;
+  std::optional<render::Method> method;
+  while (!reader.done()) {
+    const std::string_view flag = reader.next_flag();
+    render::Camera& camera = settings.view.camera;
+    if (flag == "--size") {  // the image; the map of a --source takes --map-size
+      const std::string_view text = reader.value();
+      const auto x = text.find('x');
+      if (x == std::string_view::npos) throw usage_error("--size expects WxH (pixels), got " + quoted(text) + "; a --source's samples are --map-size N");
+      camera.width = parse_int(flag, text.substr(0, x), 1, max_image_side);
+      camera.height = parse_int(flag, text.substr(x + 1), 1, max_image_side);
+      continue;
+    }
+    if (take_input_flag(flag, reader, input)) continue;
+    if (flag == "--method") {
+      const std::string_view text = reader.value();
+      const render::MethodInfo* info = render::find_method(text);
+      if (!info) {
+        std::string names;
+        for (const render::MethodInfo& known : render::method_table()) {
+          if (!names.empty()) names += '|';
+          names += known.name;
+        }
+        throw usage_error("--method must be one of " + names + ", got " + quoted(text));
+      }
+      method = info->method;
+    } else if (flag == "--steps") {
+      settings.method.steps = parse_int(flag, reader.value(), 1, 4096);
+    } else if (flag == "--refine") {
+      settings.method.refine = parse_int(flag, reader.value(), 0, 64);
+    } else if (flag == "--address") {
+      settings.view.address = parse_word(flag, reader.value(), address_words);
+    } else if (flag == "--tile") {
+      settings.view.tile = parse_int(flag, reader.value(), 1, 64);
+    } else if (flag == "--depth-scale") {
+      settings.view.depth_scale = parse_float_in(flag, reader.value(), Range{1e-4, 10.0, "world units"});
+    } else if (flag == "--eye") {
+      camera.eye = parse_vector(flag, reader.value());
+    } else if (flag == "--look-at") {
+      camera.look_at = parse_vector(flag, reader.value());
+    } else if (flag == "--up") {
+      camera.up = parse_vector(flag, reader.value());
+    } else if (flag == "--light") {
+      settings.view.light_direction = parse_vector(flag, reader.value());
+    } else if (flag == "--fov-y") {
+      camera.fov_y_degrees = parse_float_in(flag, reader.value(), Range{0.01, 179.0, "degrees"});
+    } else if (flag == "--output") {
+      ImageFormat format{};
+      output = parse_output(flag, reader.value(), format, true);
+    } else if (flag == "--aov") {
+      const std::string_view text = reader.value();
+      const auto equals = text.find('=');
+      if (equals == std::string_view::npos || equals + 1 == text.size()) {
+        throw usage_error("--aov expects NAME=FILE (uv, depth, iterations, fetches), got " + quoted(text));
+      }
+      AovOutput aov{parse_word(flag, text.substr(0, equals), aov_words), std::filesystem::path(std::string(text.substr(equals + 1)))};
+      ImageFormat format{};
+      parse_output(flag, text.substr(equals + 1), format, aov.aov == Aov::iterations || aov.aov == Aov::fetches);
+      settings.aovs.push_back(aov);
+    } else if (flag == "--compare") {
+      const std::string_view text = reader.value();
+      if (text != "reference") throw usage_error("--compare supports only 'reference', got " + quoted(text));
+      settings.compare_reference = true;
+    } else if (flag == "--device") {
+      settings.renderer.device = std::string(reader.value());
+    } else if (flag == "--validate") {
+      reader.no_value();
+      settings.renderer.validate = true;
+    } else {
+      throw usage_error("unknown flag " + quoted(flag) + " for 'displace render'");
+    }
+  }
+  settings.input = finish_input(input, "render");
+  if (!method) throw usage_error("'displace render' needs --method NAME");
+  settings.method.method = *method;
+  if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");
+  settings.output = *output;
+  if (settings.view.tile > 1 && settings.view.address != bake::Address::wrap) {
+    throw usage_error("--tile above 1 needs --address wrap");
+  }
+  try {
+    settings.view.camera.validate();
+  } catch (const render::RenderError& error) {
+    throw usage_error(error.what());
+  }
   return settings;
 }
 
@@ -447,7 +574,8 @@ CommandSettings parse_command_line(std::span<const std::string_view> args) {
   if (command == "sim") return parse_sim(rest);
   if (command == "bake") return parse_bake(rest);
   if (command == "demo") return parse_demo(rest);
-  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, demo, help)");
+  if (command == "render") return parse_render(rest);
+  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, render, demo, help)");
 }
 
 }  // namespace displace::app

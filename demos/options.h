@@ -11,10 +11,12 @@
 #include <span>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include "bake/bake.h"
 #include "demos/cone_export.h"
 #include "demos/image_io.h"
+#include "render/render.h"
 #include "sim/sim.h"
 
 namespace displace::app {
@@ -62,7 +64,24 @@ struct DemoSettings {
   std::filesystem::path output_directory = "out";
 };
 
-using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings>;
+// An arbitrary output variable written next to the picture: uv, depth, iterations or fetches.
+enum class Aov { uv, depth, iterations, fetches };
+struct AovOutput {
+  Aov aov = Aov::uv;
+  std::filesystem::path file;  // uv and depth: .exr; iterations and fetches: .exr (raw) or .png (heatmap)
+};
+
+struct RenderSettings {
+  std::variant<FileInput, SourceSettings> input;
+  render::View view;
+  render::MethodSettings method;
+  std::filesystem::path output;  // .png or .exr
+  std::vector<AovOutput> aovs;
+  bool compare_reference = false;
+  render::RendererOptions renderer;
+};
+
+using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings>;
 
 // `args` excludes the program name and must not be empty.
 CommandSettings parse_command_line(std::span<const std::string_view> args);

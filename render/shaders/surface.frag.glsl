@@ -28,13 +28,58 @@ uint g_fetches = 0u;
 #include "methods.inc.glsl"
 #include "shading.inc.glsl"
 
+// The reference's triangles interpolate the texel heights linearly over two triangles per texel
+// square, while every method samples the bilinear surface: they differ inside a square by up to a
+// quarter of |h00 - h01 - h10 + h11|. Rasterizing the tessellation decides visibility; this then
+// moves the hit along the view ray onto the bilinear surface (the first crossing within a window
+// of two texels around the rasterized point), so that comparisons measure the methods' errors only.
+const int snap_steps = 32;      // linear steps across the window
+const int snap_bisections = 24;
+const float snap_window_texels = 2.0;
+
+vec3 snap_to_bilinear(vec3 origin, vec3 direction, float s_raster) {
+  float dz = min(direction.z, -min_descent);
+  vec3 descent = vec3(direction.xy / -dz, -1.0);
+  float travel_texels = length(descent.xy * frame.map_size.xy);
+  float window = max(snap_window_texels / max(travel_texels, 1e-6), 1e-3);
+  float lo = max(s_raster - window, 0.0), hi = min(s_raster + window, 1.0);
+  vec3 p = origin + lo * descent;
+  if (p.z - shading_height(p.xy) <= 0.0) return origin + s_raster * descent;
+  float below = -1.0;
+  for (int i = 1; i <= snap_steps; ++i) {
+    float s = mix(lo, hi, float(i) / float(snap_steps));
+    vec3 q = origin + s * descent;
+    if (q.z - shading_height(q.xy) <= 0.0) {
+      below = s;
+      break;
+    }
+    lo = s;
+  }
+  if (below < 0.0) return origin + s_raster * descent;
+  for (int i = 0; i < snap_bisections; ++i) {
+    float mid = 0.5 * (lo + below);
+    vec3 q = origin + mid * descent;
+    if (q.z - shading_height(q.xy) > 0.0) lo = mid; else below = mid;
+  }
+  return origin + below * descent;
+}
+
 void main() {
   vec3 to_point = in_world - frame.eye.xyz;
   vec3 d = normalize(to_point);
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
   vec3 hit = vec3(in_uv, in_h);
-  if (METHOD != METHOD_REFERENCE) {
+  if (METHOD == METHOD_REFERENCE) {
+    // Only what is seen through the base polygon, as for the per-pixel methods: a ray that enters
+    // the relief box through one of its sides has no fragment on the polygon.
+    float t_entry = -frame.eye.z / d.z;
+    vec2 entry = frame.eye.xy + t_entry * d.xy;
+    if (frame.eye.z <= 0.0 || d.z >= 0.0 || any(lessThan(entry, vec2(0.0))) || any(greaterThan(entry, vec2(1.0)))) {
+      discard;
+    }
+    hit = snap_to_bilinear(vec3(entry * frame.surface.x, 1.0), inverse(tangent_frame) * d, 1.0 - in_h);
+  } else {
     if (dot(d, normal) >= 0.0) discard;  // the relief is seen from above only
     vec3 origin = vec3(in_uv, 1.0);
     Trace traced = trace(origin, inverse(tangent_frame) * d, -dot(d, normal));
