@@ -580,3 +580,88 @@ TEST(Cli, SimWritesMetresWithItsMapping) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Cli, RendersWithAovsAndComparesToTheReference) {
+  TempDir dir;
+  const std::string out = (dir / "frame.png").string();
+  const RunResult result = run_displace(
+      dir, "render --source ocean --map-size 32 --time 0 --method acm4 --steps 32 --size 48x40 --validate --output '" +
+               out + "' --aov uv='" + (dir / "uv.exr").string() + "' --aov iterations='" +
+               (dir / "it.png").string() + "' --aov depth='" + (dir / "depth.exr").string() +
+               "' --compare reference");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
+  const FloatImage uv = read_float_image(dir / "uv.exr");
+  EXPECT_EQ(uv.width, 48);
+  EXPECT_EQ(uv.height, 40);
+  const auto hit = uv.channel("hit");
+  const auto u = uv.channel("u");
+  std::size_t hits = 0;
+  for (std::size_t p = 0; p < hit.size(); ++p) {
+    EXPECT_TRUE(hit[p] == 0.0f || hit[p] == 1.0f);
+    if (hit[p] == 1.0f) {
+      ++hits;
+      EXPECT_GE(u[p], 0.0f);
+      EXPECT_LE(u[p], 1.0f);
+    } else {
+      EXPECT_EQ(u[p], 0.0f);
+    }
+  }
+  EXPECT_GT(hits, hit.size() / 4);
+  EXPECT_TRUE(fs::exists(dir / "it.png"));
+  EXPECT_TRUE(fs::exists(dir / "depth.exr"));
+  EXPECT_TRUE(fs::exists(out));
+}
+
+TEST(Cli, RenderRejectsBadInputWithOneError) {
+  TempDir dir;
+  const std::string ok = "render --source ocean --map-size 16 --time 0 --output '" + (dir / "f.png").string() + "'";
+  const struct {
+    std::string arguments;
+    int exit_code;
+  } cases[] = {
+      {ok + " --method no-such-method", 2},
+      {ok, 2},  // no --method
+      {ok + " --method pom --steps 0", 2},
+      {ok + " --method pom --size 0x10", 2},
+      {ok + " --method pom --eye 0.5,0.5,1 --look-at 0.5,0.5,1", 2},
+      {ok + " --method pom --eye 1,2", 2},
+      {ok + " --method pom --tile 2 --address clamp", 2},
+      {ok + " --method pom --fov-y 0", 2},
+      {ok + " --method pom --depth-scale nan", 2},
+      {ok + " --method pom --aov colour=x.exr", 2},
+      {ok + " --method pom --aov uv=x.png", 2},
+      {ok + " --method pom --device no-such-device", 1},
+      {"render --input '" + (dir / "missing.png").string() + "' --method pom --output f.png", 1},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments);
+    EXPECT_TRUE(result.exited) << test.arguments;
+    EXPECT_EQ(result.exit_code, test.exit_code) << test.arguments << "\n" << result.err;
+    EXPECT_NE(result.err.find("displace: error: "), std::string::npos) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+  }
+}
+
+TEST(Cli, RenderWithoutAnyVulkanDriverSaysWhatToInstall) {
+  TempDir dir;
+  // point the loader at no driver at all: it then finds no device
+  const RunResult result =
+      run_displace(dir, "render --source ocean --map-size 16 --time 0 --method pom --output '" +
+                            (dir / "f.png").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;  // with the real drivers it works
+  const std::string command = "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json '" +
+                              std::string(DISPLACE_BINARY) + "' render --source ocean --map-size 16 --time 0 " +
+                              "--method pom --output '" + (dir / "g.png").string() + "' 2>'" +
+                              (dir / "err.txt").string() + "'";
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  const std::string err = read_text(dir / "err.txt");
+  EXPECT_NE(err.find("mesa-vulkan-drivers"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(dir / "g.png"));
+}
+
+}  // namespace
