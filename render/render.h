@@ -154,6 +154,10 @@ class Renderer {
   // them, with the budgeted baker and no limit, and kept until the heights change.
   void set_height_field(const HeightField& field);
 
+  // Hands over a cone map already baked for the current heights (bake conventions, interleaved),
+  // so that it is not baked again.
+  void set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios);
+
   // Renders one frame; pipelines are made once per method and kept.
   Frame render(const View& view, const MethodSettings& method);
 

@@ -508,6 +508,17 @@ void Renderer::set_height_field(const HeightField& field) {
                                         field.heights.size() * sizeof(float));
 }
 
+void Renderer::set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios) {
+  Impl& impl = *impl_;
+  if (!bake::is_valid_sector_count(sector_count) ||
+      ratios.size() != std::size_t(impl.field.width) * impl.field.height * sector_count) {
+    throw RenderError("set_cone_map: the cone map does not match the height field");
+  }
+  const int key = sector_count * 2 + (address == bake::Address::wrap ? 0 : 1);
+  if (impl.uploaded_cone_sectors == key) impl.uploaded_cone_sectors = 0;
+  impl.cone_ratios[key] = std::move(ratios);
+}
+
 Frame Renderer::render(const View& view, const MethodSettings& method) {
   Impl& impl = *impl_;
   // validate the view
