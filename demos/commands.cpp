@@ -29,7 +29,15 @@ std::string format(const char* pattern, auto... values) {
   return buffer;
 }
 
-const char* source_name(SourceKind kind) { return kind == SourceKind::ocean ? "ocean" : "sinusoids"; }
+const char* source_name(SourceKind kind) {
+  switch (kind) {
+    case SourceKind::ocean: return "ocean";
+    case SourceKind::sinusoids: return "sinusoids";
+    case SourceKind::bricks: return "bricks";
+    case SourceKind::cliff: return "cliff";
+  }
+  return "unknown";
+}
 const char* spectrum_name(sim::Spectrum spectrum) {
   return spectrum == sim::Spectrum::phillips ? "phillips" : "jonswap";
 }
@@ -59,6 +67,9 @@ Metadata synthesis_metadata(const SourceSettings& source, const sim::HeightMappi
         {"displace:gravity", ocean.gravity},
     };
     metadata.insert(metadata.end(), ocean_metadata.begin(), ocean_metadata.end());
+  } else if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
+    metadata[0].value = std::string("[0, 1]");
+    metadata.push_back({"displace:seed", std::to_string(source.seed)});
   } else {
     const sim::SinusoidParams& waves = source.sinusoids;
     const Metadata wave_metadata = {
@@ -133,6 +144,11 @@ SynthesizedHeights synthesize(const SourceSettings& source) {
       ocean.evaluate(source.time, sim::ocean_heights, frame);
       result.raw = std::move(frame.height);
       result.mapping = ocean.mapping();
+    } else if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
+      result.raw.resize(std::size_t(source.size) * std::size_t(source.size));
+      (source.kind == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(source.size, source.size,
+                                                                                   source.seed, result.raw);
+      result.mapping = sim::HeightMapping{1.0f, 0.0f};
     } else {
       const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(source.sinusoids);
       result.raw.resize(std::size_t(source.size) * std::size_t(source.size));

@@ -148,7 +148,9 @@ Enum parse_word(std::string_view flag, std::string_view text,
 }
 
 constexpr std::pair<std::string_view, SourceKind> source_words[] = {{"ocean", SourceKind::ocean},
-                                                                    {"sinusoids", SourceKind::sinusoids}};
+                                                                    {"sinusoids", SourceKind::sinusoids},
+                                                                    {"bricks", SourceKind::bricks},
+                                                                    {"cliff", SourceKind::cliff}};
 constexpr std::pair<std::string_view, sim::Spectrum> spectrum_words[] = {
     {"phillips", sim::Spectrum::phillips}, {"jonswap", sim::Spectrum::jonswap}};
 constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::exact},
@@ -238,8 +240,17 @@ SourceSettings finish_source(const SourceDraft& draft) {
   SourceSettings source;
   source.kind = *draft.kind;
   if (!draft.size) throw usage_error("--source needs --size N (samples along u and v)");
-  if (!draft.time) throw usage_error("--source needs --time T (seconds)");
   source.size = *draft.size;
+  if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
+    // static procedural reliefs: only a seed
+    if (draft.patch_size || draft.wind_speed || draft.wind_direction_degrees || draft.fetch ||
+        draft.spectrum || draft.spreading || draft.choppiness || draft.wave_count) {
+      throw usage_error("--source bricks and --source cliff take only --size, --seed and --time (static)");
+    }
+    if (draft.seed) source.seed = *draft.seed;
+    return source;
+  }
+  if (!draft.time) throw usage_error("--source needs --time T (seconds)");
   source.time = *draft.time;
   const float degrees_to_radians = std::numbers::pi_v<float> / 180.0f;
 

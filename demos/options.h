@@ -21,7 +21,7 @@
 
 namespace displace::app {
 
-enum class SourceKind { ocean, sinusoids };
+enum class SourceKind { ocean, sinusoids, bricks, cliff };
 
 // A synthesized height field: `size` x `size` samples at `time`.
 struct SourceSettings {
@@ -30,6 +30,7 @@ struct SourceSettings {
   float time = 0.0f;              // seconds
   sim::OceanParams ocean;         // kind == ocean; ocean.size == size
   sim::SinusoidParams sinusoids;  // kind == sinusoids
+  std::uint64_t seed = 1;         // kind == bricks or cliff
 };
 
 // A height image on disk and how to read it.

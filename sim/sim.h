@@ -143,4 +143,11 @@ class Ocean {
   std::unique_ptr<Impl> impl_;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Procedural test reliefs, made directly in [0, 1] (their mapping is the identity): a brick wall
+// and a cliff with single-texel spikes. Both tile; seeded roughness. Throw std::invalid_argument
+// when out does not hold width x height samples.
+void brick_heights(int width, int height, std::uint64_t seed, std::span<float> out);
+void cliff_heights(int width, int height, std::uint64_t seed, std::span<float> out);
+
 }  // namespace displace::sim

@@ -30,26 +30,39 @@ uint g_fetches = 0u;
 
 // The reference's triangles interpolate the texel heights linearly over two triangles per texel
 // square, while every method samples the bilinear surface: they differ inside a square by up to a
-// quarter of |h00 - h01 - h10 + h11|. Rasterizing the tessellation decides visibility; this then
-// moves the hit along the view ray onto the bilinear surface (the first crossing within a window
-// of two texels around the rasterized point), so that comparisons measure the methods' errors only.
-const int snap_steps = 32;      // linear steps across the window
+// quarter of |h00 - h01 - h10 + h11|, and at a sharp edge a ray may pass one and hit the other.
+// Rasterizing the tessellation decides visibility; this then moves the hit along the view ray onto
+// the bilinear surface: the first crossing at or after a point that is above the bilinear surface,
+// found by going back from the rasterized point (doubling the distance) and marching forward in
+// quarter-texel steps, then bisecting. The comparisons then measure the methods' errors only.
+const float snap_window_texels = 4.0;   // initial distance back from, and forward of, the raster point
+const int snap_back_doublings = 8;
+const float snap_steps_per_texel = 4.0;
+const int snap_max_steps = 512;
 const int snap_bisections = 24;
-const float snap_window_texels = 2.0;
+
+float snap_gap(vec3 origin, vec3 descent, float s) {
+  vec3 q = origin + s * descent;
+  return q.z - shading_height(q.xy);
+}
 
 vec3 snap_to_bilinear(vec3 origin, vec3 direction, float s_raster) {
   float dz = min(direction.z, -min_descent);
   vec3 descent = vec3(direction.xy / -dz, -1.0);
-  float travel_texels = length(descent.xy * frame.map_size.xy);
-  float window = max(snap_window_texels / max(travel_texels, 1e-6), 1e-3);
-  float lo = max(s_raster - window, 0.0), hi = min(s_raster + window, 1.0);
-  vec3 p = origin + lo * descent;
-  if (p.z - shading_height(p.xy) <= 0.0) return origin + s_raster * descent;
+  float travel_texels = max(length(descent.xy * frame.map_size.xy), 1e-6);
+  float window = max(snap_window_texels / travel_texels, 1e-3);
+  float lo = max(s_raster - window, 0.0);
+  for (int i = 0; i < snap_back_doublings && lo > 0.0 && snap_gap(origin, descent, lo) <= 0.0; ++i) {
+    lo = max(s_raster - 2.0 * (s_raster - lo), 0.0);
+  }
+  if (snap_gap(origin, descent, lo) <= 0.0) return origin + s_raster * descent;
+  float hi = min(s_raster + window, 1.0);
+  int steps = clamp(int(ceil((hi - lo) * travel_texels * snap_steps_per_texel)), 1, snap_max_steps);
   float below = -1.0;
-  for (int i = 1; i <= snap_steps; ++i) {
-    float s = mix(lo, hi, float(i) / float(snap_steps));
-    vec3 q = origin + s * descent;
-    if (q.z - shading_height(q.xy) <= 0.0) {
+  float step = (hi - lo) / float(steps);
+  for (int i = 1; i <= steps; ++i) {
+    float s = lo + float(i) * step;
+    if (snap_gap(origin, descent, s) <= 0.0) {
       below = s;
       break;
     }
@@ -58,8 +71,7 @@ vec3 snap_to_bilinear(vec3 origin, vec3 direction, float s_raster) {
   if (below < 0.0) return origin + s_raster * descent;
   for (int i = 0; i < snap_bisections; ++i) {
     float mid = 0.5 * (lo + below);
-    vec3 q = origin + mid * descent;
-    if (q.z - shading_height(q.xy) > 0.0) lo = mid; else below = mid;
+    if (snap_gap(origin, descent, mid) > 0.0) lo = mid; else below = mid;
   }
   return origin + below * descent;
 }
