@@ -12,11 +12,15 @@ constexpr MethodInfo methods[] = {
     {Method::bump, "bump", METHOD_BUMP, MethodFamily::surface, 0, false},
     {Method::parallax, "parallax", METHOD_PARALLAX, MethodFamily::surface, 0, false},
     {Method::parallax_limited, "parallax-limited", METHOD_PARALLAX_LIMITED, MethodFamily::surface, 0, false},
+    {Method::parallax_slope, "parallax-slope", METHOD_PARALLAX_SLOPE, MethodFamily::surface, 0, false},
     {Method::pom, "pom", METHOD_POM, MethodFamily::linear_search, 0, true},
     {Method::relief, "relief", METHOD_RELIEF, MethodFamily::linear_search, 0, true},
+    {Method::interval, "interval", METHOD_INTERVAL, MethodFamily::linear_search, 0, true},
     {Method::csm, "csm", METHOD_CSM, MethodFamily::cone, 1, true},
     {Method::acm4, "acm4", METHOD_ACM4, MethodFamily::cone, 4, true},
     {Method::acm8, "acm8", METHOD_ACM8, MethodFamily::cone, 8, true},
+    {Method::acm4_interval, "acm4-interval", METHOD_ACM4_INTERVAL, MethodFamily::cone, 4, true},
+    {Method::relaxed, "relaxed", METHOD_RELAXED, MethodFamily::cone, 1, true, true},
     {Method::reference, "reference", METHOD_REFERENCE, MethodFamily::reference, 0, true},
 };
 

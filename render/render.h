@@ -41,16 +41,20 @@ enum class Method {
   bump,
   parallax,
   parallax_limited,
+  parallax_slope,
   pom,
   relief,
+  interval,
   csm,
   acm4,
   acm8,
+  acm4_interval,
+  relaxed,
   reference,
 };
 
 enum class MethodFamily {
-  surface,        // no search: bump and the parallax family (one formula per pixel)
+  surface,        // no search: bump and the parallax family (one formula per pixel, or a few iterations)
   linear_search,  // fixed steps along the ray, then a refinement
   cone,           // steps bounded by a cone map
   reference,      // the tessellated height field, rasterized
@@ -63,6 +67,7 @@ struct MethodInfo {
   MethodFamily family;
   int cone_sectors;   // 0: the method reads no cone map
   bool exact_class;   // converges to the true hit as steps grow
+  bool relaxed_cones = false;  // the cone map is relaxed (bake::bake_relaxed), not conservative
 };
 
 // The implemented methods, in display order. A method that is not implemented is not listed.
@@ -101,7 +106,7 @@ struct View {
 
 struct MethodSettings {
   Method method = Method::relief;
-  int steps = 32;   // linear-search steps, or the maximum number of cone steps
+  int steps = 32;   // linear-search steps, the maximum number of cone steps, or iterations
   int refine = 8;   // binary or secant refinement steps after the search
 };
 
@@ -151,7 +156,8 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them, with the budgeted baker and no limit, and kept until the heights change.
+  // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones), and kept until
+  // the heights change.
   void set_height_field(const HeightField& field);
 
   // Hands over a cone map already baked for the current heights (bake conventions, interleaved),

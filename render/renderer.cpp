@@ -79,6 +79,11 @@ std::vector<float> cone_layers(const std::vector<float>& ratios, int width, int 
   return packed;
 }
 
+// Cone maps are baked for one sector count, address mode and kind (conservative or relaxed).
+int cone_key(int sectors, bake::Address address, bool relaxed) {
+  return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + (relaxed ? 1 : 0);
+}
+
 struct Targets {
   int width = 0, height = 0;
   Image color, hit, counters, depth;
@@ -106,8 +111,8 @@ struct Renderer::Impl {
   HeightField field;
   Image height_image;
   Image dummy_cones;
-  std::map<int, std::vector<float>> cone_ratios;  // by sector count, baked for `field`
-  int uploaded_cone_sectors = 0;
+  std::map<int, std::vector<float>> cone_ratios;  // by cone_key, baked for `field`
+  int uploaded_cone_key = -1;  // cone_key of cone_image, -1 for none
   Image cone_image;
 
   Buffer reference_vertices, reference_indices;
@@ -121,7 +126,7 @@ struct Renderer::Impl {
   VkPipeline pipeline(const MethodInfo& info);
   Image upload_image(VkFormat format, int width, int height, int layers, VkImageViewType view_type, const void* data,
                      std::size_t bytes);
-  const std::vector<float>& cones(int sectors, bake::Address address);
+  const std::vector<float>& cones(int sectors, bake::Address address, bool relaxed);
   void ensure_targets(int width, int height);
   void ensure_reference_mesh(int tile);
   void bind_maps(const View& view, const MethodInfo& info);
@@ -360,14 +365,18 @@ Image Renderer::Impl::upload_image(VkFormat format, int width, int height, int l
   return image;
 }
 
-const std::vector<float>& Renderer::Impl::cones(int sectors, bake::Address address) {
-  // cone maps are baked for one address mode; the key folds it in
-  const int key = sectors * 2 + (address == bake::Address::wrap ? 0 : 1);
+const std::vector<float>& Renderer::Impl::cones(int sectors, bake::Address address, bool relaxed) {
+  const int key = cone_key(sectors, address, relaxed);
   auto found = cone_ratios.find(key);
   if (found != cone_ratios.end()) return found->second;
   std::vector<float> ratios(std::size_t(field.width) * field.height * sectors);
-  bake::bake_budgeted({field.heights.data(), field.width, field.height}, address, bake::Budget{},
-                      {ratios.data(), field.width, field.height, sectors});
+  const bake::HeightView heights{field.heights.data(), field.width, field.height};
+  const bake::ConeView out{ratios.data(), field.width, field.height, sectors};
+  if (relaxed) {
+    bake::bake_relaxed(heights, address, out);
+  } else {
+    bake::bake_budgeted(heights, address, bake::Budget{}, out);
+  }
   return cone_ratios.emplace(key, std::move(ratios)).first->second;
 }
 
@@ -440,13 +449,13 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const bool wrap = view.address == bake::Address::wrap;
   VkImageView cone_view = dummy_cones.view();
   if (info.cone_sectors > 0) {
-    const int key = info.cone_sectors * 2 + (wrap ? 0 : 1);
-    if (uploaded_cone_sectors != key) {
-      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, view.address), field.width,
-                                                    field.height, info.cone_sectors);
+    const int key = cone_key(info.cone_sectors, view.address, info.relaxed_cones);
+    if (uploaded_cone_key != key) {
+      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, view.address, info.relaxed_cones),
+                                                    field.width, field.height, info.cone_sectors);
       cone_image = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, field.width, field.height,
                                 (info.cone_sectors + 3) / 4, VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
-      uploaded_cone_sectors = key;
+      uploaded_cone_key = key;
     }
     cone_view = cone_image.view();
   }
@@ -498,7 +507,7 @@ void Renderer::set_height_field(const HeightField& field) {
   vkDeviceWaitIdle(impl.context.device());
   impl.field = field;
   impl.cone_ratios.clear();
-  impl.uploaded_cone_sectors = 0;
+  impl.uploaded_cone_key = -1;
   impl.cone_image = Image{};
   impl.reference_vertices = Buffer{};
   impl.reference_indices = Buffer{};

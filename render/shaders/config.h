@@ -16,11 +16,15 @@ using mat4 = glm::mat4;
 #define METHOD_BUMP 0
 #define METHOD_PARALLAX 1
 #define METHOD_PARALLAX_LIMITED 2
+#define METHOD_PARALLAX_SLOPE 3
 #define METHOD_POM 4
 #define METHOD_RELIEF 5
+#define METHOD_INTERVAL 6
 #define METHOD_CSM 8
 #define METHOD_ACM4 9
 #define METHOD_ACM8 10
+#define METHOD_ACM4_INTERVAL 11
+#define METHOD_RELAXED 12
 #define METHOD_REFERENCE 15
 
 // descriptor bindings (set 0)

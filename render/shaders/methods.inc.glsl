@@ -12,6 +12,13 @@ const float min_descent = 1e-6;    // smallest |dh| per unit world distance: gra
 const float min_denominator = 1e-12;  // interpolation weights when two height differences coincide
 const float cone_gap_epsilon = 1e-5;  // cone stepping stops this close (in height units) above the surface
 
+// tuning constants of the secant-refined methods (interval, acm4-interval)
+const float secant_gap_epsilon = 1e-6;  // height units: secant refinement stops this close (Risser et al. use 0.01)
+const float bracket_first_gap_factor = 2.0;  // first bracketing step after cone stepping, in gaps left above the surface
+const float bracket_min_step = 1e-6;    // height units (s): smallest first bracketing step, for a gap of 0
+const float bracket_growth = 2.0;       // ratio between consecutive bracketing steps (unitless)
+const int bracket_max_steps = 32;       // bracketing steps; the last one always reaches s = 1 (a count)
+
 float fetch_height(vec2 uv) {
   g_fetches += 1u;
   return textureLod(height_map, uv, 0.0).r;
@@ -83,17 +90,155 @@ float binary_refine(vec3 origin, vec3 descent, Bracket b, int refine) {
 // Cone stepping (Dummer): from a point at height gap g above the surface, a cone of ratio r
 // (horizontal over vertical) with its apex on the surface below lets the ray descend
 // r * g / (r + L), L = horizontal travel per unit descent, without entering the relief.
-float cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
+// Returns where it stopped, the gap there when it was read (gap_known), and the last point it read
+// above the surface before (s_above, gap_above: s = 0 and gap 0 when it stopped at once).
+struct ConeMarch {
+  float s, gap;
+  bool gap_known;
+  float s_above, gap_above;
+};
+
+ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
   float travel = length(descent.xy);
   int sector = cone_sector(descent.xy, sectors);
-  float s = 0.0;
+  ConeMarch m = ConeMarch(0.0, 0.0, false, 0.0, 0.0);
   for (int i = 0; i < steps; ++i) {
-    vec3 p = origin + s * descent;
-    float gap = p.z - fetch_height(p.xy);
-    if (gap <= cone_gap_epsilon) break;
+    vec3 p = origin + m.s * descent;
+    m.gap = p.z - fetch_height(p.xy);
+    m.gap_known = true;
+    if (m.gap <= cone_gap_epsilon) break;
     g_iterations += 1u;
     float ratio = fetch_cone(p.xy, sector);
-    s = min(s + ratio * gap / max(ratio + travel, min_denominator), 1.0);
+    m.s_above = m.s;
+    m.gap_above = m.gap;
+    m.s = min(m.s + ratio * m.gap / max(ratio + travel, min_denominator), 1.0);
+    m.gap_known = false;
+  }
+  return m;
+}
+
+// Interval mapping's refinement (Risser, Shah & Pattanaik, "Interval Mapping", sec. 3): join the
+// surface points under the two ends of the bracket with a line, intersect it with the ray, and let
+// that point replace the end on its side of the surface (a secant step that keeps a valid bracket:
+// regula falsi). On the ray the line's crossing is the zero of the gaps interpolated linearly,
+// s = s_above + (s_below - s_above) * g_above / (g_above - g_below); crossing_fraction guards the
+// division (an all-flat bracket makes it 0 / 0). Like their shader it stops early once a new point
+// is within secant_gap_epsilon of the surface. Their shader ends on the ray point at the height last
+// read; this returns the secant point of the final bracket instead, which costs no read and stays
+// inside the bracket.
+float secant_refine(vec3 origin, vec3 descent, Bracket b, int refine) {
+  for (int i = 0; i < refine && b.s_below > b.s_above; ++i) {
+    g_iterations += 1u;
+    float s = mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
+    vec3 p = origin + s * descent;
+    float gap = p.z - fetch_height(p.xy);
+    if (gap > 0.0) {
+      b.s_above = s;
+      b.gap_above = gap;
+    } else {
+      b.s_below = s;
+      b.gap_below = gap;
+    }
+    if (abs(gap) <= secant_gap_epsilon) return s;
+  }
+  return mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
+}
+
+// A bracket after cone stepping (Chen & Chuang's suggested combination of ACM with a root search).
+// Conservative cones stop above the surface, so the last cone point is the upper end; the lower end
+// is found by stepping on along the ray: the first step is twice the gap left (a flat surface is
+// crossed after one gap), each next step twice the previous, and the last one reaches s = 1, where
+// the ray is at h = 0 and so never above the surface. A cone point already at or below the surface
+// (nearest-filtered cones are measured between texel centres) closes the bracket with the point read
+// before it.
+Bracket bracket_after_cones(vec3 origin, vec3 descent, ConeMarch m) {
+  Bracket b;
+  if (!m.gap_known) {
+    vec3 p = origin + m.s * descent;
+    m.gap = p.z - fetch_height(p.xy);
+  }
+  if (m.gap <= 0.0) {
+    b.s_above = m.s_above;
+    b.gap_above = m.gap_above;
+    b.s_below = m.s;
+    b.gap_below = m.gap;
+    return b;  // empty (s_above = s_below = 0) when the ray starts inside the relief
+  }
+  b.s_above = m.s;
+  b.gap_above = m.gap;
+  b.s_below = 1.0;  // replaced below; the ray is at h = 0 at s = 1
+  b.gap_below = 0.0;
+  float step = max(bracket_first_gap_factor * m.gap, bracket_min_step);
+  for (int i = 0; i < bracket_max_steps; ++i) {
+    g_iterations += 1u;
+    float s = (i == bracket_max_steps - 1) ? 1.0 : min(b.s_above + step, 1.0);
+    vec3 p = origin + s * descent;
+    float gap = p.z - fetch_height(p.xy);
+    if (gap <= 0.0) {
+      b.s_below = s;
+      b.gap_below = gap;
+      return b;
+    }
+    b.s_above = s;
+    b.gap_above = gap;
+    step *= bracket_growth;
+  }
+  return b;
+}
+
+// Relaxed cone stepping (Policarpo & Oliveira, "Relaxed Cone Stepping for Relief Mapping", GPU Gems 3
+// ch. 18): the same step r * g / (r + L) with relaxed ratios, whose cones may hold relief that a ray
+// crosses at most once. A step can therefore end below the surface, past the first hit but before a
+// second crossing; stepping stops there and a binary search between the last point above and that
+// point finds the first hit. A ray that stays above stops within cone_gap_epsilon or when the steps
+// run out, where it is returned as is.
+float relaxed_march(vec3 origin, vec3 descent, int steps, int refine) {
+  float travel = length(descent.xy);
+  Bracket b;
+  b.s_above = 0.0;
+  b.gap_above = origin.z - fetch_height(origin.xy);
+  if (b.gap_above <= 0.0) return 0.0;
+  for (int i = 0; i < steps && b.gap_above > cone_gap_epsilon; ++i) {
+    g_iterations += 1u;
+    vec3 p = origin + b.s_above * descent;
+    float ratio = fetch_cone(p.xy, 0);
+    float s = min(b.s_above + ratio * b.gap_above / max(ratio + travel, min_denominator), 1.0);
+    vec3 q = origin + s * descent;
+    float gap = q.z - fetch_height(q.xy);
+    if (gap <= 0.0) {
+      b.s_below = s;
+      b.gap_below = gap;
+      return binary_refine(origin, descent, b, refine);
+    }
+    b.s_above = s;
+    b.gap_above = gap;
+  }
+  return b.s_above;
+}
+
+// Iterative parallax mapping with slope information (Premecz, sec. 3): the surface near the current
+// point p_i = (u_i, v_i, h_i) is taken as the plane through (u_i, v_i, h(u_i, v_i)) with normal N', and
+// the division by N' . V of the exact ray-plane intersection is dropped, as offset limiting does:
+//   p_{i+1} = p_i + (h(u_i, v_i) - h_i) * N'_z * V,
+// V the unit view direction, N' the unit surface normal, both in world units. Along our ray that
+// moves s by gap * N'_z * D * (-dz) (a world step of gap * D * N'_z). Premecz reads N' from a normal
+// map stored with the height (one read); here N' comes from central differences one texel apart
+// (4 more counted reads) on the plane's tangent frame (dP/du = dP/dv = 1 / K, dP/dh = D). On a flat
+// surface every iteration keeps a fraction 1 - cos(view angle) of the gap, and the first equals
+// parallax with offset limiting. Not exact: it converges slowly at grazing angles and may settle on a
+// hidden crossing. s is kept in [0, 1], inside the relief volume.
+float parallax_slope(vec3 origin, vec3 descent, float dz, int iterations) {
+  vec2 texel = frame.map_size.zw;
+  float slope_scale = frame.surface.y * frame.surface.x;  // D * K: world slope per unit of dh/du
+  float s = 0.0;
+  for (int i = 0; i < iterations; ++i) {
+    g_iterations += 1u;
+    vec3 p = origin + s * descent;
+    float gap = p.z - fetch_height(p.xy);
+    float dh_du = (fetch_height(p.xy + vec2(texel.x, 0.0)) - fetch_height(p.xy - vec2(texel.x, 0.0))) / (2.0 * texel.x);
+    float dh_dv = (fetch_height(p.xy + vec2(0.0, texel.y)) - fetch_height(p.xy - vec2(0.0, texel.y))) / (2.0 * texel.y);
+    float normal_z = inversesqrt(1.0 + slope_scale * slope_scale * (dh_du * dh_du + dh_dv * dh_dv));
+    s = clamp(s + gap * normal_z * frame.surface.y * -dz, 0.0, 1.0);
   }
   return s;
 }
@@ -127,12 +272,22 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
   } else if (METHOD == METHOD_RELIEF) {
     Bracket b = linear_search(origin, descent, frame.counts.x);
     s = binary_refine(origin, descent, b, frame.counts.y);
+  } else if (METHOD == METHOD_INTERVAL) {
+    Bracket b = linear_search(origin, descent, frame.counts.x);
+    s = secant_refine(origin, descent, b, frame.counts.y);
   } else if (METHOD == METHOD_CSM) {
-    s = cone_march(origin, descent, frame.counts.x, 1);
+    s = cone_march(origin, descent, frame.counts.x, 1).s;
   } else if (METHOD == METHOD_ACM4) {
-    s = cone_march(origin, descent, frame.counts.x, 4);
+    s = cone_march(origin, descent, frame.counts.x, 4).s;
   } else if (METHOD == METHOD_ACM8) {
-    s = cone_march(origin, descent, frame.counts.x, 8);
+    s = cone_march(origin, descent, frame.counts.x, 8).s;
+  } else if (METHOD == METHOD_ACM4_INTERVAL) {
+    ConeMarch m = cone_march(origin, descent, frame.counts.x, 4);
+    s = secant_refine(origin, descent, bracket_after_cones(origin, descent, m), frame.counts.y);
+  } else if (METHOD == METHOD_RELAXED) {
+    s = relaxed_march(origin, descent, frame.counts.x, frame.counts.y);
+  } else if (METHOD == METHOD_PARALLAX_SLOPE) {
+    s = parallax_slope(origin, descent, dz, frame.counts.x);
   }
   result.p = origin + s * descent;
   return result;
