@@ -523,8 +523,8 @@ void Renderer::set_cone_map(int sector_count, bake::Address address, std::vector
       ratios.size() != std::size_t(impl.field.width) * impl.field.height * sector_count) {
     throw RenderError("set_cone_map: the cone map does not match the height field");
   }
-  const int key = sector_count * 2 + (address == bake::Address::wrap ? 0 : 1);
-  if (impl.uploaded_cone_sectors == key) impl.uploaded_cone_sectors = 0;
+  const int key = cone_key(sector_count, address, false);
+  if (impl.uploaded_cone_key == key) impl.uploaded_cone_key = -1;
   impl.cone_ratios[key] = std::move(ratios);
 }
 

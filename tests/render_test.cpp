@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "render/render.h"
+#include "sim/sim.h"
 
 namespace {
 
@@ -102,7 +104,12 @@ HitError hit_error(const Frame& frame, const HeightField& field, const View& vie
       const double dv = (frame.uv[p * 3 + 1] - truth.texture.y) * field.height;
       const double texels = std::hypot(du, dv);
       error.max_texels = std::max(error.max_texels, texels);
-      if (texels > 0.5) ++error.over_half_texel;
+      if (texels > 0.5) {
+        ++error.over_half_texel;
+        if (std::getenv("DISPLACE_DEBUG_HITS") && error.over_half_texel < 6)
+          std::printf("  pixel %d,%d gpu %.5f,%.5f truth %.5f,%.5f,%.5f\n", px, py, frame.uv[p * 3], frame.uv[p * 3 + 1],
+                      truth.texture.x, truth.texture.y, truth.texture.z);
+      }
       ++error.compared;
     }
   }
@@ -316,6 +323,26 @@ TEST(Renderer, RejectsBadViewsWithAClearError) {
   HeightField bad = constant_field(4, 0.5f);
   bad.heights[3] = std::nanf("");
   EXPECT_THROW(shared_renderer().set_height_field(bad), render::RenderError);
+}
+
+}  // namespace
+
+namespace {
+
+// The reference (tessellation + snap to the bilinear surface) against the exact CPU trace on the
+// brick relief, whose sharp edges are where a tessellation and the bilinear surface disagree most.
+TEST(Renderer, ReferenceAndReliefMatchTheExactTraceOnBricks) {
+  HeightField field{64, 64, std::vector<float>(64 * 64)};
+  displace::sim::brick_heights(64, 64, 1, field.heights);
+  const View view = oblique_view(96);
+  for (Method method : {Method::reference, Method::relief}) {
+    const Frame frame = render_frame(field, view, method, 256, 16);
+    const HitError error = hit_error(frame, field, view);
+    std::printf("bricks %-10s max %.3f texels, %lld over half a texel, %lld hit mismatches, of %lld\n",
+                render::method_info(method).name, error.max_texels, error.over_half_texel, error.hit_mismatch,
+                error.compared);
+    EXPECT_LE(error.over_half_texel + error.hit_mismatch, error.compared / 100);
+  }
 }
 
 }  // namespace

@@ -30,15 +30,13 @@ uint g_fetches = 0u;
 
 // The reference's triangles interpolate the texel heights linearly over two triangles per texel
 // square, while every method samples the bilinear surface: they differ inside a square by up to a
-// quarter of |h00 - h01 - h10 + h11|, and at a sharp edge a ray may pass one and hit the other.
-// Rasterizing the tessellation decides visibility; this then moves the hit along the view ray onto
-// the bilinear surface: the first crossing at or after a point that is above the bilinear surface,
-// found by going back from the rasterized point (doubling the distance) and marching forward in
-// quarter-texel steps, then bisecting. The comparisons then measure the methods' errors only.
-const float snap_window_texels = 4.0;   // initial distance back from, and forward of, the raster point
-const int snap_back_doublings = 8;
-const float snap_steps_per_texel = 4.0;
-const int snap_max_steps = 512;
+// quarter of |h00 - h01 - h10 + h11|, and at a sharp edge a ray may pass one and hit the other
+// (measured: 258 of 8706 pixels more than half a texel off on the brick relief). Rasterizing the
+// tessellation decides which pixels see the relief; the hit is then the first crossing of the view
+// ray with the bilinear surface, marched from the entry point in eighth-texel steps and bisected,
+// so that comparisons measure the methods' errors and not the triangulation's.
+const float snap_steps_per_texel = 8.0;  // march steps per texel of horizontal travel (as the CPU trace)
+const int snap_max_steps = 4096;  // the march covers the whole ray in at most this many steps
 const int snap_bisections = 24;
 
 float snap_gap(vec3 origin, vec3 descent, float s) {
@@ -46,29 +44,21 @@ float snap_gap(vec3 origin, vec3 descent, float s) {
   return q.z - shading_height(q.xy);
 }
 
-vec3 snap_to_bilinear(vec3 origin, vec3 direction, float s_raster) {
+vec3 snap_to_bilinear(vec3 origin, vec3 direction) {
   float dz = min(direction.z, -min_descent);
   vec3 descent = vec3(direction.xy / -dz, -1.0);
   float travel_texels = max(length(descent.xy * frame.map_size.xy), 1e-6);
-  float window = max(snap_window_texels / travel_texels, 1e-3);
-  float lo = max(s_raster - window, 0.0);
-  for (int i = 0; i < snap_back_doublings && lo > 0.0 && snap_gap(origin, descent, lo) <= 0.0; ++i) {
-    lo = max(s_raster - 2.0 * (s_raster - lo), 0.0);
-  }
-  if (snap_gap(origin, descent, lo) <= 0.0) return origin + s_raster * descent;
-  float hi = min(s_raster + window, 1.0);
-  int steps = clamp(int(ceil((hi - lo) * travel_texels * snap_steps_per_texel)), 1, snap_max_steps);
-  float below = -1.0;
-  float step = (hi - lo) / float(steps);
-  for (int i = 1; i <= steps; ++i) {
-    float s = lo + float(i) * step;
+  float step = max(1.0 / (travel_texels * snap_steps_per_texel), 1.0 / float(snap_max_steps));
+  float lo = 0.0, below = 1.0;
+  if (snap_gap(origin, descent, 0.0) <= 0.0) return origin;
+  for (int i = 1; i <= snap_max_steps; ++i) {
+    float s = min(float(i) * step, 1.0);
     if (snap_gap(origin, descent, s) <= 0.0) {
       below = s;
       break;
     }
     lo = s;
   }
-  if (below < 0.0) return origin + s_raster * descent;
   for (int i = 0; i < snap_bisections; ++i) {
     float mid = 0.5 * (lo + below);
     if (snap_gap(origin, descent, mid) > 0.0) lo = mid; else below = mid;
@@ -90,7 +80,7 @@ void main() {
     if (frame.eye.z <= 0.0 || d.z >= 0.0 || any(lessThan(entry, vec2(0.0))) || any(greaterThan(entry, vec2(1.0)))) {
       discard;
     }
-    hit = snap_to_bilinear(vec3(entry * frame.surface.x, 1.0), inverse(tangent_frame) * d, 1.0 - in_h);
+    hit = snap_to_bilinear(vec3(entry * frame.surface.x, 1.0), inverse(tangent_frame) * d);
   } else {
     if (dot(d, normal) >= 0.0) discard;  // the relief is seen from above only
     vec3 origin = vec3(in_uv, 1.0);
