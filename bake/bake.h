@@ -18,6 +18,7 @@
 // - A cone map stores its ratios interleaved: ratio of texel (i, j), sector k at
 //   data[(i * W + j) * n + k].
 // - A relaxed cone map (Policarpo & Oliveira) uses the same layout; see bake_relaxed.
+// - A distance map (Donnelly) is a 3D texture in texture space (u, v, h); see bake_distance_map.
 #pragma once
 
 #include <functional>
@@ -147,6 +148,46 @@ struct MaxPyramid {
   std::vector<std::vector<float>> levels;
 };
 MaxPyramid build_max_pyramid(HeightView heights);
+
+// Distance map (Donnelly, "Per-Pixel Displacement Mapping with Distance Functions", GPU Gems 2
+// ch. 8), for sphere tracing. W x H x D voxels, stored data[(k * H + i) * W + j]; voxel (k, i, j)
+// has its centre at u = (j + 0.5) / W, v = (i + 0.5) / H, h = (k + 0.5) / D. W and H need not
+// match the height map's size.
+struct DistanceView {
+  float* data = nullptr;
+  int width = 0, height = 0, depth = 0;
+};
+
+// Throws BakeError unless the height map is valid (as above) and the view is non-null with
+// 1 <= width, height <= 32768, 1 <= depth <= 1024 and at most 2^30 voxels.
+void validate(HeightView heights, const DistanceView& out);
+
+// Conventions of the distance map (normative: the renderer relies on them)
+// - Space is texture space (u, v, h) with the Euclidean metric sqrt(du^2 + dv^2 + dh^2): one unit
+//   of height (the whole [0, 1] range) equals one unit of uv (the whole texture width). Rays are
+//   traced in this space, so the map does not depend on the render's depth scale.
+// - The solid is {(u, v, h) : h <= s(u, v)}, s the bilinear interpolation of the texel heights
+//   between texel centres. Address::wrap tiles the plane periodically in u and v; Address::clamp
+//   extends the edge texels outward (s outside [0, 1]^2 is the clamped-edge extension). The solid
+//   reaches down to h = -infinity, so every point with h <= 0 is inside it.
+// - Stored values are in uv units and CONSERVATIVE FOR TRILINEAR FILTERING: sampled the way the
+//   shader samples it (trilinear, voxel centres as above, clamp-to-edge in h, the address mode in
+//   u and v), the map returns at every point p a value <= the Euclidean distance from p to the
+//   solid (0 inside it), so a ray may always advance by the sampled value. This holds for every p:
+//   h outside [0, 1] samples the bottom or top layer, which is safe because the distance never
+//   decreases with h and is 0 for h <= 0 (the bottom layer is therefore all zero); with clamp, u or
+//   v outside [0, 1] samples the edge voxels, which is safe because moving p onto [0, 1]^2 never
+//   increases its distance to the clamped-edge solid.
+// - The stored value of voxel c is a lower bound of the distance from its trilinear support box
+//   B(c) (c plus or minus one voxel spacing along each axis; half the period along an axis of size
+//   1) to the solid: the exact distance from B(c) to the union of boxes F x (-inf, max of s over F]
+//   over the map's uv footprints F = [j / W, (j + 1) / W] x [i / H, (i + 1) / H] (and their periodic
+//   images with wrap), which hold the solid, less 1e-6 uv and rounded down to float. Every voxel a
+//   sample at p reads has p in its B, hence the guarantee, for ANY convex weights of those voxels:
+//   it survives the GPU's low-precision filter weights. See bake/distance_map.cpp for the proof.
+// Stats: width and height of the map, milliseconds (steady clock), mean_ratio = the mean stored
+// distance over all voxels in uv units; the other counters are 0.
+BakeStats bake_distance_map(HeightView heights, Address address, DistanceView out);
 
 const char* mode_name(Mode mode);
 

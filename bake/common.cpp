@@ -10,20 +10,21 @@ bool is_valid_sector_count(int sector_count) {
   return sector_count == 1 || sector_count == 4 || sector_count == 8;
 }
 
-void validate(HeightView heights, const ConeView& out) {
+namespace {
+
+constexpr int max_map_size = 1 << 15;                 // texels (or voxels) along u or v
+constexpr int max_distance_depth = 1024;              // voxels along h
+constexpr long long max_distance_voxels = 1ll << 30;  // voxels in one distance map (4 GiB of floats)
+
+// `product` names what is being baked ("a cone map") in the empty-map message.
+void validate_heights(HeightView heights, const char* product) {
   if (heights.width <= 0 || heights.height <= 0 || heights.data == nullptr) {
     throw BakeError("height map is empty (" + std::to_string(heights.width) + "x" +
-                    std::to_string(heights.height) + "): a cone map needs at least one texel");
+                    std::to_string(heights.height) + "): " + product + " needs at least one texel");
   }
-  if (heights.width > (1 << 15) || heights.height > (1 << 15)) {
+  if (heights.width > max_map_size || heights.height > max_map_size) {
     throw BakeError("height map " + std::to_string(heights.width) + "x" + std::to_string(heights.height) +
                     " is larger than the supported 32768x32768");
-  }
-  if (!is_valid_sector_count(out.sector_count)) {
-    throw BakeError("sector count " + std::to_string(out.sector_count) + " is not supported (use 1, 4 or 8)");
-  }
-  if (out.data == nullptr || out.width != heights.width || out.height != heights.height) {
-    throw BakeError("cone map output does not match the height map size");
   }
   const std::size_t count = std::size_t(heights.width) * heights.height;
   for (std::size_t i = 0; i < count; ++i) {
@@ -36,6 +37,37 @@ void validate(HeightView heights, const ConeView& out) {
       throw BakeError("height map has a height outside [0, 1] (" + std::to_string(h) + ") at texel (" +
                       std::to_string(i / heights.width) + ", " + std::to_string(i % heights.width) + ")");
     }
+  }
+}
+
+}  // namespace
+
+void validate(HeightView heights, const ConeView& out) {
+  validate_heights(heights, "a cone map");
+  if (!is_valid_sector_count(out.sector_count)) {
+    throw BakeError("sector count " + std::to_string(out.sector_count) + " is not supported (use 1, 4 or 8)");
+  }
+  if (out.data == nullptr || out.width != heights.width || out.height != heights.height) {
+    throw BakeError("cone map output does not match the height map size");
+  }
+}
+
+void validate(HeightView heights, const DistanceView& out) {
+  validate_heights(heights, "a distance map");
+  const std::string size =
+      std::to_string(out.width) + "x" + std::to_string(out.height) + "x" + std::to_string(out.depth);
+  if (out.width <= 0 || out.height <= 0 || out.depth <= 0) {
+    throw BakeError("distance map " + size + " is empty: it needs at least one voxel along each axis");
+  }
+  if (out.data == nullptr) throw BakeError("distance map output " + size + " has no memory (null data)");
+  if (out.width > max_map_size || out.height > max_map_size) {
+    throw BakeError("distance map " + size + " is wider than the supported 32768 voxels along u or v");
+  }
+  if (out.depth > max_distance_depth) {
+    throw BakeError("distance map " + size + " is deeper than the supported 1024 layers");
+  }
+  if ((long long)out.width * out.height * out.depth > max_distance_voxels) {
+    throw BakeError("distance map " + size + " has more than the supported 2^30 voxels");
   }
 }
 
