@@ -6,6 +6,7 @@
 #include "demos/commands.h"
 
 #include <algorithm>
+#include <fstream>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -443,6 +444,60 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   }
 }
 
+void run_sweep(const SweepSettings& settings, std::ostream& out) {
+  render::Renderer renderer(settings.renderer);
+  std::ofstream csv(settings.output);
+  if (!csv) throw runtime_error("cannot write " + settings.output.string());
+  csv << "scene,method,steps,refine,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,mean_iterations,"
+         "median_ms,device\n";
+  out << "displace sweep on " << renderer.device().name << " (" << renderer.device().type << "), "
+      << settings.repeat << " renders per row, median device time\n";
+  for (const SceneSettings& scene : settings.scenes) {
+    BakeInput input = prepare_bake_input(scene.input);
+    renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+    const render::Frame reference = renderer.render(scene.view, {render::Method::reference, 1, 0});
+    out << format("scene %s: %d x %d map, %d x %d pixels\n", scene.name.c_str(), input.width, input.height,
+                  scene.view.camera.width, scene.view.camera.height);
+    out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
+    for (render::Method method : settings.methods) {
+      const render::MethodInfo& info = render::method_info(method);
+      double best_fetches = -1.0;
+      int best_steps = 0;
+      double last_rmse = 0.0;
+      for (int steps : settings.steps) {
+        std::vector<double> times;
+        render::Frame frame;
+        for (int r = 0; r < settings.repeat; ++r) {
+          frame = renderer.render(scene.view, {method, steps, settings.refine});
+          times.push_back(frame.gpu_milliseconds);
+        }
+        std::sort(times.begin(), times.end());
+        const double median_ms = times[times.size() / 2];
+        const render::ImageError error = render::compare(frame, reference);
+        const FrameSummary summary = summarize(frame);
+        csv << format("%s,%s,%d,%d,%.4f,%.0f,%.6f,%.3f,%.0f,%.3f,%.4f,\"%s\"\n", scene.name.c_str(), info.name, steps,
+                      settings.refine, error.rmse, error.max_error, error.fraction_over_10, summary.mean_fetches,
+                      summary.p99_fetches, summary.mean_iterations, median_ms, renderer.device().name.c_str());
+        if (error.rmse <= 3.0 && (best_fetches < 0.0 || summary.mean_fetches < best_fetches)) {
+          best_fetches = summary.mean_fetches;
+          best_steps = steps;
+        }
+        last_rmse = error.rmse;
+      }
+      if (best_fetches >= 0.0) {
+        out << format("  %-17s %8.1f (%d)%*s %.2f\n", info.name, best_fetches, best_steps,
+                      best_steps >= 10 ? 24 : 25, "", last_rmse);
+      } else {
+        out << format("  %-17s %8s%*s %.2f\n", info.name, "not reached", 25, "", last_rmse);
+      }
+    }
+  }
+  out << "  wrote " << settings.output.string() << '\n';
+  if (settings.renderer.validate && renderer.validation_messages() > 0) {
+    throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
+  }
+}
+
 void run_demo(const DemoSettings& settings, std::ostream& out) {
   constexpr int demo_sectors = 4;
   const bake::Address address = bake::Address::wrap;  // an FFT ocean tiles
@@ -566,6 +621,17 @@ usage:
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the
       Khronos validation layer and fails on any message.
 
+  displace sweep [--scene bricks|ocean|cliff|FILE ...] [--methods all|NAME,NAME...]
+                 [--steps 4,8,16,32,64] [--refine R] [--repeat N] [--size WxH] [--device D] [--validate]
+                 --output sweep.csv
+      What accuracy costs: every method at every step count on each scene, against the reference.
+      One CSV row per scene, method and steps: rmse, max error, share of pixels off by more than 10,
+      mean and p99 fetches per pixel, mean iterations, median device milliseconds. Prints, per
+      method, the fewest fetches per pixel that reach rmse <= 3. Default scenes: the three built-in
+      ones (256 x 256 maps, the default camera). A scene FILE holds render flags, one per line
+      (--source/--input and their options, --map-size, --eye, --look-at, --up, --fov-y, --size,
+      --tile, --depth-scale, --address, --light); '#' starts a comment.
+
   displace demo [--size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
       out/ocean_cone4.png, baked with the budgeted baker and an unlimited budget; then renders it
@@ -600,6 +666,8 @@ int run_command(const CommandSettings& settings, std::ostream& out) {
     run_bake(*bake_settings, out);
   } else if (const auto* render_settings = std::get_if<RenderSettings>(&settings)) {
     run_render(*render_settings, out);
+  } else if (const auto* sweep_settings = std::get_if<SweepSettings>(&settings)) {
+    run_sweep(*sweep_settings, out);
   } else {
     run_demo(std::get<DemoSettings>(settings), out);
   }

@@ -56,6 +56,7 @@ std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address 
 void run_sim(const SimSettings& settings, std::ostream& out);
 void run_bake(const BakeSettings& settings, std::ostream& out);
 void run_render(const RenderSettings& settings, std::ostream& out);
+void run_sweep(const SweepSettings& settings, std::ostream& out);
 void run_demo(const DemoSettings& settings, std::ostream& out);
 
 std::string usage_text();

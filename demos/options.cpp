@@ -5,11 +5,14 @@
 #include "demos/options.h"
 
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <numbers>
 #include <optional>
+#include <tuple>
 #include <set>
 #include <string>
 
@@ -30,7 +33,13 @@ constexpr Range fetch_range{0.1, 1e5, "km"};
 constexpr Range spreading_range{0.0, 100.0, ""};      // exponent s of cos^(2s)
 constexpr Range choppiness_range{0.0, 10.0, ""};
 
-std::string quoted(std::string_view text) { return "'" + std::string(text) + "'"; }
+std::string quoted(std::string_view text) {
+  std::string result(1, '\'');
+  result.append(text);
+  result.push_back('\'');
+  return result;
+}
+
 
 // Walks argv one flag at a time.
 class FlagReader {
@@ -100,6 +109,17 @@ Integer parse_integer(std::string_view flag, std::string_view text, Integer mini
 
 int parse_int(std::string_view flag, std::string_view text, int minimum, int maximum) {
   return parse_integer<int>(flag, text, minimum, maximum, "an integer");
+}
+
+// "WxH" in pixels
+std::pair<int, int> parse_image_size(std::string_view flag, std::string_view text, int maximum) {
+  const auto x = text.find('x');
+  if (x == std::string_view::npos) {
+    throw usage_error(std::string(flag) + " expects WxH (pixels), got " + quoted(text) +
+                      "; a --source's samples are --map-size N");
+  }
+  return {parse_integer<int>(flag, text.substr(0, x), 1, maximum, "an integer"),
+          parse_integer<int>(flag, text.substr(x + 1), 1, maximum, "an integer")};
 }
 
 std::uint64_t parse_seed(std::string_view flag, std::string_view text) {
@@ -474,11 +494,7 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
     const std::string_view flag = reader.next_flag();
     render::Camera& camera = settings.view.camera;
     if (flag == "--size") {  // the image; the map of a --source takes --map-size
-      const std::string_view text = reader.value();
-      const auto x = text.find('x');
-      if (x == std::string_view::npos) throw usage_error("--size expects WxH (pixels), got " + quoted(text) + "; a --source's samples are --map-size N");
-      camera.width = parse_int(flag, text.substr(0, x), 1, max_image_side);
-      camera.height = parse_int(flag, text.substr(x + 1), 1, max_image_side);
+      std::tie(camera.width, camera.height) = parse_image_size(flag, reader.value(), max_image_side);
       continue;
     }
     if (take_input_flag(flag, reader, input)) continue;
@@ -556,6 +572,106 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   return settings;
 }
 
+std::vector<int> parse_int_list(std::string_view flag, std::string_view text, int minimum, int maximum) {
+  std::vector<int> values;
+  while (true) {
+    const auto comma = text.find(',');
+    values.push_back(parse_int(flag, text.substr(0, comma), minimum, maximum));
+    if (comma == std::string_view::npos) break;
+    text = text.substr(comma + 1);
+  }
+  return values;
+}
+
+// The scene part of the render flags: parsed by parse_render with a placeholder method and output,
+// after checking that the scene names neither.
+SceneSettings scene_from_args(const std::string& name, std::span<const std::string_view> args,
+                              const std::string& where) {
+  for (std::string_view flag : args) {
+    for (std::string_view forbidden : {"--method", "--steps", "--refine", "--output", "--aov", "--compare",
+                                       "--device", "--validate"}) {
+      if (flag == forbidden) throw usage_error(where + ": " + std::string(forbidden) + " belongs to the sweep, not a scene");
+    }
+  }
+  std::vector<std::string_view> full(args.begin(), args.end());
+  for (std::string_view extra : {"--method", "reference", "--output", "scene.png"}) full.push_back(extra);
+  try {
+    const RenderSettings parsed = parse_render(full);
+    return {name, parsed.input, parsed.view};
+  } catch (const AppError& error) {
+    throw usage_error(where + ": " + error.what());
+  }
+}
+
+SweepSettings parse_sweep(std::span<const std::string_view> args) {
+  FlagReader reader(args);
+  SweepSettings settings;
+  std::optional<std::filesystem::path> output;
+  std::optional<std::pair<int, int>> size;
+  while (!reader.done()) {
+    const std::string_view flag = reader.next_flag();
+    if (flag == "--scene") {
+      const std::string_view text = reader.value();
+      if (text == "bricks" || text == "ocean" || text == "cliff") {
+        settings.scenes.push_back(builtin_scene(text));
+      } else {
+        settings.scenes.push_back(read_scene_file(std::filesystem::path(std::string(text))));
+      }
+    } else if (flag == "--methods") {
+      std::string_view text = reader.value();
+      if (text == "all") {
+        for (const render::MethodInfo& info : render::method_table()) {
+          if (info.family != render::MethodFamily::reference) settings.methods.push_back(info.method);
+        }
+        continue;
+      }
+      while (true) {
+        const auto comma = text.find(',');
+        const std::string_view word = text.substr(0, comma);
+        const render::MethodInfo* info = render::find_method(word);
+        if (!info) throw usage_error("--methods: unknown method " + quoted(word));
+        settings.methods.push_back(info->method);
+        if (comma == std::string_view::npos) break;
+        text = text.substr(comma + 1);
+      }
+    } else if (flag == "--steps") {
+      settings.steps = parse_int_list(flag, reader.value(), 1, 4096);
+    } else if (flag == "--refine") {
+      settings.refine = parse_int(flag, reader.value(), 0, 64);
+    } else if (flag == "--repeat") {
+      settings.repeat = parse_int(flag, reader.value(), 1, 100);
+    } else if (flag == "--size") {
+      size = parse_image_size(flag, reader.value(), max_image_side);
+    } else if (flag == "--output") {
+      const std::filesystem::path path{std::string(reader.value())};
+      if (lower_extension(path) != ".csv") throw usage_error("--output of 'displace sweep' must end in .csv");
+      output = path;
+    } else if (flag == "--device") {
+      settings.renderer.device = std::string(reader.value());
+    } else if (flag == "--validate") {
+      reader.no_value();
+      settings.renderer.validate = true;
+    } else {
+      throw usage_error("unknown flag " + quoted(flag) + " for 'displace sweep'");
+    }
+  }
+  if (settings.scenes.empty()) {
+    for (std::string_view name : {"bricks", "ocean", "cliff"}) settings.scenes.push_back(builtin_scene(name));
+  }
+  if (settings.methods.empty()) {
+    for (const render::MethodInfo& info : render::method_table()) {
+      if (info.family != render::MethodFamily::reference) settings.methods.push_back(info.method);
+    }
+  }
+  if (settings.steps.empty()) settings.steps = {4, 8, 16, 32, 64};
+  if (size) {
+    for (SceneSettings& scene : settings.scenes) std::tie(scene.view.camera.width, scene.view.camera.height) = *size;
+  }
+  if (!output) throw usage_error("'displace sweep' needs --output FILE.csv");
+  settings.output = *output;
+  return settings;
+}
+
 DemoSettings parse_demo(std::span<const std::string_view> args) {
   FlagReader reader(args);
   DemoSettings settings;
@@ -586,7 +702,45 @@ CommandSettings parse_command_line(std::span<const std::string_view> args) {
   if (command == "bake") return parse_bake(rest);
   if (command == "demo") return parse_demo(rest);
   if (command == "render") return parse_render(rest);
-  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, render, demo, help)");
+  if (command == "sweep") return parse_sweep(rest);
+  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, render, sweep, demo, help)");
+}
+
+SceneSettings builtin_scene(std::string_view name) {
+  const std::string source = name == "ocean" ? "ocean" : name == "bricks" ? "bricks" : "cliff";
+  if (name != "ocean" && name != "bricks" && name != "cliff") {
+    throw usage_error("unknown built-in scene " + app::quoted(name) + " (bricks, ocean, cliff)");
+  }
+  const std::vector<std::string_view> args = {"--source", source, "--map-size", "256", "--time", "0"};
+  return scene_from_args(std::string(name), args, "scene " + std::string(name));
+}
+
+SceneSettings read_scene_file(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw usage_error("cannot read scene file " + app::quoted(file.string()));
+  std::vector<std::string> words;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    std::istringstream tokens(line);
+    std::string flag, value, extra;
+    if (!(tokens >> flag)) continue;
+    if (flag.rfind("--", 0) != 0) {
+      throw usage_error("scene file " + app::quoted(file.string()) + " line " + std::to_string(number) +
+                        ": expected a --flag, got " + app::quoted(flag));
+    }
+    words.push_back(flag);
+    if (tokens >> value) words.push_back(value);
+    if (tokens >> extra) {
+      throw usage_error("scene file " + app::quoted(file.string()) + " line " + std::to_string(number) +
+                        ": one flag and at most one value per line");
+    }
+  }
+  const std::vector<std::string_view> args(words.begin(), words.end());
+  return scene_from_args(file.stem().string(), args, "scene file " + app::quoted(file.string()));
 }
 
 }  // namespace displace::app

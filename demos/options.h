@@ -82,7 +82,31 @@ struct RenderSettings {
   render::RendererOptions renderer;
 };
 
-using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings>;
+// One scene of a sweep: the heights and the view (the render flags without method and outputs).
+struct SceneSettings {
+  std::string name;
+  std::variant<FileInput, SourceSettings> input;
+  render::View view;
+};
+
+struct SweepSettings {
+  std::vector<SceneSettings> scenes;
+  std::vector<render::Method> methods;
+  std::vector<int> steps;
+  int refine = 8;
+  int repeat = 3;  // renders per row; the row reports the median device time
+  std::filesystem::path output;  // .csv
+  render::RendererOptions renderer;
+};
+
+// The built-in scenes of `displace sweep`: bricks, ocean and cliff.
+SceneSettings builtin_scene(std::string_view name);
+// A scene file: one render flag per line ("--source ocean", "--map-size 256", "--eye 0.5,-0.3,0.6"),
+// '#' starts a comment. Throws AppError (usage) naming the file and line for anything malformed.
+SceneSettings read_scene_file(const std::filesystem::path& file);
+
+using CommandSettings =
+    std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings, SweepSettings>;
 
 // `args` excludes the program name and must not be empty.
 CommandSettings parse_command_line(std::span<const std::string_view> args);
