@@ -346,3 +346,49 @@ TEST(Renderer, ReferenceAndReliefMatchTheExactTraceOnBricks) {
 }
 
 }  // namespace
+
+namespace {
+
+// Error against the reference does not grow as steps grow, for every exact-class method, on a
+// small ocean frame and a small brick relief.
+TEST(Renderer, ErrorDoesNotGrowWithSteps) {
+  constexpr double noise = 0.25;  // 8-bit rmse units: pixels that flip at a grid line between runs
+  std::vector<std::pair<std::string, HeightField>> scenes;
+  {
+    HeightField bricks{64, 64, std::vector<float>(64 * 64)};
+    displace::sim::brick_heights(64, 64, 1, bricks.heights);
+    scenes.emplace_back("bricks", std::move(bricks));
+    displace::sim::OceanParams params;
+    params.size = 64;
+    displace::sim::Ocean ocean(params);
+    displace::sim::OceanFrame frame;
+    ocean.evaluate(0.0f, displace::sim::ocean_heights, frame);
+    HeightField water{64, 64, std::vector<float>(64 * 64)};
+    displace::sim::apply_mapping(ocean.mapping(), frame.height, water.heights);
+    scenes.emplace_back("ocean", std::move(water));
+  }
+  View view;
+  view.camera.width = 96;
+  view.camera.height = 96;
+  for (const auto& [name, field] : scenes) {
+    shared_renderer().set_height_field(field);
+    const Frame reference = shared_renderer().render(view, {Method::reference, 1, 0});
+    for (const MethodInfo& info : render::method_table()) {
+      if (!info.exact_class || info.family == render::MethodFamily::reference) continue;
+      std::string line;
+      double previous = 1e30;
+      for (int steps : {4, 8, 16, 32, 64}) {
+        const double rmse = render::compare(shared_renderer().render(view, {info.method, steps, 8}), reference).rmse;
+        char entry[32];
+        std::snprintf(entry, sizeof entry, " %d:%.3f", steps, rmse);
+        line += entry;
+        EXPECT_LE(rmse, previous + noise) << name << " / " << info.name << " at " << steps << " steps";
+        previous = rmse;
+      }
+      std::printf("%-7s %-14s rmse by steps%s\n", name.c_str(), info.name, line.c_str());
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+}  // namespace
