@@ -313,12 +313,6 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
 
 namespace {
 
-std::string lower_case_extension(const std::filesystem::path& file) {
-  std::string extension = file.extension().string();
-  for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
-}
-
 // Blue -> cyan -> green -> yellow -> red over [0, maximum]: the iterations heatmap (as in Figure 5 of
 // Risser et al.'s interval mapping paper). Pixels off the relief stay black.
 std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const float> uv_hit, float maximum) {
@@ -364,7 +358,7 @@ FrameSummary summarize(const render::Frame& frame) {
 }
 
 void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata) {
-  if (lower_case_extension(file) == ".png") {
+  if (lower_extension(file) == ".png") {
     write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
     return;
   }
@@ -398,7 +392,7 @@ void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata&
   }
   const bool iterations = aov.aov == Aov::iterations;
   const std::vector<float>& values = iterations ? frame.iterations : frame.fetches;
-  if (lower_case_extension(aov.file) == ".png") {
+  if (lower_extension(aov.file) == ".png") {
     const float maximum = values.empty() ? 0.0f : *std::max_element(values.begin(), values.end());
     Metadata heat_metadata = metadata;
     heat_metadata.push_back({"displace:heatmap_maximum", maximum});

@@ -180,12 +180,16 @@ constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::ex
 constexpr std::pair<std::string_view, bake::Address> address_words[] = {{"wrap", bake::Address::wrap},
                                                                         {"clamp", bake::Address::clamp}};
 
+}  // namespace
+
 std::string lower_extension(const std::filesystem::path& path) {
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return char(std::tolower(c)); });
   return extension;
 }
+
+namespace {
 
 std::filesystem::path parse_output(std::string_view flag, std::string_view text, ImageFormat& format,
                                    bool png_allowed) {
@@ -484,52 +488,101 @@ glm::vec3 parse_vector(std::string_view flag, std::string_view text) {
 constexpr std::pair<std::string_view, Aov> aov_words[] = {
     {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
 
+// The flags that describe a scene: the heights (file or source) and the view. Shared by
+// `displace render` and the scene files of `displace sweep`.
+struct SceneDraft {
+  InputDraft input;
+  render::View view;
+};
+
+bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draft) {
+  render::Camera& camera = draft.view.camera;
+  if (flag == "--size") {  // the image; the map of a --source takes --map-size
+    std::tie(camera.width, camera.height) = parse_image_size(flag, reader.value(), max_image_side);
+  } else if (take_input_flag(flag, reader, draft.input)) {
+  } else if (flag == "--address") {
+    draft.view.address = parse_word(flag, reader.value(), address_words);
+  } else if (flag == "--tile") {
+    draft.view.tile = parse_int(flag, reader.value(), 1, 64);
+  } else if (flag == "--depth-scale") {
+    draft.view.depth_scale = parse_float_in(flag, reader.value(), Range{1e-4, 10.0, "world units"});
+  } else if (flag == "--eye") {
+    camera.eye = parse_vector(flag, reader.value());
+  } else if (flag == "--look-at") {
+    camera.look_at = parse_vector(flag, reader.value());
+  } else if (flag == "--up") {
+    camera.up = parse_vector(flag, reader.value());
+  } else if (flag == "--light") {
+    draft.view.light_direction = parse_vector(flag, reader.value());
+  } else if (flag == "--fov-y") {
+    camera.fov_y_degrees = parse_float_in(flag, reader.value(), Range{0.01, 179.0, "degrees"});
+  } else {
+    return false;
+  }
+  return true;
+}
+
+SceneSettings finish_scene(const SceneDraft& draft, const std::string& name, const std::string& command) {
+  SceneSettings scene{name, finish_input(draft.input, command), draft.view};
+  if (scene.view.tile > 1 && scene.view.address != bake::Address::wrap) {
+    throw usage_error("--tile above 1 needs --address wrap");
+  }
+  try {
+    scene.view.camera.validate();
+  } catch (const render::RenderError& error) {
+    throw usage_error(error.what());
+  }
+  return scene;
+}
+
+// --device and --validate, for every command that renders.
+bool take_renderer_flag(std::string_view flag, FlagReader& reader, render::RendererOptions& options) {
+  if (flag == "--device") {
+    options.device = std::string(reader.value());
+  } else if (flag == "--validate") {
+    reader.no_value();
+    options.validate = true;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+std::string method_names(const char* separator) {
+  std::string names;
+  for (const render::MethodInfo& known : render::method_table()) {
+    if (!names.empty()) names += separator;
+    names += known.name;
+  }
+  return names;
+}
+
+std::vector<render::Method> all_methods_but_reference() {
+  std::vector<render::Method> methods;
+  for (const render::MethodInfo& info : render::method_table()) {
+    if (info.family != render::MethodFamily::reference) methods.push_back(info.method);
+  }
+  return methods;
+}
+
 RenderSettings parse_render(std::span<const std::string_view> args) {
   FlagReader reader(args);
   RenderSettings settings;
-  InputDraft input;
+  SceneDraft scene;
   std::optional<std::filesystem::path> output;
   std::optional<render::Method> method;
   while (!reader.done()) {
     const std::string_view flag = reader.next_flag();
-    render::Camera& camera = settings.view.camera;
-    if (flag == "--size") {  // the image; the map of a --source takes --map-size
-      std::tie(camera.width, camera.height) = parse_image_size(flag, reader.value(), max_image_side);
-      continue;
-    }
-    if (take_input_flag(flag, reader, input)) continue;
+    if (take_scene_flag(flag, reader, scene) || take_renderer_flag(flag, reader, settings.renderer)) continue;
     if (flag == "--method") {
       const std::string_view text = reader.value();
       const render::MethodInfo* info = render::find_method(text);
-      if (!info) {
-        std::string names;
-        for (const render::MethodInfo& known : render::method_table()) {
-          if (!names.empty()) names += '|';
-          names += known.name;
-        }
-        throw usage_error("--method must be one of " + names + ", got " + quoted(text));
-      }
+      if (!info) throw usage_error("--method must be one of " + method_names("|") + ", got " + quoted(text));
       method = info->method;
     } else if (flag == "--steps") {
       settings.method.steps = parse_int(flag, reader.value(), 1, 4096);
     } else if (flag == "--refine") {
       settings.method.refine = parse_int(flag, reader.value(), 0, 64);
-    } else if (flag == "--address") {
-      settings.view.address = parse_word(flag, reader.value(), address_words);
-    } else if (flag == "--tile") {
-      settings.view.tile = parse_int(flag, reader.value(), 1, 64);
-    } else if (flag == "--depth-scale") {
-      settings.view.depth_scale = parse_float_in(flag, reader.value(), Range{1e-4, 10.0, "world units"});
-    } else if (flag == "--eye") {
-      camera.eye = parse_vector(flag, reader.value());
-    } else if (flag == "--look-at") {
-      camera.look_at = parse_vector(flag, reader.value());
-    } else if (flag == "--up") {
-      camera.up = parse_vector(flag, reader.value());
-    } else if (flag == "--light") {
-      settings.view.light_direction = parse_vector(flag, reader.value());
-    } else if (flag == "--fov-y") {
-      camera.fov_y_degrees = parse_float_in(flag, reader.value(), Range{0.01, 179.0, "degrees"});
     } else if (flag == "--output") {
       ImageFormat format{};
       output = parse_output(flag, reader.value(), format, true);
@@ -539,7 +592,8 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
       if (equals == std::string_view::npos || equals + 1 == text.size()) {
         throw usage_error("--aov expects NAME=FILE (uv, depth, iterations, fetches), got " + quoted(text));
       }
-      AovOutput aov{parse_word(flag, text.substr(0, equals), aov_words), std::filesystem::path(std::string(text.substr(equals + 1)))};
+      AovOutput aov{parse_word(flag, text.substr(0, equals), aov_words),
+                    std::filesystem::path(std::string(text.substr(equals + 1)))};
       ImageFormat format{};
       parse_output(flag, text.substr(equals + 1), format, aov.aov == Aov::iterations || aov.aov == Aov::fetches);
       settings.aovs.push_back(aov);
@@ -547,28 +601,17 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
       const std::string_view text = reader.value();
       if (text != "reference") throw usage_error("--compare supports only 'reference', got " + quoted(text));
       settings.compare_reference = true;
-    } else if (flag == "--device") {
-      settings.renderer.device = std::string(reader.value());
-    } else if (flag == "--validate") {
-      reader.no_value();
-      settings.renderer.validate = true;
     } else {
       throw usage_error("unknown flag " + quoted(flag) + " for 'displace render'");
     }
   }
-  settings.input = finish_input(input, "render");
+  const SceneSettings parsed = finish_scene(scene, "render", "render");
+  settings.input = parsed.input;
+  settings.view = parsed.view;
   if (!method) throw usage_error("'displace render' needs --method NAME");
   settings.method.method = *method;
   if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");
   settings.output = *output;
-  if (settings.view.tile > 1 && settings.view.address != bake::Address::wrap) {
-    throw usage_error("--tile above 1 needs --address wrap");
-  }
-  try {
-    settings.view.camera.validate();
-  } catch (const render::RenderError& error) {
-    throw usage_error(error.what());
-  }
   return settings;
 }
 
@@ -583,21 +626,19 @@ std::vector<int> parse_int_list(std::string_view flag, std::string_view text, in
   return values;
 }
 
-// The scene part of the render flags: parsed by parse_render with a placeholder method and output,
-// after checking that the scene names neither.
+// A scene given as render flags (a built-in one, or a scene file's lines).
 SceneSettings scene_from_args(const std::string& name, std::span<const std::string_view> args,
                               const std::string& where) {
-  for (std::string_view flag : args) {
-    for (std::string_view forbidden : {"--method", "--steps", "--refine", "--output", "--aov", "--compare",
-                                       "--device", "--validate"}) {
-      if (flag == forbidden) throw usage_error(where + ": " + std::string(forbidden) + " belongs to the sweep, not a scene");
-    }
-  }
-  std::vector<std::string_view> full(args.begin(), args.end());
-  for (std::string_view extra : {"--method", "reference", "--output", "scene.png"}) full.push_back(extra);
   try {
-    const RenderSettings parsed = parse_render(full);
-    return {name, parsed.input, parsed.view};
+    FlagReader reader(args);
+    SceneDraft scene;
+    while (!reader.done()) {
+      const std::string_view flag = reader.next_flag();
+      if (!take_scene_flag(flag, reader, scene)) {
+        throw usage_error(quoted(flag) + " does not describe a scene (only heights and view flags do)");
+      }
+    }
+    return finish_scene(scene, name, "sweep");
   } catch (const AppError& error) {
     throw usage_error(where + ": " + error.what());
   }
@@ -620,9 +661,7 @@ SweepSettings parse_sweep(std::span<const std::string_view> args) {
     } else if (flag == "--methods") {
       std::string_view text = reader.value();
       if (text == "all") {
-        for (const render::MethodInfo& info : render::method_table()) {
-          if (info.family != render::MethodFamily::reference) settings.methods.push_back(info.method);
-        }
+        settings.methods = all_methods_but_reference();
         continue;
       }
       while (true) {
@@ -646,11 +685,7 @@ SweepSettings parse_sweep(std::span<const std::string_view> args) {
       const std::filesystem::path path{std::string(reader.value())};
       if (lower_extension(path) != ".csv") throw usage_error("--output of 'displace sweep' must end in .csv");
       output = path;
-    } else if (flag == "--device") {
-      settings.renderer.device = std::string(reader.value());
-    } else if (flag == "--validate") {
-      reader.no_value();
-      settings.renderer.validate = true;
+    } else if (take_renderer_flag(flag, reader, settings.renderer)) {
     } else {
       throw usage_error("unknown flag " + quoted(flag) + " for 'displace sweep'");
     }
@@ -658,11 +693,7 @@ SweepSettings parse_sweep(std::span<const std::string_view> args) {
   if (settings.scenes.empty()) {
     for (std::string_view name : {"bricks", "ocean", "cliff"}) settings.scenes.push_back(builtin_scene(name));
   }
-  if (settings.methods.empty()) {
-    for (const render::MethodInfo& info : render::method_table()) {
-      if (info.family != render::MethodFamily::reference) settings.methods.push_back(info.method);
-    }
-  }
+  if (settings.methods.empty()) settings.methods = all_methods_but_reference();
   if (settings.steps.empty()) settings.steps = {4, 8, 16, 32, 64};
   if (size) {
     for (SceneSettings& scene : settings.scenes) std::tie(scene.view.camera.width, scene.view.camera.height) = *size;

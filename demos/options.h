@@ -108,6 +108,9 @@ SceneSettings read_scene_file(const std::filesystem::path& file);
 using CommandSettings =
     std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings, SweepSettings>;
 
+// The extension of a path, lower-cased (".png").
+std::string lower_extension(const std::filesystem::path& path);
+
 // `args` excludes the program name and must not be empty.
 CommandSettings parse_command_line(std::span<const std::string_view> args);
 

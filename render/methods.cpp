@@ -1,6 +1,7 @@
 // render/methods.cpp - the method table: the --method words, their shader ids and what they need.
 #include <algorithm>
 #include <iterator>
+#include <stdexcept>
 
 #include "render/render.h"
 #include "render/shaders/config.h"
@@ -31,7 +32,8 @@ std::span<const MethodInfo> method_table() { return methods; }
 const MethodInfo& method_info(Method method) {
   const auto found = std::find_if(std::begin(methods), std::end(methods),
                                   [&](const MethodInfo& info) { return info.method == method; });
-  if (found == std::end(methods)) throw RenderError("method is not implemented");
+  // every Method enumerator has a row; a missing one is a programmer error
+  if (found == std::end(methods)) throw std::logic_error("render::Method without a row in the method table");
   return *found;
 }
 

@@ -665,3 +665,29 @@ TEST(Cli, RenderWithoutAnyVulkanDriverSaysWhatToInstall) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
+  TempDir dir;
+  const auto scene = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return "sweep --scene '" + (dir / name).string() + "' --output '" + (dir / "s.csv").string() + "'";
+  };
+  const std::string cases[] = {
+      scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"),
+      scene("two.scene", "--source ocean\n--map-size 16 --time\n"),
+      scene("word.scene", "source ocean\n"),
+      scene("empty.scene", "# nothing\n"),
+      "sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv",
+  };
+  for (const std::string& arguments : cases) {
+    const RunResult result = run_displace(dir, arguments);
+    EXPECT_EQ(result.exit_code, 2) << arguments << "\n" << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+    EXPECT_NE(result.err.find("scene"), std::string::npos) << result.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "s.csv"));
+}
+
+}  // namespace

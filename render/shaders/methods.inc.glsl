@@ -50,6 +50,22 @@ struct Bracket {
   float gap_above, gap_below;
 };
 
+// One search step: reads the surface at ray parameter s. At or below it, s closes the bracket
+// (returns true); above it, s becomes the bracket's upper end.
+bool probe_bracket(vec3 origin, vec3 descent, float s, inout Bracket b) {
+  g_iterations += 1u;
+  vec3 p = origin + s * descent;
+  float gap = p.z - fetch_height(p.xy);
+  if (gap <= 0.0) {
+    b.s_below = s;
+    b.gap_below = gap;
+    return true;
+  }
+  b.s_above = s;
+  b.gap_above = gap;
+  return false;
+}
+
 Bracket linear_search(vec3 origin, vec3 descent, int steps) {
   Bracket b;
   b.s_above = 0.0;
@@ -58,17 +74,7 @@ Bracket linear_search(vec3 origin, vec3 descent, int steps) {
   b.gap_below = b.gap_above;
   if (b.gap_above <= 0.0) return b;
   for (int i = 1; i <= steps; ++i) {
-    g_iterations += 1u;
-    float s = float(i) / float(steps);  // the last step is exactly s = 1
-    vec3 p = origin + s * descent;
-    float gap = p.z - fetch_height(p.xy);
-    if (gap <= 0.0) {
-      b.s_below = s;
-      b.gap_below = gap;
-      return b;
-    }
-    b.s_above = s;
-    b.gap_above = gap;
+    if (probe_bracket(origin, descent, float(i) / float(steps), b)) return b;  // the last step is s = 1
   }
   b.s_below = 1.0;  // not reached: the ray is at h = 0 at s = 1
   b.gap_below = 0.0;
@@ -229,17 +235,8 @@ Bracket bracket_after_cones(vec3 origin, vec3 descent, ConeMarch m) {
   b.gap_below = 0.0;
   float step = max(bracket_first_gap_factor * m.gap, bracket_min_step);
   for (int i = 0; i < bracket_max_steps; ++i) {
-    g_iterations += 1u;
     float s = (i == bracket_max_steps - 1) ? 1.0 : min(b.s_above + step, 1.0);
-    vec3 p = origin + s * descent;
-    float gap = p.z - fetch_height(p.xy);
-    if (gap <= 0.0) {
-      b.s_below = s;
-      b.gap_below = gap;
-      return b;
-    }
-    b.s_above = s;
-    b.gap_above = gap;
+    if (probe_bracket(origin, descent, s, b)) return b;
     step *= bracket_growth;
   }
   return b;
