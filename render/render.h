@@ -187,8 +187,8 @@ struct ImageError {
 };
 ImageError compare(const Frame& frame, const Frame& reference);
 
-// The exact ray-height-field intersection on the CPU (fine march plus bisection on the bilinear
-// surface) for the plane, for tests: the texture coordinates (u, v, h) of the first hit of the ray
+// The exact ray-height-field intersection on the CPU (a cell-by-cell walk of the bilinear surface,
+// solving the quadratic in each cell) for the plane, for tests: the texture coordinates (u, v, h) of the first hit of the ray
 // through pixel (px, py), or hit = false when the ray misses the relief of the [0, tile]^2 patch.
 struct CpuHit {
   bool hit = false;
@@ -199,5 +199,10 @@ CpuHit cpu_trace(const HeightField& field, const View& view, double px, double p
 // The bilinear height the renderer samples at texture coordinates (u, v) (texel centres at
 // (j + 0.5) / W), with the address mode.
 double bilinear_height(const HeightField& field, bake::Address address, double u, double v);
+// The smallest s in [0, 1] where the ray p(s) = origin + s * descent (texture space, descent.z = -1,
+// origin inside the [0, tile]^2 patch) is at or below the bilinear surface; where the ray leaves the
+// patch first, an s whose point lies outside the patch. Exact up to double rounding.
+double first_crossing(const HeightField& field, bake::Address address, double tile, const glm::dvec3& origin,
+                      const glm::dvec3& descent);
 
 }  // namespace displace::render
