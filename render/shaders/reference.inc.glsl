@@ -1,9 +1,7 @@
 // render/shaders/reference.inc.glsl - the reference's exact hit on the bilinear surface, the same
-// cell-by-cell walk as render/cpu_trace.cpp (which documents it), in float. Included by
-// surface.frag.glsl after `frame` and `height_map`. Its reads are not counted: the reference is the
+// cell-by-cell walk as render/cpu_trace.cpp (which documents it), in float, with the cell solver of
+// bilinear_cell.inc.glsl. Included by surface.frag.glsl after `frame` and `height_map`. Its reads are not counted: the reference is the
 // truth, not a method whose cost is measured.
-
-const int reference_bisections = 24;  // halvings of a monotone piece of one cell: float precision of s
 
 float reference_texel(ivec2 ij) {
   ivec2 size = textureSize(height_map, 0);
@@ -13,43 +11,6 @@ float reference_texel(ivec2 ij) {
     ij = clamp(ij, ivec2(0), size - 1);
   }
   return texelFetch(height_map, ij, 0).r;
-}
-
-// The ray's height above one cell's bilinear patch: corners h = (h00, h10, h01, h11), the ray's
-// position in the cell f(s) = f0 + s * df (0..1 between the cell's texel centres).
-struct ReferenceCell {
-  float z0;
-  vec2 f0, df;
-  vec4 h;
-};
-
-float reference_gap(ReferenceCell c, float s) {
-  vec2 f = c.f0 + s * c.df;
-  float top = mix(c.h.x, c.h.y, f.x), bottom = mix(c.h.z, c.h.w, f.x);
-  return c.z0 - s - mix(top, bottom, f.y);
-}
-
-// The first s in [s0, s1] with gap <= 0, given that the gap is monotone there; -1 if none.
-float reference_monotone_root(ReferenceCell c, float s0, float s1) {
-  if (reference_gap(c, s0) <= 0.0) return s0;
-  if (reference_gap(c, s1) > 0.0) return -1.0;
-  for (int i = 0; i < reference_bisections; ++i) {
-    float mid = 0.5 * (s0 + s1);
-    if (reference_gap(c, mid) > 0.0) s0 = mid; else s1 = mid;
-  }
-  return s1;
-}
-
-float reference_cell_root(ReferenceCell c, float s0, float s1) {
-  float twist = c.h.x - c.h.y - c.h.z + c.h.w;
-  float a = -twist * c.df.x * c.df.y;
-  float b = -1.0 - (c.h.y - c.h.x) * c.df.x - (c.h.z - c.h.x) * c.df.y - twist * (c.f0.x * c.df.y + c.f0.y * c.df.x);
-  float split = a != 0.0 ? -b / (2.0 * a) : -1.0;
-  if (split > s0 && split < s1) {
-    float s = reference_monotone_root(c, s0, split);
-    return s >= 0.0 ? s : reference_monotone_root(c, split, s1);
-  }
-  return reference_monotone_root(c, s0, s1);
 }
 
 // The first s in [0, 1] where origin + s * descent (descent.z = -1) reaches the bilinear surface;
@@ -70,13 +31,13 @@ float reference_first_crossing(vec3 origin, vec3 descent) {
   float s0 = 0.0;
   for (int n = 0; n < max_cells; ++n) {
     float s1 = min(min(next.x, next.y), 1.0);
-    ReferenceCell c;
+    BilinearCell c;
     c.z0 = origin.z;
     c.f0 = x0 - vec2(cell);
     c.df = dx;
     c.h = vec4(reference_texel(cell), reference_texel(cell + ivec2(1, 0)), reference_texel(cell + ivec2(0, 1)),
                reference_texel(cell + ivec2(1, 1)));
-    float s = reference_cell_root(c, s0, max(s1, s0));
+    float s = cell_first_root(c, s0, max(s1, s0));
     if (s >= 0.0) return s;
     if (s1 >= 1.0) return 1.0;
     s0 = s1;

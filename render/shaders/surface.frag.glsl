@@ -25,6 +25,7 @@ layout(location = ATTACHMENT_COUNTERS) out vec4 out_counters;
 uint g_iterations = 0u;
 uint g_fetches = 0u;
 
+#include "bilinear_cell.inc.glsl"
 #include "methods.inc.glsl"
 #include "shading.inc.glsl"
 
