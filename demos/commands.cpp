@@ -403,12 +403,18 @@ void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata&
   write_exr(aov.file, frame.width, frame.height, exr, metadata);
 }
 
+void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& file) {
+  Rgba8Image image = read_color_image(file);
+  renderer.set_albedo({image.width, image.height, std::move(image.pixels)});
+}
+
 }  // namespace
 
 void run_render(const RenderSettings& settings, std::ostream& out) {
   BakeInput input = prepare_bake_input(settings.input);
   render::Renderer renderer(settings.renderer);
   renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+  if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
   const render::MethodInfo& info = render::method_info(settings.method.method);
   const render::Frame frame = renderer.render(settings.view, settings.method);
   Metadata metadata = input.metadata;
@@ -449,6 +455,11 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
   for (const SceneSettings& scene : settings.scenes) {
     BakeInput input = prepare_bake_input(scene.input);
     renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+    if (scene.albedo.empty()) {
+      renderer.clear_albedo();
+    } else {
+      set_albedo_from(renderer, scene.albedo);
+    }
     const render::Frame reference = renderer.render(scene.view, {render::Method::reference, 1, 0});
     out << format("scene %s: %d x %d map, %d x %d pixels\n", scene.name.c_str(), input.width, input.height,
                   scene.view.camera.width, scene.view.camera.height);
@@ -603,8 +614,8 @@ usage:
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
-                  [--light X,Y,Z] [--size WxH] --output F.png|F.exr [--aov NAME=FILE ...]
-                  [--compare reference] [--device N|NAME] [--validate]
+                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH] --output F.png|F.exr
+                  [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
       at z = -D) with one per-pixel method, baking the maps it needs (budgeted baker, no limit).
       Methods: METHODS.
@@ -612,6 +623,8 @@ usage:
       steps (default 8). AOVs: uv=F.exr (u, v, hit), depth=F.exr, iterations=F.exr|F.png (a .png
       is a heatmap), fetches=F.exr|F.png. --compare reference also renders the tessellated height
       field and prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
+      --shadows traces from each hit towards the light with the same method (self-shadowing).
+      --albedo shades with an image (1-4 channels, used as stored) instead of the procedural grid.
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the
       Khronos validation layer and fails on any message.
 
@@ -624,7 +637,7 @@ usage:
       method, the fewest fetches per pixel that reach rmse <= 3. Default scenes: the three built-in
       ones (256 x 256 maps, the default camera). A scene FILE holds render flags, one per line
       (--source/--input and their options, --map-size, --eye, --look-at, --up, --fov-y, --size,
-      --tile, --depth-scale, --address, --light); '#' starts a comment.
+      --tile, --depth-scale, --address, --light, --shadows, --albedo); '#' starts a comment.
 
   displace demo [--size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and

@@ -366,6 +366,36 @@ FloatImage read_float_image(const std::filesystem::path& file) {
   return image;
 }
 
+Rgba8Image read_color_image(const std::filesystem::path& file) {
+  auto input = open_input(file);
+  const oiio::ImageSpec& spec = input->spec();
+  const int channels = spec.nchannels;
+  if (channels < 1 || channels > 4) {
+    throw runtime_error(quoted(file) + " has " + std::to_string(channels) + " channels; a colour image has 1 to 4");
+  }
+  std::vector<std::uint8_t> stored(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(channels));
+  if (!input->read_image(0, 0, 0, channels, oiio::TypeDesc::UINT8, stored.data())) {
+    throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
+  }
+  input->close();
+  Rgba8Image image;
+  image.width = spec.width;
+  image.height = spec.height;
+  image.metadata = read_metadata(spec);
+  const std::size_t pixels = std::size_t(spec.width) * std::size_t(spec.height);
+  image.pixels.resize(pixels * 4);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    const std::uint8_t* in = &stored[p * std::size_t(channels)];
+    std::uint8_t* rgba = &image.pixels[p * 4];
+    const bool grey = channels <= 2;
+    rgba[0] = in[0];
+    rgba[1] = grey ? in[0] : in[1];
+    rgba[2] = grey ? in[0] : in[2];
+    rgba[3] = channels == 2 ? in[1] : channels == 4 ? in[3] : 255;
+  }
+  return image;
+}
+
 Rgba8Image read_rgba8_image(const std::filesystem::path& file) {
   auto input = open_input(file);
   const oiio::ImageSpec& spec = input->spec();

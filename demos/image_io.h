@@ -114,4 +114,8 @@ struct Rgba8Image {
 };
 Rgba8Image read_rgba8_image(const std::filesystem::path& file);
 
+// Any image OpenImageIO reads (1 to 4 channels, any bit depth), converted to 8 bits per channel and
+// expanded to RGBA: grey to grey, grey + alpha, RGB with alpha 255. For albedo textures.
+Rgba8Image read_color_image(const std::filesystem::path& file);
+
 }  // namespace displace::app

@@ -493,6 +493,7 @@ constexpr std::pair<std::string_view, Aov> aov_words[] = {
 struct SceneDraft {
   InputDraft input;
   render::View view;
+  std::filesystem::path albedo;
 };
 
 bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draft) {
@@ -516,6 +517,11 @@ bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draf
     draft.view.light_direction = parse_vector(flag, reader.value());
   } else if (flag == "--fov-y") {
     camera.fov_y_degrees = parse_float_in(flag, reader.value(), Range{0.01, 179.0, "degrees"});
+  } else if (flag == "--shadows") {
+    reader.no_value();
+    draft.view.shadows = true;
+  } else if (flag == "--albedo") {
+    draft.albedo = std::filesystem::path(reader.value());
   } else {
     return false;
   }
@@ -523,7 +529,7 @@ bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draf
 }
 
 SceneSettings finish_scene(const SceneDraft& draft, const std::string& name, const std::string& command) {
-  SceneSettings scene{name, finish_input(draft.input, command), draft.view};
+  SceneSettings scene{name, finish_input(draft.input, command), draft.view, draft.albedo};
   if (scene.view.tile > 1 && scene.view.address != bake::Address::wrap) {
     throw usage_error("--tile above 1 needs --address wrap");
   }
@@ -608,6 +614,7 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   const SceneSettings parsed = finish_scene(scene, "render", "render");
   settings.input = parsed.input;
   settings.view = parsed.view;
+  settings.albedo = parsed.albedo;
   if (!method) throw usage_error("'displace render' needs --method NAME");
   settings.method.method = *method;
   if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");

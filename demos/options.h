@@ -78,6 +78,7 @@ struct RenderSettings {
   render::MethodSettings method;
   std::filesystem::path output;  // .png or .exr
   std::vector<AovOutput> aovs;
+  std::filesystem::path albedo;  // empty: the procedural grid
   bool compare_reference = false;
   render::RendererOptions renderer;
 };
@@ -87,6 +88,7 @@ struct SceneSettings {
   std::string name;
   std::variant<FileInput, SourceSettings> input;
   render::View view;
+  std::filesystem::path albedo;  // empty: the procedural grid
 };
 
 struct SweepSettings {

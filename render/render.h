@@ -102,6 +102,7 @@ struct View {
   float depth_scale = 0.1f;      // world units between height 1 and height 0
   bake::Address address = bake::Address::wrap;
   glm::vec3 light_direction{0.35f, 0.25f, 1.0f};  // towards the light; normalized when used
+  bool shadows = false;          // self-shadowing, traced towards the light with the frame's method
 };
 
 struct MethodSettings {
@@ -145,6 +146,13 @@ struct HeightField {
   std::vector<float> heights;  // [0, 1], row-major, bake conventions
 };
 
+// An RGBA8 image, row-major, row 0 at v = 0 (like the heights).
+struct Albedo {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgba;
+};
+
 class Renderer {
  public:
   // Creates the instance, device, descriptor layouts and render targets' layouts once.
@@ -159,6 +167,12 @@ class Renderer {
   // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones), and kept until
   // the heights change.
   void set_height_field(const HeightField& field);
+
+  // The albedo the hit is shaded with, sampled at the hit's texture coordinates (bilinear, the
+  // view's address mode, repeated with the tile); its 8-bit values are used as they are (no sRGB
+  // decoding). Until one is set, and after clear_albedo, a procedural grid shows the errors.
+  void set_albedo(const Albedo& albedo);
+  void clear_albedo();
 
   // Hands over a cone map already baked for the current heights (bake conventions, interleaved),
   // so that it is not baked again.

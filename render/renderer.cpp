@@ -111,6 +111,8 @@ struct Renderer::Impl {
   HeightField field;
   Image height_image;
   Image dummy_cones;
+  Image albedo_image, dummy_albedo;
+  bool has_albedo = false;
   std::map<int, std::vector<float>> cone_ratios;  // by cone_key, baked for `field`
   int uploaded_cone_key = -1;  // cone_key of cone_image, -1 for none
   Image cone_image;
@@ -134,12 +136,13 @@ struct Renderer::Impl {
 
 void Renderer::Impl::create_layouts() {
   const VkDevice device = context.device();
-  std::array<VkDescriptorSetLayoutBinding, 3> bindings{};
+  std::array<VkDescriptorSetLayoutBinding, 4> bindings{};
   bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[1] = {BINDING_HEIGHT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[2] = {BINDING_CONES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[3] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = std::uint32_t(bindings.size());
   set_info.pBindings = bindings.data();
@@ -156,7 +159,7 @@ void Renderer::Impl::create_layouts() {
 
   const std::array<VkDescriptorPoolSize, 2> sizes = {
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2}};
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 3}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = 1;
   pool_info.poolSizeCount = std::uint32_t(sizes.size());
@@ -200,6 +203,8 @@ void Renderer::Impl::create_layouts() {
                     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   const std::array<float, 4> one = {1.0f, 1.0f, 1.0f, 1.0f};
   dummy_cones = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
+  const std::array<std::uint8_t, 4> white = {255, 255, 255, 255};
+  dummy_albedo = upload_image(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
 }
 
 void Renderer::Impl::create_render_pass() {
@@ -464,7 +469,10 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo cone_info{wrap ? nearest_wrap.get() : nearest_clamp.get(), cone_view,
                                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  std::array<VkWriteDescriptorSet, 3> writes{};
+  const VkDescriptorImageInfo albedo_info{wrap ? linear_wrap.get() : linear_clamp.get(),
+                                          has_albedo ? albedo_image.view() : dummy_albedo.view(),
+                                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  std::array<VkWriteDescriptorSet, 4> writes{};
   for (auto& write : writes) {
     write = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     write.dstSet = descriptor_set;
@@ -479,6 +487,9 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   writes[2].dstBinding = BINDING_CONES;
   writes[2].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   writes[2].pImageInfo = &cone_info;
+  writes[3].dstBinding = BINDING_ALBEDO;
+  writes[3].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  writes[3].pImageInfo = &albedo_info;
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
@@ -515,6 +526,25 @@ void Renderer::set_height_field(const HeightField& field) {
   impl.height_image = impl.upload_image(VK_FORMAT_R32_SFLOAT, field.width, field.height, 1, VK_IMAGE_VIEW_TYPE_2D,
                                         field.heights.data(),
                                         field.heights.size() * sizeof(float));
+}
+
+void Renderer::set_albedo(const Albedo& albedo) {
+  if (albedo.width < 1 || albedo.height < 1 || albedo.width > max_map_side || albedo.height > max_map_side ||
+      albedo.rgba.size() != std::size_t(albedo.width) * albedo.height * 4) {
+    throw RenderError("albedo image must be between 1x1 and 16384x16384 pixels with 4 bytes (RGBA) per pixel");
+  }
+  Impl& impl = *impl_;
+  vkDeviceWaitIdle(impl.context.device());
+  impl.albedo_image = impl.upload_image(VK_FORMAT_R8G8B8A8_UNORM, albedo.width, albedo.height, 1, VK_IMAGE_VIEW_TYPE_2D,
+                                        albedo.rgba.data(), albedo.rgba.size());
+  impl.has_albedo = true;
+}
+
+void Renderer::clear_albedo() {
+  Impl& impl = *impl_;
+  vkDeviceWaitIdle(impl.context.device());
+  impl.has_albedo = false;
+  impl.albedo_image = Image{};
 }
 
 void Renderer::set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios) {
@@ -567,8 +597,9 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
   uniforms.surface = glm::vec4(float(view.tile), view.depth_scale, 1.0f / float(view.tile), 0.0f);
   uniforms.map_size = glm::vec4(float(impl.field.width), float(impl.field.height), 1.0f / float(impl.field.width),
                                 1.0f / float(impl.field.height));
-  uniforms.counts = glm::ivec4(method.steps, method.refine,
-                               view.address == bake::Address::wrap ? FLAG_WRAP : 0, info.cone_sectors);
+  const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
+                    (impl.has_albedo ? FLAG_ALBEDO : 0);
+  uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
   uniforms.background = glm::vec4(background[0], background[1], background[2], background[3]);
   std::memcpy(impl.uniforms.mapped(), &uniforms, sizeof uniforms);
 

@@ -615,6 +615,36 @@ TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   EXPECT_TRUE(fs::exists(out));
 }
 
+// --albedo and --shadows: a red albedo image shades every hit red (green and blue hold only the
+// white highlight, equal), and shadows darken some pixels without changing which pixels hit.
+TEST(Cli, RendersWithAnAlbedoImageAndShadows) {
+  TempDir dir;
+  std::vector<std::uint8_t> red(4 * 4 * 4, 0);
+  for (std::size_t p = 0; p < 16; ++p) red[p * 4] = red[p * 4 + 3] = 255;
+  write_png_rgba8(dir / "red.png", 4, 4, red, {});
+  const std::string common = "render --source bricks --map-size 32 --method acm4 --steps 64 --size 40x40 --validate "
+                             "--light 1,0.5,0.4 --albedo '" + (dir / "red.png").string() + "' --output '";
+  const RunResult plain = run_displace(dir, common + (dir / "plain.png").string() + "'");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  const RunResult shadowed = run_displace(dir, common + (dir / "shadowed.png").string() + "' --shadows");
+  ASSERT_EQ(shadowed.exit_code, 0) << shadowed.err;
+  const Rgba8Image a = read_rgba8_image(dir / "plain.png"), b = read_rgba8_image(dir / "shadowed.png");
+  ASSERT_EQ(a.pixels.size(), b.pixels.size());
+  std::size_t hits = 0, darker = 0;
+  for (std::size_t p = 0; p < a.pixels.size() / 4; ++p) {
+    const std::uint8_t* x = &a.pixels[p * 4];
+    const std::uint8_t* y = &b.pixels[p * 4];
+    if (x[0] == 20 && x[1] == 20 && x[2] == 26) continue;  // the background
+    ++hits;
+    EXPECT_EQ(x[1], x[2]);
+    EXPECT_GT(x[0], x[1]);
+    EXPECT_LE(y[0], x[0]);
+    darker += y[0] + 8 < x[0];
+  }
+  EXPECT_GT(hits, 800u);
+  EXPECT_GT(darker, 50u);
+}
+
 TEST(Cli, RenderRejectsBadInputWithOneError) {
   TempDir dir;
   const std::string ok = "render --source ocean --map-size 16 --time 0 --output '" + (dir / "f.png").string() + "'";
@@ -635,6 +665,8 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --aov uv=x.png", 2},
       {ok + " --method pom --device no-such-device", 1},
       {"render --input '" + (dir / "missing.png").string() + "' --method pom --output f.png", 1},
+      {ok + " --method pom --albedo '" + (dir / "missing.png").string() + "'", 1},
+      {ok + " --method pom --shadows yes", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);

@@ -369,6 +369,18 @@ TEST(Renderer, NoNanOrInfOnHardRaysAndFlatMaps) {
         EXPECT_TRUE(all_finite(frame)) << field_name << " / " << view_name << " / " << info.name;
       }
     }
+    // shadow rays from hard light directions: vertical, grazing, along an axis and a diagonal,
+    // below the horizon (the counters include the shadow trace's reads)
+    for (const glm::vec3 light : {glm::vec3(0, 0, 1), glm::vec3(1, 0, 1e-4f), glm::vec3(0, -1, 0.3f),
+                                  glm::vec3(1, 1, 0.2f), glm::vec3(0.2f, 0, -1)}) {
+      View view = oblique_view(24);
+      view.shadows = true;
+      view.light_direction = light;
+      for (const MethodInfo& info : render::method_table()) {
+        const Frame frame = shared_renderer().render(view, {info.method, 16, 6});
+        EXPECT_TRUE(all_finite(frame)) << field_name << " / shadows / " << info.name;
+      }
+    }
   }
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
@@ -458,3 +470,101 @@ TEST(Renderer, ErrorDoesNotGrowWithSteps) {
 }
 
 }  // namespace
+
+namespace {
+
+View top_down_view(int pixels) {
+  View view;
+  view.camera.eye = {0.5f, 0.5f, 2.0f};
+  view.camera.look_at = {0.5f, 0.5f, 0.0f};
+  view.camera.up = {0.0f, 1.0f, 0.0f};
+  view.camera.fov_y_degrees = 30.0f;
+  view.camera.width = pixels;
+  view.camera.height = pixels;
+  view.address = bake::Address::clamp;
+  return view;
+}
+
+bool colour_differs(const Frame& a, const Frame& b, std::size_t pixel) {
+  for (int c = 0; c < 3; ++c) {
+    if (std::abs(int(a.color[pixel * 4 + c]) - int(b.color[pixel * 4 + c])) > 8) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+// A step casts the shadow its height and the light's elevation put on the floor, for the reference
+// and every exact-class method; a flat map casts none (no self-shadowing acne).
+TEST(Renderer, ShadowsFallWhereTheStepHeightPutsThem) {
+  const int size = 64;
+  const HeightField step = step_field(size);  // 0.2 for u < 0.5, 0.8 beyond, a one-texel ramp between
+  const HeightField flat = constant_field(size, 0.4f);
+  View view = top_down_view(128);
+  view.light_direction = {1.0f, 0.0f, 0.25f};  // from +u, low: the plateau shades the floor below it
+  const double slope = 0.25 / view.depth_scale;  // heights gained per uv along the light ray
+  const double ramp_start = (size / 2 - 0.5) / size, ramp_end = (size / 2 + 0.5) / size;
+  const double shadow_start = ramp_end - 0.6 / slope;  // the floor point whose light ray grazes the ramp's top
+  const double texel = 1.0 / size;
+  for (const MethodInfo& info : render::method_table()) {
+    if (!info.exact_class) continue;
+    SCOPED_TRACE(info.name);
+    View lit_view = view;
+    View shadow_view = view;
+    shadow_view.shadows = true;
+    const Frame lit = render_frame(step, lit_view, info.method, 256, 16);
+    const Frame shaded = render_frame(step, shadow_view, info.method, 256, 16);
+    long long shadowed = 0, wrong = 0, floor_pixels = 0;
+    for (std::size_t p = 0; p < std::size_t(128 * 128); ++p) {
+      if (shaded.uv[p * 3 + 2] == 0.0f) continue;
+      const double u = shaded.uv[p * 3 + 0];
+      const bool differs = colour_differs(lit, shaded, p);
+      if (u < shadow_start - 1.5 * texel || u > ramp_end + texel) {
+        wrong += differs;  // lit floor far from the step, and the plateau
+      } else if (u > shadow_start + 1.5 * texel && u < ramp_start - texel) {
+        ++floor_pixels;
+        shadowed += differs;
+        wrong += !differs;
+      }
+    }
+    EXPECT_GT(floor_pixels, 200);
+    EXPECT_EQ(wrong, 0) << shadowed << " of " << floor_pixels << " floor pixels in the shadow band are dark";
+    const Frame flat_lit = render_frame(flat, lit_view, info.method, 256, 16);
+    const Frame flat_shaded = render_frame(flat, shadow_view, info.method, 256, 16);
+    long long acne = 0;
+    for (std::size_t p = 0; p < std::size_t(128 * 128); ++p) acne += colour_differs(flat_lit, flat_shaded, p);
+    EXPECT_EQ(acne, 0);
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+// An albedo image replaces the procedural grid: a red albedo on a flat map gives red times the
+// Lambert term plus the (white, small) highlight, and clearing it brings the grid back.
+TEST(Renderer, AlbedoImageShadesTheHit) {
+  const HeightField flat = constant_field(16, 0.5f);
+  View view = top_down_view(32);
+  view.light_direction = {1.0f, 0.0f, 1.0f};
+  render::Renderer& renderer = shared_renderer();
+  renderer.set_height_field(flat);
+  renderer.set_albedo({2, 2, std::vector<std::uint8_t>(16, 0)});  // all black first: replaced below
+  renderer.set_albedo({2, 2, {255, 0, 0, 255, 255, 0, 0, 255, 255, 0, 0, 255, 255, 0, 0, 255}});
+  const Frame red = renderer.render(view, {Method::relief, 32, 8});
+  renderer.clear_albedo();
+  const Frame grid = renderer.render(view, {Method::relief, 32, 8});
+  const double lambert = 0.15 + 0.85 * std::sqrt(0.5);
+  long long checked = 0, grid_differs = 0;
+  for (std::size_t p = 0; p < std::size_t(32 * 32); ++p) {
+    if (red.uv[p * 3 + 2] == 0.0f) continue;
+    ++checked;
+    const int highlight = red.color[p * 4 + 1];
+    EXPECT_NEAR(red.color[p * 4 + 0] - highlight, 255.0 * lambert, 2.0);
+    EXPECT_EQ(red.color[p * 4 + 2], highlight);
+    EXPECT_LE(highlight, 20);  // the highlight at its peak would be 0.25 * 255
+    grid_differs += colour_differs(red, grid, p);
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_EQ(grid_differs, checked);
+  EXPECT_THROW(renderer.set_albedo({2, 2, std::vector<std::uint8_t>(15, 0)}), render::RenderError);
+  EXPECT_THROW(renderer.set_albedo({0, 0, {}}), render::RenderError);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}

@@ -31,9 +31,12 @@ using mat4 = glm::mat4;
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
 #define BINDING_CONES 2    // sampler2DArray, RGBA32F cone ratios (4 sectors per layer), nearest
+#define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
+#define FLAG_SHADOWS 2  // self-shadowing: trace from the hit towards the light with the same method
+#define FLAG_ALBEDO 4   // shade with the albedo image instead of the procedural grid
 
 // color attachments
 #define ATTACHMENT_COLOR 0     // RGBA8: the shaded picture

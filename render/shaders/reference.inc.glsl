@@ -13,9 +13,11 @@ float reference_texel(ivec2 ij) {
   return texelFetch(height_map, ij, 0).r;
 }
 
-// The first s in [0, 1] where origin + s * descent (descent.z = -1) reaches the bilinear surface;
-// where the ray leaves the [0, K]^2 patch first, an s whose point lies outside it.
-float reference_first_crossing(vec3 origin, vec3 descent) {
+// The first s in [0, s_end] where origin + s * descent (descent.z = -1) reaches the bilinear surface,
+// or s_end. Bounded: where the ray leaves the [0, K]^2 patch first, an s whose point lies outside it.
+// Unbounded (shadow rays, which start outside the patch at times): the relief continues beyond the
+// patch with the address mode.
+float reference_first_crossing(vec3 origin, vec3 descent, float s_end, bool bounded) {
   vec2 size = frame.map_size.xy;
   vec2 x0 = origin.xy * size - 0.5;
   vec2 dx = descent.xy * size;
@@ -30,7 +32,7 @@ float reference_first_crossing(vec3 origin, vec3 descent) {
   int max_cells = 2 * int(frame.surface.x * (size.x + size.y)) + 8;
   float s0 = 0.0;
   for (int n = 0; n < max_cells; ++n) {
-    float s1 = min(min(next.x, next.y), 1.0);
+    float s1 = min(min(next.x, next.y), s_end);
     BilinearCell c;
     c.z0 = origin.z;
     c.f0 = x0 - vec2(cell);
@@ -39,10 +41,10 @@ float reference_first_crossing(vec3 origin, vec3 descent) {
                reference_texel(cell + ivec2(1, 1)));
     float s = cell_first_root(c, s0, max(s1, s0));
     if (s >= 0.0) return s;
-    if (s1 >= 1.0) return 1.0;
+    if (s1 >= s_end) return s_end;
     s0 = s1;
     vec2 p = origin.xy + s0 * descent.xy;
-    if (any(lessThan(p, vec2(0.0))) || any(greaterThan(p, vec2(frame.surface.x)))) return s0;
+    if (bounded && (any(lessThan(p, vec2(0.0))) || any(greaterThan(p, vec2(frame.surface.x))))) return s0;
     for (int axis = 0; axis < 2; ++axis) {
       if (next[axis] <= s1) {
         cell[axis] += dir[axis];

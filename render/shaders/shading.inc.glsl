@@ -1,5 +1,5 @@
 // render/shaders/shading.inc.glsl - the shading every method shares, so that pictures differ only by
-// their hit points: procedural grid albedo, Lambert + Blinn-Phong, one directional light, the normal
+// their hit points: an albedo image or a procedural grid, Lambert + Blinn-Phong, one directional light, the normal
 // from the height field at the hit. Reads that shading makes are not counted as method fetches.
 
 const float albedo_cells = 8.0;       // checker cells per texture tile
@@ -29,11 +29,17 @@ vec3 grid_albedo(vec2 uv) {
   return line ? base * 0.35 : base;
 }
 
-vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction) {
+vec3 albedo(vec2 uv) {
+  if ((frame.counts.z & FLAG_ALBEDO) != 0) return textureLod(albedo_map, uv, 0.0).rgb;
+  return grid_albedo(uv);
+}
+
+// lit: 1 where the light reaches the hit, 0 in shadow (then only the ambient term is left)
+vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction, float lit) {
   vec3 n = surface_normal(uv, tangent_frame);
   vec3 l = normalize(frame.light.xyz);
   vec3 half_vector = normalize(l - view_direction);
-  float diffuse = max(dot(n, l), 0.0);
+  float diffuse = lit * max(dot(n, l), 0.0);
   float specular = diffuse > 0.0 ? pow(max(dot(n, half_vector), 0.0), specular_exponent) : 0.0;
-  return grid_albedo(uv) * (ambient + (1.0 - ambient) * diffuse) + specular_strength * specular;
+  return albedo(uv) * (ambient + (1.0 - ambient) * diffuse) + specular_strength * specular;
 }

@@ -10,6 +10,7 @@ layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
 layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 layout(binding = BINDING_CONES) uniform sampler2DArray cone_map;
+layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec2 in_uv;
@@ -40,6 +41,33 @@ uint g_fetches = 0u;
 // 256 steps on the built-in bricks).
 #include "reference.inc.glsl"
 
+// Self-shadowing (Policarpo et al.'s relief mapping shadows): the light ray through the hit enters
+// the relief on the top plane h = 1; the frame's method traces it from there towards the hit. When
+// it stops clearly before the hit - more than shadow_bias_height of descent plus half a texel of
+// travel - something lies between the hit and the light. The margin keeps a method's own error at
+// the hit from shadowing it. A light at or below the base surface's horizon leaves everything dark.
+// Shadow rays see the relief beyond the patch continued by the address mode. Their reads count in
+// the fetch AOV: they are part of what a frame with shadows costs.
+const float shadow_bias_height = 0.01;  // height units
+
+float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
+  vec3 l = inverse(tangent_frame) * normalize(frame.light.xyz);  // texture space, per world unit
+  if (l.z <= min_descent) return 0.0;
+  vec3 descent = vec3(-l.xy / l.z, -1.0);
+  float s_hit = 1.0 - hit.z;  // descent from the top plane to the hit along the light ray
+  vec3 entry = hit - s_hit * descent;
+  float travel = length(descent.xy);
+  float bias = shadow_bias_height + (travel > 0.0 ? 0.5 * min(frame.map_size.z, frame.map_size.w) / travel : 1.0);
+  if (s_hit <= bias) return 1.0;
+  float s = 1.0;
+  if (METHOD == METHOD_REFERENCE) {
+    s = reference_first_crossing(entry, descent, s_hit, false);
+  } else {
+    s = 1.0 - trace(entry, -l, dot(normalize(frame.light.xyz), normal)).p.z;
+  }
+  return s < s_hit - bias ? 0.0 : 1.0;
+}
+
 void main() {
   vec3 to_point = in_world - frame.eye.xyz;
   vec3 d = normalize(to_point);
@@ -57,7 +85,7 @@ void main() {
     vec3 origin = vec3(entry * frame.surface.x, 1.0);
     vec3 direction = inverse(tangent_frame) * d;
     vec3 descent = vec3(direction.xy / max(-direction.z, min_descent), -1.0);
-    hit = origin + reference_first_crossing(origin, descent) * descent;
+    hit = origin + reference_first_crossing(origin, descent, 1.0, true) * descent;
   } else {
     if (dot(d, normal) >= 0.0) discard;  // the relief is seen from above only
     vec3 origin = vec3(in_uv, 1.0);
@@ -69,7 +97,8 @@ void main() {
   vec3 world_hit = in_world + tangent_frame * (hit - vec3(in_uv, in_h));
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
   gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
-  out_color = vec4(shade(hit.xy, tangent_frame, d), 1.0);
+  float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
+  out_color = vec4(shade(hit.xy, tangent_frame, d, lit), 1.0);
   out_hit = vec4(hit.xy, 1.0, length(world_hit - frame.eye.xyz));
   out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
 }
