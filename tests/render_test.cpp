@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "render/mesh.h"
 #include "render/render.h"
 #include "sim/sim.h"
 
@@ -567,4 +568,85 @@ TEST(Renderer, AlbedoImageShadesTheHit) {
   EXPECT_THROW(renderer.set_albedo({2, 2, std::vector<std::uint8_t>(15, 0)}), render::RenderError);
   EXPECT_THROW(renderer.set_albedo({0, 0, {}}), render::RenderError);
   EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+namespace {
+
+// A latitude-longitude sphere: u = longitude / 2 pi, v = colatitude / pi, the seam duplicated.
+render::Mesh uv_sphere(glm::vec3 centre, float radius, int segments, int rings) {
+  render::Mesh mesh;
+  for (int r = 0; r <= rings; ++r) {
+    for (int s = 0; s <= segments; ++s) {
+      const double u = double(s) / segments, v = double(r) / rings;
+      const double phi = 2.0 * std::numbers::pi * u, theta = std::numbers::pi * v;
+      const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      mesh.positions.push_back(centre + radius * glm::vec3(radial));
+      mesh.uvs.emplace_back(float(u), float(v));
+    }
+  }
+  for (int r = 0; r < rings; ++r) {
+    for (int s = 0; s < segments; ++s) {
+      const std::uint32_t a = r * (segments + 1) + s, b = a + 1, c = a + segments + 1, d = c + 1;
+      // outward: (dP/du x dP/dv) points inwards for this (u, v) orientation, so wind a, c, b
+      mesh.triangles.insert(mesh.triangles.end(), {a, c, b, b, c, d});
+    }
+  }
+  return mesh;
+}
+
+}  // namespace
+
+TEST(Mesh, TangentFramesOfAPlaneAreItsAxes) {
+  render::Mesh plane;
+  plane.positions = {{0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {0, 1, 0}};
+  plane.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  plane.triangles = {0, 1, 2, 0, 2, 3};
+  for (const render::MeshVertex& vertex : render::mesh_vertices(plane)) {
+    EXPECT_NEAR(glm::length(vertex.dp_du - glm::vec3(2, 0, 0)), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(vertex.dp_dv - glm::vec3(0, 1, 0)), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(vertex.normal - glm::vec3(0, 0, 1)), 0.0f, 1e-6f);
+    EXPECT_EQ(vertex.curvature_uu, 0.0f);
+    EXPECT_EQ(vertex.curvature_vv, 0.0f);
+  }
+}
+
+TEST(Mesh, TangentFramesAndCurvatureOfASphereMatchItsParameterisation) {
+  const float radius = 0.4f;
+  const render::Mesh sphere = uv_sphere({0.5f, 0.5f, 0.0f}, radius, 96, 48);
+  const std::vector<render::MeshVertex> vertices = render::mesh_vertices(sphere);
+  int checked = 0;
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const render::MeshVertex& vertex = vertices[i];
+    const double u = vertex.u, v = vertex.v;
+    if (v < 0.15 || v > 0.85 || u <= 0.0 || u >= 1.0) continue;  // away from the poles and the seam
+    const double phi = 2.0 * std::numbers::pi * u, theta = std::numbers::pi * v;
+    const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+    const glm::dvec3 dp_du = 2.0 * std::numbers::pi * radius * std::sin(theta) * glm::dvec3(-std::sin(phi), std::cos(phi), 0);
+    const glm::dvec3 dp_dv = std::numbers::pi * radius *
+                             glm::dvec3(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi), -std::sin(theta));
+    EXPECT_LT(glm::length(glm::dvec3(vertex.dp_du) - dp_du), 0.01 * glm::length(dp_du));
+    EXPECT_LT(glm::length(glm::dvec3(vertex.dp_dv) - dp_dv), 0.01 * glm::length(dp_dv));
+    EXPECT_LT(glm::length(glm::dvec3(vertex.normal) - radial), 5e-3);  // area-weighted face normals
+    EXPECT_NEAR(vertex.curvature_uu, 0.5 / radius, 0.05 / radius);
+    EXPECT_NEAR(vertex.curvature_vv, 0.5 / radius, 0.05 / radius);
+    ++checked;
+  }
+  EXPECT_GT(checked, 2000);
+}
+
+TEST(Mesh, RejectsMeshesItCannotMap) {
+  render::Mesh mesh;
+  EXPECT_THROW(render::mesh_vertices(mesh), render::MeshError);  // empty
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.uvs = {{0, 0}, {0, 0}, {0, 0}};  // every corner at one texture point
+  mesh.triangles = {0, 1, 2};
+  EXPECT_THROW(render::mesh_vertices(mesh), render::MeshError);
+  mesh.uvs = {{0, 0}, {1, 0}, {0, 1}};
+  mesh.triangles = {0, 1, 3};
+  EXPECT_THROW(render::mesh_vertices(mesh), render::MeshError);  // index out of range
+  mesh.triangles = {0, 1, 2};
+  mesh.positions[1].x = std::nanf("");
+  EXPECT_THROW(render::mesh_vertices(mesh), render::MeshError);
+  mesh.positions[1].x = 1.0f;
+  EXPECT_NO_THROW(render::mesh_vertices(mesh));
 }

@@ -1,0 +1,54 @@
+// render/mesh.h - triangle meshes as base surfaces of the per-pixel methods: the mesh with texture
+// coordinates is the top of the relief (height 1); height 0 lies --depth-scale world units inside it,
+// along the normal. Each vertex carries the tangent frame the methods trace in (Premecz, "Iterative
+// Parallax Mapping with Slope Information", sec. 2: the texture-space basis is the pair of partial
+// derivatives dP/du, dP/dv of the surface point with respect to the texture coordinates, found per
+// triangle from its edges and texture-coordinate differences and averaged at the vertices) and the
+// local curvature that decides silhouettes.
+#ifndef DISPLACE_RENDER_MESH_H
+#define DISPLACE_RENDER_MESH_H
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace displace::render {
+
+struct MeshError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Unified vertices (one index addresses position, texture coordinates and the optional normal).
+struct Mesh {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec2> uvs;
+  std::vector<glm::vec3> normals;  // empty: area-weighted face normals are used
+  std::vector<std::uint32_t> triangles;  // 3 indices per triangle, counter-clockwise seen from outside
+};
+
+// What the mesh vertex shader reads per vertex (std430-compatible: 16 floats).
+struct MeshVertex {
+  glm::vec3 position;
+  float u;
+  glm::vec3 dp_du;  // dP/du, orthogonal to the normal, world units per unit of u
+  float v;
+  glm::vec3 dp_dv;  // dP/dv, orthogonal to the normal
+  float curvature_uu;
+  glm::vec3 normal;  // unit, pointing out of the relief
+  float curvature_vv;
+};
+static_assert(sizeof(MeshVertex) == 16 * sizeof(float));
+
+// Validates the mesh (finite values, indices in range, at least one triangle with a non-degenerate
+// texture mapping) and computes the vertices. Throws MeshError with a clear message.
+// Curvature: the surface near a vertex is fitted (least squares over its neighbours) by the quadric
+// depth below its tangent plane d = k_uu x^2 + k_vv y^2, x and y world distances along dP/du and
+// dP/dv; positive where the surface bends away from the normal (convex, like a sphere).
+std::vector<MeshVertex> mesh_vertices(const Mesh& mesh);
+
+}  // namespace displace::render
+
+#endif
