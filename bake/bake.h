@@ -67,6 +67,10 @@ struct BakeStats {
   double mean_ratio = 0.0;        // over all texels and sectors
 };
 
+// Throws BakeError unless the map is non-empty, at most 32768 texels on a side, and every height is
+// finite and in [0, 1]; `product` names what is being baked ("a cone map") in the empty-map message.
+void validate_heights(HeightView heights, const char* product);
+
 // Throws BakeError unless the map is non-empty, every height is finite and in [0, 1], and the
 // sector count is 1, 4 or 8 and the output view matches the map.
 void validate(HeightView heights, const ConeView& out);
@@ -148,6 +152,31 @@ struct MaxPyramid {
   std::vector<std::vector<float>> levels;
 };
 MaxPyramid build_max_pyramid(HeightView heights);
+
+// Max pyramid of the BILINEAR surface, on the dual grid (Tevs, Ihrke & Seidel, "Maximum Mipmaps for
+// Fast, Accurate, and Scalable Dynamic Height Field Rendering"), for the renderer's maxmip and qdm.
+// - Cell coordinates: x = u W - 0.5 - origin, y = v H - 0.5 - origin, so texel centre (i, j) sits at
+//   (j - origin, i - origin). Level-0 node (cell) (i, j) is the square [j, j + 1] x [i, i + 1]
+//   between four texel centres, and holds the max of those four heights: the bilinear surface over
+//   the cell is a convex combination of its corners, so that max is its max over the cell.
+// - Address::wrap: origin 0, W x H cells, one period (cell (i, W - 1) joins texel W - 1 and
+//   texel 0); the plane is tiled with it. Address::clamp: origin -1, (W + 1) x (H + 1) cells; the
+//   first and last row and column hold the clamped-edge extension (their corners are edge texels
+//   counted twice), so the cells cover x in [-1, W] and the patch [0, 1]^2 (x in [-0.5, W - 0.5])
+//   with its half-texel borders.
+// - Level L + 1 has ceil(n / 2) nodes along an axis where level L has n; node a of level L covers
+//   cells [a 2^L, min((a + 1) 2^L, n0)) along that axis (n0 cells at level 0): footprints are
+//   truncated at the grid's end, never padded. Each node holds the max of its existing children,
+//   which is exactly the max of the bilinear surface over its footprint. The last level is 1 x 1.
+// Throws BakeError for the maps validate_heights rejects.
+struct DualMaxPyramid {
+  int origin = 0;                    // 0 (wrap) or -1 (clamp), see above
+  std::vector<int> widths, heights;  // nodes per level along u and along v
+  std::vector<std::size_t> offsets;  // where each level starts in `values`
+  // node (a, b) of level L (column a, row b) at values[offsets[L] + b * widths[L] + a]
+  std::vector<float> values;
+};
+DualMaxPyramid build_dual_max_pyramid(HeightView heights, Address address);
 
 // Distance map (Donnelly, "Per-Pixel Displacement Mapping with Distance Functions", GPU Gems 2
 // ch. 8), for sphere tracing. W x H x D voxels, stored data[(k * H + i) * W + j]; voxel (k, i, j)

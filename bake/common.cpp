@@ -16,7 +16,8 @@ constexpr int max_map_size = 1 << 15;                 // texels (or voxels) alon
 constexpr int max_distance_depth = 1024;              // voxels along h
 constexpr long long max_distance_voxels = 1ll << 30;  // voxels in one distance map (4 GiB of floats)
 
-// `product` names what is being baked ("a cone map") in the empty-map message.
+}  // namespace
+
 void validate_heights(HeightView heights, const char* product) {
   if (heights.width <= 0 || heights.height <= 0 || heights.data == nullptr) {
     throw BakeError("height map is empty (" + std::to_string(heights.width) + "x" +
@@ -39,8 +40,6 @@ void validate_heights(HeightView heights, const char* product) {
     }
   }
 }
-
-}  // namespace
 
 void validate(HeightView heights, const ConeView& out) {
   validate_heights(heights, "a cone map");

@@ -22,6 +22,8 @@ constexpr MethodInfo methods[] = {
     {Method::acm8, "acm8", METHOD_ACM8, MethodFamily::cone, 8, true},
     {Method::acm4_interval, "acm4-interval", METHOD_ACM4_INTERVAL, MethodFamily::cone, 4, true},
     {Method::relaxed, "relaxed", METHOD_RELAXED, MethodFamily::cone, 1, true, true},
+    {Method::maxmip, "maxmip", METHOD_MAXMIP, MethodFamily::pyramid, 0, true},
+    {Method::qdm, "qdm", METHOD_QDM, MethodFamily::pyramid, 0, true},
     {Method::reference, "reference", METHOD_REFERENCE, MethodFamily::reference, 0, true},
 };
 

@@ -50,6 +50,8 @@ enum class Method {
   acm8,
   acm4_interval,
   relaxed,
+  maxmip,
+  qdm,
   reference,
 };
 
@@ -57,6 +59,7 @@ enum class MethodFamily {
   surface,        // no search: bump and the parallax family (one formula per pixel, or a few iterations)
   linear_search,  // fixed steps along the ray, then a refinement
   cone,           // steps bounded by a cone map
+  pyramid,        // traversal of the dual-grid max pyramid (bake::build_dual_max_pyramid)
   reference,      // the tessellated height field, rasterized
 };
 

@@ -8,10 +8,12 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,8 @@ namespace displace::render {
 static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 6, "FrameUniforms must match the std140 layout");
 static_assert(offsetof(gpu::FrameUniforms, eye) == 64);
 static_assert(offsetof(gpu::FrameUniforms, counts) == 64 + 16 * 4);
+static_assert(sizeof(gpu::MaxPyramidHeader) == 16 * (1 + MAX_PYRAMID_LEVELS),
+              "MaxPyramidHeader must match std430");
 
 namespace {
 
@@ -79,6 +83,22 @@ std::vector<float> cone_layers(const std::vector<float>& ratios, int width, int 
   return packed;
 }
 
+// The dual-grid max pyramid as the shader reads it at BINDING_MAX_PYRAMID: the header, then the values.
+std::vector<std::byte> pack_max_pyramid(const bake::DualMaxPyramid& pyramid) {
+  const std::size_t levels = pyramid.widths.size();
+  if (levels > MAX_PYRAMID_LEVELS) throw RenderError("max pyramid has more levels than the shader holds");
+  gpu::MaxPyramidHeader header{};
+  header.shape = glm::ivec4(int(levels), pyramid.origin, 0, 0);
+  for (std::size_t level = 0; level < levels; ++level) {
+    header.levels[level] =
+        glm::ivec4(int(pyramid.offsets[level]), pyramid.widths[level], pyramid.heights[level], 0);
+  }
+  std::vector<std::byte> packed(sizeof header + pyramid.values.size() * sizeof(float));
+  std::memcpy(packed.data(), &header, sizeof header);
+  std::memcpy(packed.data() + sizeof header, pyramid.values.data(), pyramid.values.size() * sizeof(float));
+  return packed;
+}
+
 // Cone maps are baked for one sector count, address mode and kind (conservative or relaxed).
 int cone_key(int sectors, bake::Address address, bool relaxed) {
   return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + (relaxed ? 1 : 0);
@@ -116,6 +136,8 @@ struct Renderer::Impl {
   std::map<int, std::vector<float>> cone_ratios;  // by cone_key, baked for `field`
   int uploaded_cone_key = -1;  // cone_key of cone_image, -1 for none
   Image cone_image;
+  int uploaded_pyramid_address = -1;  // the bake::Address of max_pyramid, -1 for none
+  Buffer max_pyramid, dummy_pyramid;
 
   Buffer reference_vertices, reference_indices;
   std::uint32_t reference_index_count = 0;
@@ -128,6 +150,7 @@ struct Renderer::Impl {
   VkPipeline pipeline(const MethodInfo& info);
   Image upload_image(VkFormat format, int width, int height, int layers, VkImageViewType view_type, const void* data,
                      std::size_t bytes);
+  Buffer upload_storage_buffer(std::span<const std::byte> data);
   const std::vector<float>& cones(int sectors, bake::Address address, bool relaxed);
   void ensure_targets(int width, int height);
   void ensure_reference_mesh(int tile);
@@ -136,13 +159,15 @@ struct Renderer::Impl {
 
 void Renderer::Impl::create_layouts() {
   const VkDevice device = context.device();
-  std::array<VkDescriptorSetLayoutBinding, 4> bindings{};
+  std::array<VkDescriptorSetLayoutBinding, 5> bindings{};
   bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[1] = {BINDING_HEIGHT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[2] = {BINDING_CONES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
-  bindings[3] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[3] = {BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+                 nullptr};
+  bindings[4] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = std::uint32_t(bindings.size());
   set_info.pBindings = bindings.data();
@@ -157,9 +182,10 @@ void Renderer::Impl::create_layouts() {
   DISPLACE_VK_CHECK(vkCreatePipelineLayout(device, &pipeline_info, nullptr, &pipeline_handle));
   pipeline_layout = OwnedPipelineLayout(device, pipeline_handle);
 
-  const std::array<VkDescriptorPoolSize, 2> sizes = {
+  const std::array<VkDescriptorPoolSize, 3> sizes = {
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 3}};
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 3},
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = 1;
   pool_info.poolSizeCount = std::uint32_t(sizes.size());
@@ -205,6 +231,8 @@ void Renderer::Impl::create_layouts() {
   dummy_cones = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
   const std::array<std::uint8_t, 4> white = {255, 255, 255, 255};
   dummy_albedo = upload_image(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
+  std::array<std::byte, sizeof(gpu::MaxPyramidHeader) + sizeof(float)> no_pyramid{};  // 0 levels
+  dummy_pyramid = upload_storage_buffer(no_pyramid);
 }
 
 void Renderer::Impl::create_render_pass() {
@@ -370,6 +398,28 @@ Image Renderer::Impl::upload_image(VkFormat format, int width, int height, int l
   return image;
 }
 
+Buffer Renderer::Impl::upload_storage_buffer(std::span<const std::byte> data) {
+  Buffer buffer(context, data.size(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  Buffer staging(context, data.size(), VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                 VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+  std::memcpy(staging.mapped(), data.data(), data.size());
+  context.submit_and_wait([&](VkCommandBuffer commands) {
+    const VkBufferCopy region{0, 0, data.size()};
+    vkCmdCopyBuffer(commands, staging.handle(), buffer.handle(), 1, &region);
+    VkBufferMemoryBarrier barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
+    barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+    barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    barrier.buffer = buffer.handle();
+    barrier.size = VK_WHOLE_SIZE;
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0,
+                         0, nullptr, 1, &barrier, 0, nullptr);
+  });
+  return buffer;
+}
+
 const std::vector<float>& Renderer::Impl::cones(int sectors, bake::Address address, bool relaxed) {
   const int key = cone_key(sectors, address, relaxed);
   auto found = cone_ratios.find(key);
@@ -464,6 +514,25 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
     }
     cone_view = cone_image.view();
   }
+  VkBuffer pyramid_buffer = dummy_pyramid.handle();
+  if (info.family == MethodFamily::pyramid) {
+    if (uploaded_pyramid_address != int(view.address)) {
+      const bake::HeightView heights{field.heights.data(), field.width, field.height};
+      const std::vector<std::byte> packed =
+          pack_max_pyramid(bake::build_dual_max_pyramid(heights, view.address));
+      VkPhysicalDeviceProperties properties;
+      vkGetPhysicalDeviceProperties(context.physical_device(), &properties);
+      if (packed.size() > properties.limits.maxStorageBufferRange) {
+        throw RenderError("the max pyramid of a " + std::to_string(field.width) + "x" +
+                          std::to_string(field.height) + " map needs " + std::to_string(packed.size()) +
+                          " bytes, more than this device's " +
+                          std::to_string(properties.limits.maxStorageBufferRange) + "-byte storage buffers");
+      }
+      max_pyramid = upload_storage_buffer(packed);
+      uploaded_pyramid_address = int(view.address);
+    }
+    pyramid_buffer = max_pyramid.handle();
+  }
   const VkDescriptorBufferInfo uniform_info{uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
   const VkDescriptorImageInfo height_info{wrap ? linear_wrap.get() : linear_clamp.get(), height_image.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
@@ -472,7 +541,8 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const VkDescriptorImageInfo albedo_info{wrap ? linear_wrap.get() : linear_clamp.get(),
                                           has_albedo ? albedo_image.view() : dummy_albedo.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  std::array<VkWriteDescriptorSet, 4> writes{};
+  const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
+  std::array<VkWriteDescriptorSet, 5> writes{};
   for (auto& write : writes) {
     write = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     write.dstSet = descriptor_set;
@@ -487,9 +557,12 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   writes[2].dstBinding = BINDING_CONES;
   writes[2].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   writes[2].pImageInfo = &cone_info;
-  writes[3].dstBinding = BINDING_ALBEDO;
-  writes[3].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  writes[3].pImageInfo = &albedo_info;
+  writes[4].dstBinding = BINDING_ALBEDO;
+  writes[4].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  writes[4].pImageInfo = &albedo_info;
+  writes[3].dstBinding = BINDING_MAX_PYRAMID;
+  writes[3].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  writes[3].pBufferInfo = &pyramid_info;
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
@@ -520,6 +593,8 @@ void Renderer::set_height_field(const HeightField& field) {
   impl.cone_ratios.clear();
   impl.uploaded_cone_key = -1;
   impl.cone_image = Image{};
+  impl.uploaded_pyramid_address = -1;
+  impl.max_pyramid = Buffer{};
   impl.reference_vertices = Buffer{};
   impl.reference_indices = Buffer{};
   impl.reference_tile = 0;

@@ -408,6 +408,80 @@ TEST(Renderer, RejectsBadViewsWithAClearError) {
 
 namespace {
 
+// maxmip and qdm with unlimited steps against the exact CPU trace, pixel by pixel, on the brick and
+// cliff reliefs (sharp edges, single-texel spikes): power-of-two and odd non-square maps, wrap with
+// tiling (rays cross tile boundaries) and clamp (rays leave through the patch sides).
+TEST(Renderer, MaxPyramidMethodsMatchTheExactTraceWithUnlimitedSteps) {
+  struct Scene {
+    std::string name;
+    HeightField field;
+    View view;
+  };
+  auto relief = [](bool bricks, int width, int height) {
+    HeightField field{width, height, std::vector<float>(std::size_t(width) * height)};
+    if (bricks) {
+      displace::sim::brick_heights(width, height, 1, field.heights);
+    } else {
+      displace::sim::cliff_heights(width, height, 1, field.heights);
+    }
+    return field;
+  };
+  std::vector<Scene> scenes;
+  scenes.push_back({"bricks-64-wrap", relief(true, 64, 64), oblique_view(96)});
+  scenes.push_back({"cliff-64-clamp", relief(false, 64, 64), oblique_view(96)});
+  scenes.back().view.address = bake::Address::clamp;
+  View tiled = oblique_view(96);
+  tiled.tile = 3;
+  tiled.camera.eye = {-0.2f, -0.3f, 0.35f};
+  tiled.camera.look_at = {0.6f, 0.5f, -0.05f};
+  scenes.push_back({"bricks-48x40-wrap-tile3", relief(true, 48, 40), tiled});
+  View low = oblique_view(96);
+  low.camera.eye = {0.5f, -0.6f, 0.25f};
+  low.address = bake::Address::clamp;
+  scenes.push_back({"cliff-37x29-clamp", relief(false, 37, 29), low});
+  for (const Scene& scene : scenes) {
+    const HeightField& field = scene.field;
+    const View& view = scene.view;
+    for (Method method : {Method::maxmip, Method::qdm}) {
+      const Frame frame = render_frame(field, view, method, 4096, 0);
+      long long compared = 0, wrong = 0;
+      double max_texels = 0.0;
+      for (int py = 0; py < frame.height; ++py) {
+        for (int px = 0; px < frame.width; ++px) {
+          const std::size_t p = std::size_t(py) * frame.width + px;
+          const bool gpu_hit = frame.uv[p * 3 + 2] > 0.5f;
+          auto texels_off = [&](const render::CpuHit& truth) {
+            if (gpu_hit != truth.hit) return 1e30;
+            if (!truth.hit) return 0.0;
+            return std::hypot((frame.uv[p * 3 + 0] - truth.texture.x) * field.width,
+                              (frame.uv[p * 3 + 1] - truth.texture.y) * field.height);
+          };
+          const double texels = texels_off(render::cpu_trace(field, view, px + 0.5, py + 0.5));
+          if (texels > 0.5) ++wrong;
+          if (gpu_hit) {
+            ++compared;
+            if (texels < 1e29) max_texels = std::max(max_texels, texels);
+          }
+        }
+      }
+      const float most_iterations = *std::max_element(frame.iterations.begin(), frame.iterations.end());
+      std::printf(
+          "%-24s %-7s max %.5f texels, %lld pixels off by more than half a texel or hit mismatched, of %lld, "
+          "at most %.0f iterations\n",
+          scene.name.c_str(), render::method_info(method).name, max_texels, wrong, compared, most_iterations);
+      ASSERT_GT(compared, 3000) << scene.name;
+      // no ray ran out of steps: the traversal never cycles
+      EXPECT_LT(most_iterations, 4096.0f) << scene.name;
+      EXPECT_EQ(wrong, 0) << scene.name << " / " << render::method_info(method).name;
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+}  // namespace
+
+namespace {
+
 // The reference (tessellation + snap to the bilinear surface) against the exact CPU trace on the
 // brick relief, whose sharp edges are where a tessellation and the bilinear surface disagree most.
 TEST(Renderer, ReferenceAndReliefMatchTheExactTraceOnBricks) {

@@ -25,12 +25,15 @@ using mat4 = glm::mat4;
 #define METHOD_ACM8 10
 #define METHOD_ACM4_INTERVAL 11
 #define METHOD_RELAXED 12
+#define METHOD_MAXMIP 13
+#define METHOD_QDM 14
 #define METHOD_REFERENCE 15
 
 // descriptor bindings (set 0)
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
 #define BINDING_CONES 2    // sampler2DArray, RGBA32F cone ratios (4 sectors per layer), nearest
+#define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
 #define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
 
 // FrameUniforms.flags bits
@@ -51,6 +54,14 @@ struct FrameUniforms {
   vec4 map_size;     // x: W, y: H, z: 1 / W, w: 1 / H
   ivec4 counts;      // x: steps, y: refine, z: flags, w: cone sectors
   vec4 background;   // rgba of pixels off the relief
+};
+
+// The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this
+// header, then every level's node maxima as floats, row-major, level after level.
+#define MAX_PYRAMID_LEVELS 24  // levels the header holds: enough for 2^23 cells per side
+struct MaxPyramidHeader {
+  ivec4 shape;                       // x: levels (0: no pyramid bound), y: cell origin (0 wrap, -1 clamp)
+  ivec4 levels[MAX_PYRAMID_LEVELS];  // x: first value of the level, y: nodes along u, z: nodes along v
 };
 
 #ifdef __cplusplus

@@ -329,6 +329,8 @@ float parallax_slope(vec3 origin, vec3 descent, float dz, int iterations) {
   return s;
 }
 
+#include "max_pyramid.inc.glsl"
+
 struct Trace {
   vec3 p;  // texture-space point (u, v, h)
 };
@@ -372,6 +374,10 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
     s = m.exact ? m.s : secant_refine(origin, descent, bracket_after_cones(origin, descent, m), frame.counts.y);
   } else if (METHOD == METHOD_RELAXED) {
     s = relaxed_march(origin, descent, frame.counts.x, frame.counts.y);
+  } else if (METHOD == METHOD_MAXMIP) {
+    s = max_pyramid_trace(origin, descent, frame.counts.x, false);
+  } else if (METHOD == METHOD_QDM) {
+    s = max_pyramid_trace(origin, descent, frame.counts.x, true);
   } else if (METHOD == METHOD_PARALLAX_SLOPE) {
     s = parallax_slope(origin, descent, dz, frame.counts.x);
   }
