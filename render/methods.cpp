@@ -24,6 +24,7 @@ constexpr MethodInfo methods[] = {
     {Method::relaxed, "relaxed", METHOD_RELAXED, MethodFamily::cone, 1, true, true},
     {Method::maxmip, "maxmip", METHOD_MAXMIP, MethodFamily::pyramid, 0, true},
     {Method::qdm, "qdm", METHOD_QDM, MethodFamily::pyramid, 0, true},
+    {Method::sphere, "sphere", METHOD_SPHERE, MethodFamily::distance, 0, true},
     {Method::reference, "reference", METHOD_REFERENCE, MethodFamily::reference, 0, true},
 };
 

@@ -52,6 +52,7 @@ enum class Method {
   relaxed,
   maxmip,
   qdm,
+  sphere,
   reference,
 };
 
@@ -60,6 +61,7 @@ enum class MethodFamily {
   linear_search,  // fixed steps along the ray, then a refinement
   cone,           // steps bounded by a cone map
   pyramid,        // traversal of the dual-grid max pyramid (bake::build_dual_max_pyramid)
+  distance,       // steps bounded by a 3D distance map (sphere tracing)
   reference,      // the tessellated height field, rasterized
 };
 
@@ -167,8 +169,8 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones), and kept until
-  // the heights change.
+  // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones, and
+  // bake_distance_map for sphere tracing's distance map), and kept until the heights change.
   void set_height_field(const HeightField& field);
 
   // The albedo the hit is shaded with, sampled at the hit's texture coordinates (bilinear, the

@@ -41,6 +41,15 @@ constexpr int max_steps = 4096;
 constexpr int max_refine = 64;
 constexpr int max_map_side = 16384;
 
+// The distance map of sphere tracing (bake_distance_map): the height map's uv resolution up to
+// distance_max_side voxels a side (and the device's 3D limit), distance_slices voxels along h. A
+// coarser map costs sphere steps, never accuracy: the cell walk finishes every ray exactly. Measured
+// (fetches per pixel once converged): 64 slices instead of 16, and the full uv resolution instead of
+// half, each save 6-23% on the ocean, grazing and deep views; 512 x 512 x 64 R32F is 67 MB and bakes
+// in about 0.27 s on 2 cores.
+constexpr int distance_slices = 64;     // voxels along h
+constexpr int distance_max_side = 512;  // voxels along u and v at most
+
 constexpr VkFormat color_format = VK_FORMAT_R8G8B8A8_UNORM;
 constexpr VkFormat hit_format = VK_FORMAT_R32G32B32A32_SFLOAT;
 constexpr VkFormat counters_format = VK_FORMAT_R32G32_SFLOAT;
@@ -104,6 +113,12 @@ int cone_key(int sectors, bake::Address address, bool relaxed) {
   return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + (relaxed ? 1 : 0);
 }
 
+// A distance map baked for one address mode: W x H x D voxels, bake conventions.
+struct DistanceMap {
+  int width = 0, height = 0, depth = 0;
+  std::vector<float> values;
+};
+
 struct Targets {
   int width = 0, height = 0;
   Image color, hit, counters, depth;
@@ -138,6 +153,10 @@ struct Renderer::Impl {
   Image cone_image;
   int uploaded_pyramid_address = -1;  // the bake::Address of max_pyramid, -1 for none
   Buffer max_pyramid, dummy_pyramid;
+  Image dummy_distance;
+  std::map<int, DistanceMap> distance_maps;  // by address mode, baked for `field`
+  int uploaded_distance_key = -1;            // address mode of distance_image, -1 for none
+  Image distance_image;
 
   Buffer reference_vertices, reference_indices;
   std::uint32_t reference_index_count = 0;
@@ -152,6 +171,7 @@ struct Renderer::Impl {
                      std::size_t bytes);
   Buffer upload_storage_buffer(std::span<const std::byte> data);
   const std::vector<float>& cones(int sectors, bake::Address address, bool relaxed);
+  const DistanceMap& distance_map(bake::Address address);
   void ensure_targets(int width, int height);
   void ensure_reference_mesh(int tile);
   void bind_maps(const View& view, const MethodInfo& info);
@@ -159,7 +179,7 @@ struct Renderer::Impl {
 
 void Renderer::Impl::create_layouts() {
   const VkDevice device = context.device();
-  std::array<VkDescriptorSetLayoutBinding, 5> bindings{};
+  std::array<VkDescriptorSetLayoutBinding, 6> bindings{};
   bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[1] = {BINDING_HEIGHT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
@@ -168,6 +188,8 @@ void Renderer::Impl::create_layouts() {
   bindings[3] = {BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
                  nullptr};
   bindings[4] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[5] = {BINDING_DISTANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+                 nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = std::uint32_t(bindings.size());
   set_info.pBindings = bindings.data();
@@ -184,7 +206,7 @@ void Renderer::Impl::create_layouts() {
 
   const std::array<VkDescriptorPoolSize, 3> sizes = {
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 3},
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 4},
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = 1;
@@ -233,6 +255,8 @@ void Renderer::Impl::create_layouts() {
   dummy_albedo = upload_image(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
   std::array<std::byte, sizeof(gpu::MaxPyramidHeader) + sizeof(float)> no_pyramid{};  // 0 levels
   dummy_pyramid = upload_storage_buffer(no_pyramid);
+  const float zero = 0.0f;
+  dummy_distance = upload_image(VK_FORMAT_R32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_3D, &zero, sizeof zero);
 }
 
 void Renderer::Impl::create_render_pass() {
@@ -381,16 +405,18 @@ Image Renderer::Impl::upload_image(VkFormat format, int width, int height, int l
   Buffer staging(context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                  VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   std::memcpy(staging.mapped(), data, bytes);
+  const bool volume = view_type == VK_IMAGE_VIEW_TYPE_3D;  // `layers` is the depth
+  const std::uint32_t array_layers = volume ? 1 : std::uint32_t(layers);
   context.submit_and_wait([&](VkCommandBuffer commands) {
-    image_barrier(commands, image.handle(), std::uint32_t(layers), VK_IMAGE_LAYOUT_UNDEFINED,
+    image_barrier(commands, image.handle(), array_layers, VK_IMAGE_LAYOUT_UNDEFINED,
                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0, VK_ACCESS_TRANSFER_WRITE_BIT,
                   VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
     VkBufferImageCopy region{};
-    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, std::uint32_t(layers)};
-    region.imageExtent = {std::uint32_t(width), std::uint32_t(height), 1};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, array_layers};
+    region.imageExtent = {std::uint32_t(width), std::uint32_t(height), volume ? std::uint32_t(layers) : 1};
     vkCmdCopyBufferToImage(commands, staging.handle(), image.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
                            &region);
-    image_barrier(commands, image.handle(), std::uint32_t(layers), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+    image_barrier(commands, image.handle(), array_layers, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                   VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT,
                   VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
@@ -433,6 +459,22 @@ const std::vector<float>& Renderer::Impl::cones(int sectors, bake::Address addre
     bake::bake_budgeted(heights, address, bake::Budget{}, out);
   }
   return cone_ratios.emplace(key, std::move(ratios)).first->second;
+}
+
+const DistanceMap& Renderer::Impl::distance_map(bake::Address address) {
+  const int key = int(address);
+  if (const auto found = distance_maps.find(key); found != distance_maps.end()) return found->second;
+  VkPhysicalDeviceProperties properties;
+  vkGetPhysicalDeviceProperties(context.physical_device(), &properties);
+  const int side_limit = std::min(distance_max_side, int(properties.limits.maxImageDimension3D));
+  DistanceMap map;
+  map.width = std::min(field.width, side_limit);
+  map.height = std::min(field.height, side_limit);
+  map.depth = std::min(distance_slices, int(properties.limits.maxImageDimension3D));
+  map.values.resize(std::size_t(map.width) * map.height * map.depth);
+  bake::bake_distance_map({field.heights.data(), field.width, field.height}, address,
+                          {map.values.data(), map.width, map.height, map.depth});
+  return distance_maps.emplace(key, std::move(map)).first->second;
 }
 
 void Renderer::Impl::ensure_targets(int width, int height) {
@@ -533,6 +575,17 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
     }
     pyramid_buffer = max_pyramid.handle();
   }
+  VkImageView distance_view = dummy_distance.view();
+  if (info.family == MethodFamily::distance) {
+    if (uploaded_distance_key != int(view.address)) {
+      const DistanceMap& map = distance_map(view.address);
+      distance_image =
+          upload_image(VK_FORMAT_R32_SFLOAT, map.width, map.height, map.depth, VK_IMAGE_VIEW_TYPE_3D,
+                       map.values.data(), map.values.size() * sizeof(float));
+      uploaded_distance_key = int(view.address);
+    }
+    distance_view = distance_image.view();
+  }
   const VkDescriptorBufferInfo uniform_info{uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
   const VkDescriptorImageInfo height_info{wrap ? linear_wrap.get() : linear_clamp.get(), height_image.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
@@ -542,7 +595,9 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
                                           has_albedo ? albedo_image.view() : dummy_albedo.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
-  std::array<VkWriteDescriptorSet, 5> writes{};
+  const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
+                                            VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  std::array<VkWriteDescriptorSet, 6> writes{};
   for (auto& write : writes) {
     write = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     write.dstSet = descriptor_set;
@@ -563,6 +618,9 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   writes[3].dstBinding = BINDING_MAX_PYRAMID;
   writes[3].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   writes[3].pBufferInfo = &pyramid_info;
+  writes[5].dstBinding = BINDING_DISTANCE;
+  writes[5].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  writes[5].pImageInfo = &distance_info;
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
@@ -595,6 +653,9 @@ void Renderer::set_height_field(const HeightField& field) {
   impl.cone_image = Image{};
   impl.uploaded_pyramid_address = -1;
   impl.max_pyramid = Buffer{};
+  impl.distance_maps.clear();
+  impl.uploaded_distance_key = -1;
+  impl.distance_image = Image{};
   impl.reference_vertices = Buffer{};
   impl.reference_indices = Buffer{};
   impl.reference_tile = 0;

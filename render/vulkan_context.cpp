@@ -321,12 +321,13 @@ Buffer::~Buffer() {
 Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
              VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type)
     : device_(context.device()), format_(format), width_(width), height_(height), layers_(layers) {
+  const bool volume = view_type == VK_IMAGE_VIEW_TYPE_3D;  // `layers` is the depth of a 3D image
   VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  info.imageType = VK_IMAGE_TYPE_2D;
+  info.imageType = volume ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D;
   info.format = format;
-  info.extent = {width, height, 1};
+  info.extent = {width, height, volume ? layers : 1};
   info.mipLevels = 1;
-  info.arrayLayers = layers;
+  info.arrayLayers = volume ? 1 : layers;
   info.samples = VK_SAMPLE_COUNT_1_BIT;
   info.tiling = VK_IMAGE_TILING_OPTIMAL;
   info.usage = usage;
@@ -344,7 +345,7 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
   view.image = image_;
   view.viewType = view_type;
   view.format = format;
-  view.subresourceRange = {aspect, 0, 1, 0, layers};
+  view.subresourceRange = {aspect, 0, 1, 0, volume ? 1 : layers};
   DISPLACE_VK_CHECK(vkCreateImageView(device_, &view, nullptr, &view_));
 }
 

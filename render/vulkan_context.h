@@ -98,7 +98,8 @@ class Buffer {
   void* mapped_ = nullptr;
 };
 
-// A 2D (array) image with its memory and a view over all its layers.
+// A 2D (array) image with its memory and a view over all its layers; with VK_IMAGE_VIEW_TYPE_3D a 3D
+// image whose depth is `layers`.
 class Image {
  public:
   Image() = default;

@@ -653,6 +653,87 @@ TEST(Renderer, ShadowsFallWhereTheStepHeightPutsThem) {
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
+// Sphere tracing (render/shaders/sphere_trace.inc.glsl) never passes the first crossing of the ray
+// with the bilinear surface and never ends below the surface, at any step budget: its sphere steps
+// read a conservative distance map and its cell walk solves each cell exactly. Checked per pixel
+// against the exact CPU trace, with several tile counts K, depth scales D and both address modes
+// (the map is in texture units, so the ray's step is r / |descent| whatever K and D are). With
+// enough steps every hit lies on the surface and within half a texel of the CPU's hit.
+TEST(Renderer, SphereTracingNeverStepsPastTheSurface) {
+  constexpr double world_tolerance = 1e-5;  // world units: float rounding of the root and of the depth AOV
+  HeightField bricks{64, 64, std::vector<float>(64 * 64)};
+  displace::sim::brick_heights(64, 64, 1, bricks.heights);
+  const std::vector<std::pair<std::string, HeightField>> fields = {{"spikes", spike_field(32)},
+                                                                   {"bricks", std::move(bricks)}};
+  struct Case {
+    const char* name;
+    int tile;
+    float depth_scale;
+    bake::Address address;
+  };
+  const Case cases[] = {{"K1 D0.1 wrap", 1, 0.1f, bake::Address::wrap},
+                        {"K2 D0.3 wrap", 2, 0.3f, bake::Address::wrap},
+                        {"K3 D0.02 wrap", 3, 0.02f, bake::Address::wrap},
+                        {"K1 D0.5 clamp", 1, 0.5f, bake::Address::clamp}};
+  for (const auto& [field_name, field] : fields) {
+    shared_renderer().set_height_field(field);
+    for (const Case& c : cases) {
+      View view = oblique_view(48);
+      view.tile = c.tile;
+      view.depth_scale = c.depth_scale;
+      view.address = c.address;
+      std::vector<render::CpuHit> truth;
+      for (int py = 0; py < view.camera.height; ++py)
+        for (int px = 0; px < view.camera.width; ++px)
+          truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
+      const double tolerance = world_tolerance / view.depth_scale;  // in height units
+      for (int steps : {4, 16, 256}) {
+        const Frame frame = shared_renderer().render(view, {Method::sphere, steps, 0});
+        long long compared = 0, past = 0, below = 0, above = 0, mismatches = 0, over_half_texel = 0;
+        double worst_past = 0.0, worst_below = 0.0;
+        for (int py = 0; py < frame.height; ++py) {
+          for (int px = 0; px < frame.width; ++px) {
+            const std::size_t p = std::size_t(py) * frame.width + px;
+            const bool gpu_hit = frame.uv[p * 3 + 2] > 0.5f;
+            if (gpu_hit != truth[p].hit) ++mismatches;
+            if (!gpu_hit || !truth[p].hit) continue;
+            ++compared;
+            // the descent s = 1 - h of the GPU's hit, from its distance along the pixel's ray
+            const render::Ray ray = view.camera.pixel_ray(px + 0.5, py + 0.5);
+            const double h = 1.0 + (ray.origin.z + frame.depth[p] * ray.direction.z) / view.depth_scale;
+            const double gap =
+                h - render::bilinear_height(field, view.address, frame.uv[p * 3], frame.uv[p * 3 + 1]);
+            const double beyond = truth[p].texture.z - h;  // > 0: further down the ray than the first hit
+            if (beyond > tolerance) ++past;
+            if (gap < -tolerance) ++below;
+            if (gap > tolerance) ++above;
+            worst_past = std::max(worst_past, beyond);
+            worst_below = std::max(worst_below, -gap);
+            const double texels = std::hypot((frame.uv[p * 3] - truth[p].texture.x) * field.width,
+                                             (frame.uv[p * 3 + 1] - truth[p].texture.y) * field.height);
+            if (texels > 0.5) ++over_half_texel;
+          }
+        }
+        std::printf(
+            "%-6s %-13s %3d steps: %lld compared, past the first hit %lld (worst %.1e), below %lld (worst "
+            "%.1e), above %lld, over half a texel %lld, hit mismatches %lld\n",
+            field_name.c_str(), c.name, steps, compared, past, worst_past, below, worst_below, above,
+            over_half_texel, mismatches);
+        SCOPED_TRACE(field_name + " / " + c.name + " / " + std::to_string(steps) + " steps");
+        ASSERT_GT(compared, 500);
+        EXPECT_EQ(past, 0);
+        EXPECT_EQ(below, 0);
+        if (steps == 256) {
+          EXPECT_EQ(above, 0);
+          // a ray that grazes an edge may land on either side of it; allow 1% of pixels there
+          EXPECT_LE(over_half_texel + mismatches, compared / 100);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
 // An albedo image replaces the procedural grid: a red albedo on a flat map gives red times the
 // Lambert term plus the (white, small) highlight, and clearing it brings the grid back.
 TEST(Renderer, AlbedoImageShadesTheHit) {
@@ -764,3 +845,60 @@ TEST(Mesh, RejectsMeshesItCannotMap) {
   mesh.positions[1].x = 1.0f;
   EXPECT_NO_THROW(render::mesh_vertices(mesh));
 }
+
+namespace {
+
+// Sphere tracing against relief mapping on smooth fields: each method gets the cheapest setting of a
+// grid (steps, and refine for relief) that reaches the accuracy on every pixel, and sphere tracing
+// must need fewer reads per pixel than relief (a textureGather of one cell counts as one read, like
+// a bilinear read does).
+TEST(Renderer, SphereTracingNeedsFewerFetchesThanReliefOnSmoothFields) {
+  const double target_texels = 0.01;  // texels: worst hit error allowed, over pixels both hit
+  const int size = 32;
+  const std::vector<std::pair<std::string, HeightField>> fields = {{"ramp", ramp_field(size)},
+                                                                   {"waves", waves_field(size)}};
+  const View view = oblique_view(48);
+  for (const auto& [name, field] : fields) {
+    std::vector<render::CpuHit> truth;
+    for (int py = 0; py < view.camera.height; ++py)
+      for (int px = 0; px < view.camera.width; ++px)
+        truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
+    shared_renderer().set_height_field(field);
+    // mean reads per pixel hit of the cheapest setting that reaches the target, and that setting
+    auto cheapest = [&](Method method, std::initializer_list<int> refines) {
+      double best = 1e30;
+      int best_steps = 0, best_refine = 0;
+      for (int steps : {1, 2, 4, 8, 16, 32, 64}) {
+        for (int refine : refines) {
+          const Frame frame = shared_renderer().render(view, {method, steps, refine});
+          double fetches = 0.0, max_texels = 0.0;
+          long long hits = 0, mismatches = 0;
+          for (std::size_t p = 0; p < truth.size(); ++p) {
+            const bool gpu_hit = frame.uv[p * 3 + 2] > 0.5f;
+            if (gpu_hit != truth[p].hit) ++mismatches;
+            if (!gpu_hit || !truth[p].hit) continue;
+            max_texels =
+                std::max(max_texels, std::hypot((frame.uv[p * 3] - truth[p].texture.x) * field.width,
+                                                (frame.uv[p * 3 + 1] - truth[p].texture.y) * field.height));
+            fetches += frame.fetches[p];
+            ++hits;
+          }
+          if (hits == 0 || mismatches > 0 || max_texels > target_texels) continue;
+          if (fetches / double(hits) < best)
+            std::tie(best, best_steps, best_refine) = std::tuple(fetches / double(hits), steps, refine);
+        }
+      }
+      std::printf("%-6s %-7s %6.2f fetches per pixel at steps %2d, refine %2d\n", name.c_str(),
+                  render::method_info(method).name, best, best_steps, best_refine);
+      return best;
+    };
+    const double relief = cheapest(Method::relief, {0, 1, 2, 4, 6, 8, 12, 16});
+    const double sphere = cheapest(Method::sphere, {0});
+    ASSERT_LT(relief, 1e30) << name << ": relief never reached " << target_texels << " texels";
+    ASSERT_LT(sphere, 1e30) << name << ": sphere never reached " << target_texels << " texels";
+    EXPECT_LT(sphere, relief) << name;
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+}  // namespace

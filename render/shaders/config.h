@@ -20,6 +20,7 @@ using mat4 = glm::mat4;
 #define METHOD_POM 4
 #define METHOD_RELIEF 5
 #define METHOD_INTERVAL 6
+#define METHOD_SPHERE 7
 #define METHOD_CSM 8
 #define METHOD_ACM4 9
 #define METHOD_ACM8 10
@@ -33,6 +34,7 @@ using mat4 = glm::mat4;
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
 #define BINDING_CONES 2    // sampler2DArray, RGBA32F cone ratios (4 sectors per layer), nearest
+#define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
 #define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
 

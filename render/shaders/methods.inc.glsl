@@ -1,6 +1,6 @@
 // render/shaders/methods.inc.glsl - the per-pixel displacement methods, one family of functions
 // selected by the METHOD specialization constant. Included by surface.frag.glsl, which declares
-// `frame`, `height_map`, `cone_map` and the counters g_iterations, g_fetches.
+// `frame`, `height_map`, `cone_map`, `distance_map` and the counters g_iterations, g_fetches.
 //
 // Every method traces in texture space (u, v, h): the ray enters the relief on the top plane (h = 1)
 // and is written p(s) = origin + s * descent, where `descent` has z = -1, so s is the height the ray
@@ -131,8 +131,9 @@ ivec2 cell_at(vec3 origin, vec3 descent, float s) {
 }
 
 // An exact step through one cell: the crossing in it (exact = true), or the s where the ray leaves
-// it, with `cell` moved to the cell it enters (as in a grid walk, so rounding never stalls it).
-float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool exact) {
+// it, with `cell` moved to the cell it enters (as in a grid walk, so rounding never stalls it), and
+// the ray's height above the cell's patch there (exit_gap).
+float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool exact, out float exit_gap) {
   g_fetches += 1u;
   vec2 size = frame.map_size.xy;
   // the gather at the cell's middle returns its corners: w = (j, i), z = (j+1, i), x = (j, i+1), y = (j+1, i+1)
@@ -150,11 +151,17 @@ float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool e
   c.h = vec4(corners.w, corners.z, corners.x, corners.y);
   float root = cell_first_root(c, s, exit_s);
   exact = root >= 0.0;
+  exit_gap = cell_gap(c, exit_s);
   if (exact) return root;
   for (int axis = 0; axis < 2; ++axis) {
     if (exits[axis] <= exit_s) cell[axis] += dx[axis] > 0.0 ? 1 : -1;
   }
   return exit_s;
+}
+
+float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool exact) {
+  float exit_gap;
+  return cell_step(origin, descent, s, cell, exact, exit_gap);
 }
 
 ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
@@ -330,6 +337,7 @@ float parallax_slope(vec3 origin, vec3 descent, float dz, int iterations) {
 }
 
 #include "max_pyramid.inc.glsl"
+#include "sphere_trace.inc.glsl"
 
 struct Trace {
   vec3 p;  // texture-space point (u, v, h)
@@ -378,6 +386,8 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
     s = max_pyramid_trace(origin, descent, frame.counts.x, false);
   } else if (METHOD == METHOD_QDM) {
     s = max_pyramid_trace(origin, descent, frame.counts.x, true);
+  } else if (METHOD == METHOD_SPHERE) {
+    s = sphere_trace(origin, descent, frame.counts.x);
   } else if (METHOD == METHOD_PARALLAX_SLOPE) {
     s = parallax_slope(origin, descent, dz, frame.counts.x);
   }

@@ -1,0 +1,74 @@
+// render/shaders/sphere_trace.inc.glsl - sphere tracing through a 3D distance map (Donnelly,
+// "Per-Pixel Displacement Mapping with Distance Functions", GPU Gems 2 ch. 8), finished by an exact
+// walk through the bilinear cells. Included by methods.inc.glsl; surface.frag.glsl declares
+// `distance_map`.
+//
+// The one fact: the map (bake_distance_map) is a distance in texture space (u, v, h) with the
+// Euclidean metric, one unit of h = one unit of uv = one texture tile, and the rays are traced in
+// exactly that space: p(s) = origin + s * descent with descent = (du, dv, -1), u and v in texture
+// units over [0, K] and h in [0, 1] (the tangent frame dP/du = 1 / K, dP/dh = D N already put the
+// tile count K and the depth scale D into descent.xy). So a sampled distance r lets the ray advance
+// by r / |descent| in s, for every K and D; the sampler's repeat addressing maps u in [0, K] onto the
+// tile the map was baked for.
+//
+// The map is conservative for trilinear filtering, so sphere steps never cross the surface; near it
+// the stored distance drops to zero (within about a voxel above the surface and a map cell beside
+// it), where sphere steps stall. Where a sphere step covers less of the ray than crossing one cell of
+// the height map would, the trace walks the cells the ray crosses instead with the exact cell steps
+// of methods.inc.glsl (one textureGather per cell; bilinear_cell.inc.glsl solves the cell). The walk
+// hands back to sphere steps where the ray has risen high enough above the surface for a long sphere
+// step. Every sphere step and every cell is one iteration; `steps` bounds them together, and a ray
+// that runs out of them ends at its last point above the surface. --refine is not used: the cell
+// walk's root is exact.
+
+// tuning constants of sphere tracing
+const float sphere_walk_cells = 1.0;    // cells: walk when a sphere step covers less s than this many cell crossings
+const float sphere_resume_cells = 4.0;  // cells: sphere steps resume when one may cover this many cell crossings
+const float sphere_stall_slices = 2.0;  // voxels along h: where the map may read 0 above the surface
+const float sphere_edge_nudge = 1e-3;   // texels: a ray on a cell edge starts its walk in the cell it enters
+
+float fetch_distance(vec3 p) {
+  g_fetches += 1u;
+  return textureLod(distance_map, p, 0.0).r;
+}
+
+float sphere_trace(vec3 origin, vec3 descent, int steps) {
+  float ray_length = length(descent);  // texture-space length per unit s
+  vec2 a = descent.xy * frame.map_size.xy;
+  // s the ray needs to cross one cell along its faster axis (huge for a vertical ray)
+  float cell_s = 1.0 / max(max(abs(a.x), abs(a.y)), min_denominator);
+  float stall_band = sphere_stall_slices / float(textureSize(distance_map, 0).z);
+  vec2 toward = sign(a);
+  float s = 0.0;
+  bool walking = false, resumed = false;
+  float resume_cells = sphere_resume_cells;
+  ivec2 cell = ivec2(0);
+  for (int i = 0; i < steps; ++i) {
+    g_iterations += 1u;
+    if (!walking) {
+      vec3 p = origin + s * descent;
+      float step = fetch_distance(p) / ray_length;
+      if (step >= sphere_walk_cells * cell_s) {
+        resumed = false;
+        s = min(s + step, 1.0);
+        continue;
+      }
+      if (resumed) resume_cells *= 2.0;  // the gap promised a long step and the map did not give it
+      walking = true;
+      resumed = false;
+      // the cell the ray is in, or enters when it is on an edge
+      cell = ivec2(floor(p.xy * frame.map_size.xy - 0.5 + sphere_edge_nudge * toward));
+    }
+    bool exact;
+    float exit_gap;
+    s = cell_step(origin, descent, s, cell, exact, exit_gap);
+    if (exact) return s;
+    if (s >= 1.0) return 1.0;  // at h = 0 the ray is on or under the surface
+    // far enough above the surface (the gap there bounds the distance) for a long sphere step again
+    if ((exit_gap - stall_band) / ray_length >= resume_cells * cell_s) {
+      walking = false;
+      resumed = true;
+    }
+  }
+  return s;
+}
