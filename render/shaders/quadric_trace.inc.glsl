@@ -110,24 +110,27 @@ float least_distance(vec3 o, vec3 d, float t0, float t1) {
   return length(o + t * d);
 }
 
-// The largest |d(u, v)/dt| over [t0, t1], texture units per world unit: du/dt = K / (2 pi) times the
-// horizontal speed across the meridian over rho; dv/dt = K / pi times the speed across the parallel
-// over r (sphere), K z' / (2 R) (cylinder), K cos s' / R with |s'| <= sin |rho'| + cos |z'| (cone).
+// The largest |d(u, v)/dt| over [t0, t1], texture units per world unit. du/dt = K / (2 pi) a / rho
+// with a = d . e_phi the speed across the meridian (|a| <= |d_xy|, horizontal); dv/dt is K / pi
+// b / r with b = d . e_theta, a^2 + b^2 <= 1 (sphere), K z' / (2 R) (cylinder), and -K cos s' / R
+// with |s'| <= sin |rho'| + cos |z'| (cone). rho and r are bounded below by their least values over
+// the step.
 float quadric_uv_speed(QuadricRay ray, float t0, float t1) {
   float tile = frame.surface.x, radius = frame.quadric.x;
   vec3 o = ray.origin, d = ray.direction;
-  float horizontal = length(d.xy);
+  float horizontal_squared = dot(d.xy, d.xy);
   float rho = max(least_distance(vec3(o.xy, 0.0), vec3(d.xy, 0.0), t0, t1), quadric_min_distance * radius);
-  float u_speed = tile * horizontal / (quadric_two_pi * rho);
-  float v_speed;
+  float u_rate = tile / (quadric_two_pi * rho);  // du/dt per unit of speed across the meridian
   if (SURFACE == SURFACE_SPHERE) {
-    v_speed = tile / (quadric_pi * max(least_distance(o, d, t0, t1), quadric_min_distance * radius));
-  } else if (SURFACE == SURFACE_CYLINDER) {
-    v_speed = tile * abs(d.z) / (2.0 * radius);
-  } else {
-    v_speed = tile * cone_cos * (cone_sin * horizontal + cone_cos * abs(d.z)) / radius;
+    // the larger rate takes all the speed it may have, the other the rest
+    float v_rate = tile / (quadric_pi * max(least_distance(o, d, t0, t1), quadric_min_distance * radius));
+    float most = min(horizontal_squared, 1.0);
+    return u_rate > v_rate ? sqrt(u_rate * u_rate * most + v_rate * v_rate * (1.0 - most)) : v_rate;
   }
-  return sqrt(u_speed * u_speed + v_speed * v_speed);
+  float v_speed = SURFACE == SURFACE_CYLINDER
+                      ? tile * abs(d.z) / (2.0 * radius)
+                      : tile * cone_cos * (cone_sin * sqrt(horizontal_squared) + cone_cos * abs(d.z)) / radius;
+  return sqrt(u_rate * u_rate * horizontal_squared + v_speed * v_speed);
 }
 
 // d(u, v)/dt at t.
@@ -200,14 +203,14 @@ float quadric_cone_step(float ratio, float apex_gap, float slack, float descent,
   return max((ratio * apex_gap - slack) / max(ratio * descent + speed, min_denominator), 0.0);
 }
 
-// The smallest world size of a texel on the quadric (at its inner surface, away from the poles):
-// where cones stall, the linear fallback steps a quarter of it.
-float quadric_texel_world() {
-  float tile = frame.surface.x, depth = frame.surface.y, radius = frame.quadric.x;
-  vec2 texel = frame.map_size.zw;
-  if (SURFACE == SURFACE_SPHERE) return (radius - depth) * min(quadric_two_pi * texel.x, quadric_pi * texel.y) / tile;
-  if (SURFACE == SURFACE_CYLINDER) return min(quadric_two_pi * (radius - depth) * texel.x, 2.0 * radius * texel.y) / tile;
-  return min(quadric_two_pi * (0.5 * radius - cone_cos * depth) * texel.x, radius / cone_cos * texel.y) / tile;
+// Where cones stall, the linear fallback step moves (u, v) by a quarter texel, as on the plane: its
+// world length at the worst (u, v) speed over it, computed like the cone step (never below
+// quadric_min_distance R, so that the march advances on the axis).
+float quadric_fallback_step(QuadricRay ray, float t, float speed) {
+  float travel = fallback_step_texels * min(frame.map_size.z, frame.map_size.w);
+  float step = travel / speed;
+  step = travel / quadric_uv_speed(ray, t, min(t + step, ray.t_end));
+  return max(step, quadric_min_distance * frame.quadric.x);
 }
 
 // Cone stepping along the curve: the plane's safe bilinear step (methods.inc.glsl, cone_march) with
@@ -215,7 +218,6 @@ float quadric_texel_world() {
 ConeMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
   vec2 texel = frame.map_size.zw;
   float half_diagonal = 0.5 * length(texel);
-  float fallback = fallback_step_texels * quadric_texel_world();
   ConeMarch m = ConeMarch(ray.t_in, 0.0, false, ray.t_in, 0.0);
   for (int i = 0; i < steps; ++i) {
     vec3 p = quadric_point(ray, m.s);
@@ -269,7 +271,7 @@ ConeMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
     }
     m.s_above = m.s;
     m.gap_above = m.gap;
-    m.s = min(m.s + max(step, fallback), ray.t_end);
+    m.s = min(m.s + max(step, quadric_fallback_step(ray, m.s, speed)), ray.t_end);
     m.gap_known = false;
   }
   return m;
