@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <string>
 
@@ -39,8 +40,9 @@ void validate(const View& view) {
   const glm::dvec3 eye(view.camera.eye);
   const bool in_box = glm::all(glm::greaterThanEqual(eye, lo)) && glm::all(glm::lessThanEqual(eye, hi));
   if (in_box && texture_point(shape, eye - anchor(shape)).z <= 1.0) {
-    throw RenderError(std::string("--eye must be outside the ") + name + " (its outer surface, radius " +
-                      std::to_string(view.radius) + ")");
+    char radius[32];
+    std::snprintf(radius, sizeof radius, "%g", double(view.radius));
+    throw RenderError(std::string("--eye must be outside the ") + name + " (its outer surface, radius " + radius + ")");
   }
 }
 
