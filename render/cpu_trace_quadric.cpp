@@ -14,7 +14,7 @@ namespace displace::render {
 namespace {
 
 constexpr double texels_per_step = 1.0 / 32.0;  // largest (u, v) travel of one march step, in texels
-constexpr double min_step = 1e-7;          // world units: the march always advances
+constexpr double min_step = 1e-7;               // world units: the march always advances
 constexpr int max_march_steps = 8 << 20;
 constexpr int bisection_steps = 60;
 
@@ -35,7 +35,8 @@ double quadric_height(const HeightField& field, bake::Address address, double u,
   const double fx = x - x0, fy = y - y0;
   const long long j = (long long)x0, i = (long long)y0;
   const double top = texel_at(field, address, i, j) * (1 - fx) + texel_at(field, address, i, j + 1) * fx;
-  const double bottom = texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
+  const double bottom =
+      texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
   return top * (1 - fy) + bottom * fy;
 }
 
@@ -62,7 +63,8 @@ double uv_speed(const quadric::Shape& shape, const glm::dvec3& o, const glm::dve
   } else if (shape.surface == Surface::cylinder) {
     v_speed = shape.tile * std::abs(d.z) / (2.0 * shape.radius);
   } else {
-    v_speed = shape.tile * (horizontal + std::abs(d.z)) / shape.radius;  // |dv/dt| <= K cos (sin |rho'| + cos |z'|) / R
+    v_speed = shape.tile * (horizontal + std::abs(d.z)) /
+              shape.radius;  // |dv/dt| <= K cos (sin |rho'| + cos |z'|) / R
   }
   return std::hypot(u_speed, v_speed);
 }

@@ -15,8 +15,8 @@
 namespace displace::render::quadric {
 namespace {
 
-constexpr double min_radius = 0.01;  // world units
-constexpr double max_radius = 10.0;  // world units
+constexpr double min_radius = 0.01;         // world units
+constexpr double max_radius = 10.0;         // world units
 constexpr double max_depth_fraction = 0.5;  // D / R: the inner surface keeps half the radius
 const double cone_sin = 1.0 / std::sqrt(1.0 + 1.0 / (CONE_SLOPE * CONE_SLOPE));
 const double cone_cos = cone_sin / CONE_SLOPE;
@@ -42,12 +42,14 @@ void validate(const View& view) {
   if (in_box && texture_point(shape, eye - anchor(shape)).z <= 1.0) {
     char radius[32];
     std::snprintf(radius, sizeof radius, "%g", double(view.radius));
-    throw RenderError(std::string("--eye must be outside the ") + name + " (its outer surface, radius " + radius + ")");
+    throw RenderError(std::string("--eye must be outside the ") + name + " (its outer surface, radius " +
+                      radius + ")");
   }
 }
 
 glm::dvec3 anchor(const Shape& shape) {
-  return {QUADRIC_AXIS_X, QUADRIC_AXIS_Y, shape.surface == Surface::cone ? CONE_APEX_HEIGHT * shape.radius : 0.0};
+  return {QUADRIC_AXIS_X, QUADRIC_AXIS_Y,
+          shape.surface == Surface::cone ? CONE_APEX_HEIGHT * shape.radius : 0.0};
 }
 
 void relief_box(const Shape& shape, glm::dvec3& lo, glm::dvec3& hi) {
@@ -74,14 +76,16 @@ glm::dvec3 texture_point(const Shape& shape, const glm::dvec3& q) {
       const double polar = (rho > 0.0 || q.z != 0.0) ? std::atan2(rho, -q.z) : 0.0;
       return {u, tile * polar / std::numbers::pi, (glm::length(q) - r) / depth + 1.0};
     }
-    case Surface::cylinder: return {u, tile * (q.z + r) / (2.0 * r), (rho - r) / depth + 1.0};
+    case Surface::cylinder:
+      return {u, tile * (q.z + r) / (2.0 * r), (rho - r) / depth + 1.0};
     case Surface::cone: {
       const double below_apex = -q.z;
       const double slant = cone_sin * rho + cone_cos * below_apex;
       const double distance = cone_cos * rho - cone_sin * below_apex;
       return {u, tile * (2.0 * r - cone_cos * slant) / r, distance / depth + 1.0};
     }
-    case Surface::plane: break;
+    case Surface::plane:
+      break;
   }
   throw std::logic_error("quadric::texture_point on the plane");
 }
@@ -95,13 +99,15 @@ glm::dvec3 surface_point(const Shape& shape, double u, double v, double h) {
       const double polar = std::numbers::pi * v / tile;
       return anchor(shape) + (r - inset) * glm::dvec3(std::sin(polar) * radial, -std::cos(polar));
     }
-    case Surface::cylinder: return anchor(shape) + glm::dvec3((r - inset) * radial, 2.0 * r * v / tile - r);
+    case Surface::cylinder:
+      return anchor(shape) + glm::dvec3((r - inset) * radial, 2.0 * r * v / tile - r);
     case Surface::cone: {
       const double slant = (2.0 * r - r * v / tile) / cone_cos;
       return anchor(shape) + slant * glm::dvec3(cone_sin * radial, -cone_cos) -
              inset * glm::dvec3(cone_cos * radial, cone_sin);
     }
-    case Surface::plane: break;
+    case Surface::plane:
+      break;
   }
   throw std::logic_error("quadric::surface_point on the plane");
 }

@@ -2,6 +2,8 @@
 // the validation layer on: silhouettes and hits of constant-height spheres against the analytic
 // sphere, every quadric method against the exact CPU trace, no NaN and no holes on rays through the
 // poles, along the axes and through the apex region, and clear errors for what is not supported.
+#include "render/quadric.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,7 +14,6 @@
 #include <string>
 #include <vector>
 
-#include "render/quadric.h"
 #include "render/render.h"
 
 namespace {
@@ -49,7 +50,9 @@ HeightField spike_field(int size) {
   return field_of(size, size, [&](int i, int j) { return (i % 8 == 3 && j % 8 == 5) ? 1.0 : 0.1; });
 }
 HeightField ramp_u_field(int size) {  // a cliff at the seam u = 0 = 1 when u wraps
-  return field_of(size, size, [&](int i, int j) { return 0.1 + 0.8 * (j + 0.5) / size * (0.5 + 0.5 * (i + 0.5) / size); });
+  return field_of(size, size, [&](int i, int j) {
+    return 0.1 + 0.8 * (j + 0.5) / size * (0.5 + 0.5 * (i + 0.5) / size);
+  });
 }
 
 const std::vector<Method>& quadric_methods() {
@@ -102,9 +105,11 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
   const glm::dvec3 centre(0.5, 0.5, 0.0);
   const int map_size = 64;
   View view = looking_at(Surface::sphere, {0.5f, -0.45f, 0.55f}, {0.5f, 0.5f, 0.0f}, 128, 30.0f);
-  const double pixel_angle = 2.0 * std::tan(glm::radians(double(view.camera.fov_y_degrees)) / 2.0) / view.camera.height;
-  const std::vector<Method> methods = {Method::reference, Method::relief, Method::interval, Method::csm,
-                                       Method::acm4, Method::pom, Method::acm8, Method::acm4_interval};
+  const double pixel_angle =
+      2.0 * std::tan(glm::radians(double(view.camera.fov_y_degrees)) / 2.0) / view.camera.height;
+  const std::vector<Method> methods = {Method::reference, Method::relief,       Method::interval,
+                                       Method::csm,       Method::acm4,         Method::pom,
+                                       Method::acm8,      Method::acm4_interval};
   for (double c : {0.0, 0.45, 1.0}) {
     const double radius = view.radius - (1.0 - c) * view.depth_scale;
     quadric_renderer().set_height_field(constant_field(map_size, c));
@@ -144,8 +149,9 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
         }
       }
       const char* name = render::method_info(method).name;
-      std::printf("c %.2f %-13s %lld hits, %lld mask errors, %lld off the sphere (worst %.2e), %lld undecided\n", c,
-                  name, hits, mask_errors, depth_errors, worst_radial, undecided);
+      std::printf(
+          "c %.2f %-13s %lld hits, %lld mask errors, %lld off the sphere (worst %.2e), %lld undecided\n", c,
+          name, hits, mask_errors, depth_errors, worst_radial, undecided);
       EXPECT_GT(hits, 1500) << name;
       EXPECT_EQ(mask_errors, 0) << "c " << c << " / " << name;
       EXPECT_EQ(depth_errors, 0) << "c " << c << " / " << name << ": worst radial error " << worst_radial;
@@ -170,7 +176,8 @@ HitError hit_error(const Frame& frame, const HeightField& field, const View& vie
     }
     if (!gpu_hit) continue;
     const double tile = view.tile;
-    const double du = std::remainder(frame.uv[p * 3 + 0] - truth[p].texture.x, tile) * field.width;  // u wraps
+    const double du =
+        std::remainder(frame.uv[p * 3 + 0] - truth[p].texture.x, tile) * field.width;  // u wraps
     const double dv = (frame.uv[p * 3 + 1] - truth[p].texture.y) * field.height;
     const double texels = std::hypot(du, dv);
     error.max_texels = std::max(error.max_texels, texels);
@@ -183,7 +190,8 @@ HitError hit_error(const Frame& frame, const HeightField& field, const View& vie
 std::vector<render::CpuHit> exact_hits(const HeightField& field, const View& view) {
   std::vector<render::CpuHit> truth;
   for (int py = 0; py < view.camera.height; ++py)
-    for (int px = 0; px < view.camera.width; ++px) truth.push_back(render::cpu_trace_quadric(field, view, px + 0.5, py + 0.5));
+    for (int px = 0; px < view.camera.width; ++px)
+      truth.push_back(render::cpu_trace_quadric(field, view, px + 0.5, py + 0.5));
   return truth;
 }
 
@@ -213,18 +221,22 @@ TEST(Quadric, MethodsHitWithinHalfATexelOfTheExactTrace) {
     view.tile = test.tile;
     view.address = test.address;
     const std::vector<render::CpuHit> truth = exact_hits(test.field, view);
-    const long long truth_hits = std::count_if(truth.begin(), truth.end(), [](const render::CpuHit& h) { return h.hit; });
+    const long long truth_hits =
+        std::count_if(truth.begin(), truth.end(), [](const render::CpuHit& h) { return h.hit; });
     for (Method method : quadric_methods()) {
-      if (method == Method::bump) continue;  // no displacement
+      if (method == Method::bump) continue;       // no displacement
       if (method == Method::reference) continue;  // the tessellated surface: tested on its own below
       const Frame frame = render_frame(test.field, view, method, 256, 16);
       const HitError error = hit_error(frame, test.field, view, truth);
       const char* name = render::method_info(method).name;
-      std::printf("%-24s %-13s max %.3f texels, %lld over half a texel, %lld hit mismatches, of %lld (exact hits %lld)\n",
-                  test.name.c_str(), name, error.max_texels, error.over_half_texel, error.hit_mismatch,
-                  error.compared, truth_hits);
+      std::printf(
+          "%-24s %-13s max %.3f texels, %lld over half a texel, %lld hit mismatches, of %lld (exact hits "
+          "%lld)\n",
+          test.name.c_str(), name, error.max_texels, error.over_half_texel, error.hit_mismatch,
+          error.compared, truth_hits);
       EXPECT_GT(error.compared, 600) << test.name << " / " << name;
-      EXPECT_LE(error.over_half_texel + error.hit_mismatch, error.compared / 100) << test.name << " / " << name;
+      EXPECT_LE(error.over_half_texel + error.hit_mismatch, error.compared / 100)
+          << test.name << " / " << name;
     }
   }
   EXPECT_EQ(quadric_renderer().validation_messages(), 0);
@@ -241,7 +253,9 @@ std::vector<Triangle> reference_mesh(const HeightField& field, const View& view)
   const render::quadric::Shape shape = render::quadric::shape_of(view);
   const int tile = view.tile;
   const long long columns = (long long)field.width * tile + 2, rows = (long long)field.height * tile + 2;
-  auto coordinate = [&](long long index, int size) { return std::clamp((double(index) - 0.5) / size, 0.0, double(tile)); };
+  auto coordinate = [&](long long index, int size) {
+    return std::clamp((double(index) - 0.5) / size, 0.0, double(tile));
+  };
   std::vector<glm::dvec3> vertices;
   for (long long i = 0; i < rows; ++i) {
     for (long long j = 0; j < columns; ++j) {
@@ -288,7 +302,8 @@ TEST(Quadric, ReferenceIsTheTessellatedSurface) {
   const int size = 16;
   for (Surface surface : {Surface::sphere, Surface::cylinder, Surface::cone}) {
     // oblique, and steeply from above (through the sphere's pole; the cylinder from beside its axis)
-    const glm::vec3 above = surface == Surface::cylinder ? glm::vec3(1.2f, 0.5f, 1.0f) : glm::vec3(0.5f, 0.5f, 1.2f);
+    const glm::vec3 above =
+        surface == Surface::cylinder ? glm::vec3(1.2f, 0.5f, 1.0f) : glm::vec3(0.5f, 0.5f, 1.2f);
     for (const glm::vec3 eye : {glm::vec3(0.5f, -0.4f, 0.45f), above}) {
       const View view = looking_at(surface, eye, {0.5f, 0.5f, 0.0f}, 40, 36.0f);
       const HeightField field = waves_field(size);
@@ -304,7 +319,8 @@ TEST(Quadric, ReferenceIsTheTessellatedSurface) {
           // seen through the outer surface's finite part only
           const glm::dvec3 o = ray.origin - quadric::anchor(shape);
           const quadric::Interval outer = quadric::body_interval(shape, o, ray.direction, 0.0);
-          if (outer.empty() || outer.enter < 0.0 || !quadric::range_kept(shape, o, ray.direction, outer.enter, outer.enter)) {
+          if (outer.empty() || outer.enter < 0.0 ||
+              !quadric::range_kept(shape, o, ray.direction, outer.enter, outer.enter)) {
             distance = -1.0;
           }
           if ((distance > 0.0) != hit_at(frame, p)) {
@@ -362,8 +378,10 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
       {"sphere equator", looking_at(Surface::sphere, {0.5f, -0.8f, 0.0f}, {0.5f, 0.5f, 0.0f}, 33, 30.0f)},
       {"sphere pole grazing", looking_at(Surface::sphere, {0.5f, -0.8f, r}, {0.5f, 0.5f, r}, 33, 12.0f)},
       {"cylinder side", looking_at(Surface::cylinder, {0.5f, -0.8f, 0.0f}, {0.5f, 0.5f, 0.0f}, 33, 30.0f)},
-      {"cylinder near axis", looking_at(Surface::cylinder, {0.5f + 1.1f * r, 0.5f, 0.6f}, {0.5f + r, 0.5f, 0.0f}, 49, 6.0f)},
-      {"cylinder parallel", looking_at(Surface::cylinder, {0.5f + 1.1f * r, 0.5f, 0.3f}, {0.5f + 1.1f * r, 0.5f, -1.0f}, 33, 30.0f)},
+      {"cylinder near axis",
+       looking_at(Surface::cylinder, {0.5f + 1.1f * r, 0.5f, 0.6f}, {0.5f + r, 0.5f, 0.0f}, 49, 6.0f)},
+      {"cylinder parallel", looking_at(Surface::cylinder, {0.5f + 1.1f * r, 0.5f, 0.3f},
+                                       {0.5f + 1.1f * r, 0.5f, -1.0f}, 33, 30.0f)},
       {"cone apex from above", looking_at(Surface::cone, {0.5f, 0.5f, 1.2f}, {0.5f, 0.5f, 0.0f}, 33, 24.0f)},
       {"cone apex level", looking_at(Surface::cone, {0.5f, -0.5f, 1.5f * r}, {0.5f, 0.5f, 0.2f}, 33, 40.0f)},
       {"cone along generator", looking_at(Surface::cone, {0.5f, 0.5f - 1.2f * r, 1.5f * r + 2.4f * r},
@@ -372,7 +390,8 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
       {"cone side", looking_at(Surface::cone, {0.5f, -0.8f, 0.0f}, {0.5f, 0.5f, 0.0f}, 33, 20.0f)},
   };
   const HeightField zero = constant_field(16, 0.0), one = constant_field(16, 1.0);
-  const std::vector<std::pair<std::string, HeightField>> fields = {{"all-zero", zero}, {"all-one", one}, {"waves", waves_field(16)}};
+  const std::vector<std::pair<std::string, HeightField>> fields = {
+      {"all-zero", zero}, {"all-one", one}, {"waves", waves_field(16)}};
   for (const auto& [view_name, view] : views) {
     const std::vector<std::size_t> inner = interior_hits(zero, view), outer = interior_hits(one, view);
     for (const auto& [field_name, field] : fields) {
@@ -402,7 +421,8 @@ TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
       quadric_renderer().render(sphere, {info.method, 8, 4});
       ADD_FAILURE() << info.name << " rendered a sphere";
     } catch (const render::RenderError& error) {
-      EXPECT_NE(std::string(error.what()).find("does not support --surface sphere"), std::string::npos) << error.what();
+      EXPECT_NE(std::string(error.what()).find("does not support --surface sphere"), std::string::npos)
+          << error.what();
     }
   }
   View view = sphere;
@@ -414,7 +434,8 @@ TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
   view = sphere;
   view.camera.eye = {0.5f, 0.5f, 0.2f};  // inside the sphere
   EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
-  view = looking_at(Surface::cylinder, {0.5f, 0.6f, 0.1f}, {0.5f, 0.5f, -1.0f}, 8, 30.0f);  // inside the cylinder
+  view = looking_at(Surface::cylinder, {0.5f, 0.6f, 0.1f}, {0.5f, 0.5f, -1.0f}, 8,
+                    30.0f);  // inside the cylinder
   EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
   EXPECT_EQ(quadric_renderer().validation_messages(), 0);
 }

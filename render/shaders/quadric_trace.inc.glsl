@@ -2,9 +2,9 @@
 // Hoggar & Logie, "Inverse Displacement Mapping" (1991): intersect the view ray analytically with the
 // outer and the inner bounding surface, then trace between them in parameter space, where the ray
 // is a curve (u(t), v(t), h(t)) of the world distance t (quadric.inc.glsl maps points to it).
-// Included by surface.frag.glsl after methods.inc.glsl and shading.inc.glsl, whose fetches,
-// brackets, cone reads and shading it shares; quadric_fragment() is the fragment shader's main for
-// quadrics.
+// Included by surface.frag.glsl after methods.inc.glsl and shading.inc.glsl; it shares their
+// counted fetch_height, cone_sector, crossing_fraction, tuning constants and shade(), and keeps its
+// own march and bracket types. quadric_fragment() is the fragment shader's main for quadrics.
 //
 // What differs from the plane:
 // - The search interval. The ray enters the outer surface at t_in and is in the relief shell until it
@@ -38,10 +38,26 @@ struct QuadricRay {
   bool certain;    // t_end is on the inner surface, so the ray meets the relief by then
 };
 
+// A bracket along t: the last point above the surface and the first at or below it, with the
+// ray-minus-surface height differences there.
+struct QuadricBracket {
+  float t_above, t_below;
+  float gap_above, gap_below;
+};
+
+// Where a cone march stopped (t), the gap there when it was read (gap_known), and the point read
+// above the surface before it (t_above, gap_above).
+struct QuadricMarch {
+  float t, gap;
+  bool gap_known;
+  float t_above, gap_above;
+};
+
 // numerical guards
 const float quadric_near_axis = 1e-4;  // fraction of R: a step this close to the axis reads no sector
 const float quadric_min_distance = 1e-6;  // fraction of R: least distance used in the speed bound
 const float sector_min_margin = 1e-4;  // radians: a smaller margin to the sector's edges reads no sector
+const float quadric_fallback_texels = 0.25;  // (u, v) travel of a linear step where cones stall, texels
 
 vec3 quadric_point(QuadricRay ray, float t) { return quadric_texture_point(ray.origin + t * ray.direction); }
 
@@ -207,29 +223,29 @@ float quadric_cone_step(float ratio, float apex_gap, float slack, float descent,
 // world length at the worst (u, v) speed over it, computed like the cone step (never below
 // quadric_min_distance R, so that the march advances on the axis).
 float quadric_fallback_step(QuadricRay ray, float t, float speed) {
-  float travel = fallback_step_texels * min(frame.map_size.z, frame.map_size.w);
+  float travel = quadric_fallback_texels * min(frame.map_size.z, frame.map_size.w);
   float step = travel / speed;
   step = travel / quadric_uv_speed(ray, t, min(t + step, ray.t_end));
   return max(step, quadric_min_distance * frame.quadric.x);
 }
 
 // Cone stepping along the curve: the plane's safe bilinear step (methods.inc.glsl, cone_march) with
-// the descent rate and the (u, v) speed of the quadric. On return `s` is a world distance t.
-ConeMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
+// the descent rate and the (u, v) speed of the quadric.
+QuadricMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
   vec2 texel = frame.map_size.zw;
   float half_diagonal = 0.5 * length(texel);
-  ConeMarch m = ConeMarch(ray.t_in, 0.0, false, ray.t_in, 0.0);
+  QuadricMarch m = QuadricMarch(ray.t_in, 0.0, false, ray.t_in, 0.0);
   for (int i = 0; i < steps; ++i) {
-    vec3 p = quadric_point(ray, m.s);
+    vec3 p = quadric_point(ray, m.t);
     m.gap = p.z - fetch_height(p.xy);
     m.gap_known = true;
-    if (m.gap <= cone_gap_epsilon || m.s >= ray.t_end) break;
+    if (m.gap <= cone_gap_epsilon || m.t >= ray.t_end) break;
     g_iterations += 1u;
     // the texel whose cone applies: the nearest centre c, its height, and p's offset from it
     vec2 centre = (floor(p.xy * frame.map_size.xy) + 0.5) * texel;
     float apex_gap = p.z - fetch_height(centre);
     float slack = length(p.xy - centre) + half_diagonal;
-    int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.s), sectors) : 0;
+    int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.t), sectors) : 0;
     float ratio = 1.0, smallest = 1.0;
     g_fetches += 1u;
     vec4 first = textureLod(cone_map, vec3(p.xy, 0.0), 0.0);
@@ -248,30 +264,30 @@ ConeMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
       }
     }
     // isotropic: every direction; the speed at the start, then the worst over that step
-    float descent = quadric_descent_rate(ray, m.s);
-    float speed = quadric_uv_speed(ray, m.s, m.s);
+    float descent = quadric_descent_rate(ray, m.t);
+    float speed = quadric_uv_speed(ray, m.t, m.t);
     float step = quadric_cone_step(smallest, apex_gap, slack, descent, speed);
-    float worst = quadric_uv_speed(ray, m.s, min(m.s + step, ray.t_end));
+    float worst = quadric_uv_speed(ray, m.t, min(m.t + step, ray.t_end));
     if (worst > speed) step = quadric_cone_step(smallest, apex_gap, slack, descent, worst);
     // the sector's ratio beyond near_radius of the start, where the texels that bound the surface lie
     // inside the sector; within it, the isotropic bound (the ray loses at most descent * step of height)
     if (sectors > 1 && ratio > smallest) {
-      float end = min(m.s + quadric_cone_step(ratio, apex_gap, slack, descent, speed), ray.t_end);
-      vec3 q = ray.origin + m.s * ray.direction;
-      bool near_axis = least_distance(vec3(q.xy, 0.0), vec3(ray.direction.xy, 0.0), 0.0, end - m.s) <
+      float end = min(m.t + quadric_cone_step(ratio, apex_gap, slack, descent, speed), ray.t_end);
+      vec3 q = ray.origin + m.t * ray.direction;
+      bool near_axis = least_distance(vec3(q.xy, 0.0), vec3(ray.direction.xy, 0.0), 0.0, end - m.t) <
                        quadric_near_axis * frame.quadric.x;
-      float margin = near_axis ? -1.0 : quadric_sector_margin(ray, m.s, end, sector, sectors);
-      if (end > m.s + step && margin > sector_min_margin) {
+      float margin = near_axis ? -1.0 : quadric_sector_margin(ray, m.t, end, sector, sectors);
+      if (end > m.t + step && margin > sector_min_margin) {
         float near_radius = 3.0 * half_diagonal / sin(min(margin, 1.5707963));
         float near_clearance = apex_gap - (near_radius + slack) / smallest;
         float near_step = near_clearance <= 0.0 ? 0.0 : (descent > 0.0 ? near_clearance / descent : quadric_far);
-        float far_step = quadric_cone_step(ratio, apex_gap, slack, descent, quadric_uv_speed(ray, m.s, end));
-        step = max(step, min(min(far_step, near_step), end - m.s));
+        float far_step = quadric_cone_step(ratio, apex_gap, slack, descent, quadric_uv_speed(ray, m.t, end));
+        step = max(step, min(min(far_step, near_step), end - m.t));
       }
     }
-    m.s_above = m.s;
+    m.t_above = m.t;
     m.gap_above = m.gap;
-    m.s = min(m.s + max(step, quadric_fallback_step(ray, m.s, speed)), ray.t_end);
+    m.t = min(m.t + max(step, quadric_fallback_step(ray, m.t, speed)), ray.t_end);
     m.gap_known = false;
   }
   return m;
@@ -279,75 +295,77 @@ ConeMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
 
 // Where a cone march ended: a hit when it got within cone_gap_epsilon or crossed the surface; a ray
 // that ran out of steps or reached t_end above it hits only if it is certain to.
-bool quadric_cone_hit(QuadricRay ray, ConeMarch m, out float t) {
+bool quadric_cone_hit(QuadricRay ray, QuadricMarch m, out float t) {
   if (m.gap_known && m.gap <= cone_gap_epsilon) {
-    t = cone_settle(m);
+    // below the surface after a linear step: the crossing interpolated in its bracket
+    bool crossed = m.gap < 0.0 && m.t > m.t_above;
+    t = crossed ? mix(m.t_above, m.t, crossing_fraction(m.gap_above, m.gap)) : m.t;
     return true;
   }
-  t = m.s;
+  t = m.t;
   return ray.certain;
 }
 
 // One search step at t: at or below the surface closes the bracket (true), above it moves its top.
-bool quadric_probe(QuadricRay ray, float t, inout Bracket b) {
+bool quadric_probe(QuadricRay ray, float t, inout QuadricBracket b) {
   g_iterations += 1u;
   float gap = quadric_gap(ray, t);
   if (gap <= 0.0) {
-    b.s_below = t;
+    b.t_below = t;
     b.gap_below = gap;
     return true;
   }
-  b.s_above = t;
+  b.t_above = t;
   b.gap_above = gap;
   return false;
 }
 
 // Linear search over [t_in, t_end] in `steps` equal steps of t; false for a miss.
-bool quadric_linear_search(QuadricRay ray, int steps, out Bracket b) {
-  b.s_above = ray.t_in;
+bool quadric_linear_search(QuadricRay ray, int steps, out QuadricBracket b) {
+  b.t_above = ray.t_in;
   b.gap_above = quadric_gap(ray, ray.t_in);
-  b.s_below = ray.t_in;
+  b.t_below = ray.t_in;
   b.gap_below = b.gap_above;
   if (b.gap_above <= 0.0) return true;
   for (int i = 1; i <= steps; ++i) {
     float t = i == steps ? ray.t_end : mix(ray.t_in, ray.t_end, float(i) / float(steps));
     if (quadric_probe(ray, t, b)) return true;
   }
-  b.s_below = ray.t_end;  // the inner surface, where no height lies below the ray
+  b.t_below = ray.t_end;  // the inner surface, where no height lies below the ray
   b.gap_below = 0.0;
   return ray.certain;
 }
 
 // After a cone march: the bracket of its last point above the surface and the first point found at
 // or below it, stepping on by twice the distance a flat surface would need and doubling.
-bool quadric_bracket_after_cones(QuadricRay ray, ConeMarch m, out Bracket b) {
-  if (!m.gap_known) m.gap = quadric_gap(ray, m.s);
+bool quadric_bracket_after_cones(QuadricRay ray, QuadricMarch m, out QuadricBracket b) {
+  if (!m.gap_known) m.gap = quadric_gap(ray, m.t);
   if (m.gap <= 0.0) {
-    b.s_above = m.s_above;
+    b.t_above = m.t_above;
     b.gap_above = m.gap_above;
-    b.s_below = m.s;
+    b.t_below = m.t;
     b.gap_below = m.gap;
     return true;
   }
-  b.s_above = m.s;
+  b.t_above = m.t;
   b.gap_above = m.gap;
-  b.s_below = ray.t_end;
+  b.t_below = ray.t_end;
   b.gap_below = 0.0;
-  float descent = quadric_descent_rate(ray, m.s);
-  float step = descent > 0.0 ? bracket_first_gap_factor * m.gap / descent : ray.t_end - m.s;
+  float descent = quadric_descent_rate(ray, m.t);
+  float step = descent > 0.0 ? bracket_first_gap_factor * m.gap / descent : ray.t_end - m.t;
   step = max(step, bracket_min_step * frame.surface.y);
-  for (int i = 0; i < bracket_max_steps && b.s_above < ray.t_end; ++i) {
-    float t = (i == bracket_max_steps - 1) ? ray.t_end : min(b.s_above + step, ray.t_end);
+  for (int i = 0; i < bracket_max_steps && b.t_above < ray.t_end; ++i) {
+    float t = (i == bracket_max_steps - 1) ? ray.t_end : min(b.t_above + step, ray.t_end);
     if (quadric_probe(ray, t, b)) return true;
     step *= bracket_growth;
   }
-  b.s_below = ray.t_end;
+  b.t_below = ray.t_end;
   b.gap_below = 0.0;
   return ray.certain;
 }
 
-float quadric_binary_refine(QuadricRay ray, Bracket b, int refine) {
-  float above = b.s_above, below = b.s_below;
+float quadric_binary_refine(QuadricRay ray, QuadricBracket b, int refine) {
+  float above = b.t_above, below = b.t_below;
   for (int i = 0; i < refine; ++i) {
     g_iterations += 1u;
     float middle = 0.5 * (above + below);
@@ -357,32 +375,32 @@ float quadric_binary_refine(QuadricRay ray, Bracket b, int refine) {
 }
 
 // Interval mapping's secant refinement (methods.inc.glsl, secant_refine) along t.
-float quadric_secant_refine(QuadricRay ray, Bracket b, int refine) {
-  for (int i = 0; i < refine && b.s_below > b.s_above; ++i) {
+float quadric_secant_refine(QuadricRay ray, QuadricBracket b, int refine) {
+  for (int i = 0; i < refine && b.t_below > b.t_above; ++i) {
     g_iterations += 1u;
-    float t = mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
+    float t = mix(b.t_above, b.t_below, crossing_fraction(b.gap_above, b.gap_below));
     float gap = quadric_gap(ray, t);
     if (gap > 0.0) {
-      b.s_above = t;
+      b.t_above = t;
       b.gap_above = gap;
     } else {
-      b.s_below = t;
+      b.t_below = t;
       b.gap_below = gap;
     }
     if (abs(gap) <= secant_gap_epsilon) return t;
   }
-  return mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
+  return mix(b.t_above, b.t_below, crossing_fraction(b.gap_above, b.gap_below));
 }
 
 // The hit's world distance t along the ray; false for a miss. Only the methods supports_surface
 // lists reach here (the renderer refuses the others).
 bool quadric_trace(QuadricRay ray, out float t) {
   t = ray.t_in;
-  Bracket b;
+  QuadricBracket b;
   if (METHOD == METHOD_BUMP) return true;
   if (METHOD == METHOD_POM) {
     if (!quadric_linear_search(ray, frame.counts.x, b)) return false;
-    t = mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
+    t = mix(b.t_above, b.t_below, crossing_fraction(b.gap_above, b.gap_below));
     return true;
   }
   if (METHOD == METHOD_RELIEF) {
