@@ -421,6 +421,10 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   metadata.push_back({"displace:method", std::string(info.name)});
   metadata.push_back({"displace:steps", settings.method.steps});
   metadata.push_back({"displace:refine", settings.method.refine});
+  if (settings.view.surface != render::Surface::plane) {
+    metadata.push_back({"displace:surface", std::string(render::surface_name(settings.view.surface))});
+    metadata.push_back({"displace:radius", settings.view.radius});
+  }
   write_frame_image(settings.output, frame, metadata);
   for (const AovOutput& aov : settings.aovs) write_aov(aov, frame, metadata);
   const FrameSummary summary = summarize(frame);
@@ -466,6 +470,10 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
     for (render::Method method : settings.methods) {
       const render::MethodInfo& info = render::method_info(method);
+      if (!render::supports_surface(method, scene.view.surface)) {
+        out << format("  %-17s skipped: no %s support\n", info.name, render::surface_name(scene.view.surface));
+        continue;
+      }
       double best_fetches = -1.0;
       int best_steps = 0;
       double last_rmse = 0.0;
@@ -614,11 +622,18 @@ usage:
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
-                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH] --output F.png|F.exr
+                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH]
+                  [--surface plane|sphere|cylinder|cone] [--radius R] --output F.png|F.exr
                   [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
       at z = -D) with one per-pixel method, baking the maps it needs (budgeted baker, no limit).
       Methods: METHODS.
+      --surface sphere|cylinder|cone (Patterson et al.'s inverse displacement mapping): a quadric
+      of radius R (--radius, default 0.25, D at most R/2) around the vertical axis x = y = 0.5: the
+      sphere centred at z = 0, the cylinder over z in [-R, R], the cone (apex z = 1.5 R, slope 1/2)
+      over z in [-R/2, R/2]; u = longitude / 2 pi, v along the axis (sphere: angle from the south
+      pole / pi). Height 1 is the outer surface, height 0 lies D inward along the normal. Methods
+      there: bump, pom, relief, interval, csm, acm4, acm8, acm4-interval, reference.
       --steps: linear-search steps or maximum cone steps (default 32); --refine: binary or secant
       steps (default 8). AOVs: uv=F.exr (u, v, hit), depth=F.exr, iterations=F.exr|F.png (a .png
       is a heatmap), fetches=F.exr|F.png. --compare reference also renders the tessellated height
@@ -637,7 +652,8 @@ usage:
       method, the fewest fetches per pixel that reach rmse <= 3. Default scenes: the three built-in
       ones (256 x 256 maps, the default camera). A scene FILE holds render flags, one per line
       (--source/--input and their options, --map-size, --eye, --look-at, --up, --fov-y, --size,
-      --tile, --depth-scale, --address, --light, --shadows, --albedo); '#' starts a comment.
+      --tile, --depth-scale, --address, --light, --shadows, --albedo, --surface, --radius); '#' starts a
+      comment.
 
   displace demo [--size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and

@@ -485,6 +485,12 @@ glm::vec3 parse_vector(std::string_view flag, std::string_view text) {
   return value;
 }
 
+constexpr std::pair<std::string_view, render::Surface> surface_words[] = {
+    {"plane", render::Surface::plane},
+    {"sphere", render::Surface::sphere},
+    {"cylinder", render::Surface::cylinder},
+    {"cone", render::Surface::cone}};
+
 constexpr std::pair<std::string_view, Aov> aov_words[] = {
     {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
 
@@ -522,6 +528,10 @@ bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draf
     draft.view.shadows = true;
   } else if (flag == "--albedo") {
     draft.albedo = std::filesystem::path(reader.value());
+  } else if (flag == "--surface") {
+    draft.view.surface = parse_word(flag, reader.value(), surface_words);
+  } else if (flag == "--radius") {
+    draft.view.radius = parse_float_in(flag, reader.value(), Range{0.01, 10.0, "world units"});
   } else {
     return false;
   }
@@ -617,6 +627,10 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   settings.albedo = parsed.albedo;
   if (!method) throw usage_error("'displace render' needs --method NAME");
   settings.method.method = *method;
+  if (!render::supports_surface(*method, settings.view.surface)) {
+    throw usage_error(std::string("--method ") + render::method_info(*method).name + " does not support --surface " +
+                      render::surface_name(settings.view.surface));
+  }
   if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");
   settings.output = *output;
   return settings;

@@ -28,7 +28,28 @@ constexpr MethodInfo methods[] = {
     {Method::reference, "reference", METHOD_REFERENCE, MethodFamily::reference, 0, true},
 };
 
+// Methods whose search the quadrics implement (render/shaders/quadric_trace.inc.glsl). The parallax
+// family offsets along the plane's tangent frame and relaxed cones hold only for straight rays in
+// texture space, so those stay on the plane.
+constexpr Method quadric_methods[] = {Method::bump, Method::pom,  Method::relief, Method::interval,      Method::csm,
+                                      Method::acm4, Method::acm8, Method::acm4_interval, Method::reference};
+
 }  // namespace
+
+const char* surface_name(Surface surface) {
+  switch (surface) {
+    case Surface::plane: return "plane";
+    case Surface::sphere: return "sphere";
+    case Surface::cylinder: return "cylinder";
+    case Surface::cone: return "cone";
+  }
+  throw std::logic_error("render::Surface without a name");
+}
+
+bool supports_surface(Method method, Surface surface) {
+  return surface == Surface::plane ||
+         std::find(std::begin(quadric_methods), std::end(quadric_methods), method) != std::end(quadric_methods);
+}
 
 std::span<const MethodInfo> method_table() { return methods; }
 

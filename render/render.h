@@ -16,6 +16,30 @@
 //   tangent frame (dP/du, dP/dv, D * N), so that ray parameters are world distances.
 // - Shading is the same for every method: a procedural grid albedo, Lambert + Blinn-Phong with one
 //   directional light, the normal taken from the height field at the hit.
+//
+// Quadric surfaces (View::surface; Patterson, Hoggar & Logie, "Inverse Displacement Mapping", 1991).
+// R = View::radius, D = depth_scale, K = tile. Every quadric's axis is the vertical line
+// x = y = 0.5; u = K phi / (2 pi) with phi = atan2(y - 0.5, x - 0.5) in [0, 2 pi) (u wraps around the
+// axis). The outer surface is height 1 (the base surface, as the plane's polygon is); a point at
+// height h lies (1 - h) D inward along the outer surface's normal from its foot point (u, v).
+// - sphere: centre (0.5, 0.5, 0), radius R; v = K theta / pi, theta the angle from the -z pole (the
+//   south pole is v = 0, the north pole v = K). The inner surface is the sphere of radius R - D.
+// - cylinder: radius R, z in [-R, R]; v = K (z + R) / (2 R). Inner surface: radius R - D.
+// - cone: apex (0.5, 0.5, 1.5 R), half-angle atan(1/2) (radius (1.5 R - z) / 2), from z = -R/2
+//   (radius R) up to z = R/2 (radius R/2); v = K (z + R/2) / R of the foot point. The inner surface
+//   is the same cone with its apex D / sin(half-angle) lower.
+// - (dP/du, dP/dv, N) is right-handed with N outward, like (x, y, z) on the plane, so v grows with z.
+// - The relief is seen through the outer surface only: a ray is traced from where it enters the
+//   outer surface (the eye must be outside the quadric), and only if it enters within the finite
+//   part (v in [0, K]); its hit must stay in that part (caps are not drawn). It ends where it enters
+//   the inner surface (it has hit the relief by then) or leaves the outer one (a miss).
+// - Address modes: u always wraps around the axis; --address clamp clamps v only (each pole of the
+//   sphere, each end of the cylinder and cone takes its edge row). Cone maps are baked with wrap
+//   for quadrics, which is conservative for a clamped v as well.
+// - D must be at most R / 2. Methods that do not support quadrics are refused (supports_surface).
+// - `reference` on a quadric is the height field tessellated at one vertex per texel centre (plus
+//   the seam and the poles), displaced along the normal and rasterized: the tessellated surface
+//   itself, without the plane reference's snap to the bilinear surface.
 #pragma once
 
 #include <cstdint>
@@ -65,6 +89,9 @@ enum class MethodFamily {
   reference,      // the tessellated height field, rasterized
 };
 
+enum class Surface { plane, sphere, cylinder, cone };
+const char* surface_name(Surface surface);  // the --surface word
+
 struct MethodInfo {
   Method method;
   const char* name;   // the --method word
@@ -79,6 +106,9 @@ struct MethodInfo {
 std::span<const MethodInfo> method_table();
 const MethodInfo& method_info(Method method);
 const MethodInfo* find_method(std::string_view name);  // nullptr when unknown
+// Whether a method renders on a surface: every method on the plane; bump, pom, relief, interval,
+// csm, acm4, acm8, acm4-interval and reference on the quadrics.
+bool supports_surface(Method method, Surface surface);
 
 struct Ray {
   glm::dvec3 origin;
@@ -107,6 +137,8 @@ struct View {
   float depth_scale = 0.1f;      // world units between height 1 and height 0
   bake::Address address = bake::Address::wrap;
   glm::vec3 light_direction{0.35f, 0.25f, 1.0f};  // towards the light; normalized when used
+  Surface surface = Surface::plane;
+  float radius = 0.25f;  // the quadric's outer radius R, world units (quadrics only)
   bool shadows = false;          // self-shadowing, traced towards the light with the frame's method
 };
 
@@ -215,6 +247,10 @@ struct CpuHit {
   double distance = 0.0;
 };
 CpuHit cpu_trace(const HeightField& field, const View& view, double px, double py);
+// The same exact intersection on a quadric surface (View::surface other than plane): march the
+// bilinear surface from where the ray enters the outer surface in steps of at most 1/32 of a
+// texel of (u, v) travel, then bisect; the texture point is (u, v, h), distance the world distance.
+CpuHit cpu_trace_quadric(const HeightField& field, const View& view, double px, double py);
 // The bilinear height the renderer samples at texture coordinates (u, v) (texel centres at
 // (j + 0.5) / W), with the address mode.
 double bilinear_height(const HeightField& field, bake::Address address, double u, double v);

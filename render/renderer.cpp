@@ -17,20 +17,24 @@
 #include <string>
 #include <vector>
 
+#include "render/quadric.h"
 #include "render/render.h"
 #include "render/shaders/config.h"
 #include "render/vulkan_context.h"
+#include "spirv/quadric_proxy_vert.h"
+#include "spirv/quadric_reference_vert.h"
 #include "spirv/reference_vert.h"
 #include "spirv/relief_vert.h"
 #include "spirv/surface_frag.h"
 
 namespace displace::render {
 
-static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 6, "FrameUniforms must match the std140 layout");
+static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 7, "FrameUniforms must match the std140 layout");
 static_assert(offsetof(gpu::FrameUniforms, eye) == 64);
 static_assert(offsetof(gpu::FrameUniforms, counts) == 64 + 16 * 4);
 static_assert(sizeof(gpu::MaxPyramidHeader) == 16 * (1 + MAX_PYRAMID_LEVELS),
               "MaxPyramidHeader must match std430");
+static_assert(offsetof(gpu::FrameUniforms, quadric) == 64 + 16 * 6);
 
 namespace {
 
@@ -108,6 +112,17 @@ std::vector<std::byte> pack_max_pyramid(const bake::DualMaxPyramid& pyramid) {
   return packed;
 }
 
+// SURFACE_* of a surface (specialization constant 1).
+int surface_id(Surface surface) {
+  switch (surface) {
+    case Surface::plane: return SURFACE_PLANE;
+    case Surface::sphere: return SURFACE_SPHERE;
+    case Surface::cylinder: return SURFACE_CYLINDER;
+    case Surface::cone: return SURFACE_CONE;
+  }
+  throw std::logic_error("render::Surface without a shader id");
+}
+
 // Cone maps are baked for one sector count, address mode and kind (conservative or relaxed).
 int cone_key(int sectors, bake::Address address, bool relaxed) {
   return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + (relaxed ? 1 : 0);
@@ -138,8 +153,10 @@ struct Renderer::Impl {
   VkDescriptorSet descriptor_set = VK_NULL_HANDLE;
   OwnedRenderPass render_pass;
   OwnedShaderModule relief_vertex, reference_vertex, surface_fragment;
-  std::map<int, OwnedPipeline> pipelines;  // by shader id
+  OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex;
+  std::map<int, OwnedPipeline> pipelines;  // by shader id * 4 + surface id
   OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
+  OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with --address clamp: u wraps, v clamps
   OwnedQueryPool timestamps;
   Buffer uniforms;
 
@@ -166,7 +183,7 @@ struct Renderer::Impl {
 
   void create_layouts();
   void create_render_pass();
-  VkPipeline pipeline(const MethodInfo& info);
+  VkPipeline pipeline(const MethodInfo& info, Surface surface);
   Image upload_image(VkFormat format, int width, int height, int layers, VkImageViewType view_type, const void* data,
                      std::size_t bytes);
   Buffer upload_storage_buffer(std::span<const std::byte> data);
@@ -221,12 +238,12 @@ void Renderer::Impl::create_layouts() {
   allocate.pSetLayouts = &layout;
   DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device, &allocate, &descriptor_set));
 
-  auto sampler = [&](VkFilter filter, VkSamplerAddressMode address) {
+  auto sampler = [&](VkFilter filter, VkSamplerAddressMode address, VkSamplerAddressMode address_u) {
     VkSamplerCreateInfo info{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
     info.magFilter = filter;
     info.minFilter = filter;
     info.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
-    info.addressModeU = address;
+    info.addressModeU = address_u;
     info.addressModeV = address;
     info.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
     info.maxLod = 0.0f;
@@ -234,10 +251,13 @@ void Renderer::Impl::create_layouts() {
     DISPLACE_VK_CHECK(vkCreateSampler(device, &info, nullptr, &handle));
     return OwnedSampler(device, handle);
   };
-  linear_wrap = sampler(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_REPEAT);
-  linear_clamp = sampler(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
-  nearest_wrap = sampler(VK_FILTER_NEAREST, VK_SAMPLER_ADDRESS_MODE_REPEAT);
-  nearest_clamp = sampler(VK_FILTER_NEAREST, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
+  const VkSamplerAddressMode repeat = VK_SAMPLER_ADDRESS_MODE_REPEAT, clamp = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  linear_wrap = sampler(VK_FILTER_LINEAR, repeat, repeat);
+  linear_clamp = sampler(VK_FILTER_LINEAR, clamp, clamp);
+  nearest_wrap = sampler(VK_FILTER_NEAREST, repeat, repeat);
+  nearest_clamp = sampler(VK_FILTER_NEAREST, clamp, clamp);
+  linear_wrap_u = sampler(VK_FILTER_LINEAR, clamp, repeat);
+  nearest_wrap_u = sampler(VK_FILTER_NEAREST, clamp, repeat);
 
   if (context.has_timestamps()) {
     VkQueryPoolCreateInfo query_info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
@@ -322,19 +342,32 @@ void Renderer::Impl::create_render_pass() {
   relief_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_relief_vert));
   reference_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_reference_vert));
   surface_fragment = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_frag));
+  quadric_proxy_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
+  quadric_reference_vertex =
+      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_reference_vert));
 }
 
-VkPipeline Renderer::Impl::pipeline(const MethodInfo& info) {
-  if (const auto found = pipelines.find(info.shader_id); found != pipelines.end()) return found->second.get();
+VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
+  const int key = info.shader_id * 4 + surface_id(surface);
+  if (const auto found = pipelines.find(key); found != pipelines.end()) return found->second.get();
   const bool reference = info.family == MethodFamily::reference;
+  const bool quadric = surface != Surface::plane;
 
-  const std::int32_t method_id = info.shader_id;
-  const VkSpecializationMapEntry entry{0, 0, sizeof(method_id)};
-  VkSpecializationInfo specialization{1, &entry, sizeof(method_id), &method_id};
+  // specialization constants 0 (METHOD) and 1 (SURFACE)
+  const std::array<std::int32_t, 2> constants = {info.shader_id, surface_id(surface)};
+  const std::array<VkSpecializationMapEntry, 2> entries = {
+      VkSpecializationMapEntry{0, 0, sizeof(std::int32_t)},
+      VkSpecializationMapEntry{1, sizeof(std::int32_t), sizeof(std::int32_t)}};
+  VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(), sizeof(constants), constants.data()};
   std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
   stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
-  stages[0].module = reference ? reference_vertex.get() : relief_vertex.get();
+  if (quadric) {
+    stages[0].module = reference ? quadric_reference_vertex.get() : quadric_proxy_vertex.get();
+    stages[0].pSpecializationInfo = &specialization;
+  } else {
+    stages[0].module = reference ? reference_vertex.get() : relief_vertex.get();
+  }
   stages[0].pName = "main";
   stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
@@ -359,6 +392,10 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info) {
   VkPipelineRasterizationStateCreateInfo raster{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
   raster.polygonMode = VK_POLYGON_MODE_FILL;
   raster.cullMode = VK_CULL_MODE_NONE;  // the fragment shader rejects the plane seen from below
+  if (quadric) {
+    // the tessellated relief is seen from outside only; the proxy box draws its back faces only
+    raster.cullMode = reference ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_FRONT_BIT;
+  }
   raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
   raster.lineWidth = 1.0f;
   VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
@@ -395,7 +432,7 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info) {
   create.renderPass = render_pass.get();
   VkPipeline handle = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateGraphicsPipelines(context.device(), VK_NULL_HANDLE, 1, &create, nullptr, &handle));
-  return pipelines.emplace(info.shader_id, OwnedPipeline(context.device(), handle)).first->second.get();
+  return pipelines.emplace(key, OwnedPipeline(context.device(), handle)).first->second.get();
 }
 
 Image Renderer::Impl::upload_image(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
@@ -544,11 +581,14 @@ void Renderer::Impl::ensure_reference_mesh(int tile) {
 
 void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const bool wrap = view.address == bake::Address::wrap;
+  // u closes around a quadric's axis: its cones are baked with wrap (conservative for a clamped v)
+  const bool quadric = view.surface != Surface::plane;
+  const bake::Address cone_address = quadric ? bake::Address::wrap : view.address;
   VkImageView cone_view = dummy_cones.view();
   if (info.cone_sectors > 0) {
-    const int key = cone_key(info.cone_sectors, view.address, info.relaxed_cones);
+    const int key = cone_key(info.cone_sectors, cone_address, info.relaxed_cones);
     if (uploaded_cone_key != key) {
-      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, view.address, info.relaxed_cones),
+      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, cone_address, info.relaxed_cones),
                                                     field.width, field.height, info.cone_sectors);
       cone_image = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, field.width, field.height,
                                 (info.cone_sectors + 3) / 4, VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
@@ -587,13 +627,15 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
     distance_view = distance_image.view();
   }
   const VkDescriptorBufferInfo uniform_info{uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
-  const VkDescriptorImageInfo height_info{wrap ? linear_wrap.get() : linear_clamp.get(), height_image.view(),
-                                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo cone_info{wrap ? nearest_wrap.get() : nearest_clamp.get(), cone_view,
-                                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo albedo_info{wrap ? linear_wrap.get() : linear_clamp.get(),
-                                          has_albedo ? albedo_image.view() : dummy_albedo.view(),
-                                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo height_info{
+      wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get()), height_image.view(),
+      VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo cone_info{
+      wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get()), cone_view,
+      VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo albedo_info{
+      wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get()),
+      has_albedo ? albedo_image.view() : dummy_albedo.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
@@ -712,16 +754,34 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
   if (method.refine < 0 || method.refine > max_refine) throw RenderError("--refine must be between 0 and 64");
   const MethodInfo& info = method_info(method.method);
   const Camera& camera = view.camera;
+  const bool quadric = view.surface != Surface::plane;
+  if (!supports_surface(info.method, view.surface)) {
+    std::string supported;
+    for (const MethodInfo& other : method_table()) {
+      if (!supports_surface(other.method, view.surface)) continue;
+      supported += (supported.empty() ? "" : ", ") + std::string(other.name);
+    }
+    throw RenderError(std::string("--method ") + info.name + " does not support --surface " +
+                      surface_name(view.surface) + " (methods there: " + supported + ")");
+  }
+  if (quadric) quadric::validate(view);
+  if (quadric && view.shadows) {
+    throw RenderError(std::string("--shadows is not supported on --surface ") + surface_name(view.surface) +
+                      " yet (plane only)");
+  }
 
   // maps and descriptors
   impl.bind_maps(view, info);
-  const VkPipeline pipeline = impl.pipeline(info);
+  const VkPipeline pipeline = impl.pipeline(info, view.surface);
   if (info.family == MethodFamily::reference) impl.ensure_reference_mesh(view.tile);
 
-  // frame uniforms: near and far planes enclose the relief box [0,1]^2 x [-D, 0]
+  // frame uniforms: near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
+  glm::dvec3 box_lo(0.0, 0.0, -double(view.depth_scale)), box_hi(1.0, 1.0, 0.0);
+  if (quadric) quadric::relief_box(quadric::shape_of(view), box_lo, box_hi);
   double far_plane = 0.0;
   for (int corner = 0; corner < 8; ++corner) {
-    const glm::dvec3 p(corner & 1, (corner >> 1) & 1, (corner & 4) ? -double(view.depth_scale) : 0.0);
+    const glm::dvec3 p((corner & 1) ? box_hi.x : box_lo.x, (corner & 2) ? box_hi.y : box_lo.y,
+                       (corner & 4) ? box_lo.z : box_hi.z);
     far_plane = std::max(far_plane, glm::length(p - glm::dvec3(camera.eye)));
   }
   far_plane = far_plane * 1.01 + 1e-3;
@@ -737,6 +797,7 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
                     (impl.has_albedo ? FLAG_ALBEDO : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
   uniforms.background = glm::vec4(background[0], background[1], background[2], background[3]);
+  uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
   std::memcpy(impl.uniforms.mapped(), &uniforms, sizeof uniforms);
 
   impl.ensure_targets(camera.width, camera.height);
@@ -773,7 +834,7 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
       vkCmdBindIndexBuffer(commands, impl.reference_indices.handle(), 0, VK_INDEX_TYPE_UINT32);
       vkCmdDrawIndexed(commands, impl.reference_index_count, 1, 0, 0, 0);
     } else {
-      vkCmdDraw(commands, 6, 1, 0, 0);
+      vkCmdDraw(commands, quadric ? 36 : 6, 1, 0, 0);  // the proxy box, or the plane's two triangles
     }
     vkCmdEndRenderPass(commands);
     if (impl.timestamps.get()) {

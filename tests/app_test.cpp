@@ -668,6 +668,7 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {"render --input '" + (dir / "missing.png").string() + "' --method pom --output f.png", 1},
       {ok + " --method pom --albedo '" + (dir / "missing.png").string() + "'", 1},
       {ok + " --method pom --shadows yes", 2},
+      {ok + " --method pom --surface sphere --shadows", 1},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
@@ -675,6 +676,39 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
     EXPECT_EQ(result.exit_code, test.exit_code) << test.arguments << "\n" << result.err;
     EXPECT_NE(result.err.find("displace: error: "), std::string::npos) << test.arguments << "\n" << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+  }
+}
+
+TEST(Cli, RendersAQuadricAndRefusesWhatItCannot) {
+  TempDir dir;
+  const std::string base = "render --source ocean --map-size 32 --time 0 --size 40x40 --output '" +
+                           (dir / "f.png").string() + "'";
+  const RunResult result = run_displace(
+      dir, base + " --surface sphere --radius 0.3 --method acm4 --validate --compare reference --aov uv='" +
+               (dir / "uv.exr").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
+  const FloatImage uv = read_float_image(dir / "uv.exr");
+  const auto hit = uv.channel("hit");
+  EXPECT_GT(std::count(hit.begin(), hit.end(), 1.0f), 200);
+  const Attribute* surface = find_attribute(uv.metadata, "displace:surface");
+  ASSERT_NE(surface, nullptr);
+  EXPECT_EQ(std::get<std::string>(surface->value), "sphere");
+  const struct {
+    std::string arguments;
+    int exit_code;
+  } cases[] = {
+      {base + " --surface torus --method relief", 2},
+      {base + " --surface cone --method parallax", 2},  // the parallax family stays on the plane
+      {base + " --surface sphere --radius 20 --method relief", 2},
+      {base + " --surface sphere --depth-scale 0.2 --method relief", 1},  // D above R / 2
+      {base + " --surface cylinder --eye 0.5,0.5,0 --look-at 0.5,1,0 --method relief", 1},  // inside it
+  };
+  for (const auto& test : cases) {
+    const RunResult refused = run_displace(dir, test.arguments);
+    EXPECT_EQ(refused.exit_code, test.exit_code) << test.arguments << "\n" << refused.err;
+    EXPECT_NE(refused.err.find("displace: error: "), std::string::npos) << refused.err;
+    EXPECT_EQ(refused.err.find("displace: error: "), refused.err.rfind("displace: error: ")) << refused.err;
   }
 }
 

@@ -30,6 +30,16 @@ using mat4 = glm::mat4;
 #define METHOD_QDM 14
 #define METHOD_REFERENCE 15
 
+// surfaces (specialization constant 1 of the shaders; geometry in render/render.h and quadric.inc.glsl)
+#define SURFACE_PLANE 0
+#define SURFACE_SPHERE 1
+#define SURFACE_CYLINDER 2
+#define SURFACE_CONE 3
+#define QUADRIC_AXIS_X 0.5    // every quadric's axis is the vertical line x = y = 0.5 (world units)
+#define QUADRIC_AXIS_Y 0.5
+#define CONE_APEX_HEIGHT 1.5  // the cone's apex is at z = 1.5 R
+#define CONE_SLOPE 0.5        // tan of the cone's half-angle: radius gained per unit of descent
+
 // descriptor bindings (set 0)
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
@@ -56,6 +66,7 @@ struct FrameUniforms {
   vec4 map_size;     // x: W, y: H, z: 1 / W, w: 1 / H
   ivec4 counts;      // x: steps, y: refine, z: flags, w: cone sectors
   vec4 background;   // rgba of pixels off the relief
+  vec4 quadric;      // x: radius R of the quadric's outer surface, yzw: unused (quadric surfaces only)
 };
 
 // The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this

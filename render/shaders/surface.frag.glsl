@@ -6,6 +6,7 @@
 #include "config.h"
 
 layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
+layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
 
 layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
@@ -30,6 +31,8 @@ uint g_fetches = 0u;
 #include "bilinear_cell.inc.glsl"
 #include "methods.inc.glsl"
 #include "shading.inc.glsl"
+#include "quadric.inc.glsl"
+#include "quadric_trace.inc.glsl"
 
 // The reference's triangles interpolate the texel heights linearly over two triangles per texel
 // square, while every method samples the bilinear surface: they differ inside a square by up to a
@@ -70,6 +73,10 @@ float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
 }
 
 void main() {
+  if (SURFACE != SURFACE_PLANE) {
+    quadric_fragment();
+    return;
+  }
   vec3 to_point = in_world - frame.eye.xyz;
   vec3 d = normalize(to_point);
   vec3 normal = normalize(in_normal);

@@ -1,0 +1,130 @@
+// render/cpu_trace_quadric.cpp - the exact ray / relief intersection on a quadric on the CPU, in
+// double precision: from where the ray enters the outer surface, march the bilinear surface in steps
+// that move (u, v) by at most 1/32 of a texel (the step is bounded by the largest (u, v) speed
+// over it, which grows near the axis), then bisect. Slow and plain on purpose; the tests measure the
+// GPU methods on quadrics against it.
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "render/quadric.h"
+#include "render/render.h"
+
+namespace displace::render {
+namespace {
+
+constexpr double texels_per_step = 1.0 / 32.0;  // largest (u, v) travel of one march step, in texels
+constexpr double min_step = 1e-7;               // world units: the march always advances
+constexpr int max_march_steps = 8 << 20;
+constexpr int bisection_steps = 60;
+
+// u always wraps around the axis; v wraps or clamps with the address mode.
+double texel_at(const HeightField& field, bake::Address address, long long i, long long j) {
+  j = ((j % field.width) + field.width) % field.width;
+  if (address == bake::Address::wrap) {
+    i = ((i % field.height) + field.height) % field.height;
+  } else {
+    i = std::clamp<long long>(i, 0, field.height - 1);
+  }
+  return field.heights[std::size_t(i * field.width + j)];
+}
+
+double quadric_height(const HeightField& field, bake::Address address, double u, double v) {
+  const double x = u * field.width - 0.5, y = v * field.height - 0.5;
+  const double x0 = std::floor(x), y0 = std::floor(y);
+  const double fx = x - x0, fy = y - y0;
+  const long long j = (long long)x0, i = (long long)y0;
+  const double top = texel_at(field, address, i, j) * (1 - fx) + texel_at(field, address, i, j + 1) * fx;
+  const double bottom =
+      texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
+  return top * (1 - fy) + bottom * fy;
+}
+
+// Least distance from the axis (horizontal) or the anchor (3D) of o + t d over [t0, t1].
+double least_distance(glm::dvec3 o, glm::dvec3 d, double t0, double t1, bool horizontal) {
+  if (horizontal) {
+    o.z = 0.0;
+    d.z = 0.0;
+  }
+  const double a = glm::dot(d, d);
+  const double t = a > 0.0 ? std::clamp(-glm::dot(o, d) / a, t0, t1) : t0;
+  return glm::length(o + t * d);
+}
+
+// The largest |d(u, v)/dt| over [t0, t1], texture units per world unit.
+double uv_speed(const quadric::Shape& shape, const glm::dvec3& o, const glm::dvec3& d, double t0, double t1) {
+  const double tiny = 1e-9 * shape.radius;
+  const double horizontal = std::hypot(d.x, d.y);
+  const double rho = std::max(least_distance(o, d, t0, t1, true), tiny);
+  const double u_speed = shape.tile * horizontal / (2.0 * std::numbers::pi * rho);
+  double v_speed = 0.0;
+  if (shape.surface == Surface::sphere) {
+    v_speed = shape.tile / (std::numbers::pi * std::max(least_distance(o, d, t0, t1, false), tiny));
+  } else if (shape.surface == Surface::cylinder) {
+    v_speed = shape.tile * std::abs(d.z) / (2.0 * shape.radius);
+  } else {
+    v_speed = shape.tile * (horizontal + std::abs(d.z)) /
+              shape.radius;  // |dv/dt| <= K cos (sin |rho'| + cos |z'|) / R
+  }
+  return std::hypot(u_speed, v_speed);
+}
+
+}  // namespace
+
+CpuHit cpu_trace_quadric(const HeightField& field, const View& view, double px, double py) {
+  CpuHit result;
+  const quadric::Shape shape = quadric::shape_of(view);
+  const Ray ray = view.camera.pixel_ray(px, py);
+  const glm::dvec3 o = ray.origin - quadric::anchor(shape), d = ray.direction;
+
+  // the span of the ray in the relief shell
+  const quadric::Interval outer = quadric::body_interval(shape, o, d, 0.0);
+  if (outer.empty() || outer.enter < 0.0) return result;
+  const quadric::Interval inner = quadric::body_interval(shape, o, d, -shape.depth);
+  const double t_in = outer.enter;
+  bool certain = !inner.empty() && inner.enter < outer.leave;  // the inner surface ends it: a hit by then
+  double t_end = certain ? std::max(inner.enter, t_in) : outer.leave;
+  glm::dvec3 lo, hi;
+  quadric::relief_box(shape, lo, hi);
+  const double box_exit = quadric::box_exit(ray.origin, d, lo, hi);
+  if (box_exit < t_end) {
+    t_end = std::max(box_exit, t_in);
+    certain = false;
+  }
+  if (!quadric::range_kept(shape, o, d, t_in, t_in)) return result;
+
+  // march, then bisect
+  const double texel = texels_per_step * std::min(1.0 / field.width, 1.0 / field.height);
+  auto gap = [&](double t) {
+    const glm::dvec3 p = quadric::texture_point(shape, o + t * d);
+    return p.z - quadric_height(field, view.address, p.x, p.y);
+  };
+  double above = t_in, below = -1.0;
+  if (gap(t_in) <= 0.0) {
+    below = t_in;
+  } else {
+    for (int i = 0; i < max_march_steps && above < t_end; ++i) {
+      double step = texel / uv_speed(shape, o, d, above, above);
+      step = std::max(texel / uv_speed(shape, o, d, above, std::min(above + step, t_end)), min_step);
+      const double t = std::min(above + step, t_end);
+      if (gap(t) <= 0.0) {
+        below = t;
+        break;
+      }
+      above = t;
+    }
+    if (below < 0.0 && certain) below = t_end;  // on the inner surface, which no height lies below
+    if (below < 0.0) return result;             // left the shell above the relief
+    for (int i = 0; i < bisection_steps; ++i) {
+      const double mid = 0.5 * (above + below);
+      (gap(mid) > 0.0 ? above : below) = mid;
+    }
+  }
+  if (!quadric::range_kept(shape, o, d, t_in, below)) return result;
+  result.hit = true;
+  result.texture = quadric::texture_point(shape, o + below * d);
+  result.distance = below;
+  return result;
+}
+
+}  // namespace displace::render

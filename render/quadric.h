@@ -1,0 +1,48 @@
+// render/quadric.h - internal: the quadric surfaces' geometry on the CPU in double precision, the
+// same formulas as render/shaders/quadric.inc.glsl (render/render.h states the geometry). Used by
+// the renderer (view checks, near and far planes) and by the exact CPU trace.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include "render/render.h"
+
+namespace displace::render::quadric {
+
+struct Shape {
+  Surface surface = Surface::sphere;
+  double radius = 0.25;  // R, world units
+  double depth = 0.1;    // D, world units
+  double tile = 1.0;     // K
+};
+Shape shape_of(const View& view);
+
+// Throws RenderError when the view cannot show the quadric: a bad radius, D above R / 2, the eye
+// inside the quadric.
+void validate(const View& view);
+
+// The local frame's origin: the centre (sphere, cylinder) or the apex (cone).
+glm::dvec3 anchor(const Shape& shape);
+// The world box holding the whole relief of the finite quadric.
+void relief_box(const Shape& shape, glm::dvec3& lo, glm::dvec3& hi);
+// (u, v, h) of the point q given relative to anchor(); u in [0, K].
+glm::dvec3 texture_point(const Shape& shape, const glm::dvec3& q);
+// The world point at texture point (u, v, h): its foot point on the outer surface moved (1 - h) D
+// inward along the normal (the inverse of texture_point).
+glm::dvec3 surface_point(const Shape& shape, double u, double v, double h);
+
+struct Interval {
+  double enter = 0.0, leave = -1.0;  // empty when enter > leave; +-far for an end never reached
+  bool empty() const { return enter > leave; }
+};
+constexpr double far = 1e300;
+// Where o + t d (d unit, o relative to anchor()) lies inside the solid bounded by the surface at
+// `offset` along the normal from the outer one (0: outer surface, -D: inner surface).
+Interval body_interval(const Shape& shape, const glm::dvec3& o, const glm::dvec3& d, double offset);
+// Where the ray e + t d leaves the world box [lo, hi] (far when it stays inside).
+double box_exit(const glm::dvec3& e, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi);
+// Whether the part of the ray from the entry t_in to t stays inside v in [0, K] (v follows z on the
+// cylinder; on the cone the foot point's slant is convex along the ray).
+bool range_kept(const Shape& shape, const glm::dvec3& o, const glm::dvec3& d, double t_in, double t);
+
+}  // namespace displace::render::quadric
