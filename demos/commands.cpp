@@ -15,6 +15,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "demos/obj_io.h"
+
 namespace displace::app {
 namespace {
 
@@ -415,6 +417,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
   renderer.set_height_field({input.width, input.height, std::move(input.heights)});
   if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
+  if (!settings.mesh.empty()) renderer.set_mesh(read_obj(settings.mesh));
   const render::MethodInfo& info = render::method_info(settings.method.method);
   const render::Frame frame = renderer.render(settings.view, settings.method);
   Metadata metadata = input.metadata;
@@ -459,6 +462,7 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
   for (const SceneSettings& scene : settings.scenes) {
     BakeInput input = prepare_bake_input(scene.input);
     renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+    if (!scene.mesh.empty()) renderer.set_mesh(read_obj(scene.mesh));
     if (scene.albedo.empty()) {
       renderer.clear_albedo();
     } else {
@@ -623,7 +627,7 @@ usage:
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
                   [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH]
-                  [--surface plane|sphere|cylinder|cone] [--radius R] --output F.png|F.exr
+                  [--surface plane|sphere|cylinder|cone|mesh:FILE.obj] [--radius R] --output F.png|F.exr
                   [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
       at z = -D) with one per-pixel method, baking the maps it needs (budgeted baker, no limit).

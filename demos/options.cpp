@@ -500,6 +500,7 @@ struct SceneDraft {
   InputDraft input;
   render::View view;
   std::filesystem::path albedo;
+  std::filesystem::path mesh;
 };
 
 bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draft) {
@@ -529,7 +530,14 @@ bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draf
   } else if (flag == "--albedo") {
     draft.albedo = std::filesystem::path(reader.value());
   } else if (flag == "--surface") {
-    draft.view.surface = parse_word(flag, reader.value(), surface_words);
+    const std::string_view text = reader.value();
+    if (text.rfind("mesh:", 0) == 0) {
+      if (text.size() == 5) throw usage_error("--surface mesh:FILE.obj needs a file name after 'mesh:'");
+      draft.view.surface = render::Surface::mesh;
+      draft.mesh = std::filesystem::path(text.substr(5));
+    } else {
+      draft.view.surface = parse_word(flag, text, surface_words);
+    }
   } else if (flag == "--radius") {
     draft.view.radius = parse_float_in(flag, reader.value(), Range{0.01, 10.0, "world units"});
   } else {
@@ -539,7 +547,7 @@ bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draf
 }
 
 SceneSettings finish_scene(const SceneDraft& draft, const std::string& name, const std::string& command) {
-  SceneSettings scene{name, finish_input(draft.input, command), draft.view, draft.albedo};
+  SceneSettings scene{name, finish_input(draft.input, command), draft.view, draft.albedo, draft.mesh};
   if (scene.view.tile > 1 && scene.view.address != bake::Address::wrap) {
     throw usage_error("--tile above 1 needs --address wrap");
   }
@@ -625,6 +633,7 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   settings.input = parsed.input;
   settings.view = parsed.view;
   settings.albedo = parsed.albedo;
+  settings.mesh = parsed.mesh;
   if (!method) throw usage_error("'displace render' needs --method NAME");
   settings.method.method = *method;
   if (!render::supports_surface(*method, settings.view.surface)) {

@@ -79,6 +79,7 @@ struct RenderSettings {
   std::filesystem::path output;  // .png or .exr
   std::vector<AovOutput> aovs;
   std::filesystem::path albedo;  // empty: the procedural grid
+  std::filesystem::path mesh;    // --surface mesh:FILE.obj
   bool compare_reference = false;
   render::RendererOptions renderer;
 };
@@ -89,6 +90,7 @@ struct SceneSettings {
   std::variant<FileInput, SourceSettings> input;
   render::View view;
   std::filesystem::path albedo;  // empty: the procedural grid
+  std::filesystem::path mesh;    // --surface mesh:FILE.obj
 };
 
 struct SweepSettings {

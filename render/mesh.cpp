@@ -4,6 +4,8 @@
 // [dP/du dP/dv] = [E1 E2] [du1 du2; dv1 dv2]^-1; vertices average them (weighted by triangle area)
 // and keep only their parts orthogonal to the vertex normal, so the frame is the tangent plane's.
 #include <algorithm>
+#include <array>
+#include <map>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -74,36 +76,61 @@ std::vector<MeshVertex> mesh_vertices(const Mesh& mesh) {
   }
   if (mapped == 0) throw MeshError("no triangle of the mesh has a non-degenerate texture mapping");
 
-  std::vector<MeshVertex> vertices(count);
+  // vertex normals first: the curvature fit reads the neighbours' normals. Face normals are summed
+  // over every vertex at the same position, so a texture seam (a closed mesh's u = 0 / 1 column,
+  // split into two vertices) does not split the normal: each side alone would see half a fan.
+  std::map<std::array<float, 3>, glm::dvec3> by_position;
+  for (std::size_t i = 0; i < count; ++i) {
+    by_position[{mesh.positions[i].x, mesh.positions[i].y, mesh.positions[i].z}] += face_normal[i];
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    face_normal[i] = by_position[{mesh.positions[i].x, mesh.positions[i].y, mesh.positions[i].z}];
+  }
+  std::vector<glm::dvec3> normals(count);
   for (std::size_t i = 0; i < count; ++i) {
     glm::dvec3 normal = mesh.normals.empty() ? face_normal[i] : glm::dvec3(mesh.normals[i]);
     if (glm::length(normal) < min_normal_length) normal = face_normal[i];
     if (glm::length(normal) < min_normal_length) normal = glm::dvec3(0.0, 0.0, 1.0);  // an unused vertex
-    normal = glm::normalize(normal);
+    normals[i] = glm::normalize(normal);
+  }
+  std::vector<MeshVertex> vertices(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const glm::dvec3 normal = normals[i];
     // the area-weighted mean derivatives, projected onto the tangent plane
     const double weight = mapped_area[i] > 0.0 ? 1.0 / mapped_area[i] : 0.0;
     const glm::dvec3 tangent_u = (du[i] - glm::dot(du[i], normal) * normal) * weight;
     const glm::dvec3 tangent_v = (dv[i] - glm::dot(dv[i], normal) * normal) * weight;
-    // curvature: least squares of depth = k_uu x^2 + k_vv y^2 over the neighbours
-    double suu = 0.0, svv = 0.0, suv = 0.0, bu = 0.0, bv = 0.0;
-    const double length_u = glm::length(tangent_u), length_v = glm::length(tangent_v);
+    // curvature: the normal curvature along each edge to a neighbour j, kappa = (n_j - n_i) . d / |d|^2
+    // (1 / R on a sphere of radius R, whatever the edge), fitted by least squares as
+    // kappa / 2 = k_uu cos^2 + k_vv sin^2 of the edge's angle in the basis t1 = dP/du / |dP/du|,
+    // t2 = n x t1 (the shader uses the same basis). Edge normals, not positions: a pole vertex,
+    // whose dP/du vanishes, still gets its curvature (any t1 there).
+    glm::dvec3 t1 = tangent_u;
+    if (glm::length(t1) < 1e-12) t1 = glm::cross(normal, std::abs(normal.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0));
+    t1 = glm::normalize(t1);
+    const glm::dvec3 t2 = glm::cross(normal, t1);
+    double scc = 0.0, sss = 0.0, scs = 0.0, bc = 0.0, bs = 0.0;
     for (std::uint32_t j : neighbours[i]) {
-      if (length_u == 0.0 || length_v == 0.0) break;
-      const glm::dvec3 offset = glm::dvec3(mesh.positions[j]) - glm::dvec3(mesh.positions[i]);
-      const double x = glm::dot(offset, tangent_u) / length_u, y = glm::dot(offset, tangent_v) / length_v;
-      const double depth = -glm::dot(offset, normal);
-      const double xx = x * x, yy = y * y;
-      suu += xx * xx;
-      svv += yy * yy;
-      suv += xx * yy;
-      bu += xx * depth;
-      bv += yy * depth;
+      const glm::dvec3 d = glm::dvec3(mesh.positions[j]) - glm::dvec3(mesh.positions[i]);
+      const glm::dvec3 along = d - glm::dot(d, normal) * normal;
+      const double length2 = glm::dot(d, d), along_length = glm::length(along);
+      if (length2 == 0.0 || along_length == 0.0) continue;
+      const double half_kappa = 0.5 * glm::dot(normals[j] - normal, d) / length2;
+      const double c = glm::dot(along, t1) / along_length, sn = glm::dot(along, t2) / along_length;
+      const double cc = c * c, ss = sn * sn;
+      scc += cc * cc;
+      sss += ss * ss;
+      scs += cc * ss;
+      bc += cc * half_kappa;
+      bs += ss * half_kappa;
     }
     double k_uu = 0.0, k_vv = 0.0;
-    const double det = suu * svv - suv * suv;
-    if (det > 1e-12 * std::max(suu * svv, 1e-300)) {
-      k_uu = (bu * svv - bv * suv) / det;
-      k_vv = (bv * suu - bu * suv) / det;
+    const double det = scc * sss - scs * scs;
+    if (det > 1e-9 * std::max(scc * sss, 1e-300)) {
+      k_uu = (bc * sss - bs * scs) / det;
+      k_vv = (bs * scc - bc * scs) / det;
+    } else if (scc + sss > 0.0) {  // every edge along one direction: one curvature for both
+      k_uu = k_vv = (bc + bs) / (scc + sss + 2.0 * scs);
     }
     const glm::vec3 position = mesh.positions[i];
     vertices[i] = {position,          mesh.uvs[i].x,         glm::vec3(tangent_u), mesh.uvs[i].y,

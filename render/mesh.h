@@ -44,9 +44,10 @@ static_assert(sizeof(MeshVertex) == 16 * sizeof(float));
 
 // Validates the mesh (finite values, indices in range, at least one triangle with a non-degenerate
 // texture mapping) and computes the vertices. Throws MeshError with a clear message.
-// Curvature: the surface near a vertex is fitted (least squares over its neighbours) by the quadric
-// depth below its tangent plane d = k_uu x^2 + k_vv y^2, x and y world distances along dP/du and
-// dP/dv; positive where the surface bends away from the normal (convex, like a sphere).
+// Curvature: the surface near a vertex is the quadric depth below its tangent plane
+// d = k_uu x^2 + k_vv y^2, x and y world distances along t1 = dP/du / |dP/du| and t2 = n x t1,
+// fitted from the normal curvature of the edges to its neighbours; positive where the surface bends
+// away from the normal (convex, like a sphere: 1 / 2R).
 std::vector<MeshVertex> mesh_vertices(const Mesh& mesh);
 
 }  // namespace displace::render

@@ -42,12 +42,13 @@ const char* surface_name(Surface surface) {
     case Surface::sphere: return "sphere";
     case Surface::cylinder: return "cylinder";
     case Surface::cone: return "cone";
+    case Surface::mesh: return "mesh";
   }
   throw std::logic_error("render::Surface without a name");
 }
 
 bool supports_surface(Method method, Surface surface) {
-  return surface == Surface::plane ||
+  return surface == Surface::plane || surface == Surface::mesh ||
          std::find(std::begin(quadric_methods), std::end(quadric_methods), method) != std::end(quadric_methods);
 }
 

@@ -85,9 +85,10 @@ glm::dvec3 texture_point(const Shape& shape, const glm::dvec3& q) {
       return {u, tile * (2.0 * r - cone_cos * slant) / r, distance / depth + 1.0};
     }
     case Surface::plane:
+    case Surface::mesh:
       break;
   }
-  throw std::logic_error("quadric::texture_point on the plane");
+  throw std::logic_error("quadric::texture_point on a surface that is not a quadric");
 }
 
 glm::dvec3 surface_point(const Shape& shape, double u, double v, double h) {
@@ -107,9 +108,10 @@ glm::dvec3 surface_point(const Shape& shape, double u, double v, double h) {
              inset * glm::dvec3(cone_cos * radial, cone_sin);
     }
     case Surface::plane:
+    case Surface::mesh:
       break;
   }
-  throw std::logic_error("quadric::surface_point on the plane");
+  throw std::logic_error("quadric::surface_point on a surface that is not a quadric");
 }
 
 Interval body_interval(const Shape& shape, const glm::dvec3& origin, const glm::dvec3& d, double offset) {

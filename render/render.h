@@ -53,6 +53,7 @@
 #include <glm/glm.hpp>
 
 #include "bake/bake.h"
+#include "render/mesh.h"
 
 namespace displace::render {
 
@@ -89,7 +90,10 @@ enum class MethodFamily {
   reference,      // the tessellated height field, rasterized
 };
 
-enum class Surface { plane, sphere, cylinder, cone };
+enum class Surface { plane, sphere, cylinder, cone, mesh };
+inline bool is_quadric(Surface surface) {
+  return surface == Surface::sphere || surface == Surface::cylinder || surface == Surface::cone;
+}
 const char* surface_name(Surface surface);  // the --surface word
 
 struct MethodInfo {
@@ -210,6 +214,10 @@ class Renderer {
   // decoding). Until one is set, and after clear_albedo, a procedural grid shows the errors.
   void set_albedo(const Albedo& albedo);
   void clear_albedo();
+
+  // The base mesh for Surface::mesh (render/mesh.h): its tangent frames and curvature are computed
+  // here; throws RenderError when the mesh cannot carry a relief (see mesh_vertices).
+  void set_mesh(const Mesh& mesh);
 
   // Hands over a cone map already baked for the current heights (bake conventions, interleaved),
   // so that it is not baked again.

@@ -11,16 +11,19 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "render/mesh.h"
 #include "render/quadric.h"
 #include "render/render.h"
 #include "render/shaders/config.h"
 #include "render/vulkan_context.h"
+#include "spirv/mesh_vert.h"
 #include "spirv/quadric_proxy_vert.h"
 #include "spirv/quadric_reference_vert.h"
 #include "spirv/reference_vert.h"
@@ -119,6 +122,7 @@ int surface_id(Surface surface) {
     case Surface::sphere: return SURFACE_SPHERE;
     case Surface::cylinder: return SURFACE_CYLINDER;
     case Surface::cone: return SURFACE_CONE;
+    case Surface::mesh: return SURFACE_MESH;
   }
   throw std::logic_error("render::Surface without a shader id");
 }
@@ -153,7 +157,7 @@ struct Renderer::Impl {
   VkDescriptorSet descriptor_set = VK_NULL_HANDLE;
   OwnedRenderPass render_pass;
   OwnedShaderModule relief_vertex, reference_vertex, surface_fragment;
-  OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex;
+  OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex, mesh_vertex;
   std::map<int, OwnedPipeline> pipelines;  // by shader id * 4 + surface id
   OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
   OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with --address clamp: u wraps, v clamps
@@ -177,6 +181,16 @@ struct Renderer::Impl {
 
   Buffer reference_vertices, reference_indices;
   std::uint32_t reference_index_count = 0;
+
+  // the base mesh (set_mesh) and its tessellation for the reference, made for one tile and map size
+  std::vector<MeshVertex> mesh_cpu;
+  std::vector<std::uint32_t> mesh_triangles;
+  glm::dvec3 mesh_lo{0.0}, mesh_hi{0.0};
+  Buffer mesh_vertices, mesh_indices;
+  std::uint32_t mesh_index_count = 0;
+  Buffer mesh_reference_vertices, mesh_reference_indices;
+  std::uint32_t mesh_reference_index_count = 0;
+  std::array<int, 3> mesh_reference_key{0, 0, 0};  // tile, map width, map height
   int reference_tile = 0;
 
   Targets targets;
@@ -191,6 +205,9 @@ struct Renderer::Impl {
   const DistanceMap& distance_map(bake::Address address);
   void ensure_targets(int width, int height);
   void ensure_reference_mesh(int tile);
+  void ensure_mesh_reference(int tile);
+  template <typename T>
+  Buffer host_buffer(const std::vector<T>& data, VkBufferUsageFlags usage);
   void bind_maps(const View& view, const MethodInfo& info);
 };
 
@@ -345,13 +362,15 @@ void Renderer::Impl::create_render_pass() {
   quadric_proxy_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
   quadric_reference_vertex =
       OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_reference_vert));
+  mesh_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_mesh_vert));
 }
 
 VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
-  const int key = info.shader_id * 4 + surface_id(surface);
+  const int key = info.shader_id * 8 + surface_id(surface);
   if (const auto found = pipelines.find(key); found != pipelines.end()) return found->second.get();
   const bool reference = info.family == MethodFamily::reference;
-  const bool quadric = surface != Surface::plane;
+  const bool quadric = is_quadric(surface);
+  const bool mesh = surface == Surface::mesh;
 
   // specialization constants 0 (METHOD) and 1 (SURFACE)
   const std::array<std::int32_t, 2> constants = {info.shader_id, surface_id(surface)};
@@ -364,6 +383,9 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
   if (quadric) {
     stages[0].module = reference ? quadric_reference_vertex.get() : quadric_proxy_vertex.get();
+    stages[0].pSpecializationInfo = &specialization;
+  } else if (mesh) {
+    stages[0].module = mesh_vertex.get();
     stages[0].pSpecializationInfo = &specialization;
   } else {
     stages[0].module = reference ? reference_vertex.get() : relief_vertex.get();
@@ -378,7 +400,18 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   const VkVertexInputBindingDescription vertex_binding{0, sizeof(float) * 2, VK_VERTEX_INPUT_RATE_VERTEX};
   const VkVertexInputAttributeDescription vertex_attribute{0, 0, VK_FORMAT_R32G32_SFLOAT, 0};
   VkPipelineVertexInputStateCreateInfo vertex_input{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-  if (reference) {
+  // meshes: MeshVertex, four vec4 per vertex
+  const VkVertexInputBindingDescription mesh_binding{0, sizeof(MeshVertex), VK_VERTEX_INPUT_RATE_VERTEX};
+  std::array<VkVertexInputAttributeDescription, 4> mesh_attributes{};
+  for (std::uint32_t a = 0; a < 4; ++a) {
+    mesh_attributes[a] = {a, 0, VK_FORMAT_R32G32B32A32_SFLOAT, std::uint32_t(a * 4 * sizeof(float))};
+  }
+  if (mesh) {
+    vertex_input.vertexBindingDescriptionCount = 1;
+    vertex_input.pVertexBindingDescriptions = &mesh_binding;
+    vertex_input.vertexAttributeDescriptionCount = std::uint32_t(mesh_attributes.size());
+    vertex_input.pVertexAttributeDescriptions = mesh_attributes.data();
+  } else if (reference) {
     vertex_input.vertexBindingDescriptionCount = 1;
     vertex_input.pVertexBindingDescriptions = &vertex_binding;
     vertex_input.vertexAttributeDescriptionCount = 1;
@@ -396,6 +429,7 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
     // the tessellated relief is seen from outside only; the proxy box draws its back faces only
     raster.cullMode = reference ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_FRONT_BIT;
   }
+  if (mesh) raster.cullMode = VK_CULL_MODE_BACK_BIT;  // counter-clockwise seen from outside
   raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
   raster.lineWidth = 1.0f;
   VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
@@ -548,6 +582,102 @@ void Renderer::Impl::ensure_targets(int width, int height) {
 
 // Vertices at every texel centre of the K x K tiles plus the patch border (u = 0 and u = K), so the
 // triangles interpolate the same texel heights as the bilinear texture does.
+template <typename T>
+Buffer Renderer::Impl::host_buffer(const std::vector<T>& data, VkBufferUsageFlags usage) {
+  const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  Buffer buffer(context, data.size() * sizeof(T), usage, host);
+  std::memcpy(buffer.mapped(), data.data(), data.size() * sizeof(T));
+  return buffer;
+}
+
+namespace {
+
+constexpr long long max_mesh_reference_vertices = 4 << 20;  // the tessellated reference of a mesh
+
+MeshVertex blend(const MeshVertex& a, const MeshVertex& b, const MeshVertex& c, float wa, float wb, float wc) {
+  MeshVertex v;
+  v.position = wa * a.position + wb * b.position + wc * c.position;
+  v.u = wa * a.u + wb * b.u + wc * c.u;
+  v.v = wa * a.v + wb * b.v + wc * c.v;
+  v.dp_du = wa * a.dp_du + wb * b.dp_du + wc * c.dp_du;
+  v.dp_dv = wa * a.dp_dv + wb * b.dp_dv + wc * c.dp_dv;
+  v.normal = glm::normalize(wa * a.normal + wb * b.normal + wc * c.normal);
+  v.curvature_uu = wa * a.curvature_uu + wb * b.curvature_uu + wc * c.curvature_uu;
+  v.curvature_vv = wa * a.curvature_vv + wb * b.curvature_vv + wc * c.curvature_vv;
+  return v;
+}
+
+}  // namespace
+
+// The mesh's reference: every triangle cut into n x n sub-triangles, n chosen so that a sub-edge
+// spans at most half a texel of the (tiled) map, the same n everywhere (vertices fall between texel
+// centres as well as on them, so sharp features are sampled, not exactly kept: the reference on a
+// mesh is its tessellation); a point on an edge is blended from
+// the edge's two vertices in one fixed order, so neighbouring triangles share it bit for bit and the
+// displaced surface has no cracks. The vertex shader displaces each vertex along its normal.
+void Renderer::Impl::ensure_mesh_reference(int tile) {
+  const std::array<int, 3> key{tile, field.width, field.height};
+  if (mesh_reference_key == key && mesh_reference_vertices.handle()) return;
+  const std::size_t triangles = mesh_triangles.size() / 3;
+  double longest = 1.0;  // texels
+  for (std::size_t t = 0; t < mesh_triangles.size(); t += 3) {
+    for (int e = 0; e < 3; ++e) {
+      const MeshVertex& a = mesh_cpu[mesh_triangles[t + e]];
+      const MeshVertex& b = mesh_cpu[mesh_triangles[t + (e + 1) % 3]];
+      longest = std::max({longest, std::abs(double(a.u) - b.u) * field.width * tile,
+                          std::abs(double(a.v) - b.v) * field.height * tile});
+    }
+  }
+  const long long most = (long long)std::sqrt(2.0 * double(max_mesh_reference_vertices) / double(triangles));
+  const int n = int(std::clamp<long long>((long long)std::ceil(2.0 * longest), 1, std::max<long long>(most - 1, 1)));
+  const int per_row = n + 1;
+  std::vector<MeshVertex> vertices;
+  std::vector<std::uint32_t> indices;
+  vertices.reserve(triangles * std::size_t(per_row) * std::size_t(n + 2) / 2);
+  indices.reserve(triangles * std::size_t(n) * std::size_t(n) * 3);
+  std::vector<std::uint32_t> grid(std::size_t(per_row) * per_row);
+  for (std::size_t t = 0; t < mesh_triangles.size(); t += 3) {
+    const std::uint32_t corner[3] = {mesh_triangles[t], mesh_triangles[t + 1], mesh_triangles[t + 2]};
+    // point (i, j): weights i / n on the first corner, j / n on the second, the rest on the third
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) {
+        const int counts[3] = {i, j, n - i - j};
+        int nonzero = 0;
+        for (int c : counts) nonzero += c != 0;
+        MeshVertex vertex;
+        if (nonzero == 2) {  // on an edge: blend its two vertices in the order of their indices
+          int first = -1, second = -1;
+          for (int c = 0; c < 3; ++c) {
+            if (counts[c] == 0) continue;
+            (first < 0 ? first : second) = c;
+          }
+          if (corner[first] > corner[second]) std::swap(first, second);
+          const float w = float(counts[second]) / float(n);
+          vertex = blend(mesh_cpu[corner[first]], mesh_cpu[corner[second]], mesh_cpu[corner[first]], 1.0f - w, w, 0.0f);
+        } else {
+          vertex = blend(mesh_cpu[corner[0]], mesh_cpu[corner[1]], mesh_cpu[corner[2]], float(i) / float(n),
+                         float(j) / float(n), float(n - i - j) / float(n));
+        }
+        grid[std::size_t(i) * per_row + j] = std::uint32_t(vertices.size());
+        vertices.push_back(vertex);
+      }
+    }
+    // sub-triangles, with the winding of the triangle (+i towards its first corner, +j its second)
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; i + j < n; ++j) {
+        const std::uint32_t p = grid[std::size_t(i) * per_row + j], pi = grid[std::size_t(i + 1) * per_row + j],
+                            pj = grid[std::size_t(i) * per_row + j + 1];
+        indices.insert(indices.end(), {p, pi, pj});
+        if (i + j + 1 < n) indices.insert(indices.end(), {pi, grid[std::size_t(i + 1) * per_row + j + 1], pj});
+      }
+    }
+  }
+  mesh_reference_vertices = host_buffer(vertices, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  mesh_reference_indices = host_buffer(indices, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  mesh_reference_index_count = std::uint32_t(indices.size());
+  mesh_reference_key = key;
+}
+
 void Renderer::Impl::ensure_reference_mesh(int tile) {
   if (reference_tile == tile && reference_vertices.handle()) return;
   const long long columns = (long long)field.width * tile + 2, rows = (long long)field.height * tile + 2;
@@ -582,7 +712,7 @@ void Renderer::Impl::ensure_reference_mesh(int tile) {
 void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const bool wrap = view.address == bake::Address::wrap;
   // u closes around a quadric's axis: its cones are baked with wrap (conservative for a clamped v)
-  const bool quadric = view.surface != Surface::plane;
+  const bool quadric = is_quadric(view.surface);
   const bake::Address cone_address = quadric ? bake::Address::wrap : view.address;
   VkImageView cone_view = dummy_cones.view();
   if (info.cone_sectors > 0) {
@@ -706,6 +836,31 @@ void Renderer::set_height_field(const HeightField& field) {
                                         field.heights.size() * sizeof(float));
 }
 
+void Renderer::set_mesh(const Mesh& mesh) {
+  std::vector<MeshVertex> vertices;
+  try {
+    vertices = mesh_vertices(mesh);
+  } catch (const MeshError& error) {
+    throw RenderError(std::string("mesh: ") + error.what());
+  }
+  Impl& impl = *impl_;
+  vkDeviceWaitIdle(impl.context.device());
+  impl.mesh_lo = glm::dvec3(std::numeric_limits<double>::max());
+  impl.mesh_hi = glm::dvec3(std::numeric_limits<double>::lowest());
+  for (const MeshVertex& vertex : vertices) {
+    impl.mesh_lo = glm::min(impl.mesh_lo, glm::dvec3(vertex.position));
+    impl.mesh_hi = glm::max(impl.mesh_hi, glm::dvec3(vertex.position));
+  }
+  impl.mesh_cpu = std::move(vertices);
+  impl.mesh_triangles = mesh.triangles;
+  impl.mesh_vertices = impl.host_buffer(impl.mesh_cpu, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  impl.mesh_indices = impl.host_buffer(impl.mesh_triangles, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  impl.mesh_index_count = std::uint32_t(impl.mesh_triangles.size());
+  impl.mesh_reference_vertices = Buffer{};
+  impl.mesh_reference_indices = Buffer{};
+  impl.mesh_reference_index_count = 0;
+}
+
 void Renderer::set_albedo(const Albedo& albedo) {
   if (albedo.width < 1 || albedo.height < 1 || albedo.width > max_map_side || albedo.height > max_map_side ||
       albedo.rgba.size() != std::size_t(albedo.width) * albedo.height * 4) {
@@ -754,7 +909,9 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
   if (method.refine < 0 || method.refine > max_refine) throw RenderError("--refine must be between 0 and 64");
   const MethodInfo& info = method_info(method.method);
   const Camera& camera = view.camera;
-  const bool quadric = view.surface != Surface::plane;
+  const bool quadric = is_quadric(view.surface);
+  const bool mesh = view.surface == Surface::mesh;
+  if (mesh && impl.mesh_index_count == 0) throw RenderError("--surface mesh: no mesh was set");
   if (!supports_surface(info.method, view.surface)) {
     std::string supported;
     for (const MethodInfo& other : method_table()) {
@@ -773,11 +930,21 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
   // maps and descriptors
   impl.bind_maps(view, info);
   const VkPipeline pipeline = impl.pipeline(info, view.surface);
-  if (info.family == MethodFamily::reference) impl.ensure_reference_mesh(view.tile);
+  if (info.family == MethodFamily::reference) {
+    if (mesh) {
+      impl.ensure_mesh_reference(view.tile);
+    } else {
+      impl.ensure_reference_mesh(view.tile);
+    }
+  }
 
   // frame uniforms: near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
   glm::dvec3 box_lo(0.0, 0.0, -double(view.depth_scale)), box_hi(1.0, 1.0, 0.0);
   if (quadric) quadric::relief_box(quadric::shape_of(view), box_lo, box_hi);
+  if (mesh) {
+    box_lo = impl.mesh_lo - glm::dvec3(view.depth_scale);
+    box_hi = impl.mesh_hi + glm::dvec3(view.depth_scale);
+  }
   double far_plane = 0.0;
   for (int corner = 0; corner < 8; ++corner) {
     const glm::dvec3 p((corner & 1) ? box_hi.x : box_lo.x, (corner & 2) ? box_hi.y : box_lo.y,
@@ -827,7 +994,15 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
     vkCmdSetScissor(commands, 0, 1, &scissor);
     vkCmdBindDescriptorSets(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, impl.pipeline_layout.get(), 0, 1,
                             &impl.descriptor_set, 0, nullptr);
-    if (info.family == MethodFamily::reference) {
+    if (mesh) {
+      const bool reference = info.family == MethodFamily::reference;
+      const VkDeviceSize offset = 0;
+      const VkBuffer vertex_buffer = reference ? impl.mesh_reference_vertices.handle() : impl.mesh_vertices.handle();
+      vkCmdBindVertexBuffers(commands, 0, 1, &vertex_buffer, &offset);
+      vkCmdBindIndexBuffer(commands, reference ? impl.mesh_reference_indices.handle() : impl.mesh_indices.handle(), 0,
+                           VK_INDEX_TYPE_UINT32);
+      vkCmdDrawIndexed(commands, reference ? impl.mesh_reference_index_count : impl.mesh_index_count, 1, 0, 0, 0);
+    } else if (info.family == MethodFamily::reference) {
       const VkDeviceSize offset = 0;
       const VkBuffer vertex_buffer = impl.reference_vertices.handle();
       vkCmdBindVertexBuffers(commands, 0, 1, &vertex_buffer, &offset);

@@ -35,6 +35,7 @@ using mat4 = glm::mat4;
 #define SURFACE_SPHERE 1
 #define SURFACE_CYLINDER 2
 #define SURFACE_CONE 3
+#define SURFACE_MESH 4  // render/mesh.h, mesh.vert.glsl, mesh.inc.glsl
 #define QUADRIC_AXIS_X 0.5    // every quadric's axis is the vertical line x = y = 0.5 (world units)
 #define QUADRIC_AXIS_Y 0.5
 #define CONE_APEX_HEIGHT 1.5  // the cone's apex is at z = 1.5 R

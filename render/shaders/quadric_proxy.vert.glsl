@@ -19,6 +19,7 @@ layout(location = 2) out vec3 out_tangent_u;
 layout(location = 3) out vec3 out_tangent_v;
 layout(location = 4) out vec3 out_normal;
 layout(location = 5) out float out_h;
+layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
 
 // corner c of the box is (c & 1, (c >> 1) & 1, (c >> 2) & 1) between lo and hi; two triangles per
 // face, counter-clockwise seen from outside
@@ -36,5 +37,6 @@ void main() {
   out_tangent_v = vec3(0.0);
   out_normal = vec3(0.0);
   out_h = 1.0;
+  out_curvature = vec2(0.0);
   gl_Position = frame.view_projection * vec4(world, 1.0);
 }

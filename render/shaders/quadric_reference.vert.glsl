@@ -23,6 +23,7 @@ layout(location = 2) out vec3 out_tangent_u;
 layout(location = 3) out vec3 out_tangent_v;
 layout(location = 4) out vec3 out_normal;
 layout(location = 5) out float out_h;
+layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
 
 void main() {
   float tile = frame.surface.x;
@@ -36,5 +37,6 @@ void main() {
   out_tangent_v = f.along_v;
   out_normal = f.normal;
   out_h = h;
+  out_curvature = vec2(0.0);
   gl_Position = frame.view_projection * vec4(f.position, 1.0);
 }

@@ -15,6 +15,7 @@ layout(location = 2) out vec3 out_tangent_u;
 layout(location = 3) out vec3 out_tangent_v;
 layout(location = 4) out vec3 out_normal;
 layout(location = 5) out float out_h;
+layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
 
 void main() {
   float h = textureLod(height_map, in_uv, 0.0).r;
@@ -25,5 +26,6 @@ void main() {
   out_tangent_v = vec3(0.0, frame.surface.z, 0.0);
   out_normal = vec3(0.0, 0.0, 1.0);
   out_h = h;
+  out_curvature = vec2(0.0);
   gl_Position = frame.view_projection * vec4(world, 1.0);
 }

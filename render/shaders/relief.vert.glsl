@@ -12,6 +12,7 @@ layout(location = 2) out vec3 out_tangent_u;  // dP/du
 layout(location = 3) out vec3 out_tangent_v;  // dP/dv
 layout(location = 4) out vec3 out_normal;     // unit, pointing out of the relief
 layout(location = 5) out float out_h;         // height of this point: 1 on the base polygon
+layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
 
 const vec2 corners[6] = vec2[](vec2(0, 0), vec2(1, 0), vec2(1, 1), vec2(0, 0), vec2(1, 1), vec2(0, 1));
 
@@ -24,5 +25,6 @@ void main() {
   out_tangent_v = vec3(0.0, frame.surface.z, 0.0);
   out_normal = vec3(0.0, 0.0, 1.0);
   out_h = 1.0;
+  out_curvature = vec2(0.0);
   gl_Position = frame.view_projection * vec4(world, 1.0);
 }

@@ -20,6 +20,7 @@ layout(location = 2) in vec3 in_tangent_u;
 layout(location = 3) in vec3 in_tangent_v;
 layout(location = 4) in vec3 in_normal;
 layout(location = 5) in float in_h;
+layout(location = 6) in vec2 in_curvature;  // meshes only: k_uu, k_vv (1 / world units)
 
 layout(location = ATTACHMENT_COLOR) out vec4 out_color;
 layout(location = ATTACHMENT_HIT) out vec4 out_hit;
@@ -72,7 +73,13 @@ float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
   return s < s_hit - bias ? 0.0 : 1.0;
 }
 
+#include "mesh.inc.glsl"
+
 void main() {
+  if (SURFACE == SURFACE_MESH) {
+    mesh_fragment();
+    return;
+  }
   if (SURFACE != SURFACE_PLANE) {
     quadric_fragment();
     return;
