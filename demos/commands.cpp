@@ -553,7 +553,6 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   render_settings.method = {render::Method::acm4, 32, 0};
   render::Renderer renderer(render_settings.renderer);
   renderer.set_height_field({ocean.width, ocean.height, heights});
-  renderer.set_cone_map(demo_sectors, address, baked.ratios);
   const render::Frame acm4 = renderer.render(render_settings.view, render_settings.method);
   const render::Frame reference = renderer.render(render_settings.view, {render::Method::reference, 1, 0});
   const std::filesystem::path acm4_file = settings.output_directory / "ocean_acm4.png";

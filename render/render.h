@@ -156,13 +156,9 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones), and kept until
-  // the heights change.
+  // them - cone maps for the bilinear surface (bake::bake_bilinear_cones; bake::bake_relaxed for
+  // relaxed cones) - and kept until the heights change.
   void set_height_field(const HeightField& field);
-
-  // Hands over a cone map already baked for the current heights (bake conventions, interleaved),
-  // so that it is not baked again.
-  void set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios);
 
   // Renders one frame; pipelines are made once per method and kept.
   Frame render(const View& view, const MethodSettings& method);

@@ -30,7 +30,7 @@ using mat4 = glm::mat4;
 // descriptor bindings (set 0)
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
-#define BINDING_CONES 2    // sampler2DArray, RGBA32F cone ratios (4 sectors per layer), nearest
+#define BINDING_CONES 2    // sampler2DArray, RG32F: layer k = (ratio of sector k, apex height), nearest
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
