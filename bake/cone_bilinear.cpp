@@ -70,6 +70,11 @@ struct Axis {
     const int m = a % texels;
     return m < 0 ? m + texels : m;
   }
+  int in_tile(int n) const {  // the stored cell of unrolled cell n
+    if (n >= 0 && n < cells) return n;
+    const int m = n % cells;
+    return m < 0 ? m + cells : m;
+  }
   int begin(int n) const { return wrap ? 2 * n : std::max(2 * n - 2, -1); }
   int end(int n) const { return wrap ? 2 * n + 2 : std::min(2 * n, 2 * texels - 1); }
 };
@@ -116,6 +121,7 @@ struct Context {
   std::vector<Derivatives> cell_rise;  // per cell (n_u + n_v * cells_u)
   detail::Pyramid pyramid;         // max pyramid over the cells' maxima
   detail::SectorMask beyond[4];    // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
+  double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {
@@ -127,7 +133,7 @@ struct Context {
 
 // uv distance for gaps in half texels.
 double gap_distance(const Context& context, int gap_u, int gap_v) {
-  const double u = gap_u / (2.0 * context.grid.width), v = gap_v / (2.0 * context.grid.height);
+  const double u = gap_u * context.half_texel_u, v = gap_v * context.half_texel_v;
   return std::sqrt(u * u + v * v);
 }
 
@@ -156,6 +162,8 @@ struct TexelSearch {
   const double (&square)[3][3];  // s on Q_c's grid (square_values)
   double* best;
   long long work = 0;
+
+  double largest_best() const { return *std::max_element(best, best + context.grid.sector_count); }
 
   void lower(detail::SectorMask mask, double bound) {
     for (int k = 0; k < context.grid.sector_count; ++k)
@@ -209,9 +217,9 @@ struct TexelSearch {
         const int nu = U.cell_of_left_centre(j + da);
         const bool exists = U.exists(nu) && V.exists(nv);
         double rise_u = 0.0, rise_v = 0.0;
+        const std::size_t stored = exists ? std::size_t(V.in_tile(nv)) * U.cells + U.in_tile(nu) : 0;
         if (exists) {
-          const int tu = ((nu % U.cells) + U.cells) % U.cells, tv = ((nv % V.cells) + V.cells) % V.cells;
-          const Derivatives& cell = context.cell_rise[std::size_t(tv) * U.cells + tu];
+          const Derivatives& cell = context.cell_rise[stored];
           rise_u = std::max(cell.rise[da >= 0 ? 0 : 1], 0.0);
           rise_v = std::max(cell.rise[db >= 0 ? 2 : 3], 0.0);
         }
@@ -229,8 +237,8 @@ struct TexelSearch {
         at(1, da, db) = rise_v;
         if (!exists) continue;
         ++work;
+        if (!(context.pyramid.max.levels[0][stored] > apex)) continue;
         const Patch patch = context.patch(nu, nv);
-        if (!(std::max(std::max(patch.h[0], patch.h[1]), std::max(patch.h[2], patch.h[3])) > apex)) continue;
         const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
         const int origin_u = 2 * U.left_centre(nu), origin_v = 2 * V.left_centre(nv);
         const int cu[2] = {U.begin(nu), U.end(nu)}, cv[2] = {V.begin(nv), V.end(nv)};
@@ -254,7 +262,7 @@ struct TexelSearch {
               along_u = std::max(own.rise[su > 0 ? 0 : 1], 0.0);
               along_v = std::max(own.rise[sv > 0 ? 2 : 3], 0.0);
             }
-            const double slope = su == 0 ? along_v : sv == 0 ? along_u : std::hypot(along_u, along_v);
+            const double slope = su == 0 ? along_v : sv == 0 ? along_u : std::sqrt(along_u * along_u + along_v * along_v);
             const int far_u = su > 0 ? u1 - qu1 : su < 0 ? qu0 - u0 : 0;
             const int far_v = sv > 0 ? v1 - qv1 : sv < 0 ? qv0 - v0 : 0;
             const double drop = std::max(0.0, apex - (clamp_max(u0, u1, v0, v1) + height_margin));
@@ -272,7 +280,13 @@ struct TexelSearch {
   }
 
   // every other cell, through the max pyramid over cells, nearest first (step 2)
-  void far_cells(std::vector<detail::Node>& stack) {
+  struct Entry {
+    detail::Node node;
+    double bound;
+    detail::SectorMask mask;  // the sectors it could lower when examined
+  };
+
+  void far_cells(std::vector<Entry>& stack) {
     const Axis& U = context.along_u;
     const Axis& V = context.along_v;
     const detail::Pyramid& pyramid = context.pyramid;
@@ -280,23 +294,20 @@ struct TexelSearch {
     // the window in unrolled cell indices (empty for R = 0)
     const int wu0 = U.cell_of_left_centre(j - R), wu1 = U.cell_of_left_centre(j + R - 1);
     const int wv0 = V.cell_of_left_centre(i - R), wv1 = V.cell_of_left_centre(i + R - 1);
-    struct Entry {
-      detail::Node node;
-      double bound;
-    };
     // bound of a node; false when it cannot lower any ratio or lies inside the window
     auto examine = [&](const detail::Node& node, Entry& entry) {
       ++work;
       const int count_u = pyramid.count_x(node.level), count_v = pyramid.count_y(node.level);
+      const int tile_u = detail::floor_div(node.nx, count_u), tile_v = detail::floor_div(node.ny, count_v);
+      const double top = pyramid.value(node.level, node.ny - tile_v * count_v, node.nx - tile_u * count_u);
+      if (!(top > apex)) return false;
       int first_u, last_u, first_v, last_v;
       detail::block_range(node.nx, node.level, count_u, U.cells, first_u, last_u);
       detail::block_range(node.ny, node.level, count_v, V.cells, first_v, last_v);
       if (R > 0 && first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;
-      const int tile_u = detail::floor_div(node.nx, count_u), tile_v = detail::floor_div(node.ny, count_v);
-      const double top = pyramid.value(node.level, node.ny - tile_v * count_v, node.nx - tile_u * count_u);
-      if (!(top > apex)) return false;
       const int u0 = U.begin(first_u), u1 = U.end(last_u), v0 = V.begin(first_v), v1 = V.end(last_v);
       const double bound = far_bound(u0, u1, v0, v1, top);
+      if (!(bound < largest_best())) return false;
       const detail::SectorMask mask =
           box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
       detail::SectorMask useful = 0;
@@ -307,25 +318,26 @@ struct TexelSearch {
         lower(useful, bound);
         return false;
       }
-      entry = {node, bound};
+      entry = {node, bound, useful};
       return true;
     };
-    std::vector<Entry> entries;
+    stack.clear();
     Entry entry;
     const int top_level = pyramid.levels - 1;
     const int tiles = U.wrap ? 2 : 0;  // with wrap, images within uv distance 1 of Q_c lie in tiles -2..1
     for (int tv = -tiles; tv <= tiles; ++tv)
       for (int tu = -tiles; tu <= tiles; ++tu)
-        if (examine({top_level, tu, tv}, entry)) entries.push_back(entry);
-    std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.bound > b.bound; });
-    stack.clear();
-    for (const Entry& e : entries) stack.push_back(e.node);
+        if (examine({top_level, tu, tv}, entry)) stack.push_back(entry);
+    std::sort(stack.begin(), stack.end(), [](const Entry& a, const Entry& b) { return a.bound > b.bound; });
     while (!stack.empty()) {
-      const detail::Node node = stack.back();
+      const Entry top = stack.back();
       stack.pop_back();
-      // re-examined: the ratios may have dropped since it was pushed
-      Entry self;
-      if (!examine(node, self)) continue;
+      // the ratios may have dropped since it was pushed
+      bool useful = false;
+      for (int k = 0; k < context.grid.sector_count; ++k)
+        if ((top.mask >> k & 1u) && top.bound < best[k]) useful = true;
+      if (!useful) continue;
+      const detail::Node& node = top.node;
       Entry children[4];
       int child_count = 0;
       const int level = node.level - 1;
@@ -340,7 +352,7 @@ struct TexelSearch {
         }
       for (int a = 1; a < child_count; ++a)  // largest bound first, so the nearest is searched first
         for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) std::swap(children[b - 1], children[b]);
-      for (int c = 0; c < child_count; ++c) stack.push_back(children[c].node);
+      for (int c = 0; c < child_count; ++c) stack.push_back(children[c]);
     }
   }
 };
@@ -403,6 +415,8 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                   {},
                   {},
                   {}};
+  context.half_texel_u = 0.5 / heights.width;
+  context.half_texel_v = 0.5 / heights.height;
   // cells: maxima (for the pyramid) and slopes
   const Axis& U = context.along_u;
   const Axis& V = context.along_v;
@@ -430,7 +444,7 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   std::atomic<long long> total_work{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<double> best(sectors), hull;
-    std::vector<detail::Node> stack;
+    std::vector<TexelSearch::Entry> stack;
     long long work = 0;
     for (int i = rows.begin(); i < rows.end(); ++i)
       for (int j = 0; j < heights.width; ++j) {
