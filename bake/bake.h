@@ -162,8 +162,8 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
 struct BilinearConeSettings {
   int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
 };
-BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out, std::span<float> apex_heights,
-                              const BilinearConeSettings& settings = {});
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings = {});
 
 // Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
 // texels, each the maximum of its (up to four) children; the last level is 1 x 1.

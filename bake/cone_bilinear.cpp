@@ -60,7 +60,8 @@ struct Axis {
   bool wrap = true;
   int cells = 0;
 
-  Axis(int count, Address address) : texels(count), wrap(address == Address::wrap), cells(wrap ? count : count + 1) {}
+  Axis(int count, Address address)
+      : texels(count), wrap(address == Address::wrap), cells(wrap ? count : count + 1) {}
 
   int left_centre(int n) const { return wrap ? n : n - 1; }
   int cell_of_left_centre(int a) const { return wrap ? a : a + 1; }
@@ -88,7 +89,8 @@ struct Derivatives {
   double rise[4] = {0.0, 0.0, 0.0, 0.0};
 
   Derivatives() = default;
-  Derivatives(double plus_u, double minus_u, double plus_v, double minus_v) : rise{plus_u, minus_u, plus_v, minus_v} {}
+  Derivatives(double plus_u, double minus_u, double plus_v, double minus_v)
+      : rise{plus_u, minus_u, plus_v, minus_v} {}
 };
 
 // The four corner heights of a cell (h[0] at (a, b), h[1] at (a + 1, b), h[2] at (a, b + 1), h[3] at
@@ -117,16 +119,17 @@ struct Context {
   HeightView heights;
   detail::Grid grid;
   Axis along_u, along_v;
-  int window = 0;  // slope window radius in cells
+  int window = 0;                      // slope window radius in cells
   std::vector<Derivatives> cell_rise;  // per cell (n_u + n_v * cells_u)
-  detail::Pyramid pyramid;         // max pyramid over the cells' maxima
-  detail::SectorMask beyond[4];    // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
+  detail::Pyramid pyramid;             // max pyramid over the cells' maxima
+  detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
   double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {
     const int a = along_u.left_centre(nu), b = along_v.left_centre(nv);
-    const int j0 = along_u.texel(a), j1 = along_u.texel(a + 1), i0 = along_v.texel(b), i1 = along_v.texel(b + 1);
+    const int j0 = along_u.texel(a), j1 = along_u.texel(a + 1), i0 = along_v.texel(b),
+              i1 = along_v.texel(b + 1);
     return {{height(i0, j0), height(i0, j1), height(i1, j0), height(i1, j1)}};
   }
 };
@@ -258,17 +261,20 @@ struct TexelSearch {
             if (!(top > apex)) continue;
             double along_u = rise_u, along_v = rise_v;
             if (centre) {
-              const Derivatives own = patch.derivatives(fu0, fu1, fv0, fv1, context.grid.width, context.grid.height);
+              const Derivatives own =
+                  patch.derivatives(fu0, fu1, fv0, fv1, context.grid.width, context.grid.height);
               along_u = std::max(own.rise[su > 0 ? 0 : 1], 0.0);
               along_v = std::max(own.rise[sv > 0 ? 2 : 3], 0.0);
             }
-            const double slope = su == 0 ? along_v : sv == 0 ? along_u : std::sqrt(along_u * along_u + along_v * along_v);
+            const double slope = su == 0   ? along_v
+                                 : sv == 0 ? along_u
+                                           : std::sqrt(along_u * along_u + along_v * along_v);
             const int far_u = su > 0 ? u1 - qu1 : su < 0 ? qu0 - u0 : 0;
             const int far_v = sv > 0 ? v1 - qv1 : sv < 0 ? qv0 - v0 : 0;
             const double drop = std::max(0.0, apex - (clamp_max(u0, u1, v0, v1) + height_margin));
-            const double bound = piece_bound(gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)),
-                                             gap_distance(context, far_u, far_v), top + height_margin - apex, drop,
-                                             slope);
+            const double bound =
+                piece_bound(gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)),
+                            gap_distance(context, far_u, far_v), top + height_margin - apex, drop, slope);
             detail::SectorMask mask = box_sectors(context, u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0);
             if (su != 0) mask &= context.beyond[su > 0 ? 0 : 1];
             if (sv != 0) mask &= context.beyond[sv > 0 ? 2 : 3];
@@ -351,7 +357,8 @@ struct TexelSearch {
           if (examine(child, children[child_count])) ++child_count;
         }
       for (int a = 1; a < child_count; ++a)  // largest bound first, so the nearest is searched first
-        for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) std::swap(children[b - 1], children[b]);
+        for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b)
+          std::swap(children[b - 1], children[b]);
       for (int c = 0; c < child_count; ++c) stack.push_back(children[c]);
     }
   }
@@ -368,7 +375,8 @@ void square_values(const Context& context, int i, int j, double (&square)[3][3])
     for (int a = 0; a < 3; ++a) {
       // the texels around the position: the centre's row / column and, off centre, its neighbour's
       const int rows[2] = {1, b == 1 ? 1 : b}, cols[2] = {1, a == 1 ? 1 : a};
-      square[b][a] = 0.25 * (h[rows[0]][cols[0]] + h[rows[0]][cols[1]] + h[rows[1]][cols[0]] + h[rows[1]][cols[1]]);
+      square[b][a] =
+          0.25 * (h[rows[0]][cols[0]] + h[rows[0]][cols[1]] + h[rows[1]][cols[0]] + h[rows[1]][cols[1]]);
     }
 }
 
@@ -393,8 +401,8 @@ float stored_ratio(double ratio) {
 
 }  // namespace
 
-BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out, std::span<float> apex_heights,
-                              const BilinearConeSettings& settings) {
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
   validate(heights, out);
   const std::size_t texels = std::size_t(heights.width) * heights.height;
   if (apex_heights.size() != texels) {
@@ -470,7 +478,8 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   stats.sector_count = sectors;
   stats.texels_refined = (long long)texels;
   stats.work = total_work;
-  stats.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats.milliseconds =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   stats.mean_ratio = detail::mean_of(out.data, texels * sectors);
   return stats;
 }

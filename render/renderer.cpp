@@ -96,7 +96,9 @@ enum class ConeKind {
 int cone_key(int sectors, bake::Address address, ConeKind kind) {
   return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + int(kind);
 }
-ConeKind cone_kind(const MethodInfo& info) { return info.relaxed_cones ? ConeKind::relaxed : ConeKind::bilinear; }
+ConeKind cone_kind(const MethodInfo& info) {
+  return info.relaxed_cones ? ConeKind::relaxed : ConeKind::bilinear;
+}
 
 struct Targets {
   int width = 0, height = 0;
@@ -213,7 +215,8 @@ void Renderer::Impl::create_layouts() {
   uniforms = Buffer(context, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   const std::array<float, 2> one = {1.0f, 1.0f};
-  dummy_cones = upload_image(VK_FORMAT_R32G32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
+  dummy_cones =
+      upload_image(VK_FORMAT_R32G32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
 }
 
 void Renderer::Impl::create_render_pass() {

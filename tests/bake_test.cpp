@@ -864,7 +864,6 @@ TEST(DistanceMap, RejectsBadInput) {
   EXPECT_NO_THROW(bake_distance_map(view_of(ok), Address::wrap, out));
 }
 
-
 // ---- cone maps for the bilinear surface (bake_bilinear_cones)
 
 struct BilinearCones {
@@ -895,7 +894,10 @@ unsigned direction_sectors(long long dx, long long dy, int width, int height, in
   const long long x = dx * height, y = dy * width;  // the uv offset times units * W * H
   const int octants = 8 / sectors;                  // octants per sector
   if (x == 0 || y == 0 || std::llabs(x) == std::llabs(y)) {
-    const int m = y == 0 ? (x > 0 ? 0 : 4) : x == 0 ? (y > 0 ? 2 : 6) : x > 0 ? (y > 0 ? 1 : 7) : (y > 0 ? 3 : 5);
+    const int m = y == 0   ? (x > 0 ? 0 : 4)
+                  : x == 0 ? (y > 0 ? 2 : 6)
+                  : x > 0  ? (y > 0 ? 1 : 7)
+                           : (y > 0 ? 3 : 5);
     unsigned mask = 1u << (m / octants);
     if (m % octants == 0) mask |= 1u << ((m / octants + sectors - 1) % sectors);
     return mask;
@@ -918,8 +920,8 @@ struct BilinearCheck {
 // and two random points) and surface points x on a quarter-texel grid (cell corners, edge
 // midpoints, quarter points) plus random points, over every x within uv distance 1 of p (wrap:
 // periodic images; clamp: [0, 1]^2), s(x) <= H_c + |x - p| / r_k for each sector k holding x - p.
-BilinearCheck check_bilinear(const Map& map, Address address, const ConeMap& cones, const std::vector<float>& apex,
-                             int stride = 1) {
+BilinearCheck check_bilinear(const Map& map, Address address, const ConeMap& cones,
+                             const std::vector<float>& apex, int stride = 1) {
   struct Point {
     int x, y;
     double s;
@@ -950,7 +952,8 @@ BilinearCheck check_bilinear(const Map& map, Address address, const ConeMap& con
       const double hc = apex[std::size_t(i) * W + j];
       std::vector<std::pair<int, int>> ps;
       for (int a = -1; a <= 1; ++a)
-        for (int b = -1; b <= 1; ++b) ps.emplace_back(sample_units * j + a * half, sample_units * i + b * half);
+        for (int b = -1; b <= 1; ++b)
+          ps.emplace_back(sample_units * j + a * half, sample_units * i + b * half);
       for (int n = 0; n < 2; ++n)
         ps.emplace_back(sample_units * j - half + int(test::hash01(9, i * W + j, n) * sample_units),
                         sample_units * i - half + int(test::hash01(9, i * W + j, n + 2) * sample_units));
@@ -964,7 +967,8 @@ BilinearCheck check_bilinear(const Map& map, Address address, const ConeMap& con
           if (distance >= 1.0) continue;  // ratios are at most 1 and gaps at most 1
           ++check.pairs;
           if (distance >= gap) continue;  // below H_c + distance, so below every cone
-          const unsigned mask = dx == 0 && dy == 0 ? (1u << sectors) - 1u : direction_sectors(dx, dy, W, H, sectors);
+          const unsigned mask =
+              dx == 0 && dy == 0 ? (1u << sectors) - 1u : direction_sectors(dx, dy, W, H, sectors);
           for (int k = 0; k < sectors; ++k) {
             if (!(mask >> k & 1u)) continue;
             double& sampled = check.sampled[(std::size_t(i) * W + j) * sectors + k];
@@ -1038,8 +1042,10 @@ TEST(BilinearCones, CheckCatchesRatiosTenPercentTooLargeAndApexesTooLow) {
         std::vector<float> low = b.apex;
         for (float& h : low) h -= 0.01f;
         const BilinearCheck too_low = check_bilinear(map, address, b.cones, low);
-        EXPECT_GT(too_wide.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address);
-        EXPECT_GT(too_low.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address);
+        EXPECT_GT(too_wide.violations, 0)
+            << map.name << " sectors " << sectors << " " << address_name(address);
+        EXPECT_GT(too_low.violations, 0)
+            << map.name << " sectors " << sectors << " " << address_name(address);
       }
 }
 
@@ -1077,7 +1083,8 @@ TEST(BilinearCones, SlopeWindowRaisesEveryRatioAndTightnessIsRecorded) {
         std::printf(", window %d mean %.4f", window, b.stats.mean_ratio);
         long long zeros = 0;
         for (std::size_t n = 0; n < b.cones.ratios.size(); ++n) {
-          ASSERT_GE(b.cones.ratios[n], plain.cones.ratios[n]) << map.name << " window " << window << " at " << n;
+          ASSERT_GE(b.cones.ratios[n], plain.cones.ratios[n])
+              << map.name << " window " << window << " at " << n;
           zeros += b.cones.ratios[n] == 0.0f;
         }
         EXPECT_EQ(zeros, 0);
@@ -1098,8 +1105,8 @@ TEST(BilinearCones, CloseToTheSampledBestRatio) {
       const double sampled = std::accumulate(check.sampled.begin(), check.sampled.end(), 0.0);
       const double ours = std::accumulate(b.cones.ratios.begin(), b.cones.ratios.end(), 0.0);
       std::printf("%-14s %-5s mean ratio %.4f, sampled best %.4f: %.3f of it\n", map.name.c_str(),
-                  address_name(address), ours / double(check.sampled.size()), sampled / double(check.sampled.size()),
-                  ours / sampled);
+                  address_name(address), ours / double(check.sampled.size()),
+                  sampled / double(check.sampled.size()), ours / sampled);
       EXPECT_GE(ours, 0.6 * sampled) << map.name << " " << address_name(address);
     }
 }
@@ -1110,11 +1117,14 @@ TEST(BilinearCones, RejectsBadInput) {
   EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 3}, apex), BakeError);
   EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, {apex.data(), 15}),
                BakeError);
-  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {-1}), BakeError);
-  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {65}), BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {-1}),
+               BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {65}),
+               BakeError);
   Map nan_map = test::make_flat(4, 4);
   nan_map.at(2, 2) = std::nanf("");
-  EXPECT_THROW(bake_bilinear_cones(view_of(nan_map), Address::clamp, {ratios.data(), 4, 4, 4}, apex), BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(nan_map), Address::clamp, {ratios.data(), 4, 4, 4}, apex),
+               BakeError);
   EXPECT_NO_THROW(bake_bilinear_cones(view_of(ok), Address::clamp, {ratios.data(), 4, 4, 4}, apex));
   for (float r : ratios) EXPECT_EQ(r, 1.0f);
   for (float h : apex) EXPECT_EQ(h, 0.5f);

@@ -467,15 +467,19 @@ namespace {
 TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
   constexpr double tolerance = 1e-4;  // world units (a texel here is 0.03): float rounding of the march
   const std::vector<std::pair<std::string, HeightField>> fields = {
-      {"spikes", spike_field(32)}, {"step", step_field(32)}, {"waves", waves_field(32)},
-      {"noise", field_of(24, 20, [](int i, int j) { return 0.5 + 0.5 * std::sin(12.9898 * i + 78.233 * j * j); })}};
+      {"spikes", spike_field(32)},
+      {"step", step_field(32)},
+      {"waves", waves_field(32)},
+      {"noise",
+       field_of(24, 20, [](int i, int j) { return 0.5 + 0.5 * std::sin(12.9898 * i + 78.233 * j * j); })}};
   for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
     View view = oblique_view(48);
     view.address = address;
     for (const auto& [name, field] : fields) {
       std::vector<render::CpuHit> truth;
       for (int py = 0; py < view.camera.height; ++py)
-        for (int px = 0; px < view.camera.width; ++px) truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
+        for (int px = 0; px < view.camera.width; ++px)
+          truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
       shared_renderer().set_height_field(field);
       for (const Method method : {Method::csm, Method::acm4, Method::acm8}) {
         long long compared = 0, beyond = 0;
@@ -491,8 +495,8 @@ TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
           }
         }
         std::printf("%-6s %-5s %-5s %lld rays, %lld beyond the first crossing, worst %.2g\n", name.c_str(),
-                    address == bake::Address::wrap ? "wrap" : "clamp", render::method_info(method).name, compared,
-                    beyond, worst);
+                    address == bake::Address::wrap ? "wrap" : "clamp", render::method_info(method).name,
+                    compared, beyond, worst);
         EXPECT_GT(compared, 5000);
         EXPECT_EQ(beyond, 0) << name << " / " << render::method_info(method).name;
       }

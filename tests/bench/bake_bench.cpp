@@ -78,7 +78,16 @@ const Reference& reference(MapKind kind, int size) {
   return entry;
 }
 
-enum class Baker { exact, original, paper_adaptive, budgeted, budgeted_zero, budgeted_frame, budgeted_long, bilinear };
+enum class Baker {
+  exact,
+  original,
+  paper_adaptive,
+  budgeted,
+  budgeted_zero,
+  budgeted_frame,
+  budgeted_long,
+  bilinear
+};
 constexpr double frame_budget_ms = 16.0;  // one 60 Hz frame
 constexpr double long_budget_ms = 50.0;   // a 20 Hz update
 
@@ -95,7 +104,9 @@ void run(benchmark::State& state, MapKind kind, Baker baker) {
     switch (baker) {
       case Baker::exact: stats = bake::bake_exact(heights, bake::Address::wrap, out); break;
       case Baker::original: stats = bake::bake_original(heights, bake::Address::wrap, out); break;
-      case Baker::bilinear: stats = bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex); break;
+      case Baker::bilinear:
+        stats = bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex);
+        break;
       case Baker::paper_adaptive:
         stats = bake::bake_paper_adaptive(heights, bake::Address::wrap, {}, out);
         break;
