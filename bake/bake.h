@@ -154,9 +154,9 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
 //   height z in Q_c, travelling L uv per unit of descent with its azimuth in sector k, may descend
 //   r_k (z - H_c) / (r_k + L) without meeting the surface.
 // Each cell of the surface (and its periodic images) bounds the ratios it can reach by (distance
-// from Q_c) / (cell max - H_c); cells within settings.slope_window cells of c also by 1 / (largest
-// surface slope between them and Q_c), which is what keeps a texel next to a higher neighbour from a
-// ratio of 0; the four cells overlapping Q_c are split at Q_c's edges. The proof is in
+// from Q_c) / (cell max - H_c); cells within settings.slope_window cells of c, cut at Q_c's edge
+// lines, also by how fast the surface can rise from Q_c's edge towards them, which is what keeps a
+// texel next to a higher neighbour from a ratio of 0. The proof is in
 // bake/cone_bilinear.cpp. Ratios are lower bounds, not the tightest r_k: a brute-force test checks
 // the claim on dense samples of p and x. Stats as bake_exact's (mode bilinear).
 struct BilinearConeSettings {
