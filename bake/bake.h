@@ -32,7 +32,7 @@
 namespace displace::bake {
 
 enum class Address { wrap, clamp };
-enum class Mode { exact, original, paper_adaptive, budgeted };
+enum class Mode { exact, original, paper_adaptive, budgeted, bilinear };
 
 // Thrown for input the caller got wrong (NaN or out-of-range heights, empty maps, bad sector count).
 struct BakeError : std::runtime_error {
@@ -144,6 +144,30 @@ BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budge
 // (c, h(c)), through directions of sector k, crosses the height field at most once: it never leaves
 // the relief after entering it. It is never smaller than the conservative ratio.
 BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
+
+// Cone map for the BILINEAR surface, conservative from anywhere in a texel's square, for cone
+// stepping with no slack (the renderer's csm / acm4 / acm8 / acm4-interval). The cone maps above
+// hold between texel centres; a ray samples the bilinear surface s between them (wrap: periodic;
+// clamp: the edge texels extended over the half-texel border, nothing outside [0, 1]^2) from points
+// p that are not texel centres. Here, for texel c with square Q_c = c plus or minus half a texel in u
+// and v (the points whose nearest centre is c):
+// - apex_heights[i * W + j] = H_c, the maximum of s over Q_c (rounded up to float);
+// - the ratio of sector k (same sectors, layout and clamp to 1 as above) is an r_k such that for
+//   EVERY p in Q_c and every point x (x in [0, 1]^2 with clamp) whose direction from p lies in
+//   sector k (boundary directions in both sectors), s(x) <= H_c + |x - p| / r_k. So a ray point p at
+//   height z in Q_c, travelling L uv per unit of descent with its azimuth in sector k, may descend
+//   r_k (z - H_c) / (r_k + L) without meeting the surface.
+// Each cell of the surface (and its periodic images) bounds the ratios it can reach by (distance
+// from Q_c) / (cell max - H_c); cells within settings.slope_window cells of c, cut at Q_c's edge
+// lines, also by how fast the surface can rise from Q_c's edge towards them, which is what keeps a
+// texel next to a higher neighbour from a ratio of 0. The proof is in
+// bake/cone_bilinear.cpp. Ratios are lower bounds, not the tightest r_k: a brute-force test checks
+// the claim on dense samples of p and x. Stats as bake_exact's (mode bilinear).
+struct BilinearConeSettings {
+  int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
+};
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings = {});
 
 // Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
 // texels, each the maximum of its (up to four) children; the last level is 1 x 1.

@@ -76,6 +76,7 @@ const char* mode_name(Mode mode) {
     case Mode::original: return "original";
     case Mode::paper_adaptive: return "paper-adaptive";
     case Mode::budgeted: return "budgeted";
+    case Mode::bilinear: return "bilinear";
   }
   return "unknown";
 }

@@ -205,8 +205,9 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them, with the budgeted baker and no limit (the relaxed baker for relaxed cones, and
-  // bake_distance_map for sphere tracing's distance map), and kept until the heights change.
+  // them - cone maps for the bilinear surface (bake::bake_bilinear_cones; bake::bake_relaxed for
+  // relaxed cones), the dual max pyramid, bake_distance_map's distance map - and kept until the
+  // heights change.
   void set_height_field(const HeightField& field);
 
   // The albedo the hit is shaded with, sampled at the hit's texture coordinates (bilinear, the
@@ -218,10 +219,6 @@ class Renderer {
   // The base mesh for Surface::mesh (render/mesh.h): its tangent frames and curvature are computed
   // here; throws RenderError when the mesh cannot carry a relief (see mesh_vertices).
   void set_mesh(const Mesh& mesh);
-
-  // Hands over a cone map already baked for the current heights (bake conventions, interleaved),
-  // so that it is not baked again.
-  void set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios);
 
   // Renders one frame; pipelines are made once per method and kept.
   Frame render(const View& view, const MethodSettings& method);

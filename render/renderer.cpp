@@ -88,14 +88,23 @@ void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers
   vkCmdPipelineBarrier(commands, src_stage, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &barrier);
 }
 
-// Interleaved cone ratios (n per texel) into RGBA layers of 4 sectors each.
-std::vector<float> cone_layers(const std::vector<float>& ratios, int width, int height, int sectors) {
-  const int layers = (sectors + 3) / 4;
+// The cone maps of the cone methods: per texel and sector a ratio, and per texel an apex height
+// (bake::bake_bilinear_cones; relaxed maps have none).
+struct ConeMaps {
+  std::vector<float> ratios;  // interleaved, bake conventions
+  std::vector<float> apex;    // empty for relaxed cones
+};
+
+// Packs a cone map into RG32F layers, one per sector: layer k of texel t holds (ratio_k, apex_t),
+// so that a cone step reads its ray's sector and the apex in one fetch (apex 0 without one).
+std::vector<float> cone_layers(const ConeMaps& maps, int width, int height, int sectors) {
   const std::size_t texels = std::size_t(width) * height;
-  std::vector<float> packed(texels * 4 * layers, 1.0f);
-  for (std::size_t t = 0; t < texels; ++t) {
-    for (int k = 0; k < sectors; ++k) packed[(std::size_t(k / 4) * texels + t) * 4 + k % 4] = ratios[t * sectors + k];
-  }
+  std::vector<float> packed(texels * 2 * sectors);
+  for (int k = 0; k < sectors; ++k)
+    for (std::size_t t = 0; t < texels; ++t) {
+      packed[(std::size_t(k) * texels + t) * 2 + 0] = maps.ratios[t * sectors + k];
+      packed[(std::size_t(k) * texels + t) * 2 + 1] = maps.apex.empty() ? 0.0f : maps.apex[t];
+    }
   return packed;
 }
 
@@ -127,9 +136,16 @@ int surface_id(Surface surface) {
   throw std::logic_error("render::Surface without a shader id");
 }
 
-// Cone maps are baked for one sector count, address mode and kind (conservative or relaxed).
-int cone_key(int sectors, bake::Address address, bool relaxed) {
-  return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + (relaxed ? 1 : 0);
+// Cone maps are baked for one sector count, address mode and kind.
+enum class ConeKind {
+  bilinear,  // bake_bilinear_cones: conservative for the bilinear surface, with apex heights
+  relaxed,   // bake_relaxed
+};
+int cone_key(int sectors, bake::Address address, ConeKind kind) {
+  return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + int(kind);
+}
+ConeKind cone_kind(const MethodInfo& info) {
+  return info.relaxed_cones ? ConeKind::relaxed : ConeKind::bilinear;
 }
 
 // A distance map baked for one address mode: W x H x D voxels, bake conventions.
@@ -169,7 +185,7 @@ struct Renderer::Impl {
   Image dummy_cones;
   Image albedo_image, dummy_albedo;
   bool has_albedo = false;
-  std::map<int, std::vector<float>> cone_ratios;  // by cone_key, baked for `field`
+  std::map<int, ConeMaps> cone_maps;  // by cone_key, baked for `field`
   int uploaded_cone_key = -1;  // cone_key of cone_image, -1 for none
   Image cone_image;
   int uploaded_pyramid_address = -1;  // the bake::Address of max_pyramid, -1 for none
@@ -201,7 +217,7 @@ struct Renderer::Impl {
   Image upload_image(VkFormat format, int width, int height, int layers, VkImageViewType view_type, const void* data,
                      std::size_t bytes);
   Buffer upload_storage_buffer(std::span<const std::byte> data);
-  const std::vector<float>& cones(int sectors, bake::Address address, bool relaxed);
+  const ConeMaps& cones(int sectors, bake::Address address, ConeKind kind);
   const DistanceMap& distance_map(bake::Address address);
   void ensure_targets(int width, int height);
   void ensure_reference_mesh(int tile);
@@ -286,8 +302,9 @@ void Renderer::Impl::create_layouts() {
   }
   uniforms = Buffer(context, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
-  const std::array<float, 4> one = {1.0f, 1.0f, 1.0f, 1.0f};
-  dummy_cones = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
+  const std::array<float, 2> one = {1.0f, 1.0f};
+  dummy_cones =
+      upload_image(VK_FORMAT_R32G32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
   const std::array<std::uint8_t, 4> white = {255, 255, 255, 255};
   dummy_albedo = upload_image(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
   std::array<std::byte, sizeof(gpu::MaxPyramidHeader) + sizeof(float)> no_pyramid{};  // 0 levels
@@ -517,19 +534,21 @@ Buffer Renderer::Impl::upload_storage_buffer(std::span<const std::byte> data) {
   return buffer;
 }
 
-const std::vector<float>& Renderer::Impl::cones(int sectors, bake::Address address, bool relaxed) {
-  const int key = cone_key(sectors, address, relaxed);
-  auto found = cone_ratios.find(key);
-  if (found != cone_ratios.end()) return found->second;
-  std::vector<float> ratios(std::size_t(field.width) * field.height * sectors);
+const ConeMaps& Renderer::Impl::cones(int sectors, bake::Address address, ConeKind kind) {
+  const int key = cone_key(sectors, address, kind);
+  auto found = cone_maps.find(key);
+  if (found != cone_maps.end()) return found->second;
+  ConeMaps maps;
+  maps.ratios.resize(std::size_t(field.width) * field.height * sectors);
   const bake::HeightView heights{field.heights.data(), field.width, field.height};
-  const bake::ConeView out{ratios.data(), field.width, field.height, sectors};
-  if (relaxed) {
+  const bake::ConeView out{maps.ratios.data(), field.width, field.height, sectors};
+  if (kind == ConeKind::relaxed) {
     bake::bake_relaxed(heights, address, out);
   } else {
-    bake::bake_budgeted(heights, address, bake::Budget{}, out);
+    maps.apex.resize(field.heights.size());
+    bake::bake_bilinear_cones(heights, address, out, maps.apex);
   }
-  return cone_ratios.emplace(key, std::move(ratios)).first->second;
+  return cone_maps.emplace(key, std::move(maps)).first->second;
 }
 
 const DistanceMap& Renderer::Impl::distance_map(bake::Address address) {
@@ -716,12 +735,12 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const bake::Address cone_address = quadric ? bake::Address::wrap : view.address;
   VkImageView cone_view = dummy_cones.view();
   if (info.cone_sectors > 0) {
-    const int key = cone_key(info.cone_sectors, cone_address, info.relaxed_cones);
+    const int key = cone_key(info.cone_sectors, cone_address, cone_kind(info));
     if (uploaded_cone_key != key) {
-      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, cone_address, info.relaxed_cones),
+      const std::vector<float> packed = cone_layers(cones(info.cone_sectors, cone_address, cone_kind(info)),
                                                     field.width, field.height, info.cone_sectors);
-      cone_image = upload_image(VK_FORMAT_R32G32B32A32_SFLOAT, field.width, field.height,
-                                (info.cone_sectors + 3) / 4, VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
+      cone_image = upload_image(VK_FORMAT_R32G32_SFLOAT, field.width, field.height, info.cone_sectors,
+                                VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
       uploaded_cone_key = key;
     }
     cone_view = cone_image.view();
@@ -820,7 +839,7 @@ void Renderer::set_height_field(const HeightField& field) {
   Impl& impl = *impl_;
   vkDeviceWaitIdle(impl.context.device());
   impl.field = field;
-  impl.cone_ratios.clear();
+  impl.cone_maps.clear();
   impl.uploaded_cone_key = -1;
   impl.cone_image = Image{};
   impl.uploaded_pyramid_address = -1;
@@ -878,17 +897,6 @@ void Renderer::clear_albedo() {
   vkDeviceWaitIdle(impl.context.device());
   impl.has_albedo = false;
   impl.albedo_image = Image{};
-}
-
-void Renderer::set_cone_map(int sector_count, bake::Address address, std::vector<float> ratios) {
-  Impl& impl = *impl_;
-  if (!bake::is_valid_sector_count(sector_count) ||
-      ratios.size() != std::size_t(impl.field.width) * impl.field.height * sector_count) {
-    throw RenderError("set_cone_map: the cone map does not match the height field");
-  }
-  const int key = cone_key(sector_count, address, false);
-  if (impl.uploaded_cone_key == key) impl.uploaded_cone_key = -1;
-  impl.cone_ratios[key] = std::move(ratios);
 }
 
 Frame Renderer::render(const View& view, const MethodSettings& method) {

@@ -983,5 +983,271 @@ TEST(DistanceMap, RejectsBadInput) {
   EXPECT_NO_THROW(bake_distance_map(view_of(ok), Address::wrap, out));
 }
 
+// ---- cone maps for the bilinear surface (bake_bilinear_cones)
+
+struct BilinearCones {
+  ConeMap cones;
+  std::vector<float> apex;
+  BakeStats stats;
+};
+
+BilinearCones bake_bilinear(const Map& map, int sectors, Address address,
+                            int window = BilinearConeSettings{}.slope_window) {
+  BilinearCones b{make_cone_map(map, sectors), std::vector<float>(map.values.size()), {}};
+  b.stats = bake_bilinear_cones(view_of(map), address, b.cones.view(), b.apex, {window});
+  return b;
+}
+
+double mean_ratio(const ConeMap& cones) {
+  return std::accumulate(cones.ratios.begin(), cones.ratios.end(), 0.0) / double(cones.ratios.size());
+}
+
+// Sample positions: `sample_units` per texel along each axis, position X along u at texel-centre
+// coordinate X / sample_units (texel j's centre at X = sample_units * j), u = (X / units + 0.5) / W.
+constexpr int sample_units = 32;
+
+// Sectors (bit k) whose closed wedge holds the uv direction of a sample offset (dx, dy), from the
+// definition: exact on the sector edges (multiples of 45 degrees, both sectors), atan2 elsewhere.
+unsigned direction_sectors(long long dx, long long dy, int width, int height, int sectors) {
+  if (sectors == 1) return 1u;
+  const long long x = dx * height, y = dy * width;  // the uv offset times units * W * H
+  const int octants = 8 / sectors;                  // octants per sector
+  if (x == 0 || y == 0 || std::llabs(x) == std::llabs(y)) {
+    const int m = y == 0   ? (x > 0 ? 0 : 4)
+                  : x == 0 ? (y > 0 ? 2 : 6)
+                  : x > 0  ? (y > 0 ? 1 : 7)
+                           : (y > 0 ? 3 : 5);
+    unsigned mask = 1u << (m / octants);
+    if (m % octants == 0) mask |= 1u << ((m / octants + sectors - 1) % sectors);
+    return mask;
+  }
+  double azimuth = std::atan2(double(y), double(x));
+  if (azimuth < 0.0) azimuth += 2.0 * std::numbers::pi;
+  return 1u << std::min(sectors - 1, int(azimuth / (2.0 * std::numbers::pi / sectors)));
+}
+
+struct BilinearCheck {
+  long long pairs = 0;       // (p, x) pairs with x above the apex, checked
+  long long violations = 0;  // pairs with s(x) > H_c + |x - p| / r_k + 1e-6 for a sector k of x - p
+  double worst = 0.0;        // largest excess
+  // per texel and sector: the smallest |x - p| / (s(x) - H_c) over the samples, clamped to 1 - an
+  // upper bound of the best ratio any conservative baker could store for this H_c
+  std::vector<double> sampled;
+};
+
+// Brute force: for texels c (every `stride`-th), points p in Q_c (its corners, edge midpoints, centre
+// and two random points) and surface points x on a quarter-texel grid (cell corners, edge
+// midpoints, quarter points) plus random points, over every x within uv distance 1 of p (wrap:
+// periodic images; clamp: [0, 1]^2), s(x) <= H_c + |x - p| / r_k for each sector k holding x - p.
+BilinearCheck check_bilinear(const Map& map, Address address, const ConeMap& cones,
+                             const std::vector<float>& apex, int stride = 1) {
+  struct Point {
+    int x, y;
+    double s;
+  };
+  const int W = map.width, H = map.height, half = sample_units / 2;
+  // x samples: u in [-1, 2] with wrap, [0, 1] with clamp
+  const int lo_x = address == Address::wrap ? -half - sample_units * W : -half;
+  const int hi_x = address == Address::wrap ? sample_units * 2 * W - half : sample_units * W - half;
+  const int lo_y = address == Address::wrap ? -half - sample_units * H : -half;
+  const int hi_y = address == Address::wrap ? sample_units * 2 * H - half : sample_units * H - half;
+  std::vector<Point> points;
+  auto add = [&](int x, int y) {
+    const double u = (double(x) / sample_units + 0.5) / W, v = (double(y) / sample_units + 0.5) / H;
+    points.push_back({x, y, surface(map, address, u, v)});
+  };
+  for (int y = lo_y; y <= hi_y; y += sample_units / 4)
+    for (int x = lo_x; x <= hi_x; x += sample_units / 4) add(x, y);
+  const int random_points = 8 * W * H;
+  for (int n = 0; n < random_points; ++n)
+    add(lo_x + int(test::hash01(5, n, 1) * (hi_x - lo_x)), lo_y + int(test::hash01(5, n, 2) * (hi_y - lo_y)));
+
+  BilinearCheck check;
+  const int sectors = cones.sectors;
+  check.sampled.assign(cones.ratios.size(), 1.0);
+  for (int i = 0; i < H; ++i)
+    for (int j = 0; j < W; ++j) {
+      if ((i * W + j) % stride != 0) continue;
+      const double hc = apex[std::size_t(i) * W + j];
+      std::vector<std::pair<int, int>> ps;
+      for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b)
+          ps.emplace_back(sample_units * j + a * half, sample_units * i + b * half);
+      for (int n = 0; n < 2; ++n)
+        ps.emplace_back(sample_units * j - half + int(test::hash01(9, i * W + j, n) * sample_units),
+                        sample_units * i - half + int(test::hash01(9, i * W + j, n + 2) * sample_units));
+      for (const auto& [px, py] : ps)
+        for (const Point& x : points) {
+          const double gap = x.s - hc;
+          if (!(gap > 1e-6)) continue;
+          const long long dx = x.x - px, dy = x.y - py;
+          const double du = double(dx) / (sample_units * W), dv = double(dy) / (sample_units * H);
+          const double distance = std::sqrt(du * du + dv * dv);
+          if (distance >= 1.0) continue;  // ratios are at most 1 and gaps at most 1
+          ++check.pairs;
+          if (distance >= gap) continue;  // below H_c + distance, so below every cone
+          const unsigned mask =
+              dx == 0 && dy == 0 ? (1u << sectors) - 1u : direction_sectors(dx, dy, W, H, sectors);
+          for (int k = 0; k < sectors; ++k) {
+            if (!(mask >> k & 1u)) continue;
+            double& sampled = check.sampled[(std::size_t(i) * W + j) * sectors + k];
+            sampled = std::min(sampled, distance / gap);
+            const double excess = x.s - (hc + distance / cones.at(i, j, k));
+            if (excess > 1e-6) {
+              ++check.violations;
+              check.worst = std::max(check.worst, excess);
+            }
+          }
+        }
+    }
+  return check;
+}
+
+std::vector<Map> bilinear_maps() {
+  Map steep = make_noise(6, 6);
+  steep.name = "noise-6x6";
+  Map step = test::make_flat(9, 7, 0.2f);
+  step.name = "step";
+  for (int i = 0; i < 7; ++i)
+    for (int j = 4; j < 9; ++j) step.at(i, j) = 0.9f;
+  Map one = test::make_flat(1, 1, 0.3f);
+  one.name = "one-texel";
+  return {steep,
+          make_noise(2, 3),
+          make_noise(7, 4),
+          make_noise(5, 1),
+          test::make_spikes(9, 9),
+          test::make_spikes(1, 6),
+          make_single_spike(7, 5),
+          step,
+          test::make_checkerboard(8, 8),
+          test::make_checkerboard(3, 5),
+          test::make_fractal_cliff(10, 8),
+          test::make_near_flat_step(9, 7),
+          test::make_terraces(10, 8),
+          test::make_bricks(12, 8),
+          make_ramp(8, 6),
+          named_flat(5, 4, 0.5f),
+          one};
+}
+
+TEST(BilinearCones, NeverPiercedByTheBilinearSurfaceFromAnyPointOfTheTexel) {
+  long long pairs = 0;
+  for (const Map& map : bilinear_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BilinearCones b = bake_bilinear(map, sectors, address);
+        const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex);
+        pairs += check.pairs;
+        EXPECT_EQ(check.violations, 0) << map.name << " " << map.width << "x" << map.height << " sectors "
+                                       << sectors << " " << address_name(address) << " worst " << check.worst;
+        // H_c is the maximum of s over the texel's square: at least the centre's height
+        for (std::size_t t = 0; t < map.values.size(); ++t) ASSERT_GE(b.apex[t], map.values[t]);
+        for (float r : b.cones.ratios) ASSERT_TRUE(r > 0.0f && r <= 1.0f) << map.name;
+      }
+  std::printf("bilinear cones: %lld (p, x) pairs checked\n", pairs);
+  EXPECT_GT(pairs, 1000000);
+}
+
+// The check has teeth: every ratio 10% too large, or every apex 0.01 too low, is caught.
+TEST(BilinearCones, CheckCatchesRatiosTenPercentTooLargeAndApexesTooLow) {
+  for (const Map& map : {make_ramp(8, 6), make_noise(6, 6), test::make_fractal_cliff(10, 8)})
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        BilinearCones b = bake_bilinear(map, sectors, address);
+        BilinearCones wide = b;
+        for (float& r : wide.cones.ratios) r *= 1.1f;
+        const BilinearCheck too_wide = check_bilinear(map, address, wide.cones, wide.apex);
+        std::vector<float> low = b.apex;
+        for (float& h : low) h -= 0.01f;
+        const BilinearCheck too_low = check_bilinear(map, address, b.cones, low);
+        EXPECT_GT(too_wide.violations, 0)
+            << map.name << " sectors " << sectors << " " << address_name(address);
+        EXPECT_GT(too_low.violations, 0)
+            << map.name << " sectors " << sectors << " " << address_name(address);
+      }
+}
+
+// On a ramp h = u * slope the bound is tight next to the texel: the uphill sector's ratio is the
+// slope's inverse times the far cells' factor, and the sectors that only look downhill or across
+// the slope are never blocked (the pieces beyond an edge keep their directions).
+TEST(BilinearCones, RampSeesOnlyUphill) {
+  Map ramp{"ramp", 32, 8, std::vector<float>(32 * 8)};
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 32; ++j) ramp.at(i, j) = 0.8f * (j + 0.5f) / 32.0f;
+  const double slope = 0.8;  // height per uv
+  const BilinearCones b = bake_bilinear(ramp, 4, Address::clamp);
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 31; ++j) {
+      EXPECT_EQ(b.cones.at(i, j, 1), 1.0f) << j;
+      EXPECT_EQ(b.cones.at(i, j, 2), 1.0f) << j;
+      EXPECT_LE(b.cones.at(i, j, 0), 1.0 / slope);
+      EXPECT_GE(b.cones.at(i, j, 0), 0.75 / slope) << j;
+      EXPECT_NEAR(b.apex[std::size_t(i) * 32 + j], 0.8 * (j + 1.0) / 32.0, 1e-6);
+    }
+}
+
+// The slope window only raises ratios over the plain construction (no window: every piece bounded by
+// distance over height gap, so a texel next to a higher cell gets 0), and keeps every ratio above 0.
+// Prints the mean ratio against bake_exact's (between texel centres) for the tightness record.
+TEST(BilinearCones, SlopeWindowRaisesEveryRatioAndTightnessIsRecorded) {
+  for (const Map& map : {test::make_fractal_cliff(64, 64), test::make_bricks(64, 64), make_noise(48, 40)})
+    for (Address address : {Address::wrap, Address::clamp}) {
+      const ConeMap exact = exact_of(map, 4, address);
+      const BilinearCones plain = bake_bilinear(map, 4, address, 0);
+      std::printf("%-14s %-5s exact mean %.4f; bilinear: window 0 mean %.4f", map.name.c_str(),
+                  address_name(address), mean_ratio(exact), plain.stats.mean_ratio);
+      for (int window : {1, 4, 8}) {
+        const BilinearCones b = bake_bilinear(map, 4, address, window);
+        std::printf(", window %d mean %.4f", window, b.stats.mean_ratio);
+        long long zeros = 0;
+        for (std::size_t n = 0; n < b.cones.ratios.size(); ++n) {
+          ASSERT_GE(b.cones.ratios[n], plain.cones.ratios[n])
+              << map.name << " window " << window << " at " << n;
+          zeros += b.cones.ratios[n] == 0.0f;
+        }
+        EXPECT_EQ(zeros, 0);
+      }
+      long long plain_zeros = 0;
+      for (float r : plain.cones.ratios) plain_zeros += r == 0.0f;
+      std::printf("; window 0 zero ratios %.1f%%\n", 100.0 * plain_zeros / double(plain.cones.ratios.size()));
+    }
+}
+
+// Tightness against the best any conservative baker could do for the same apexes: the sampled
+// minimum of |x - p| / (s(x) - H_c) per texel and sector is an upper bound of the best ratio.
+TEST(BilinearCones, CloseToTheSampledBestRatio) {
+  for (const Map& map : {test::make_fractal_cliff(10, 10), make_noise(10, 10), make_ramp(10, 10)})
+    for (Address address : {Address::wrap, Address::clamp}) {
+      const BilinearCones b = bake_bilinear(map, 4, address);
+      const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex);
+      const double sampled = std::accumulate(check.sampled.begin(), check.sampled.end(), 0.0);
+      const double ours = std::accumulate(b.cones.ratios.begin(), b.cones.ratios.end(), 0.0);
+      std::printf("%-14s %-5s mean ratio %.4f, sampled best %.4f: %.3f of it\n", map.name.c_str(),
+                  address_name(address), ours / double(check.sampled.size()),
+                  sampled / double(check.sampled.size()), ours / sampled);
+      EXPECT_GE(ours, 0.6 * sampled) << map.name << " " << address_name(address);
+    }
+}
+
+TEST(BilinearCones, RejectsBadInput) {
+  const Map ok = test::make_flat(4, 4);
+  std::vector<float> ratios(16 * 4), apex(16);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 3}, apex), BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, {apex.data(), 15}),
+               BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {-1}),
+               BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {65}),
+               BakeError);
+  Map nan_map = test::make_flat(4, 4);
+  nan_map.at(2, 2) = std::nanf("");
+  EXPECT_THROW(bake_bilinear_cones(view_of(nan_map), Address::clamp, {ratios.data(), 4, 4, 4}, apex),
+               BakeError);
+  EXPECT_NO_THROW(bake_bilinear_cones(view_of(ok), Address::clamp, {ratios.data(), 4, 4, 4}, apex));
+  for (float r : ratios) EXPECT_EQ(r, 1.0f);
+  for (float h : apex) EXPECT_EQ(h, 0.5f);
+}
+
 }  // namespace
 }  // namespace displace::bake

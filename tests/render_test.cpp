@@ -976,3 +976,52 @@ TEST(Mesh, SphereSilhouetteWhereTheAnalyticRadiusPutsIt) {
   }
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
+
+
+namespace {
+
+// The cone methods' steps are safe for the bilinear surface from wherever the ray is (cone maps
+// baked for it, bake::bake_bilinear_cones): with any number of steps, however few, a ray never ends
+// beyond its exact first crossing, on wrap and clamp, sharp and smooth fields.
+TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
+  constexpr double tolerance = 1e-4;  // world units (a texel here is 0.03): float rounding of the march
+  const std::vector<std::pair<std::string, HeightField>> fields = {
+      {"spikes", spike_field(32)},
+      {"step", step_field(32)},
+      {"waves", waves_field(32)},
+      {"noise",
+       field_of(24, 20, [](int i, int j) { return 0.5 + 0.5 * std::sin(12.9898 * i + 78.233 * j * j); })}};
+  for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
+    View view = oblique_view(48);
+    view.address = address;
+    for (const auto& [name, field] : fields) {
+      std::vector<render::CpuHit> truth;
+      for (int py = 0; py < view.camera.height; ++py)
+        for (int px = 0; px < view.camera.width; ++px)
+          truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
+      shared_renderer().set_height_field(field);
+      for (const Method method : {Method::csm, Method::acm4, Method::acm8}) {
+        long long compared = 0, beyond = 0;
+        double worst = 0.0;
+        for (int steps : {1, 2, 3, 5, 8, 64}) {
+          const Frame frame = shared_renderer().render(view, {method, steps, 0});
+          for (std::size_t p = 0; p < truth.size(); ++p) {
+            if (!truth[p].hit || frame.uv[p * 3 + 2] < 0.5f) continue;
+            ++compared;
+            const double past = frame.depth[p] - truth[p].distance;
+            worst = std::max(worst, past);
+            if (past > tolerance) ++beyond;
+          }
+        }
+        std::printf("%-6s %-5s %-5s %lld rays, %lld beyond the first crossing, worst %.2g\n", name.c_str(),
+                    address == bake::Address::wrap ? "wrap" : "clamp", render::method_info(method).name,
+                    compared, beyond, worst);
+        EXPECT_GT(compared, 5000);
+        EXPECT_EQ(beyond, 0) << name << " / " << render::method_info(method).name;
+      }
+    }
+  }
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+}  // namespace

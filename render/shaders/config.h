@@ -44,7 +44,7 @@ using mat4 = glm::mat4;
 // descriptor bindings (set 0)
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
-#define BINDING_CONES 2    // sampler2DArray, RGBA32F cone ratios (4 sectors per layer), nearest
+#define BINDING_CONES 2    // sampler2DArray, RG32F: layer k = (ratio of sector k, apex height), nearest
 #define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
 #define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)

@@ -24,10 +24,10 @@ float fetch_height(vec2 uv) {
   return textureLod(height_map, uv, 0.0).r;
 }
 
+// The ratio in the cone map's layer `sector` at the texel holding uv (see config.h).
 float fetch_cone(vec2 uv, int sector) {
   g_fetches += 1u;
-  vec4 ratios = textureLod(cone_map, vec3(uv, float(sector / 4)), 0.0);
-  return ratios[sector % 4];
+  return textureLod(cone_map, vec3(uv, float(sector)), 0.0).r;
 }
 
 // The sector of an n-sector cone map holding horizontal direction d (azimuth atan(dv, du) in [0, 2 pi)).
@@ -103,23 +103,23 @@ struct ConeMarch {
   bool exact;  // s is the exact crossing, found by a cell step
 };
 
-// Cone stepping that is conservative for the BILINEAR surface the rays sample. A cone map holds
-// between texel centres: every texel q in sector k of texel c has h(q) <= h(c) + |q - c| / r_k. The
-// bilinear surface at a point x is at most the highest of the four texels around x, each within
-// half a texel diagonal (delta) of x; and the ray point p is |p - c| from the centre c whose cone
-// it reads. So every surface point x ahead satisfies s(x) <= h(c) + (|x - p| + |p - c| + delta) / r,
-// and the ray may descend (r (z - h(c)) - |p - c| - delta) / (r + L) - the published step
-// r (z - s(p)) / (r + L) (Dummer; Chen & Chuang) is not safe: it lets rays cross sharp bilinear
-// edges (measured: rmse 9-11 on the brick and cliff scenes, where it stalls behind the edges).
-// (The four texels' bilinear weights times their distances to x sum to at most delta.) With
-// sectors, a texel that bounds x lies within 2 delta of x and c within delta of p, so its direction
-// from c can leave the ray's sector when x is close to p: within 3 delta / sin(margin to the
-// sector's edge) of p the smallest ratio of all sectors is used.
+// Cone stepping that is conservative for the BILINEAR surface the rays sample. The cone maps are
+// baked for it (bake::bake_bilinear_cones): texel c holds an apex height H_c, the maximum of the
+// surface over its square Q_c (c plus or minus half a texel), and per sector k a ratio r_k such that
+// from ANY point p of Q_c every surface point x whose direction from p lies in sector k satisfies
+// s(x) <= H_c + |x - p| / r_k. A ray point p at height z reads the cone of its own texel (the
+// nearest centre, so p lies in Q_c) in its azimuth's sector, and may descend
+// r_k (z - H_c) / (r_k + L) without meeting the surface. A ray on a sector boundary may read either
+// sector: the bake puts boundary directions in both. One fetch per step: layer k holds (r_k, H_c).
+// With cones measured between texel centres the step needed a slack for p's offset from the centre
+// and, near the apex, the smallest ratio of all sectors (acm4 then cost as many fetches as csm);
+// and the published step r (z - s(p)) / (r + L) (Dummer; Chen & Chuang) with them is not safe: it
+// lets rays cross sharp bilinear edges (measured: rmse 9-11 on the brick and cliff scenes).
 // Where the safe step is shorter than a quarter texel of travel (the ray is close to the surface, or
-// behind a sharp edge where cones stall), the ray takes an exact cell step instead: one gather reads
-// the four texels around the cell the ray is in, and the ray's crossing with that cell's bilinear
-// patch is solved (bilinear_cell.inc.glsl); without one the ray moves on to the cell's exit. Nothing
-// is skipped, so a march that runs to its end lands on the exact hit. (It replaced a quarter-texel
+// under its texel's apex), the ray takes an exact cell step instead: one gather reads the four
+// texels around the cell the ray is in, and the ray's crossing with that cell's bilinear patch is
+// solved (bilinear_cell.inc.glsl); without one the ray moves on to the cell's exit. Nothing is
+// skipped, so a march that runs to its end lands on the exact hit. (It replaced a quarter-texel
 // linear step, which skipped clips thinner than its length: csm and acm4 plateaued at RMSE 4.6 on
 // the built-in bricks from 256 steps on.) A gather counts as one fetch, like one filtered read.
 const float fallback_step_texels = 0.25;  // safe steps shorter than this (horizontal travel, texels) become cell steps
@@ -164,19 +164,19 @@ float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool e
   return cell_step(origin, descent, s, cell, exact, exit_gap);
 }
 
+// The cone map texel whose square holds uv (unwrapped texture coordinates): the nearest centre,
+// wrapped or clamped like the map.
+ivec2 cone_texel(vec2 uv) {
+  ivec2 size = ivec2(frame.map_size.xy);
+  ivec2 texel = ivec2(floor(uv * frame.map_size.xy));
+  if ((frame.counts.z & FLAG_WRAP) != 0) return texel - size * ivec2(floor(vec2(texel) / vec2(size)));
+  return clamp(texel, ivec2(0), size - 1);
+}
+
 ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
   float travel = length(descent.xy);
   vec2 texel = frame.map_size.zw;
-  float half_diagonal = 0.5 * length(texel);
   int sector = cone_sector(descent.xy, sectors);
-  float near_radius = 0.0;  // horizontal uv distance from p within which r_min applies
-  if (sectors > 1) {
-    float width = 6.28318530718 / float(sectors);
-    float azimuth = travel > 0.0 ? atan(descent.y, descent.x) : 0.0;
-    if (azimuth < 0.0) azimuth += 6.28318530718;
-    float margin = min(azimuth - float(sector) * width, float(sector + 1) * width - azimuth);
-    near_radius = margin > 1e-4 ? 3.0 * half_diagonal / sin(min(margin, 1.5707963)) : 1e30;
-  }
   float fallback = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
   ConeMarch m = ConeMarch(0.0, false);
   bool walking = false;  // the last step was a cell step: `cell` is the cell the ray entered
@@ -185,31 +185,9 @@ ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
     if (m.s >= 1.0) break;  // on the floor h = 0: the ray cannot be above the surface there
     g_iterations += 1u;
     vec3 p = origin + m.s * descent;
-    // the texel whose cone applies: the nearest centre c, its height, and p's offset from it
-    vec2 centre = (floor(p.xy * frame.map_size.xy) + 0.5) * texel;
-    float apex_gap = p.z - fetch_height(centre);
-    float slack = length(p.xy - centre) + half_diagonal;
-    float ratio = 1.0, smallest = 1.0;
     g_fetches += 1u;
-    vec4 first = textureLod(cone_map, vec3(p.xy, 0.0), 0.0);
-    if (sectors == 1) {
-      ratio = first.x;
-      smallest = first.x;
-    } else {
-      smallest = min(min(first.x, first.y), min(first.z, first.w));
-      if (sectors == 8) {
-        g_fetches += 1u;
-        vec4 second = textureLod(cone_map, vec3(p.xy, 1.0), 0.0);
-        smallest = min(smallest, min(min(second.x, second.y), min(second.z, second.w)));
-        ratio = sector < 4 ? first[sector] : second[sector - 4];
-      } else {
-        ratio = first[sector];
-      }
-    }
-    float step = max((smallest * apex_gap - slack) / max(smallest + travel, min_denominator), 0.0);
-    if (sectors > 1 && travel * step >= near_radius) {
-      step = max(step, (ratio * apex_gap - slack) / max(ratio + travel, min_denominator));
-    }
+    vec2 cone = texelFetch(cone_map, ivec3(cone_texel(p.xy), sector), 0).rg;  // (r_k, H_c)
+    float step = max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
     if (step >= fallback) {
       m.s = min(m.s + step, 1.0);
       walking = false;

@@ -241,27 +241,20 @@ QuadricMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
     m.gap_known = true;
     if (m.gap <= cone_gap_epsilon || m.t >= ray.t_end) break;
     g_iterations += 1u;
-    // the texel whose cone applies: the nearest centre c, its height, and p's offset from it
-    vec2 centre = (floor(p.xy * frame.map_size.xy) + 0.5) * texel;
-    float apex_gap = p.z - fetch_height(centre);
-    float slack = length(p.xy - centre) + half_diagonal;
-    int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.t), sectors) : 0;
-    float ratio = 1.0, smallest = 1.0;
+    // the cone map of the bilinear surface (bake_bilinear_cones): from any point of the texel's
+    // square, layer k holds (r_k, apex height H_c); no offset slack is needed
+    ivec2 texel_index = cone_texel(p.xy);
     g_fetches += 1u;
-    vec4 first = textureLod(cone_map, vec3(p.xy, 0.0), 0.0);
-    if (sectors == 1) {
-      ratio = first.x;
-      smallest = first.x;
-    } else {
-      smallest = min(min(first.x, first.y), min(first.z, first.w));
-      if (sectors == 8) {
-        g_fetches += 1u;
-        vec4 second = textureLod(cone_map, vec3(p.xy, 1.0), 0.0);
-        smallest = min(smallest, min(min(second.x, second.y), min(second.z, second.w)));
-        ratio = sector < 4 ? first[sector] : second[sector - 4];
-      } else {
-        ratio = first[sector];
-      }
+    vec2 first = texelFetch(cone_map, ivec3(texel_index, 0), 0).rg;
+    float apex_gap = p.z - first.y;
+    float slack = 0.0;
+    int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.t), sectors) : 0;
+    float ratio = first.x, smallest = first.x;
+    for (int k = 1; k < sectors; ++k) {
+      g_fetches += 1u;
+      float r_k = texelFetch(cone_map, ivec3(texel_index, k), 0).r;
+      smallest = min(smallest, r_k);
+      if (k == sector) ratio = r_k;
     }
     // isotropic: every direction; the speed at the start, then the worst over that step
     float descent = quadric_descent_rate(ray, m.t);

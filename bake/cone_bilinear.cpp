@@ -1,0 +1,495 @@
+// bake/cone_bilinear.cpp - cone maps for the BILINEAR surface the renderer traces (bake.h,
+// bake_bilinear_cones): texel c gets an apex height H_c = max of s over its square Q_c (c plus or
+// minus half a texel) and per sector a ratio r_k such that for every p in Q_c and every surface point
+// x whose horizontal direction from p lies in sector k, s(x) <= H_c + |x - p| / r_k. A ray point
+// may then step from its own texel's cone with no slack for its offset from the centre.
+//
+// The one fact: the surface is bounded piece by piece, each piece P (a box inside one cell, where s
+// is one bilinear patch) contributing a lower bound of |x - p| / (s(x) - H_c) over its points, to the
+// sectors its directions can take. Proof that the result is conservative, for p in Q_c and x with
+// s(x) > H_c (else the claim holds for any r_k >= 0), direction of x - p in sector k:
+// 1. x is not in Q_c (s <= H_c there), so x lies in a cell B (a square between four texel centres;
+//    with wrap its periodic images, with clamp the half-texel border cells of the edge-extended
+//    surface inside [0, 1]^2, outside which the map is absent) and in some piece P of B below.
+// 2. Far bound. s(x) <= M_P, the maximum of s over P: the maximum of a bilinear patch over a box
+//    inside its cell is at the box's corners. |x - p| >= d_P = dist(Q_c, P). So
+//    |x - p| / (s(x) - H_c) >= d_P / (M_P - H_c).
+// 3. Slope bound. Let y = the point of Q_c nearest x (x clamped onto Q_c) and delta = |x - y|:
+//    delta <= |x - p| and d_P <= delta <= the farthest distance of P from Q_c. s(y) <= H_c - drop,
+//    drop = H_c - max of s over P's clamp onto Q_c (an edge segment or corner of Q_c; 0 at worst).
+//    The segment from y to x lies in the box hull of P and its clamp, and runs along +u, -u, +v or
+//    -v or diagonally between two of them; with rise_u, rise_v the largest rates at which s rises
+//    (0 where it only falls) along those directions on the hull (s is continuous and piecewise
+//    bilinear), s(x) - s(y) <= rise_u |x_u - y_u| + rise_v |x_v - y_v| <= G delta, G = rise_u
+//    or rise_v or sqrt(rise_u^2 + rise_v^2). So s(x) - H_c <= min(M_P - H_c, G delta - drop), and
+//    |x - p| / (s(x) - H_c) >= delta / min(M_P - H_c, G delta - drop) >= its least over delta in
+//    [d_P, far] (piece_bound), which is never below max(step 2, 1 / G).
+// 4. Directions. x - p lies in the box P - Q_c (a Minkowski difference), so its direction lies in a
+//    sector whose closed wedge meets that box (rect_sectors); for the pieces cut by an edge line of
+//    Q_c below, x is strictly beyond that line, so its direction also meets that open half-plane.
+// 5. r_k = min over the pieces whose sector set holds k of their bound (step 3 in the slope window,
+//    step 2 elsewhere), clamped to 1, is then <= |x - p| / (s(x) - H_c), which is the claim. A
+//    pruned pyramid node only holds cells whose far bounds are >= its own (larger distance, smaller
+//    maximum), so it cannot lower any r_k.
+// Pieces. The four cells that overlap Q_c would have d = 0 (a ratio of 0 wherever a neighbour is
+// higher), so every cell within `slope_window` cells of c is cut at Q_c's edge lines into pieces
+// before, across and beyond Q_c along u and along v (the piece across both is inside Q_c and
+// skipped). A point of a piece beyond an edge line is strictly beyond it, so its direction from any
+// p in Q_c lies in that open half-plane (step 4), which keeps, e.g., the cells above a ramp that
+// rises along u out of the sector that looks along +v. Rates (step 3): for the four overlapping
+// cells, the piece's own (its clamp onto Q_c lies inside it; ds/du and ds/dv are linear on a cell,
+// so their extremes are on the piece's edges); for the other window cells, the largest over the
+// cells between them and Q_c. Cells outside the window are found through a max pyramid over cells,
+// nearest first, with the far bound only. Arithmetic is in double, maxima raised by 1e-12, every
+// bound shrunk by a relative 1e-9 and rounded down to float and H_c rounded up, so rounding cannot
+// make a ratio claim space.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <chrono>
+#include <limits>
+
+#include "bake/search.h"
+
+namespace displace::bake {
+namespace {
+
+constexpr double ratio_margin = 1e-9;  // relative: covers double rounding in distances, slopes and divisions
+constexpr int max_slope_window = 64;   // cells: largest accepted BilinearConeSettings::slope_window
+constexpr double height_margin = 1e-12;  // height units: covers double rounding of s at piece and Q_c points
+constexpr double infinite_ratio = std::numeric_limits<double>::infinity();
+
+// One axis of the cell grid, in half-texel units: texel t's centre at 2t, Q_c spans [2t - 1, 2t + 1].
+// Cell n (an unrolled index with wrap: tile floor(n / cells)) lies between texel centres a and a + 1,
+// a = n with wrap, a = n - 1 with clamp, where cells 0 and texels are the half-texel border cells.
+struct Axis {
+  int texels = 0;
+  bool wrap = true;
+  int cells = 0;
+
+  Axis(int count, Address address)
+      : texels(count), wrap(address == Address::wrap), cells(wrap ? count : count + 1) {}
+
+  int left_centre(int n) const { return wrap ? n : n - 1; }
+  int cell_of_left_centre(int a) const { return wrap ? a : a + 1; }
+  bool exists(int n) const { return wrap || (n >= 0 && n < cells); }
+  int texel(int a) const {
+    if (!wrap) return std::clamp(a, 0, texels - 1);
+    const int m = a % texels;
+    return m < 0 ? m + texels : m;
+  }
+  int in_tile(int n) const {  // the stored cell of unrolled cell n
+    if (n >= 0 && n < cells) return n;
+    const int m = n % cells;
+    return m < 0 ? m + cells : m;
+  }
+  int begin(int n) const { return wrap ? 2 * n : std::max(2 * n - 2, -1); }
+  int end(int n) const { return wrap ? 2 * n + 2 : std::min(2 * n, 2 * texels - 1); }
+};
+
+// Gap between Q_c's span [2t - 1, 2t + 1] and [first, last] (half texels).
+int span_gap(int t, int first, int last) { return std::max({0, first - (2 * t + 1), (2 * t - 1) - last}); }
+
+// Largest rates of rise of s (uv units) over a box, towards +u, -u, +v and -v: max of ds/du, of
+// -ds/du, of ds/dv, of -ds/dv.
+struct Derivatives {
+  double rise[4] = {0.0, 0.0, 0.0, 0.0};
+
+  Derivatives() = default;
+  Derivatives(double plus_u, double minus_u, double plus_v, double minus_v)
+      : rise{plus_u, minus_u, plus_v, minus_v} {}
+};
+
+// The four corner heights of a cell (h[0] at (a, b), h[1] at (a + 1, b), h[2] at (a, b + 1), h[3] at
+// (a + 1, b + 1)) and the bilinear patch on it, in cell coordinates f in [0, 1]^2 (half-texel
+// position X = 2a + 2 fx).
+struct Patch {
+  double h[4];
+
+  double value(double fx, double fy) const {
+    return (h[0] * (1 - fx) + h[1] * fx) * (1 - fy) + (h[2] * (1 - fx) + h[3] * fx) * fy;
+  }
+  double maximum(double fx0, double fx1, double fy0, double fy1) const {
+    return std::max(std::max(value(fx0, fy0), value(fx1, fy0)), std::max(value(fx0, fy1), value(fx1, fy1)));
+  }
+  // The extremes of ds/du = W * lerp(e0, e1, fy) and ds/dv = H * lerp(f0, f1, fx) over the box (uv
+  // units): each is linear in one coordinate, so they lie at the box's edges.
+  Derivatives derivatives(double fx0, double fx1, double fy0, double fy1, double width, double height) const {
+    const double e0 = h[1] - h[0], e1 = h[3] - h[2], f0 = h[2] - h[0], f1 = h[3] - h[1];
+    const double du0 = width * (e0 + (e1 - e0) * fy0), du1 = width * (e0 + (e1 - e0) * fy1);
+    const double dv0 = height * (f0 + (f1 - f0) * fx0), dv1 = height * (f0 + (f1 - f0) * fx1);
+    return {std::max(du0, du1), -std::min(du0, du1), std::max(dv0, dv1), -std::min(dv0, dv1)};
+  }
+};
+
+struct Context {
+  HeightView heights;
+  detail::Grid grid;
+  Axis along_u, along_v;
+  int window = 0;                      // slope window radius in cells
+  std::vector<Derivatives> cell_rise;  // per cell (n_u + n_v * cells_u)
+  detail::Pyramid pyramid;             // max pyramid over the cells' maxima
+  detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
+  double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
+
+  float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
+  Patch patch(int nu, int nv) const {
+    const int a = along_u.left_centre(nu), b = along_v.left_centre(nv);
+    const int j0 = along_u.texel(a), j1 = along_u.texel(a + 1), i0 = along_v.texel(b),
+              i1 = along_v.texel(b + 1);
+    return {{height(i0, j0), height(i0, j1), height(i1, j0), height(i1, j1)}};
+  }
+};
+
+// uv distance for gaps in half texels.
+double gap_distance(const Context& context, int gap_u, int gap_v) {
+  const double u = gap_u * context.half_texel_u, v = gap_v * context.half_texel_v;
+  return std::sqrt(u * u + v * v);
+}
+
+// Sectors meeting the box of directions [u0, u1] x [v0, v1] (half texels; Grid scales to uv).
+detail::SectorMask box_sectors(const Context& context, int u0, int u1, int v0, int v1) {
+  return detail::rect_sectors(context.grid, u0, u1, v0, v1);
+}
+
+// The least of delta / min(rise, slope * delta - drop) over delta in [near, far]: the bound of a
+// piece whose points x lie between near and far from Q_c, and rise above H_c by at most `rise` (its
+// maximum) and by at most slope * delta(x) - drop (step 3, where s(y) <= H_c - drop on the clamp y of
+// the piece onto Q_c). The first term falls with delta (drop >= 0), the second grows, so the least
+// is where they cross, or the nearer end.
+double piece_bound(double near, double far, double rise, double drop, double slope) {
+  if (!(slope > 0.0)) return infinite_ratio;  // s never rises above its clamp, which is <= H_c
+  if (drop <= 0.0) return std::max(near / rise, 1.0 / slope);
+  const double delta = std::clamp((rise + drop) / slope, near, far);
+  const double above = std::min(rise, slope * delta - drop);
+  return above > 0.0 ? delta / above : infinite_ratio;
+}
+
+struct TexelSearch {
+  const Context& context;
+  int i, j;
+  double apex;
+  const double (&square)[3][3];  // s on Q_c's grid (square_values)
+  double* best;
+  long long work = 0;
+
+  double largest_best() const { return *std::max_element(best, best + context.grid.sector_count); }
+
+  void lower(detail::SectorMask mask, double bound) {
+    for (int k = 0; k < context.grid.sector_count; ++k)
+      if ((mask >> k & 1u) && bound < best[k]) best[k] = bound;
+  }
+
+  // The largest of s over the clamp onto Q_c of the box [u0, u1] x [v0, v1]: an edge segment or a
+  // corner of Q_c, on which s is linear between the grid points of `square`.
+  double clamp_max(int u0, int u1, int v0, int v1) const {
+    const int qu0 = 2 * j - 1, qv0 = 2 * i - 1;
+    const int a0 = std::clamp(u0 - qu0, 0, 2), a1 = std::clamp(u1 - qu0, 0, 2);
+    const int b0 = std::clamp(v0 - qv0, 0, 2), b1 = std::clamp(v1 - qv0, 0, 2);
+    double m = -infinite_ratio;
+    for (int b = b0; b <= b1; ++b)
+      for (int a = a0; a <= a1; ++a) m = std::max(m, square[b][a]);
+    return m;
+  }
+
+  // far bound of a box spanning [u0, u1] x [v0, v1] half texels with maximum `top`
+  double far_bound(int u0, int u1, int v0, int v1, double top) const {
+    return gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)) / (top - apex);
+  }
+
+  // The cells (da, db) in [-R, R - 1]^2 around Q_c (steps 2 to 4), cut at Q_c's edge lines into
+  // pieces before, across and beyond Q_c along each axis (a cell meets at most two of the three).
+  // Slope bound (step 3): from x in a piece to its clamp y onto Q_c the segment runs along u for a
+  // piece beyond the left or right edge and across Q_c in v, along v likewise, and towards a corner
+  // of Q_c for a piece beyond two edges; so s(x) - s(y) <= rise_u |x_u - y_u| + rise_v |x_v - y_v|,
+  // rise = the largest rate of rise of s along the segment's direction on it (0 where s only falls),
+  // which is at most sqrt(rise_u^2 + rise_v^2) |x - y|. The rates: for the four cells overlapping Q_c
+  // the piece's own (y lies in the piece); for the others the largest over the cells between them
+  // and Q_c, da' in [0, da] (da >= 0) or [da, -1] (da < 0) and the same along v, kept as running
+  // maxima outward from the centre. A cell with da >= 0 holds no piece before Q_c's left edge, so
+  // it only needs the rise towards +u (and so on).
+  void window_cells(std::vector<double>& hull) {
+    const int R = context.window;
+    const Axis& U = context.along_u;
+    const Axis& V = context.along_v;
+    const int side = 2 * R;
+    const int qu0 = 2 * j - 1, qu1 = 2 * j + 1, qv0 = 2 * i - 1, qv1 = 2 * i + 1;
+    hull.assign(std::size_t(2) * side * side, 0.0);  // rise along u, then rise along v
+    auto at = [&](int axis, int da, int db) -> double& {
+      return hull[(std::size_t(axis) * side + db + R) * side + da + R];
+    };
+    auto order = [&](int n) { return n < R ? n : R - 1 - n; };  // 0, 1, ..., R - 1, then -1, ..., -R
+    for (int y = 0; y < side; ++y) {
+      const int db = order(y);
+      const int nv = V.cell_of_left_centre(i + db);
+      for (int x = 0; x < side; ++x) {
+        const int da = order(x);
+        const int nu = U.cell_of_left_centre(j + da);
+        const bool exists = U.exists(nu) && V.exists(nv);
+        double rise_u = 0.0, rise_v = 0.0;
+        const std::size_t stored = exists ? std::size_t(V.in_tile(nv)) * U.cells + U.in_tile(nu) : 0;
+        if (exists) {
+          const Derivatives& cell = context.cell_rise[stored];
+          rise_u = std::max(cell.rise[da >= 0 ? 0 : 1], 0.0);
+          rise_v = std::max(cell.rise[db >= 0 ? 2 : 3], 0.0);
+        }
+        if (da != 0 && da != -1) {
+          const int inner = da > 0 ? da - 1 : da + 1;
+          rise_u = std::max(rise_u, at(0, inner, db));
+          rise_v = std::max(rise_v, at(1, inner, db));
+        }
+        if (db != 0 && db != -1) {
+          const int inner = db > 0 ? db - 1 : db + 1;
+          rise_u = std::max(rise_u, at(0, da, inner));
+          rise_v = std::max(rise_v, at(1, da, inner));
+        }
+        at(0, da, db) = rise_u;
+        at(1, da, db) = rise_v;
+        if (!exists) continue;
+        ++work;
+        if (!(context.pyramid.max.levels[0][stored] > apex)) continue;
+        const Patch patch = context.patch(nu, nv);
+        const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
+        const int origin_u = 2 * U.left_centre(nu), origin_v = 2 * V.left_centre(nv);
+        const int cu[2] = {U.begin(nu), U.end(nu)}, cv[2] = {V.begin(nv), V.end(nv)};
+        // the three ranges along each axis: before Q_c, across it, beyond it (side -1, 0, +1)
+        for (int sv = -1; sv <= 1; ++sv) {
+          const int v0 = std::max(cv[0], sv < 0 ? cv[0] : sv == 0 ? qv0 : qv1);
+          const int v1 = std::min(cv[1], sv < 0 ? qv0 : sv == 0 ? qv1 : cv[1]);
+          if (v0 >= v1) continue;
+          for (int su = -1; su <= 1; ++su) {
+            if (su == 0 && sv == 0) continue;  // inside Q_c: s <= H_c
+            const int u0 = std::max(cu[0], su < 0 ? cu[0] : su == 0 ? qu0 : qu1);
+            const int u1 = std::min(cu[1], su < 0 ? qu0 : su == 0 ? qu1 : cu[1]);
+            if (u0 >= u1) continue;
+            const double fu0 = (u0 - origin_u) / 2.0, fu1 = (u1 - origin_u) / 2.0;
+            const double fv0 = (v0 - origin_v) / 2.0, fv1 = (v1 - origin_v) / 2.0;
+            const double top = patch.maximum(fu0, fu1, fv0, fv1);
+            if (!(top > apex)) continue;
+            double along_u = rise_u, along_v = rise_v;
+            if (centre) {
+              const Derivatives own =
+                  patch.derivatives(fu0, fu1, fv0, fv1, context.grid.width, context.grid.height);
+              along_u = std::max(own.rise[su > 0 ? 0 : 1], 0.0);
+              along_v = std::max(own.rise[sv > 0 ? 2 : 3], 0.0);
+            }
+            const double slope = su == 0   ? along_v
+                                 : sv == 0 ? along_u
+                                           : std::sqrt(along_u * along_u + along_v * along_v);
+            const int far_u = su > 0 ? u1 - qu1 : su < 0 ? qu0 - u0 : 0;
+            const int far_v = sv > 0 ? v1 - qv1 : sv < 0 ? qv0 - v0 : 0;
+            const double drop = std::max(0.0, apex - (clamp_max(u0, u1, v0, v1) + height_margin));
+            const double bound =
+                piece_bound(gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)),
+                            gap_distance(context, far_u, far_v), top + height_margin - apex, drop, slope);
+            detail::SectorMask mask = box_sectors(context, u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0);
+            if (su != 0) mask &= context.beyond[su > 0 ? 0 : 1];
+            if (sv != 0) mask &= context.beyond[sv > 0 ? 2 : 3];
+            lower(mask, bound);
+          }
+        }
+      }
+    }
+  }
+
+  // every other cell, through the max pyramid over cells, nearest first (step 2)
+  struct Entry {
+    detail::Node node;
+    double bound;
+    detail::SectorMask mask;  // the sectors it could lower when examined
+  };
+
+  void far_cells(std::vector<Entry>& stack) {
+    const Axis& U = context.along_u;
+    const Axis& V = context.along_v;
+    const detail::Pyramid& pyramid = context.pyramid;
+    const int R = context.window;
+    // the window in unrolled cell indices (empty for R = 0)
+    const int wu0 = U.cell_of_left_centre(j - R), wu1 = U.cell_of_left_centre(j + R - 1);
+    const int wv0 = V.cell_of_left_centre(i - R), wv1 = V.cell_of_left_centre(i + R - 1);
+    // bound of a node; false when it cannot lower any ratio or lies inside the window
+    auto examine = [&](const detail::Node& node, Entry& entry) {
+      ++work;
+      const int count_u = pyramid.count_x(node.level), count_v = pyramid.count_y(node.level);
+      const int tile_u = detail::floor_div(node.nx, count_u), tile_v = detail::floor_div(node.ny, count_v);
+      const double top = pyramid.value(node.level, node.ny - tile_v * count_v, node.nx - tile_u * count_u);
+      if (!(top > apex)) return false;
+      int first_u, last_u, first_v, last_v;
+      detail::block_range(node.nx, node.level, count_u, U.cells, first_u, last_u);
+      detail::block_range(node.ny, node.level, count_v, V.cells, first_v, last_v);
+      if (R > 0 && first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;
+      const int u0 = U.begin(first_u), u1 = U.end(last_u), v0 = V.begin(first_v), v1 = V.end(last_v);
+      const double bound = far_bound(u0, u1, v0, v1, top);
+      if (!(bound < largest_best())) return false;
+      const detail::SectorMask mask =
+          box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
+      detail::SectorMask useful = 0;
+      for (int k = 0; k < context.grid.sector_count; ++k)
+        if ((mask >> k & 1u) && bound < best[k]) useful |= 1u << k;
+      if (!useful) return false;
+      if (node.level == 0) {
+        lower(useful, bound);
+        return false;
+      }
+      entry = {node, bound, useful};
+      return true;
+    };
+    stack.clear();
+    Entry entry;
+    const int top_level = pyramid.levels - 1;
+    const int tiles = U.wrap ? 2 : 0;  // with wrap, images within uv distance 1 of Q_c lie in tiles -2..1
+    for (int tv = -tiles; tv <= tiles; ++tv)
+      for (int tu = -tiles; tu <= tiles; ++tu)
+        if (examine({top_level, tu, tv}, entry)) stack.push_back(entry);
+    std::sort(stack.begin(), stack.end(), [](const Entry& a, const Entry& b) { return a.bound > b.bound; });
+    while (!stack.empty()) {
+      const Entry top = stack.back();
+      stack.pop_back();
+      // the ratios may have dropped since it was pushed
+      bool useful = false;
+      for (int k = 0; k < context.grid.sector_count; ++k)
+        if ((top.mask >> k & 1u) && top.bound < best[k]) useful = true;
+      if (!useful) continue;
+      const detail::Node& node = top.node;
+      Entry children[4];
+      int child_count = 0;
+      const int level = node.level - 1;
+      const int parent_u = pyramid.count_x(node.level), parent_v = pyramid.count_y(node.level);
+      const int count_u = pyramid.count_x(level), count_v = pyramid.count_y(level);
+      const int tile_u = detail::floor_div(node.nx, parent_u), tile_v = detail::floor_div(node.ny, parent_v);
+      const int bu = node.nx - tile_u * parent_u, bv = node.ny - tile_v * parent_v;
+      for (int dv = 0; dv < 2 && 2 * bv + dv < count_v; ++dv)
+        for (int du = 0; du < 2 && 2 * bu + du < count_u; ++du) {
+          const detail::Node child{level, tile_u * count_u + 2 * bu + du, tile_v * count_v + 2 * bv + dv};
+          if (examine(child, children[child_count])) ++child_count;
+        }
+      for (int a = 1; a < child_count; ++a)  // largest bound first, so the nearest is searched first
+        for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b)
+          std::swap(children[b - 1], children[b]);
+      for (int c = 0; c < child_count; ++c) stack.push_back(children[c]);
+    }
+  }
+};
+
+// s at Q_c's corners, edge midpoints and centre: square[b][a] at half-texel position
+// (2j - 1 + a, 2i - 1 + b). s is bilinear on each quarter of Q_c, so these bound it there.
+void square_values(const Context& context, int i, int j, double (&square)[3][3]) {
+  double h[3][3];
+  for (int di = -1; di <= 1; ++di)
+    for (int dj = -1; dj <= 1; ++dj)
+      h[di + 1][dj + 1] = context.height(context.along_v.texel(i + di), context.along_u.texel(j + dj));
+  for (int b = 0; b < 3; ++b)
+    for (int a = 0; a < 3; ++a) {
+      // the texels around the position: the centre's row / column and, off centre, its neighbour's
+      const int rows[2] = {1, b == 1 ? 1 : b}, cols[2] = {1, a == 1 ? 1 : a};
+      square[b][a] =
+          0.25 * (h[rows[0]][cols[0]] + h[rows[0]][cols[1]] + h[rows[1]][cols[0]] + h[rows[1]][cols[1]]);
+    }
+}
+
+// H_c: the largest of the nine, rounded up to float.
+float apex_height(const double (&square)[3][3]) {
+  double m = 0.0;
+  for (const auto& row : square)
+    for (double value : row) m = std::max(m, value);
+  float apex = float(m);
+  if (double(apex) < m) apex = std::nextafter(apex, 2.0f);
+  return apex;
+}
+
+// A ratio for the map: clamped to 1, shrunk by the margin and rounded down.
+float stored_ratio(double ratio) {
+  if (!(ratio < 1.0)) return 1.0f;
+  const double shrunk = ratio * (1.0 - ratio_margin);
+  float stored = float(shrunk);
+  if (double(stored) > shrunk) stored = std::nextafter(stored, 0.0f);
+  return stored;
+}
+
+}  // namespace
+
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
+  validate(heights, out);
+  const std::size_t texels = std::size_t(heights.width) * heights.height;
+  if (apex_heights.size() != texels) {
+    throw BakeError("bilinear cone map: the apex heights hold " + std::to_string(apex_heights.size()) +
+                    " values for " + std::to_string(texels) + " texels");
+  }
+  if (settings.slope_window < 0 || settings.slope_window > max_slope_window) {
+    throw BakeError("bilinear cone map: slope window " + std::to_string(settings.slope_window) +
+                    " is outside [0, " + std::to_string(max_slope_window) + "] cells");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int sectors = out.sector_count;
+  Context context{heights,
+                  detail::Grid(heights.width, heights.height, sectors, address),
+                  Axis(heights.width, address),
+                  Axis(heights.height, address),
+                  settings.slope_window,
+                  {},
+                  {},
+                  {}};
+  context.half_texel_u = 0.5 / heights.width;
+  context.half_texel_v = 0.5 / heights.height;
+  // cells: maxima (for the pyramid) and slopes
+  const Axis& U = context.along_u;
+  const Axis& V = context.along_v;
+  std::vector<float> cell_max(std::size_t(U.cells) * V.cells);
+  context.cell_rise.resize(cell_max.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, V.cells), [&](const tbb::blocked_range<int>& rows) {
+    for (int nv = rows.begin(); nv < rows.end(); ++nv)
+      for (int nu = 0; nu < U.cells; ++nu) {
+        const Patch patch = context.patch(nu, nv);
+        const std::size_t n = std::size_t(nv) * U.cells + nu;
+        cell_max[n] = float(std::max(std::max(patch.h[0], patch.h[1]), std::max(patch.h[2], patch.h[3])));
+        context.cell_rise[n] = patch.derivatives(0.0, 1.0, 0.0, 1.0, heights.width, heights.height);
+      }
+  });
+  context.pyramid.max = build_max_pyramid({cell_max.data(), U.cells, V.cells});
+  context.pyramid.levels = int(context.pyramid.max.levels.size());
+  // open half-planes as boxes of directions strictly on their side, long enough to reach every sector
+  // they meet (sector edges lie at multiples of 45 degrees in uv)
+  const int reach = 4 * std::max(heights.width, heights.height);
+  context.beyond[0] = box_sectors(context, 1, 1, -reach, reach);
+  context.beyond[1] = box_sectors(context, -1, -1, -reach, reach);
+  context.beyond[2] = box_sectors(context, -reach, reach, 1, 1);
+  context.beyond[3] = box_sectors(context, -reach, reach, -1, -1);
+
+  std::atomic<long long> total_work{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<double> best(sectors), hull;
+    std::vector<TexelSearch::Entry> stack;
+    long long work = 0;
+    for (int i = rows.begin(); i < rows.end(); ++i)
+      for (int j = 0; j < heights.width; ++j) {
+        const std::size_t t = std::size_t(i) * heights.width + j;
+        double square[3][3];
+        square_values(context, i, j, square);
+        const float apex = apex_height(square);
+        apex_heights[t] = apex;
+        std::fill(best.begin(), best.end(), 1.0);
+        TexelSearch search{context, i, j, double(apex), square, best.data()};
+        if (context.window > 0) search.window_cells(hull);
+        search.far_cells(stack);
+        work += search.work;
+        for (int k = 0; k < sectors; ++k) out.data[t * sectors + k] = stored_ratio(best[k]);
+      }
+    total_work += work;
+  });
+
+  BakeStats stats;
+  stats.mode = Mode::bilinear;
+  stats.width = heights.width;
+  stats.height = heights.height;
+  stats.sector_count = sectors;
+  stats.texels_refined = (long long)texels;
+  stats.work = total_work;
+  stats.milliseconds =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats.mean_ratio = detail::mean_of(out.data, texels * sectors);
+  return stats;
+}
+
+}  // namespace displace::bake
