@@ -646,6 +646,28 @@ TEST(Cli, RendersWithAnAlbedoImageAndShadows) {
   EXPECT_GT(darker, 50u);
 }
 
+// --surface mesh:FILE.obj renders a mesh from an OBJ file; a malformed one is one error naming its line.
+TEST(Cli, RendersAMeshFromAnObjFile) {
+  TempDir dir;
+  {
+    std::ofstream obj(dir / "quad.obj");
+    obj << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+    std::ofstream bad(dir / "bad.obj");
+    bad << "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";
+  }
+  const std::string common = "render --source bricks --map-size 32 --size 48x48 --validate --output '" +
+                              (dir / "m.png").string() + "' --surface mesh:";
+  for (const char* method : {"acm4", "relief", "reference"}) {
+    const RunResult result =
+        run_displace(dir, common + "'" + (dir / "quad.obj").string() + "' --method " + method + " --compare reference");
+    EXPECT_EQ(result.exit_code, 0) << method << "\n" << result.err;
+    EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
+  }
+  const RunResult bad = run_displace(dir, common + "'" + (dir / "bad.obj").string() + "' --method acm4");
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("line 4"), std::string::npos) << bad.err;
+}
+
 TEST(Cli, RenderRejectsBadInputWithOneError) {
   TempDir dir;
   const std::string ok = "render --source ocean --map-size 16 --time 0 --output '" + (dir / "f.png").string() + "'";
@@ -668,7 +690,8 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {"render --input '" + (dir / "missing.png").string() + "' --method pom --output f.png", 1},
       {ok + " --method pom --albedo '" + (dir / "missing.png").string() + "'", 1},
       {ok + " --method pom --shadows yes", 2},
-      {ok + " --method pom --surface sphere --shadows", 1},
+      {ok + " --method pom --surface mesh:", 2},
+      {ok + " --method pom --surface mesh:'" + (dir / "missing.obj").string() + "'", 1},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
