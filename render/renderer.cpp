@@ -97,12 +97,23 @@ struct ConeMaps {
 
 // Packs a cone map into RG32F layers, one per sector: layer k of texel t holds (ratio_k, apex_t),
 // so that a cone step reads its ray's sector and the apex in one fetch (apex 0 without one).
+// Layer k < n holds (r_k, H_c); with n > 1 sectors, layer n holds (min over k of r_k, H_c), the
+// isotropic bound the quadric cone march needs near a step's start (one fetch instead of n).
+int cone_layer_count(int sectors) { return sectors > 1 ? sectors + 1 : 1; }
 std::vector<float> cone_layers(const ConeMaps& maps, int width, int height, int sectors) {
   const std::size_t texels = std::size_t(width) * height;
-  std::vector<float> packed(texels * 2 * sectors);
-  for (int k = 0; k < sectors; ++k)
+  const int layers = cone_layer_count(sectors);
+  std::vector<float> packed(texels * 2 * std::size_t(layers));
+  for (int k = 0; k < layers; ++k)
     for (std::size_t t = 0; t < texels; ++t) {
-      packed[(std::size_t(k) * texels + t) * 2 + 0] = maps.ratios[t * sectors + k];
+      float ratio = 0.0f;
+      if (k < sectors) {
+        ratio = maps.ratios[t * sectors + k];
+      } else {
+        ratio = *std::min_element(maps.ratios.begin() + std::ptrdiff_t(t * sectors),
+                                  maps.ratios.begin() + std::ptrdiff_t((t + 1) * sectors));
+      }
+      packed[(std::size_t(k) * texels + t) * 2 + 0] = ratio;
       packed[(std::size_t(k) * texels + t) * 2 + 1] = maps.apex.empty() ? 0.0f : maps.apex[t];
     }
   return packed;
@@ -739,7 +750,7 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
     if (uploaded_cone_key != key) {
       const std::vector<float> packed = cone_layers(cones(info.cone_sectors, cone_address, cone_kind(info)),
                                                     field.width, field.height, info.cone_sectors);
-      cone_image = upload_image(VK_FORMAT_R32G32_SFLOAT, field.width, field.height, info.cone_sectors,
+      cone_image = upload_image(VK_FORMAT_R32G32_SFLOAT, field.width, field.height, cone_layer_count(info.cone_sectors),
                                 VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
       uploaded_cone_key = key;
     }

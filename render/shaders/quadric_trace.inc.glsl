@@ -242,19 +242,18 @@ QuadricMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
     if (m.gap <= cone_gap_epsilon || m.t >= ray.t_end) break;
     g_iterations += 1u;
     // the cone map of the bilinear surface (bake_bilinear_cones): from any point of the texel's
-    // square, layer k holds (r_k, apex height H_c); no offset slack is needed
+    // square, layer k holds (r_k, apex height H_c), and with n > 1 sectors layer n holds
+    // (min over k of r_k, H_c); no offset slack is needed
     ivec2 texel_index = cone_texel(p.xy);
     g_fetches += 1u;
-    vec2 first = texelFetch(cone_map, ivec3(texel_index, 0), 0).rg;
-    float apex_gap = p.z - first.y;
+    vec2 isotropic = texelFetch(cone_map, ivec3(texel_index, sectors > 1 ? sectors : 0), 0).rg;
+    float apex_gap = p.z - isotropic.y;
     float slack = 0.0;
     int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.t), sectors) : 0;
-    float ratio = first.x, smallest = first.x;
-    for (int k = 1; k < sectors; ++k) {
+    float ratio = isotropic.x, smallest = isotropic.x;
+    if (sectors > 1) {
       g_fetches += 1u;
-      float r_k = texelFetch(cone_map, ivec3(texel_index, k), 0).r;
-      smallest = min(smallest, r_k);
-      if (k == sector) ratio = r_k;
+      ratio = texelFetch(cone_map, ivec3(texel_index, sector), 0).r;
     }
     // isotropic: every direction; the speed at the start, then the worst over that step
     float descent = quadric_descent_rate(ray, m.t);
