@@ -1025,3 +1025,33 @@ TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
 }
 
 }  // namespace
+
+// Meshes: no NaN or Inf in any AOV for any method, on a sphere mesh seen through its pole, at its
+// equator's grazing silhouette and along an axis, on flat, all-zero, all-one and step maps.
+TEST(Mesh, NoNanOrInfOnHardViewsOfASphereMesh) {
+  render::Renderer& renderer = shared_renderer();
+  renderer.set_mesh(uv_sphere({0.5f, 0.5f, 0.0f}, 0.3f, 48, 24));
+  std::vector<View> views;
+  for (const glm::vec3 eye : {glm::vec3(0.5f, 0.5f, 1.5f), glm::vec3(0.5f, -1.5f, 0.0f), glm::vec3(2.0f, 0.5f, 0.0f),
+                              glm::vec3(0.5f, 0.5f, -1.5f)}) {
+    View view;
+    view.surface = render::Surface::mesh;
+    view.depth_scale = 0.03f;
+    view.camera.eye = eye;
+    view.camera.look_at = {0.5f, 0.5f, 0.0f};
+    view.camera.up = std::abs(eye.z) > 1.0f ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
+    view.camera.width = view.camera.height = 32;
+    view.shadows = eye.x > 1.0f;  // one view with shadows
+    views.push_back(view);
+  }
+  for (const HeightField& field : {constant_field(16, 0.0f), constant_field(16, 1.0f), step_field(16)}) {
+    renderer.set_height_field(field);
+    for (const View& view : views) {
+      for (const MethodInfo& info : render::method_table()) {
+        const Frame frame = renderer.render(view, {info.method, 16, 6});
+        EXPECT_TRUE(all_finite(frame)) << info.name;
+      }
+    }
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
