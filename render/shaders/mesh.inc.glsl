@@ -33,11 +33,5 @@ void mesh_fragment() {
     bool outside = any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)));
     if ((frame.counts.z & FLAG_WRAP) == 0 && outside) discard;
   }
-  vec3 world_hit = in_world + tangent_frame * (hit - vec3(in_uv, in_h));
-  vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
-  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
-  float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
-  out_color = vec4(shade(hit.xy, tangent_frame, d, lit), 1.0);
-  out_hit = vec4(hit.xy, 1.0, length(world_hit - frame.eye.xyz));
-  out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
+  write_hit(hit, tangent_frame, d, normal);
 }

@@ -16,13 +16,7 @@ layout(location = 1) in vec4 in_dp_du_v;      // xyz: dP/du, w: v
 layout(location = 2) in vec4 in_dp_dv_kuu;    // xyz: dP/dv, w: curvature along u
 layout(location = 3) in vec4 in_normal_kvv;   // xyz: unit normal, w: curvature along v
 
-layout(location = 0) out vec3 out_world;
-layout(location = 1) out vec2 out_uv;
-layout(location = 2) out vec3 out_tangent_u;
-layout(location = 3) out vec3 out_tangent_v;
-layout(location = 4) out vec3 out_normal;
-layout(location = 5) out float out_h;
-layout(location = 6) out vec2 out_curvature;
+#include "surface_varyings.inc.glsl"
 
 void main() {
   // texture coordinates run over [0, K] with --tile K: dP/du' = dP/du / K

@@ -13,13 +13,7 @@ layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame
 
 #include "quadric.inc.glsl"
 
-layout(location = 0) out vec3 out_world;
-layout(location = 1) out vec2 out_uv;
-layout(location = 2) out vec3 out_tangent_u;
-layout(location = 3) out vec3 out_tangent_v;
-layout(location = 4) out vec3 out_normal;
-layout(location = 5) out float out_h;
-layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
+#include "surface_varyings.inc.glsl"
 
 // corner c of the box is (c & 1, (c >> 1) & 1, (c >> 2) & 1) between lo and hi; two triangles per
 // face, counter-clockwise seen from outside

@@ -9,13 +9,7 @@ layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 
 layout(location = 0) in vec2 in_uv;  // texture coordinates in [0, tile]
 
-layout(location = 0) out vec3 out_world;
-layout(location = 1) out vec2 out_uv;
-layout(location = 2) out vec3 out_tangent_u;
-layout(location = 3) out vec3 out_tangent_v;
-layout(location = 4) out vec3 out_normal;
-layout(location = 5) out float out_h;
-layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
+#include "surface_varyings.inc.glsl"
 
 void main() {
   float h = textureLod(height_map, in_uv, 0.0).r;

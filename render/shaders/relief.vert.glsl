@@ -6,13 +6,7 @@
 
 layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
 
-layout(location = 0) out vec3 out_world;
-layout(location = 1) out vec2 out_uv;
-layout(location = 2) out vec3 out_tangent_u;  // dP/du
-layout(location = 3) out vec3 out_tangent_v;  // dP/dv
-layout(location = 4) out vec3 out_normal;     // unit, pointing out of the relief
-layout(location = 5) out float out_h;         // height of this point: 1 on the base polygon
-layout(location = 6) out vec2 out_curvature;  // meshes only (mesh.vert.glsl)
+#include "surface_varyings.inc.glsl"
 
 const vec2 corners[6] = vec2[](vec2(0, 0), vec2(1, 0), vec2(1, 1), vec2(0, 0), vec2(1, 1), vec2(0, 1));
 

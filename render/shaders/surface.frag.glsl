@@ -73,6 +73,18 @@ float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
   return s < s_hit - bias ? 0.0 : 1.0;
 }
 
+// Writes a hit found in the fragment's tangent frame (plane and meshes): depth, the shaded colour
+// (with the light's visibility under --shadows), the hit AOV and the counters.
+void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal) {
+  vec3 world_hit = in_world + tangent_frame * (hit - vec3(in_uv, in_h));
+  vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
+  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
+  float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
+  out_color = vec4(shade(hit.xy, tangent_frame, d, lit), 1.0);
+  out_hit = vec4(hit.xy, 1.0, length(world_hit - frame.eye.xyz));
+  out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
+}
+
 #include "mesh.inc.glsl"
 
 void main() {
@@ -109,11 +121,5 @@ void main() {
   }
   // the ray left the relief volume through a side of the patch
   if (any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)))) discard;
-  vec3 world_hit = in_world + tangent_frame * (hit - vec3(in_uv, in_h));
-  vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
-  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
-  float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
-  out_color = vec4(shade(hit.xy, tangent_frame, d, lit), 1.0);
-  out_hit = vec4(hit.xy, 1.0, length(world_hit - frame.eye.xyz));
-  out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
+  write_hit(hit, tangent_frame, d, normal);
 }
