@@ -799,30 +799,25 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  std::array<VkWriteDescriptorSet, 6> writes{};
-  for (auto& write : writes) {
-    write = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    write.dstSet = descriptor_set;
-    write.descriptorCount = 1;
-  }
-  writes[0].dstBinding = BINDING_FRAME;
-  writes[0].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  writes[0].pBufferInfo = &uniform_info;
-  writes[1].dstBinding = BINDING_HEIGHT;
-  writes[1].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  writes[1].pImageInfo = &height_info;
-  writes[2].dstBinding = BINDING_CONES;
-  writes[2].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  writes[2].pImageInfo = &cone_info;
-  writes[4].dstBinding = BINDING_ALBEDO;
-  writes[4].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  writes[4].pImageInfo = &albedo_info;
-  writes[3].dstBinding = BINDING_MAX_PYRAMID;
-  writes[3].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  writes[3].pBufferInfo = &pyramid_info;
-  writes[5].dstBinding = BINDING_DISTANCE;
-  writes[5].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  writes[5].pImageInfo = &distance_info;
+  auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
+                   const VkDescriptorBufferInfo* buffer) {
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = descriptor_set;
+    w.dstBinding = binding;
+    w.descriptorCount = 1;
+    w.descriptorType = type;
+    w.pImageInfo = image;
+    w.pBufferInfo = buffer;
+    return w;
+  };
+  constexpr VkDescriptorType sampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  const std::array<VkWriteDescriptorSet, 6> writes = {
+      write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, nullptr, &uniform_info),
+      write(BINDING_HEIGHT, sampled, &height_info, nullptr),
+      write(BINDING_CONES, sampled, &cone_info, nullptr),
+      write(BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &pyramid_info),
+      write(BINDING_ALBEDO, sampled, &albedo_info, nullptr),
+      write(BINDING_DISTANCE, sampled, &distance_info, nullptr)};
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
