@@ -984,7 +984,7 @@ namespace {
 // beyond its exact first crossing, on wrap and clamp, sharp and smooth fields. Relaxed cone steps
 // too: each is verified with the bilinear cones from both of its ends, and one that lands below the
 // surface is searched with conservative and exact cell steps. (Accepting every relaxed step that
-// lands above the surface, unverified, ends 62 rays beyond it on the spikes, by up to 0.16, and 2
+// lands above the surface, unverified, ends 51 rays beyond it on the spikes, by up to 0.16, and 2
 // on the noise.)
 TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
   constexpr double tolerance = 1e-4;  // world units (a texel here is 0.03): float rounding of the march
