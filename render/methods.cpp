@@ -21,7 +21,7 @@ constexpr MethodInfo methods[] = {
     {Method::acm4, "acm4", METHOD_ACM4, MethodFamily::cone, 4, true},
     {Method::acm8, "acm8", METHOD_ACM8, MethodFamily::cone, 8, true},
     {Method::acm4_interval, "acm4-interval", METHOD_ACM4_INTERVAL, MethodFamily::cone, 4, true},
-    {Method::relaxed, "relaxed", METHOD_RELAXED, MethodFamily::cone, 1, true, true},
+    {Method::relaxed, "relaxed", METHOD_RELAXED, MethodFamily::cone, RELAXED_CONE_SECTORS, true, true},
     {Method::maxmip, "maxmip", METHOD_MAXMIP, MethodFamily::pyramid, 0, true},
     {Method::qdm, "qdm", METHOD_QDM, MethodFamily::pyramid, 0, true},
     {Method::sphere, "sphere", METHOD_SPHERE, MethodFamily::distance, 0, true},

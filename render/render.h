@@ -103,7 +103,7 @@ struct MethodInfo {
   MethodFamily family;
   int cone_sectors;   // 0: the method reads no cone map
   bool exact_class;   // converges to the true hit as steps grow
-  bool relaxed_cones = false;  // the cone map is relaxed (bake::bake_relaxed), not conservative
+  bool relaxed_cones = false;  // a relaxed ratio layer (bake::bake_relaxed) follows the bilinear cones
 };
 
 // The implemented methods, in display order. A method that is not implemented is not listed.
@@ -205,8 +205,8 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them - cone maps for the bilinear surface (bake::bake_bilinear_cones; bake::bake_relaxed for
-  // relaxed cones), the dual max pyramid, bake_distance_map's distance map - and kept until the
+  // them - cone maps for the bilinear surface (bake::bake_bilinear_cones; relaxed adds
+  // bake::bake_relaxed's 1-sector ratios to them), the dual max pyramid, bake_distance_map's distance map - and kept until the
   // heights change.
   void set_height_field(const HeightField& field);
 

@@ -89,32 +89,38 @@ void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers
 }
 
 // The cone maps of the cone methods: per texel and sector a ratio, and per texel an apex height
-// (bake::bake_bilinear_cones; relaxed maps have none).
+// (bake::bake_bilinear_cones); for relaxed cone stepping also a 1-sector relaxed ratio
+// (bake::bake_relaxed).
 struct ConeMaps {
-  std::vector<float> ratios;  // interleaved, bake conventions
-  std::vector<float> apex;    // empty for relaxed cones
+  std::vector<float> ratios;   // interleaved, bake conventions
+  std::vector<float> apex;
+  std::vector<float> relaxed;  // empty but for relaxed cones
 };
 
 // Packs a cone map into RG32F layers, one per sector: layer k of texel t holds (ratio_k, apex_t),
-// so that a cone step reads its ray's sector and the apex in one fetch (apex 0 without one).
+// so that a cone step reads its ray's sector and the apex in one fetch.
 // Layer k < n holds (r_k, H_c); with n > 1 sectors, layer n holds (min over k of r_k, H_c), the
-// isotropic bound the quadric cone march needs near a step's start (one fetch instead of n).
-int cone_layer_count(int sectors) { return sectors > 1 ? sectors + 1 : 1; }
+// isotropic bound the quadric cone march needs near a step's start (one fetch instead of n). With
+// relaxed ratios, one more layer holds (relaxed ratio, H_c) (relaxed_march.inc.glsl).
+int cone_layer_count(int sectors, bool relaxed) { return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0); }
 std::vector<float> cone_layers(const ConeMaps& maps, int width, int height, int sectors) {
   const std::size_t texels = std::size_t(width) * height;
-  const int layers = cone_layer_count(sectors);
+  const bool relaxed = !maps.relaxed.empty();
+  const int layers = cone_layer_count(sectors, relaxed);
   std::vector<float> packed(texels * 2 * std::size_t(layers));
   for (int k = 0; k < layers; ++k)
     for (std::size_t t = 0; t < texels; ++t) {
       float ratio = 0.0f;
-      if (k < sectors) {
+      if (relaxed && k == layers - 1) {
+        ratio = maps.relaxed[t];
+      } else if (k < sectors) {
         ratio = maps.ratios[t * sectors + k];
       } else {
         ratio = *std::min_element(maps.ratios.begin() + std::ptrdiff_t(t * sectors),
                                   maps.ratios.begin() + std::ptrdiff_t((t + 1) * sectors));
       }
       packed[(std::size_t(k) * texels + t) * 2 + 0] = ratio;
-      packed[(std::size_t(k) * texels + t) * 2 + 1] = maps.apex.empty() ? 0.0f : maps.apex[t];
+      packed[(std::size_t(k) * texels + t) * 2 + 1] = maps.apex[t];
     }
   return packed;
 }
@@ -150,7 +156,7 @@ int surface_id(Surface surface) {
 // Cone maps are baked for one sector count, address mode and kind.
 enum class ConeKind {
   bilinear,  // bake_bilinear_cones: conservative for the bilinear surface, with apex heights
-  relaxed,   // bake_relaxed
+  relaxed,   // the bilinear cones and bake_relaxed's 1-sector ratios
 };
 int cone_key(int sectors, bake::Address address, ConeKind kind) {
   return (sectors * 2 + (address == bake::Address::wrap ? 0 : 1)) * 2 + int(kind);
@@ -550,14 +556,16 @@ const ConeMaps& Renderer::Impl::cones(int sectors, bake::Address address, ConeKi
   auto found = cone_maps.find(key);
   if (found != cone_maps.end()) return found->second;
   ConeMaps maps;
-  maps.ratios.resize(std::size_t(field.width) * field.height * sectors);
   const bake::HeightView heights{field.heights.data(), field.width, field.height};
-  const bake::ConeView out{maps.ratios.data(), field.width, field.height, sectors};
   if (kind == ConeKind::relaxed) {
-    bake::bake_relaxed(heights, address, out);
+    maps = cones(sectors, address, ConeKind::bilinear);
+    maps.relaxed.resize(field.heights.size());
+    bake::bake_relaxed(heights, address, bake::ConeView{maps.relaxed.data(), field.width, field.height, 1});
   } else {
+    maps.ratios.resize(std::size_t(field.width) * field.height * sectors);
     maps.apex.resize(field.heights.size());
-    bake::bake_bilinear_cones(heights, address, out, maps.apex);
+    bake::bake_bilinear_cones(heights, address, bake::ConeView{maps.ratios.data(), field.width, field.height, sectors},
+                              maps.apex);
   }
   return cone_maps.emplace(key, std::move(maps)).first->second;
 }
@@ -750,8 +758,9 @@ void Renderer::Impl::bind_maps(const View& view, const MethodInfo& info) {
     if (uploaded_cone_key != key) {
       const std::vector<float> packed = cone_layers(cones(info.cone_sectors, cone_address, cone_kind(info)),
                                                     field.width, field.height, info.cone_sectors);
-      cone_image = upload_image(VK_FORMAT_R32G32_SFLOAT, field.width, field.height, cone_layer_count(info.cone_sectors),
-                                VK_IMAGE_VIEW_TYPE_2D_ARRAY, packed.data(), packed.size() * sizeof(float));
+      cone_image = upload_image(VK_FORMAT_R32G32_SFLOAT, field.width, field.height,
+                                cone_layer_count(info.cone_sectors, info.relaxed_cones), VK_IMAGE_VIEW_TYPE_2D_ARRAY,
+                                packed.data(), packed.size() * sizeof(float));
       uploaded_cone_key = key;
     }
     cone_view = cone_image.view();

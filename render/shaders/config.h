@@ -45,6 +45,7 @@ using mat4 = glm::mat4;
 #define BINDING_FRAME 0    // uniform FrameUniforms
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
 #define BINDING_CONES 2    // sampler2DArray, RG32F: layer k = (ratio of sector k, apex height), nearest
+#define RELAXED_CONE_SECTORS 4  // relaxed: layers 0-3 its bilinear cones, 4 their minimum, 5 (relaxed ratio, apex)
 #define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
 #define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)

@@ -24,12 +24,6 @@ float fetch_height(vec2 uv) {
   return textureLod(height_map, uv, 0.0).r;
 }
 
-// The ratio in the cone map's layer `sector` at the texel holding uv (see config.h).
-float fetch_cone(vec2 uv, int sector) {
-  g_fetches += 1u;
-  return textureLod(cone_map, vec3(uv, float(sector)), 0.0).r;
-}
-
 // The sector of an n-sector cone map holding horizontal direction d (azimuth atan(dv, du) in [0, 2 pi)).
 int cone_sector(vec2 d, int sectors) {
   if (sectors <= 1 || (d.x == 0.0 && d.y == 0.0)) return 0;
@@ -257,35 +251,7 @@ Bracket bracket_after_cones(vec3 origin, vec3 descent, ConeMarch m) {
   return b;
 }
 
-// Relaxed cone stepping (Policarpo & Oliveira, "Relaxed Cone Stepping for Relief Mapping", GPU Gems 3
-// ch. 18): the same step r * g / (r + L) with relaxed ratios, whose cones may hold relief that a ray
-// crosses at most once. A step can therefore end below the surface, past the first hit but before a
-// second crossing; stepping stops there and a binary search between the last point above and that
-// point finds the first hit. A ray that stays above stops within cone_gap_epsilon or when the steps
-// run out, where it is returned as is.
-float relaxed_march(vec3 origin, vec3 descent, int steps, int refine) {
-  float travel = length(descent.xy);
-  Bracket b;
-  b.s_above = 0.0;
-  b.gap_above = origin.z - fetch_height(origin.xy);
-  if (b.gap_above <= 0.0) return 0.0;
-  for (int i = 0; i < steps && b.gap_above > cone_gap_epsilon; ++i) {
-    g_iterations += 1u;
-    vec3 p = origin + b.s_above * descent;
-    float ratio = fetch_cone(p.xy, 0);
-    float s = min(b.s_above + ratio * b.gap_above / max(ratio + travel, min_denominator), 1.0);
-    vec3 q = origin + s * descent;
-    float gap = q.z - fetch_height(q.xy);
-    if (gap <= 0.0) {
-      b.s_below = s;
-      b.gap_below = gap;
-      return binary_refine(origin, descent, b, refine);
-    }
-    b.s_above = s;
-    b.gap_above = gap;
-  }
-  return b.s_above;
-}
+#include "relaxed_march.inc.glsl"
 
 // Iterative parallax mapping with slope information (Premecz, sec. 3): the surface near the current
 // point p_i = (u_i, v_i, h_i) is taken as the plane through (u_i, v_i, h(u_i, v_i)) with normal N', and
@@ -359,7 +325,7 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
     ConeMarch m = cone_march(origin, descent, frame.counts.x, 4);
     s = m.exact ? m.s : secant_refine(origin, descent, bracket_after_cones(origin, descent, m), frame.counts.y);
   } else if (METHOD == METHOD_RELAXED) {
-    s = relaxed_march(origin, descent, frame.counts.x, frame.counts.y);
+    s = relaxed_march(origin, descent, frame.counts.x);
   } else if (METHOD == METHOD_MAXMIP) {
     s = max_pyramid_trace(origin, descent, frame.counts.x, false);
   } else if (METHOD == METHOD_QDM) {
