@@ -1,8 +1,9 @@
 // render/cpu_trace_quadric.cpp - the exact ray / relief intersection on a quadric on the CPU, in
 // double precision: from where the ray enters the outer surface, march the bilinear surface in steps
 // that move (u, v) by at most 1/32 of a texel (the step is bounded by the largest (u, v) speed
-// over it, which grows near the axis), then bisect. Slow and plain on purpose; the tests measure the
-// GPU methods on quadrics against it.
+// over it, which grows near the axis), then bisect. The light test (quadric::light_occluder) marches
+// the light ray from a point of the relief the same way. Slow and plain on purpose; the tests measure
+// the GPU methods and their shadows on quadrics against them.
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -69,6 +70,31 @@ double uv_speed(const quadric::Shape& shape, const glm::dvec3& o, const glm::dve
   return std::hypot(u_speed, v_speed);
 }
 
+// The first t in [t0, t1] where gap(t) <= 0, with gap(t0) > 0: march in steps that move (u, v) by at
+// most texels_per_step texels, then bisect; -1 when the ray stays above the surface.
+template <class Gap>
+double first_at_or_below(const HeightField& field, const quadric::Shape& shape, const glm::dvec3& o,
+                         const glm::dvec3& d, double t0, double t1, Gap gap) {
+  const double texel = texels_per_step * std::min(1.0 / field.width, 1.0 / field.height);
+  double above = t0, below = -1.0;
+  for (int i = 0; i < max_march_steps && above < t1; ++i) {
+    double step = texel / uv_speed(shape, o, d, above, above);
+    step = std::max(texel / uv_speed(shape, o, d, above, std::min(above + step, t1)), min_step);
+    const double t = std::min(above + step, t1);
+    if (gap(t) <= 0.0) {
+      below = t;
+      break;
+    }
+    above = t;
+  }
+  if (below < 0.0) return -1.0;
+  for (int i = 0; i < bisection_steps; ++i) {
+    const double mid = 0.5 * (above + below);
+    (gap(mid) > 0.0 ? above : below) = mid;
+  }
+  return below;
+}
+
 }  // namespace
 
 CpuHit cpu_trace_quadric(const HeightField& field, const View& view, double px, double py) {
@@ -94,31 +120,15 @@ CpuHit cpu_trace_quadric(const HeightField& field, const View& view, double px, 
   if (!quadric::range_kept(shape, o, d, t_in, t_in)) return result;
 
   // march, then bisect
-  const double texel = texels_per_step * std::min(1.0 / field.width, 1.0 / field.height);
   auto gap = [&](double t) {
     const glm::dvec3 p = quadric::texture_point(shape, o + t * d);
     return p.z - quadric_height(field, view.address, p.x, p.y);
   };
-  double above = t_in, below = -1.0;
-  if (gap(t_in) <= 0.0) {
-    below = t_in;
-  } else {
-    for (int i = 0; i < max_march_steps && above < t_end; ++i) {
-      double step = texel / uv_speed(shape, o, d, above, above);
-      step = std::max(texel / uv_speed(shape, o, d, above, std::min(above + step, t_end)), min_step);
-      const double t = std::min(above + step, t_end);
-      if (gap(t) <= 0.0) {
-        below = t;
-        break;
-      }
-      above = t;
-    }
+  double below = t_in;
+  if (gap(t_in) > 0.0) {
+    below = first_at_or_below(field, shape, o, d, t_in, t_end, gap);
     if (below < 0.0 && certain) below = t_end;  // on the inner surface, which no height lies below
     if (below < 0.0) return result;             // left the shell above the relief
-    for (int i = 0; i < bisection_steps; ++i) {
-      const double mid = 0.5 * (above + below);
-      (gap(mid) > 0.0 ? above : below) = mid;
-    }
   }
   if (!quadric::range_kept(shape, o, d, t_in, below)) return result;
   result.hit = true;
@@ -128,3 +138,41 @@ CpuHit cpu_trace_quadric(const HeightField& field, const View& view, double px, 
 }
 
 }  // namespace displace::render
+
+namespace displace::render::quadric {
+
+double light_occluder(const HeightField& field, const View& view, const glm::dvec3& point,
+                      const glm::dvec3& light, double start) {
+  const Shape shape = shape_of(view);
+  const glm::dvec3 o = point - anchor(shape), d = glm::normalize(light);
+  // the light ray's part in the relief: up to where it leaves the outer solid or the relief's box
+  const Interval outer = body_interval(shape, o, d, 0.0);
+  if (outer.empty()) return -1.0;
+  glm::dvec3 lo, hi;
+  relief_box(shape, lo, hi);
+  const double s_far = std::min(outer.leave, box_exit(point, d, lo, hi));
+  if (s_far <= start) return -1.0;
+  auto in_range = [&](double t) {  // within the finite part, v in [0, K]
+    const double v = texture_point(shape, o + t * d).y;
+    return shape.surface == Surface::sphere || (v >= 0.0 && v <= shape.tile);
+  };
+  // the inner solid, which every height lies on or above, where one end of the stretch through it
+  // is within the finite part
+  const Interval inner = body_interval(shape, o, d, -shape.depth);
+  bool through_inner = !inner.empty() && inner.enter < s_far && inner.leave > start;
+  const double inner_start = through_inner ? std::max(inner.enter, start) : far;
+  through_inner = through_inner && (in_range(inner_start) || in_range(std::min(inner.leave, s_far)));
+  // the relief within the finite part; beyond it (the cone's edges) nothing
+  auto gap = [&](double t) {
+    if (!in_range(t)) return 1.0;
+    const glm::dvec3 p = texture_point(shape, o + t * d);
+    return p.z - quadric_height(field, view.address, p.x, p.y);
+  };
+  if (gap(start) <= 0.0) return start;
+  const double end = through_inner ? inner_start : s_far;
+  const double first = first_at_or_below(field, shape, o, d, start, end, gap);
+  if (first >= 0.0) return first;
+  return through_inner ? inner_start : -1.0;
+}
+
+}  // namespace displace::render::quadric

@@ -45,4 +45,12 @@ double box_exit(const glm::dvec3& e, const glm::dvec3& d, const glm::dvec3& lo, 
 // cylinder; on the cone the foot point's slant is convex along the ray).
 bool range_kept(const Shape& shape, const glm::dvec3& o, const glm::dvec3& d, double t_in, double t);
 
+// The exact light test on the CPU, for tests (render/cpu_trace_quadric.cpp, the same march as
+// cpu_trace_quadric): the world distance from `point` (world) along the direction `light` to the
+// first point the light ray meets at or below the bilinear surface within the finite part (v in
+// [0, K]), or inside the inner solid, before it leaves the outer solid or the relief's box; -1 when
+// it meets none. The ray is followed from `start` world units on (a point on the surface is at it).
+double light_occluder(const HeightField& field, const View& view, const glm::dvec3& point,
+                      const glm::dvec3& light, double start);
+
 }  // namespace displace::render::quadric

@@ -40,6 +40,8 @@
 // - `reference` on a quadric is the height field tessellated at one vertex per texel centre (plus
 //   the seam and the poles), displaced along the normal and rasterized: the tessellated surface
 //   itself, without the plane reference's snap to the bilinear surface.
+// - Shadows: the light ray from the hit is searched with the frame's method from where it leaves the
+//   outer surface back to the hit; passing through the inner solid is a shadow too (the terminator).
 #pragma once
 
 #include <cstdint>

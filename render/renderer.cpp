@@ -945,10 +945,6 @@ Frame Renderer::render(const View& view, const MethodSettings& method) {
                       surface_name(view.surface) + " (methods there: " + supported + ")");
   }
   if (quadric) quadric::validate(view);
-  if (quadric && view.shadows) {
-    throw RenderError(std::string("--shadows is not supported on --surface ") + surface_name(view.surface) +
-                      " yet (plane only)");
-  }
 
   // maps and descriptors
   impl.bind_maps(view, info);

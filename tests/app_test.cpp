@@ -711,6 +711,10 @@ TEST(Cli, RendersAQuadricAndRefusesWhatItCannot) {
                (dir / "uv.exr").string() + "'");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
+  const RunResult shadowed = run_displace(
+      dir, base + " --surface cylinder --method relief --shadows --validate --compare reference");
+  ASSERT_EQ(shadowed.exit_code, 0) << shadowed.err;
+  EXPECT_NE(shadowed.out.find("compare reference: rmse"), std::string::npos) << shadowed.out;
   const FloatImage uv = read_float_image(dir / "uv.exr");
   const auto hit = uv.channel("hit");
   EXPECT_GT(std::count(hit.begin(), hit.end(), 1.0f), 200);

@@ -1,7 +1,9 @@
 // tests/quadric_test.cpp - inverse displacement mapping on the quadrics (sphere, cylinder, cone) with
 // the validation layer on: silhouettes and hits of constant-height spheres against the analytic
 // sphere, every quadric method against the exact CPU trace, no NaN and no holes on rays through the
-// poles, along the axes and through the apex region, and clear errors for what is not supported.
+// poles, along the axes and through the apex region, self-shadowing (the terminator, a ring's cast
+// shadow against an exact CPU light test, hard light directions, no acne), and clear errors for
+// what is not supported.
 #include "render/quadric.h"
 
 #include <gtest/gtest.h>
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include "render/render.h"
+#include "render/shaders/config.h"
 
 namespace {
 
@@ -408,6 +411,318 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
     }
     std::printf("%-22s %4zu pixels inside the inner outline, %4zu inside the outer one\n", view_name.c_str(),
                 inner.size(), outer.size());
+  }
+  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+}
+
+// Self-shadowing on the quadrics (render/shaders/quadric_trace.inc.glsl, quadric_light_visibility).
+// The pictures use a white albedo, so that a hit's colour reads its lighting: ambient only (38 in
+// every channel) where the light does not reach it, brighter where it does.
+const int ambient_only = 38;  // 0.15 of 255: shading.inc.glsl's ambient term on a white albedo
+
+struct WhiteAlbedo {  // sets a white albedo on the shared renderer for the scope of a test
+  WhiteAlbedo() { quadric_renderer().set_albedo({1, 1, {255, 255, 255, 255}}); }
+  ~WhiteAlbedo() { quadric_renderer().clear_albedo(); }
+};
+
+bool colour_differs(const Frame& a, const Frame& b, std::size_t p) {
+  for (int c = 0; c < 3; ++c) {
+    if (std::abs(int(a.color[p * 4 + c]) - int(b.color[p * 4 + c])) > 8) return true;
+  }
+  return false;
+}
+int brightest_channel(const Frame& frame, std::size_t p) {
+  return std::max({frame.color[p * 4], frame.color[p * 4 + 1], frame.color[p * 4 + 2]});
+}
+
+glm::dvec3 hit_point(const View& view, const Frame& frame, int px, int py) {
+  const render::Ray ray = view.camera.pixel_ray(px + 0.5, py + 0.5);
+  return ray.origin + double(frame.depth[std::size_t(py) * frame.width + px]) * ray.direction;
+}
+
+// The base surface's unit outward normal at the foot of world point `point`.
+glm::dvec3 base_normal(const View& view, const glm::dvec3& point) {
+  const glm::dvec3 q = point - render::quadric::anchor(render::quadric::shape_of(view));
+  if (view.surface == Surface::sphere) return glm::normalize(q);
+  const glm::dvec3 radial = glm::normalize(glm::dvec3(q.x, q.y, 0.0));
+  if (view.surface == Surface::cylinder) return radial;
+  const double cone_sin = 1.0 / std::sqrt(1.0 + 1.0 / (CONE_SLOPE * CONE_SLOPE));
+  return cone_sin / CONE_SLOPE * radial + glm::dvec3(0.0, 0.0, cone_sin);
+}
+
+const std::vector<Method> shadow_methods = {Method::reference, Method::relief, Method::interval, Method::csm,
+                                            Method::acm4};
+
+// The terminator. A light from +x on a sphere seen from +y: the left half faces away from it.
+// (a) Constant height 0.5: the relief is the sphere of radius 0.2, so a hit whose normal has
+// N . L > 0.05 must keep its colour with shadows on (no false shadow up to the terminator), and one
+// with N . L < -0.05 must be ambient only. With a constant height the shading normal is N, so (a)'s
+// dark half would be dark without shadows too; (b) makes it observable.
+// (b) Ripples: a triangle wave of amplitude 0.025 (heights 0.475..0.525) and period 4 texels along u
+// on a 256 map tilts the shading normal by up to 27 degrees at the equator (the wave rises 0.025 D
+// per 0.0049 of arc), so that hits beyond the terminator face the light with their own normal and
+// are lit without shadows. With shadows they must all be dark where N . L < -0.25: the light ray
+// from such a hit dips r (1 - cos(asin 0.25)) >= 0.0064 = 0.064 D below it, more than the ripples'
+// 0.05 D span, so it passes under the relief - the quadric's own shadow.
+TEST(Quadric, ShadowsDarkenWhatLiesBeyondTheTerminator) {
+  const WhiteAlbedo white;
+  View view = looking_at(Surface::sphere, {0.5f, 1.35f, 0.12f}, {0.5f, 0.5f, 0.0f}, 96, 20.0f);
+  view.light_direction = {1.0f, 0.0f, 0.0f};
+  const glm::dvec3 light(1.0, 0.0, 0.0);
+  View shadow_view = view;
+  shadow_view.shadows = true;
+  const HeightField constant = constant_field(64, 0.5);
+  const HeightField ripples = field_of(256, 256, [](int, int j) {
+    const int phase = j % 4;  // 0, 1, 0, -1: a triangle wave through the bilinear interpolation
+    return 0.5 + 0.025 * (phase == 1 ? 1.0 : phase == 3 ? -1.0 : 0.0);
+  });
+  for (Method method : shadow_methods) {
+    const char* name = render::method_info(method).name;
+    long long lit_pixels = 0, dark_pixels = 0, false_shadows = 0, lit_beyond = 0;
+    {
+      const Frame lit = render_frame(constant, view, method, 256, 16);
+      const Frame shaded = render_frame(constant, shadow_view, method, 256, 16);
+      for (int py = 0; py < lit.height; ++py) {
+        for (int px = 0; px < lit.width; ++px) {
+          const std::size_t p = std::size_t(py) * lit.width + px;
+          if (!hit_at(lit, p)) continue;
+          const double facing = glm::dot(base_normal(view, hit_point(view, lit, px, py)), light);
+          if (facing > 0.05) {
+            ++lit_pixels;
+            false_shadows += colour_differs(lit, shaded, p);
+          } else if (facing < -0.05) {
+            ++dark_pixels;
+            lit_beyond += brightest_channel(shaded, p) > ambient_only + 1;
+          }
+        }
+      }
+    }
+    long long ripple_beyond = 0, ripple_lit_beyond = 0, ripple_observable = 0;
+    {
+      const Frame lit = render_frame(ripples, view, method, 256, 16);
+      const Frame shaded = render_frame(ripples, shadow_view, method, 256, 16);
+      for (int py = 0; py < lit.height; ++py) {
+        for (int px = 0; px < lit.width; ++px) {
+          const std::size_t p = std::size_t(py) * lit.width + px;
+          if (!hit_at(lit, p)) continue;
+          if (glm::dot(base_normal(view, hit_point(view, lit, px, py)), light) >= -0.25) continue;
+          ++ripple_beyond;
+          ripple_observable += brightest_channel(lit, p) > ambient_only + 6;  // lit without shadows
+          ripple_lit_beyond += brightest_channel(shaded, p) > ambient_only + 1;
+        }
+      }
+    }
+    std::printf(
+        "%-10s constant: %lld lit-side hits, %lld false shadows; %lld beyond, %lld of them lit | "
+        "ripples: %lld beyond, %lld lit without shadows, %lld with\n",
+        name, lit_pixels, false_shadows, dark_pixels, lit_beyond, ripple_beyond, ripple_observable,
+        ripple_lit_beyond);
+    EXPECT_GT(lit_pixels, 1500) << name;
+    EXPECT_GT(dark_pixels, 1500) << name;
+    EXPECT_EQ(false_shadows, 0) << name;
+    EXPECT_EQ(lit_beyond, 0) << name;
+    EXPECT_GT(ripple_observable, 100) << name;
+    EXPECT_EQ(ripple_lit_beyond, 0) << name;
+  }
+  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+}
+
+// A relief feature casts its shadow where the geometry puts it. A ring of height 0.9 (4 texel rows of
+// v) stands on a floor of 0.2 on the sphere, the cylinder and the cone, lit from above at a low
+// angle to the side facing the camera, so that the ring shades the floor below it. For each pixel,
+// the CPU's exact light test (quadric::light_occluder, marched at 1/32 texel) from the exact hit's
+// point decides: in shadow when the light ray meets the relief or the inner solid farther than
+// `near` from it, lit when it meets nothing. Pixels are compared away from the shadow's edge: the
+// points 1.5 texels away in u and v must get the same answer, and the method's hit must lie within
+// a texel of the exact one. A shadowed pixel must be darker with shadows on (where its diffuse
+// light is visible at all), a lit one unchanged; no pixel may be wrong.
+TEST(Quadric, ARingCastsItsShadowWhereTheCpuTracePutsIt) {
+  namespace quadric = render::quadric;
+  const WhiteAlbedo white;
+  const int size = 64;
+  const HeightField ring = field_of(size, size, [](int i, int) { return i >= 34 && i < 38 ? 0.9 : 0.2; });
+  const double texel = 1.0 / size;
+  const double near = 0.03;  // world units: an occluder this close to the hit may go either way (bias)
+  struct Case {
+    Surface surface;
+    glm::vec3 eye, light;
+  };
+  const std::vector<Case> cases = {
+      {Surface::sphere, {0.5f, -0.75f, 0.05f}, {0.15f, -0.5f, 0.85f}},
+      {Surface::cylinder, {0.5f, -0.75f, 0.05f}, {0.15f, -0.5f, 0.85f}},
+      {Surface::cone, {0.5f, -0.75f, 0.15f}, {0.15f, 0.0f, 1.0f}},
+  };
+  for (const Case& test : cases) {
+    View view = looking_at(test.surface, test.eye, {0.5f, 0.5f, 0.0f}, 64, 26.0f);
+    view.light_direction = test.light;
+    const glm::dvec3 light = glm::normalize(glm::dvec3(test.light));
+    const quadric::Shape shape = quadric::shape_of(view);
+    auto blocked = [&](double u, double v) {
+      if (test.surface != Surface::sphere && (v < 0.0 || v > view.tile)) return -2.0;
+      const glm::dvec3 point =
+          quadric::surface_point(shape, u, v, render::bilinear_height(ring, view.address, u, v));
+      return quadric::light_occluder(ring, view, point, light, 1e-9);
+    };
+    // the CPU's answer per pixel: 1 shadowed, 0 lit, -1 undecided (or no hit)
+    const std::vector<render::CpuHit> truth = exact_hits(ring, view);
+    std::vector<int> expected(truth.size(), -1);
+    for (std::size_t p = 0; p < truth.size(); ++p) {
+      if (!truth[p].hit) continue;
+      const double u = truth[p].texture.x, v = truth[p].texture.y;
+      const double here = blocked(u, v);
+      const double around[] = {blocked(u - 1.5 * texel, v), blocked(u + 1.5 * texel, v),
+                               blocked(u, v - 1.5 * texel), blocked(u, v + 1.5 * texel)};
+      const bool all_blocked =
+          std::all_of(std::begin(around), std::end(around), [](double s) { return s >= 0.0; });
+      const bool all_clear =
+          std::all_of(std::begin(around), std::end(around), [](double s) { return s == -1.0; });
+      if (here > near && all_blocked) expected[p] = 1;
+      if (here == -1.0 && all_clear) expected[p] = 0;
+    }
+    for (Method method : quadric_methods()) {
+      if (method == Method::bump) continue;  // no relief to cast a shadow
+      const char* name = render::method_info(method).name;
+      View shadow_view = view;
+      shadow_view.shadows = true;
+      const Frame lit = render_frame(ring, view, method, 256, 16);
+      const Frame shaded = render_frame(ring, shadow_view, method, 256, 16);
+      long long shadowed = 0, clear = 0, wrong = 0, band = 0;
+      for (std::size_t p = 0; p < truth.size(); ++p) {
+        if (!truth[p].hit || !hit_at(lit, p)) continue;
+        const double du = std::remainder(lit.uv[p * 3] - truth[p].texture.x, double(view.tile)) * size;
+        const double dv = (lit.uv[p * 3 + 1] - truth[p].texture.y) * size;
+        if (expected[p] < 0 || std::hypot(du, dv) > 1.0) {
+          ++band;
+          continue;
+        }
+        if (expected[p] == 0) {
+          ++clear;
+          wrong += colour_differs(lit, shaded, p);
+        } else if (brightest_channel(lit, p) > ambient_only + 10) {  // its diffuse light shows
+          ++shadowed;
+          wrong += !colour_differs(lit, shaded, p);
+        }
+      }
+      std::printf("%-8s %-13s %lld shadowed, %lld lit, %lld wrong; %lld in the edge band\n",
+                  render::surface_name(test.surface), name, shadowed, clear, wrong, band);
+      EXPECT_GT(shadowed, 150) << render::surface_name(test.surface) << " / " << name;
+      EXPECT_GT(clear, 200) << render::surface_name(test.surface) << " / " << name;
+      EXPECT_EQ(wrong, 0) << render::surface_name(test.surface) << " / " << name;
+    }
+  }
+  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+}
+
+// Hard light directions with shadows on: along the axis from above and from below, horizontal
+// (grazing the cylinder's whole side and the sphere's poles), along a cone generator, slightly off
+// the axis, from below at an angle. On views through the poles, the axis and the apex region, every
+// quadric method must give finite AOVs, the same hits and depths as without shadows, colours no
+// brighter (shadows only take light away) and at least the fetches of the view ray alone (the
+// shadow trace's reads are counted); on the all-one field (the outer surface itself) every hit whose
+// normal faces the light (N . L > 0.05) must keep its colour.
+TEST(Quadric, ShadowsStayFiniteForHardLights) {
+  const float r = 0.25f;
+  struct Named {
+    std::string name;
+    View view;
+  };
+  const std::vector<Named> views = {
+      {"sphere north pole", looking_at(Surface::sphere, {0.5f, 0.5f, 1.2f}, {0.5f, 0.5f, 0.0f}, 33, 30.0f)},
+      {"sphere south pole", looking_at(Surface::sphere, {0.5f, 0.5f, -1.2f}, {0.5f, 0.5f, 0.0f}, 33, 30.0f)},
+      {"cylinder side", looking_at(Surface::cylinder, {0.5f, -0.8f, 0.0f}, {0.5f, 0.5f, 0.0f}, 33, 30.0f)},
+      {"cylinder parallel", looking_at(Surface::cylinder, {0.5f + 1.1f * r, 0.5f, 0.3f},
+                                       {0.5f + 1.1f * r, 0.5f, -1.0f}, 33, 30.0f)},
+      {"cone apex from above", looking_at(Surface::cone, {0.5f, 0.5f, 1.2f}, {0.5f, 0.5f, 0.0f}, 33, 24.0f)},
+      {"cone from below", looking_at(Surface::cone, {0.5f, -0.9f, -0.7f}, {0.5f, 0.5f, 0.0f}, 33, 16.0f)},
+  };
+  const std::vector<glm::vec3> lights = {{0.0f, 0.0f, 1.0f},  {0.0f, 0.0f, -1.0f},
+                                         {1.0f, 0.0f, 0.0f},  {0.0f, 0.447214f, 0.894427f},
+                                         {1e-4f, 0.0f, 1.0f}, {0.3f, -0.2f, -1.0f}};
+  const std::vector<std::pair<std::string, HeightField>> fields = {{"all-one", constant_field(16, 1.0)},
+                                                                   {"waves", waves_field(16)}};
+  for (const auto& [view_name, view] : views) {
+    for (const auto& [field_name, field] : fields) {
+      quadric_renderer().set_height_field(field);
+      for (Method method : quadric_methods()) {
+        for (const glm::vec3& light : lights) {
+          View plain = view;
+          plain.light_direction = light;
+          View shadow_view = plain;
+          shadow_view.shadows = true;
+          const Frame lit = quadric_renderer().render(plain, {method, 16, 6});
+          const Frame shaded = quadric_renderer().render(shadow_view, {method, 16, 6});
+          char where[160];
+          std::snprintf(where, sizeof where, "%s / %s / %s / light %g,%g,%g", view_name.c_str(),
+                        field_name.c_str(), render::method_info(method).name, light.x, light.y, light.z);
+          EXPECT_TRUE(all_finite(shaded)) << where;
+          long long changed_hits = 0, brighter = 0, fewer_fetches = 0, acne = 0;
+          for (int py = 0; py < lit.height; ++py) {
+            for (int px = 0; px < lit.width; ++px) {
+              const std::size_t p = std::size_t(py) * lit.width + px;
+              changed_hits += hit_at(shaded, p) != hit_at(lit, p) || shaded.depth[p] != lit.depth[p];
+              for (int c = 0; c < 3; ++c) brighter += shaded.color[p * 4 + c] > lit.color[p * 4 + c] + 1;
+              fewer_fetches += shaded.fetches[p] < lit.fetches[p];
+              if (field_name == "all-one" && hit_at(lit, p) &&
+                  glm::dot(base_normal(view, hit_point(view, lit, px, py)),
+                           glm::normalize(glm::dvec3(light))) > 0.05) {
+                acne += colour_differs(lit, shaded, p);
+              }
+            }
+          }
+          EXPECT_EQ(changed_hits, 0) << where;
+          EXPECT_EQ(brighter, 0) << where;
+          EXPECT_EQ(fewer_fetches, 0) << where;
+          EXPECT_EQ(acne, 0) << where;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+}
+
+// No acne: on constant heights 0, 0.5 and 1 (the inner surface, the middle, the outer surface) with
+// a light from above the side the camera sees, every quadric method keeps the colour of every hit
+// whose base normal faces the light (N . L > 0.05) when shadows are turned on.
+TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
+  struct Case {
+    Surface surface;
+    glm::vec3 eye, light;
+  };
+  const std::vector<Case> cases = {
+      {Surface::sphere, {0.5f, -0.6f, 0.5f}, {0.3f, -0.4f, 1.0f}},
+      {Surface::cylinder, {0.5f, -0.7f, 0.3f}, {0.3f, -1.0f, 0.6f}},
+      {Surface::cone, {0.5f, -0.6f, 0.5f}, {0.3f, -0.4f, 1.0f}},
+  };
+  for (const Case& test : cases) {
+    View view = looking_at(test.surface, test.eye, {0.5f, 0.5f, 0.0f}, 64, 32.0f);
+    view.light_direction = test.light;
+    View shadow_view = view;
+    shadow_view.shadows = true;
+    const glm::dvec3 light = glm::normalize(glm::dvec3(test.light));
+    for (double c : {0.0, 0.5, 1.0}) {
+      quadric_renderer().set_height_field(constant_field(32, c));
+      for (Method method : quadric_methods()) {
+        const Frame lit = quadric_renderer().render(view, {method, 64, 8});
+        const Frame shaded = quadric_renderer().render(shadow_view, {method, 64, 8});
+        long long facing = 0, acne = 0;
+        for (int py = 0; py < lit.height; ++py) {
+          for (int px = 0; px < lit.width; ++px) {
+            const std::size_t p = std::size_t(py) * lit.width + px;
+            if (!hit_at(lit, p) || glm::dot(base_normal(view, hit_point(view, lit, px, py)), light) <= 0.05)
+              continue;
+            ++facing;
+            acne += colour_differs(lit, shaded, p);
+          }
+        }
+        const char* name = render::method_info(method).name;
+        if (acne > 0 || facing < 400) {
+          std::printf("%-8s c %.1f %-13s %lld hits facing the light, %lld darkened\n",
+                      render::surface_name(test.surface), c, name, facing, acne);
+        }
+        EXPECT_GT(facing, 400) << render::surface_name(test.surface) << " c " << c << " / " << name;
+        EXPECT_EQ(acne, 0) << render::surface_name(test.surface) << " c " << c << " / " << name;
+      }
+    }
   }
   EXPECT_EQ(quadric_renderer().validation_messages(), 0);
 }

@@ -33,7 +33,6 @@ uint g_fetches = 0u;
 #include "methods.inc.glsl"
 #include "shading.inc.glsl"
 #include "quadric.inc.glsl"
-#include "quadric_trace.inc.glsl"
 
 // The reference's triangles interpolate the texel heights linearly over two triangles per texel
 // square, while every method samples the bilinear surface: they differ inside a square by up to a
@@ -85,6 +84,7 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal) {
   out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
 }
 
+#include "quadric_trace.inc.glsl"
 #include "mesh.inc.glsl"
 
 void main() {
