@@ -18,40 +18,18 @@
 
 #include "render/render.h"
 #include "render/shaders/config.h"
+#include "tests/render_fixtures.h"
 
 namespace {
 
 using namespace displace;
+using namespace displace::testing;
 using render::Frame;
 using render::HeightField;
 using render::Method;
 using render::Surface;
 using render::View;
 
-render::Renderer& quadric_renderer() {
-  static std::unique_ptr<render::Renderer> renderer =
-      std::make_unique<render::Renderer>(render::RendererOptions{"", true});
-  return *renderer;
-}
-
-HeightField field_of(int width, int height, auto&& height_at) {
-  HeightField field{width, height, std::vector<float>(std::size_t(width) * height)};
-  for (int i = 0; i < height; ++i)
-    for (int j = 0; j < width; ++j) field.heights[std::size_t(i) * width + j] = float(height_at(i, j));
-  return field;
-}
-HeightField constant_field(int size, double value) {
-  return field_of(size, size, [&](int, int) { return value; });
-}
-HeightField waves_field(int size) {  // periodic: 3 waves around u, 2 along v
-  return field_of(size, size, [&](int i, int j) {
-    return 0.5 + 0.4 * std::sin(6.0 * std::numbers::pi * (j + 0.5) / size) *
-                     std::cos(4.0 * std::numbers::pi * (i + 0.5) / size);
-  });
-}
-HeightField spike_field(int size) {
-  return field_of(size, size, [&](int i, int j) { return (i % 8 == 3 && j % 8 == 5) ? 1.0 : 0.1; });
-}
 HeightField ramp_u_field(int size) {  // a cliff at the seam u = 0 = 1 when u wraps
   return field_of(size, size, [&](int i, int j) {
     return 0.1 + 0.8 * (j + 0.5) / size * (0.5 + 0.5 * (i + 0.5) / size);
@@ -85,18 +63,11 @@ View looking_at(Surface surface, glm::vec3 eye, glm::vec3 target, int pixels, fl
 }
 
 Frame render_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
-  quadric_renderer().set_height_field(field);
-  return quadric_renderer().render(view, {method, steps, refine});
+  shared_renderer().set_height_field(field);
+  return shared_renderer().render(view, {method, steps, refine});
 }
 
 bool hit_at(const Frame& frame, std::size_t p) { return frame.uv[p * 3 + 2] > 0.5f; }
-
-bool all_finite(const Frame& frame) {
-  auto finite = [](const std::vector<float>& values) {
-    return std::all_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
-  };
-  return finite(frame.uv) && finite(frame.depth) && finite(frame.iterations) && finite(frame.fetches);
-}
 
 // Acceptance: a sphere whose height is constant c is the sphere of radius r_c = R - (1 - c) D. A
 // pixel is hit exactly when its centre ray passes within r_c of the centre (pixels whose closest
@@ -115,9 +86,9 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
                                        Method::acm8,      Method::acm4_interval};
   for (double c : {0.0, 0.45, 1.0}) {
     const double radius = view.radius - (1.0 - c) * view.depth_scale;
-    quadric_renderer().set_height_field(constant_field(map_size, c));
+    shared_renderer().set_height_field(constant_field(map_size, c));
     for (Method method : methods) {
-      const Frame frame = quadric_renderer().render(view, {method, 128, 8});
+      const Frame frame = shared_renderer().render(view, {method, 128, 8});
       // the reference's facets lie inside the sphere by at most the sagitta of a texel's diagonal
       const double half_diagonal =
           0.5 * std::hypot(2.0 * std::numbers::pi / map_size, std::numbers::pi / map_size);
@@ -160,7 +131,7 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
       EXPECT_EQ(depth_errors, 0) << "c " << c << " / " << name << ": worst radial error " << worst_radial;
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 struct HitError {
@@ -242,7 +213,7 @@ TEST(Quadric, MethodsHitWithinHalfATexelOfTheExactTrace) {
           << test.name << " / " << name;
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // The reference on a quadric is the tessellated surface: the GPU's hits are those of a CPU ray trace
@@ -342,7 +313,7 @@ TEST(Quadric, ReferenceIsTheTessellatedSurface) {
       EXPECT_LE(mismatches + depth_errors, compared / 100 + 2) << render::surface_name(surface);
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // Views through the sphere's poles (down the axis from above and from below), across the equator
@@ -398,10 +369,10 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
   for (const auto& [view_name, view] : views) {
     const std::vector<std::size_t> inner = interior_hits(zero, view), outer = interior_hits(one, view);
     for (const auto& [field_name, field] : fields) {
-      quadric_renderer().set_height_field(field);
+      shared_renderer().set_height_field(field);
       const std::vector<std::size_t>& must_hit = field_name == "all-one" ? outer : inner;
       for (Method method : quadric_methods()) {
-        const Frame frame = quadric_renderer().render(view, {method, 16, 6});
+        const Frame frame = shared_renderer().render(view, {method, 16, 6});
         const std::string where = view_name + " / " + field_name + " / " + render::method_info(method).name;
         EXPECT_TRUE(all_finite(frame)) << where;
         long long holes = 0;
@@ -412,7 +383,7 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
     std::printf("%-22s %4zu pixels inside the inner outline, %4zu inside the outer one\n", view_name.c_str(),
                 inner.size(), outer.size());
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // Self-shadowing on the quadrics (render/shaders/quadric_trace.inc.glsl, quadric_light_visibility).
@@ -421,8 +392,8 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
 const int ambient_only = 38;  // 0.15 of 255: shading.inc.glsl's ambient term on a white albedo
 
 struct WhiteAlbedo {  // sets a white albedo on the shared renderer for the scope of a test
-  WhiteAlbedo() { quadric_renderer().set_albedo({1, 1, {255, 255, 255, 255}}); }
-  ~WhiteAlbedo() { quadric_renderer().clear_albedo(); }
+  WhiteAlbedo() { shared_renderer().set_albedo({1, 1, {255, 255, 255, 255}}); }
+  ~WhiteAlbedo() { shared_renderer().clear_albedo(); }
 };
 
 bool colour_differs(const Frame& a, const Frame& b, std::size_t p) {
@@ -524,7 +495,7 @@ TEST(Quadric, ShadowsDarkenWhatLiesBeyondTheTerminator) {
     EXPECT_GT(ripple_observable, 100) << name;
     EXPECT_EQ(ripple_lit_beyond, 0) << name;
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // A relief feature casts its shadow where the geometry puts it. A ring of height 0.9 (4 texel rows of
@@ -610,7 +581,7 @@ TEST(Quadric, ARingCastsItsShadowWhereTheCpuTracePutsIt) {
       EXPECT_EQ(wrong, 0) << render::surface_name(test.surface) << " / " << name;
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // Hard light directions with shadows on: along the axis from above and from below, horizontal
@@ -642,15 +613,15 @@ TEST(Quadric, ShadowsStayFiniteForHardLights) {
                                                                    {"waves", waves_field(16)}};
   for (const auto& [view_name, view] : views) {
     for (const auto& [field_name, field] : fields) {
-      quadric_renderer().set_height_field(field);
+      shared_renderer().set_height_field(field);
       for (Method method : quadric_methods()) {
         for (const glm::vec3& light : lights) {
           View plain = view;
           plain.light_direction = light;
           View shadow_view = plain;
           shadow_view.shadows = true;
-          const Frame lit = quadric_renderer().render(plain, {method, 16, 6});
-          const Frame shaded = quadric_renderer().render(shadow_view, {method, 16, 6});
+          const Frame lit = shared_renderer().render(plain, {method, 16, 6});
+          const Frame shaded = shared_renderer().render(shadow_view, {method, 16, 6});
           char where[160];
           std::snprintf(where, sizeof where, "%s / %s / %s / light %g,%g,%g", view_name.c_str(),
                         field_name.c_str(), render::method_info(method).name, light.x, light.y, light.z);
@@ -677,7 +648,7 @@ TEST(Quadric, ShadowsStayFiniteForHardLights) {
       }
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 // No acne: on constant heights 0, 0.5 and 1 (the inner surface, the middle, the outer surface) with
@@ -700,10 +671,10 @@ TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
     shadow_view.shadows = true;
     const glm::dvec3 light = glm::normalize(glm::dvec3(test.light));
     for (double c : {0.0, 0.5, 1.0}) {
-      quadric_renderer().set_height_field(constant_field(32, c));
+      shared_renderer().set_height_field(constant_field(32, c));
       for (Method method : quadric_methods()) {
-        const Frame lit = quadric_renderer().render(view, {method, 64, 8});
-        const Frame shaded = quadric_renderer().render(shadow_view, {method, 64, 8});
+        const Frame lit = shared_renderer().render(view, {method, 64, 8});
+        const Frame shaded = shared_renderer().render(shadow_view, {method, 64, 8});
         long long facing = 0, acne = 0;
         for (int py = 0; py < lit.height; ++py) {
           for (int px = 0; px < lit.width; ++px) {
@@ -724,16 +695,16 @@ TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
       }
     }
   }
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
-  quadric_renderer().set_height_field(constant_field(8, 0.5));
+  shared_renderer().set_height_field(constant_field(8, 0.5));
   const View sphere = looking_at(Surface::sphere, {0.5f, -0.45f, 0.55f}, {0.5f, 0.5f, 0.0f}, 8, 30.0f);
   for (const render::MethodInfo& info : render::method_table()) {
     if (render::supports_surface(info.method, Surface::sphere)) continue;
     try {
-      quadric_renderer().render(sphere, {info.method, 8, 4});
+      shared_renderer().render(sphere, {info.method, 8, 4});
       ADD_FAILURE() << info.name << " rendered a sphere";
     } catch (const render::RenderError& error) {
       EXPECT_NE(std::string(error.what()).find("does not support --surface sphere"), std::string::npos)
@@ -742,17 +713,17 @@ TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
   }
   View view = sphere;
   view.depth_scale = 0.2f;  // above R / 2
-  EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
   view = sphere;
   view.radius = 0.0f;
-  EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
   view = sphere;
   view.camera.eye = {0.5f, 0.5f, 0.2f};  // inside the sphere
-  EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
   view = looking_at(Surface::cylinder, {0.5f, 0.6f, 0.1f}, {0.5f, 0.5f, -1.0f}, 8,
                     30.0f);  // inside the cylinder
-  EXPECT_THROW(quadric_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
-  EXPECT_EQ(quadric_renderer().validation_messages(), 0);
+  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
 }  // namespace

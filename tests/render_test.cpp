@@ -16,48 +16,17 @@
 #include "render/mesh.h"
 #include "render/render.h"
 #include "sim/sim.h"
+#include "tests/render_fixtures.h"
 
 namespace {
 
 using namespace displace;
+using namespace displace::testing;
 using render::Frame;
 using render::HeightField;
 using render::Method;
 using render::MethodInfo;
 using render::View;
-
-// One renderer for the whole suite: device creation and pipelines are made once, as in the app.
-render::Renderer& shared_renderer() {
-  static std::unique_ptr<render::Renderer> renderer =
-      std::make_unique<render::Renderer>(render::RendererOptions{"", true});
-  return *renderer;
-}
-
-HeightField field_of(int width, int height, auto&& height_at) {
-  HeightField field{width, height, std::vector<float>(std::size_t(width) * height)};
-  for (int i = 0; i < height; ++i)
-    for (int j = 0; j < width; ++j) field.heights[std::size_t(i) * width + j] = float(height_at(i, j));
-  return field;
-}
-
-HeightField constant_field(int size, float value) {
-  return field_of(size, size, [&](int, int) { return value; });
-}
-HeightField ramp_field(int size) {
-  return field_of(size, size, [&](int, int j) { return 0.1 + 0.8 * (j + 0.5) / size; });
-}
-HeightField step_field(int size) {
-  return field_of(size, size, [&](int, int j) { return j < size / 2 ? 0.2 : 0.8; });
-}
-HeightField waves_field(int size) {  // periodic: 3 waves across u, 2 along v
-  return field_of(size, size, [&](int i, int j) {
-    return 0.5 + 0.4 * std::sin(6.0 * std::numbers::pi * (j + 0.5) / size) *
-                     std::cos(4.0 * std::numbers::pi * (i + 0.5) / size);
-  });
-}
-HeightField spike_field(int size) {
-  return field_of(size, size, [&](int i, int j) { return (i % 8 == 3 && j % 8 == 5) ? 1.0 : 0.1; });
-}
 
 View oblique_view(int pixels) {
   View view;
@@ -74,13 +43,6 @@ Frame render_frame(const HeightField& field, const View& view, Method method, in
   render::Renderer& renderer = shared_renderer();
   renderer.set_height_field(field);
   return renderer.render(view, {method, steps, refine});
-}
-
-bool all_finite(const Frame& frame) {
-  auto finite = [](const std::vector<float>& values) {
-    return std::all_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
-  };
-  return finite(frame.uv) && finite(frame.depth) && finite(frame.iterations) && finite(frame.fetches);
 }
 
 struct HitError {
@@ -508,20 +470,7 @@ namespace {
 // only for rays through the texel centre's apex and a relaxed step could jump over a brick edge; its
 // steps are now verified with the bilinear cones (relaxed_march.inc.glsl).
 TEST(Renderer, ExactClassMethodsConvergeToTheReference) {
-  std::vector<std::pair<std::string, HeightField>> scenes;
-  {
-    HeightField bricks{128, 128, std::vector<float>(128 * 128)};
-    displace::sim::brick_heights(128, 128, 1, bricks.heights);
-    scenes.emplace_back("bricks", std::move(bricks));
-    displace::sim::OceanParams params;
-    params.size = 128;
-    displace::sim::Ocean ocean(params);
-    displace::sim::OceanFrame frame;
-    ocean.evaluate(0.0f, displace::sim::ocean_heights, frame);
-    HeightField water{128, 128, std::vector<float>(128 * 128)};
-    displace::sim::apply_mapping(ocean.mapping(), frame.height, water.heights);
-    scenes.emplace_back("ocean", std::move(water));
-  }
+  const auto scenes = bricks_and_ocean(128);
   View view;
   view.camera.width = 256;
   view.camera.height = 256;
@@ -545,20 +494,7 @@ TEST(Renderer, ExactClassMethodsConvergeToTheReference) {
 // small ocean frame and a small brick relief.
 TEST(Renderer, ErrorDoesNotGrowWithSteps) {
   constexpr double noise = 0.25;  // 8-bit rmse units: pixels that flip at a grid line between runs
-  std::vector<std::pair<std::string, HeightField>> scenes;
-  {
-    HeightField bricks{64, 64, std::vector<float>(64 * 64)};
-    displace::sim::brick_heights(64, 64, 1, bricks.heights);
-    scenes.emplace_back("bricks", std::move(bricks));
-    displace::sim::OceanParams params;
-    params.size = 64;
-    displace::sim::Ocean ocean(params);
-    displace::sim::OceanFrame frame;
-    ocean.evaluate(0.0f, displace::sim::ocean_heights, frame);
-    HeightField water{64, 64, std::vector<float>(64 * 64)};
-    displace::sim::apply_mapping(ocean.mapping(), frame.height, water.heights);
-    scenes.emplace_back("ocean", std::move(water));
-  }
+  const auto scenes = bricks_and_ocean(64);
   View view;
   view.camera.width = 96;
   view.camera.height = 96;
