@@ -631,7 +631,8 @@ usage:
                   [--surface plane|sphere|cylinder|cone|mesh:FILE.obj] [--radius R] --output F.png|F.exr
                   [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
-      at z = -D) with one per-pixel method, baking the maps it needs (budgeted baker, no limit).
+      at z = -D) with one per-pixel method, baking the maps it needs (cone maps for the bilinear
+      surface, relaxed cones, the dual max pyramid or the distance map).
       Methods: METHODS.
       --surface sphere|cylinder|cone (Patterson et al.'s inverse displacement mapping): a quadric
       of radius R (--radius, default 0.25, D at most R/2) around the vertical axis x = y = 0.5: the
@@ -641,8 +642,11 @@ usage:
       there: bump, pom, relief, interval, csm, acm4, acm8, acm4-interval, reference.
       --steps: linear-search steps or maximum cone steps (default 32); --refine: binary or secant
       steps (default 8). AOVs: uv=F.exr (u, v, hit), depth=F.exr, iterations=F.exr|F.png (a .png
-      is a heatmap), fetches=F.exr|F.png. --compare reference also renders the tessellated height
-      field and prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
+      is a heatmap), fetches=F.exr|F.png. --compare reference also renders the reference (the
+      tessellated height field, its hit snapped to the exact bilinear crossing on the plane) and
+      prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
+      --surface mesh:FILE.obj: any OBJ mesh with texture coordinates as the top of the relief
+      (height 0 lies D inside along the normal); every method; silhouettes from the mesh's curvature.
       --shadows traces from each hit towards the light with the same method (self-shadowing).
       --albedo shades with an image (1-4 channels, used as stored) instead of the procedural grid.
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the
