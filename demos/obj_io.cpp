@@ -97,13 +97,15 @@ render::Mesh parse_obj(std::istream& in, const std::string& source) {
         const std::string_view whole(corner);
         const int v = parse_index(whole.substr(0, slash), positions.size(), at, "vertex");
         if (v == 0) throw runtime_error(at.where() + ": a face corner without a vertex index");
-        const int vt = slash == std::string::npos
+        const int vt =
+            slash == std::string::npos
+                ? 0
+                : parse_index(whole.substr(slash + 1, second == std::string::npos ? std::string::npos
+                                                                                  : second - slash - 1),
+                              uvs.size(), at, "texture coordinate");
+        const int vn = second == std::string::npos
                            ? 0
-                           : parse_index(whole.substr(slash + 1, second == std::string::npos ? std::string::npos
-                                                                                             : second - slash - 1),
-                                         uvs.size(), at, "texture coordinate");
-        const int vn = second == std::string::npos ? 0
-                                                   : parse_index(whole.substr(second + 1), normals.size(), at, "normal");
+                           : parse_index(whole.substr(second + 1), normals.size(), at, "normal");
         if (vt == 0) {
           throw runtime_error(at.where() + ": face corner '" + corner +
                               "' has no texture coordinates; relief needs a uv mapping");
@@ -121,7 +123,8 @@ render::Mesh parse_obj(std::istream& in, const std::string& source) {
       for (std::size_t k = 1; k + 1 < face.size(); ++k) {
         mesh.triangles.insert(mesh.triangles.end(), {face[0], face[k], face[k + 1]});
       }
-    } else if (std::find(std::begin(skipped_records), std::end(skipped_records), record) == std::end(skipped_records)) {
+    } else if (std::find(std::begin(skipped_records), std::end(skipped_records), record) ==
+               std::end(skipped_records)) {
       throw runtime_error(at.where() + ": unsupported OBJ record '" + record + "'");
     }
   }

@@ -67,7 +67,8 @@ double bilinear_height(const HeightField& field, bake::Address address, double u
   const double fx = x - x0, fy = y - y0;
   const long long j = (long long)x0, i = (long long)y0;
   const double top = texel_at(field, address, i, j) * (1 - fx) + texel_at(field, address, i, j + 1) * fx;
-  const double bottom = texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
+  const double bottom =
+      texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
   return top * (1 - fy) + bottom * fy;
 }
 

@@ -3,19 +3,19 @@
 // E2 = P2 - P0 and their texture differences (du1, dv1), (du2, dv2) give the partial derivatives
 // [dP/du dP/dv] = [E1 E2] [du1 du2; dv1 dv2]^-1; vertices average them (weighted by triangle area)
 // and keep only their parts orthogonal to the vertex normal, so the frame is the tangent plane's.
+#include "render/mesh.h"
+
 #include <algorithm>
 #include <array>
-#include <map>
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
-
-#include "render/mesh.h"
 
 namespace displace::render {
 namespace {
 
-constexpr double min_uv_area = 1e-12;    // |det| of a triangle's texture mapping below this is degenerate
+constexpr double min_uv_area = 1e-12;  // |det| of a triangle's texture mapping below this is degenerate
 constexpr double min_normal_length = 1e-12;
 
 bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -29,8 +29,9 @@ void validate(const Mesh& mesh) {
   }
   if (mesh.triangles.size() % 3 != 0) throw MeshError("the triangle list is not a multiple of 3 indices");
   for (std::uint32_t index : mesh.triangles) {
-    if (index >= vertices) throw MeshError("a triangle refers to vertex " + std::to_string(index) + " of " +
-                                           std::to_string(vertices));
+    if (index >= vertices)
+      throw MeshError("a triangle refers to vertex " + std::to_string(index) + " of " +
+                      std::to_string(vertices));
   }
   for (std::size_t i = 0; i < vertices; ++i) {
     if (!finite(mesh.positions[i]) || !std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y) ||
@@ -45,7 +46,8 @@ void validate(const Mesh& mesh) {
 std::vector<MeshVertex> mesh_vertices(const Mesh& mesh) {
   validate(mesh);
   const std::size_t count = mesh.positions.size();
-  std::vector<glm::dvec3> du(count, glm::dvec3(0.0)), dv(count, glm::dvec3(0.0)), face_normal(count, glm::dvec3(0.0));
+  std::vector<glm::dvec3> du(count, glm::dvec3(0.0)), dv(count, glm::dvec3(0.0)),
+      face_normal(count, glm::dvec3(0.0));
   std::vector<double> mapped_area(count, 0.0);
   std::vector<std::vector<std::uint32_t>> neighbours(count);
   std::size_t mapped = 0;
@@ -53,7 +55,7 @@ std::vector<MeshVertex> mesh_vertices(const Mesh& mesh) {
   for (std::size_t t = 0; t < mesh.triangles.size(); t += 3) {
     const std::uint32_t a = mesh.triangles[t], b = mesh.triangles[t + 1], c = mesh.triangles[t + 2];
     const glm::dvec3 p0(mesh.positions[a]), e1 = glm::dvec3(mesh.positions[b]) - p0,
-        e2 = glm::dvec3(mesh.positions[c]) - p0;
+                                            e2 = glm::dvec3(mesh.positions[c]) - p0;
     const glm::dvec2 t0(mesh.uvs[a]), d1 = glm::dvec2(mesh.uvs[b]) - t0, d2 = glm::dvec2(mesh.uvs[c]) - t0;
     const glm::dvec3 area_normal = glm::cross(e1, e2);  // twice the area, along the face normal
     const double area = glm::length(area_normal);
@@ -106,7 +108,8 @@ std::vector<MeshVertex> mesh_vertices(const Mesh& mesh) {
     // t2 = n x t1 (the shader uses the same basis). Edge normals, not positions: a pole vertex,
     // whose dP/du vanishes, still gets its curvature (any t1 there).
     glm::dvec3 t1 = tangent_u;
-    if (glm::length(t1) < 1e-12) t1 = glm::cross(normal, std::abs(normal.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0));
+    if (glm::length(t1) < 1e-12)
+      t1 = glm::cross(normal, std::abs(normal.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0));
     t1 = glm::normalize(t1);
     const glm::dvec3 t2 = glm::cross(normal, t1);
     double scc = 0.0, sss = 0.0, scs = 0.0, bc = 0.0, bs = 0.0;
@@ -133,8 +136,8 @@ std::vector<MeshVertex> mesh_vertices(const Mesh& mesh) {
       k_uu = k_vv = (bc + bs) / (scc + sss + 2.0 * scs);
     }
     const glm::vec3 position = mesh.positions[i];
-    vertices[i] = {position,          mesh.uvs[i].x,         glm::vec3(tangent_u), mesh.uvs[i].y,
-                   glm::vec3(tangent_v), float(k_uu), glm::vec3(normal),    float(k_vv)};
+    vertices[i] = {position,    mesh.uvs[i].x,     glm::vec3(tangent_u), mesh.uvs[i].y, glm::vec3(tangent_v),
+                   float(k_uu), glm::vec3(normal), float(k_vv)};
   }
   return vertices;
 }

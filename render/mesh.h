@@ -9,11 +9,10 @@
 #define DISPLACE_RENDER_MESH_H
 
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 namespace displace::render {
 
@@ -25,7 +24,7 @@ struct MeshError : std::runtime_error {
 struct Mesh {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec2> uvs;
-  std::vector<glm::vec3> normals;  // empty: area-weighted face normals are used
+  std::vector<glm::vec3> normals;        // empty: area-weighted face normals are used
   std::vector<std::uint32_t> triangles;  // 3 indices per triangle, counter-clockwise seen from outside
 };
 
