@@ -1249,5 +1249,52 @@ TEST(BilinearCones, RejectsBadInput) {
   for (float h : apex) EXPECT_EQ(h, 0.5f);
 }
 
+
+// The experimental coarse-grid sweep: never above exact, for every cell size, lane count and near
+// field, on the hard maps (square or not, tiny, flat, partial cells) with wrap and clamp.
+TEST(CoarseSweepBaker, NeverAboveExact) {
+  std::vector<Map> maps = hard_maps();
+  maps.push_back(test::make_fractal_cliff(100, 60, 5));
+  maps.push_back(test::make_bricks(64, 48));
+  maps.push_back(test::make_spikes(77, 41, 3));
+  for (const Map& map : maps)
+    for (Address address : {Address::wrap, Address::clamp}) {
+      const ConeMap exact = exact_of(map, 4, address);
+      for (int cell : {2, 4, 8})
+        for (int lanes : {16, 24, 32})
+          for (NearField near : {NearField::scan, NearField::boxes}) {
+            CoarseSweepSettings settings;
+            settings.cell_size = cell;
+            settings.lane_count = lanes;
+            settings.near_field = near;
+            ConeMap cones = make_cone_map(map, 4);
+            bake_coarse_sweep(view_of(map), address, settings, cones.view());
+            const Violations v = violations(cones, exact);
+            ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " " << address_name(address)
+                                  << " cell " << cell << " lanes " << lanes << " near " << int(near) << " worst x"
+                                  << v.worst;
+            for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << map.name;
+          }
+    }
+  // 1 and 8 sectors take the quadrants' bounds
+  for (const Map& map : {test::make_fractal_cliff(32, 32), test::make_spikes(24, 24)})
+    for (int sectors : {1, 8}) {
+      ConeMap cones = make_cone_map(map, sectors);
+      bake_coarse_sweep(view_of(map), Address::wrap, {}, cones.view());
+      EXPECT_EQ(violations(cones, exact_of(map, sectors, Address::wrap)).count, 0) << map.name << " " << sectors;
+    }
+}
+
+TEST(CoarseSweepBaker, RejectsBadSettings) {
+  const Map map = test::make_flat(8, 8);
+  ConeMap cones = make_cone_map(map, 4);
+  CoarseSweepSettings settings;
+  settings.cell_size = 1;
+  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
+  settings = {};
+  settings.lane_count = 20;
+  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
+}
+
 }  // namespace
 }  // namespace displace::bake
