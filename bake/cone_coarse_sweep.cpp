@@ -30,6 +30,16 @@ constexpr float absent = -1e30f;                 // height of "nothing there"
 constexpr float rounding_margin = 1.0f - 1e-4f;  // covers the rounding the recurrences accumulate
 constexpr float inv_sqrt2 = 0.70710678f;
 
+// TEMPORARY stage timing
+#include <cstdio>
+#include <cstdlib>
+#define TIMING_MARK(n) const auto mark_##n = std::chrono::steady_clock::now()
+#define TIMING_REPORT()                                                                                  \
+  if (std::getenv("COARSE_TIMING"))                                                                      \
+  std::fprintf(stderr, "q%d prep %.2f sweep+far %.2f (thresholds+texels %.2f, cells %d+%d) near %.2f\n", quadrant,                             \
+               std::chrono::duration<double, std::milli>(mark_1 - mark_0).count(),                      \
+               std::chrono::duration<double, std::milli>(mark_2 - mark_1).count(), texel_ms, cells_x, reach_x,   \
+               std::chrono::duration<double, std::milli>(mark_3 - mark_2).count())
 float octagonal(float x, float y) { return std::max(std::max(x, y), (x + y) * inv_sqrt2); }
 
 struct Frame {  // one quadrant seen so that its blockers are at larger virtual (i, j)
@@ -41,27 +51,50 @@ struct Frame {  // one quadrant seen so that its blockers are at larger virtual 
 };
 
 template <int L>
-void coarse_quadrant(const detail::Grid& grid, const float* heights, float height_max, float height_range,
-                     int quadrant, const CoarseSweepSettings& settings, const std::array<float, L>& lanes,
-                     float* ratio_out /* virtual frame */, std::vector<float>& virtual_heights) {
+[[gnu::always_inline]] inline void coarse_quadrant(const detail::Grid& grid, const float* heights, float height_max,
+                                                   float height_range, int quadrant,
+                                                   const CoarseSweepSettings& settings,
+                                                   const std::array<float, L>& lanes,
+                                                   const std::vector<float>& inverse_distance, float* ratio_out,
+                                                   std::vector<float>& padded) {
+  TIMING_MARK(0);
   const int width = grid.width, height = grid.height, B = settings.cell_size;
   const bool wrap = grid.address == Address::wrap;
   const Frame frame{width, height, quadrant == 1 || quadrant == 2, quadrant >= 2};
-  // heights in the virtual frame
-  virtual_heights.resize(std::size_t(width) * height);
-  float* vh = virtual_heights.data();
-  for (int vi = 0; vi < height; ++vi)
-    for (int vj = 0; vj < width; ++vj) vh[std::size_t(vi) * width + vj] = heights[frame.real(vi, vj)];
+  // heights in the virtual frame, padded by 2B texels right and below (wrap: periodic; clamp: below
+  // every height) so that the near field reads them with no address arithmetic
+  const int padded_width = width + 2 * B, padded_height = height + 2 * B;
+  padded.resize(std::size_t(padded_width) * padded_height);
+  for (int vi = 0; vi < padded_height; ++vi) {
+    float* row = &padded[std::size_t(vi) * padded_width];
+    if (!wrap && vi >= height) {
+      std::fill_n(row, padded_width, -1.0f);
+      continue;
+    }
+    const int i = frame.flip_y ? height - 1 - vi % height : vi % height;
+    const float* source = heights + std::size_t(i) * width;
+    if (frame.flip_x) {
+      for (int vj = 0; vj < width; ++vj) row[vj] = source[width - 1 - vj];
+    } else {
+      std::copy_n(source, width, row);
+    }
+    for (int vj = width; vj < padded_width; ++vj) row[vj] = wrap ? row[vj % width] : -1.0f;
+  }
+  auto vh = [&](int vi, int vj) { return padded[std::size_t(vi) * padded_width + vj]; };
 
-  // cell maxima; the last cell along an axis may be partial
+  // cell maxima (the last cell along an axis may be partial), two absent columns after each row
   const int cells_x = (width + B - 1) / B, cells_y = (height + B - 1) / B;
   const int pitch_x = wrap ? width - (cells_x - 1) * B : B, pitch_y = wrap ? height - (cells_y - 1) * B : B;
-  std::vector<float> cell_max(std::size_t(cells_x) * cells_y, 0.0f);
-  for (int vi = 0; vi < height; ++vi)
-    for (int vj = 0; vj < width; ++vj) {
-      float& m = cell_max[std::size_t(vi / B) * cells_x + vj / B];
-      m = std::max(m, vh[std::size_t(vi) * width + vj]);
+  const int max_stride = cells_x + 2;
+  std::vector<float> cell_max(std::size_t(max_stride) * cells_y, absent);
+  for (int vi = 0; vi < height; ++vi) {
+    float* target = &cell_max[std::size_t(vi / B) * max_stride];
+    for (int cx = 0; cx < cells_x; ++cx) {
+      float m = target[cx];
+      for (int vj = cx * B; vj < std::min(width, (cx + 1) * B); ++vj) m = std::max(m, vh(vi, vj));
+      target[cx] = m;
     }
+  }
 
   // per-lane steps of the nominal lattice, in height units
   const float cell_u = float(pitch_x) * grid.inv_width, cell_v = float(pitch_y) * grid.inv_height;
@@ -75,16 +108,15 @@ void coarse_quadrant(const detail::Grid& grid, const float* heights, float heigh
     inv_lane[l] = 1.0f / lanes[l];
     passed[l] = lanes[l] * rounding_margin;
   }
-  // warm-up: nominal distance beyond reach cells exceeds the largest lane times the range plus the
-  // largest per-texel correction, so no cell further out can fail a lane
+  // warm-up: beyond reach cells the nominal distance exceeds the largest lane times the range plus
+  // the largest per-texel correction, so no cell further out can fail a lane
   auto reach = [&](float cell_uv, float texel_uv) {
     return wrap ? int(std::ceil((lanes[L - 1] * height_range + 2.0f * float(B) * texel_uv) / cell_uv)) + 4 : 0;
   };
   const int reach_x = reach(cell_u, grid.inv_width), reach_y = reach(cell_v, grid.inv_height);
-  auto max_at = [&](int ci, int cj) {
-    if (!wrap && (ci >= cells_y || cj >= cells_x)) return absent;
-    return cell_max[std::size_t(ci % cells_y) * cells_x + cj % cells_x];
-  };
+  const int columns = cells_x + reach_x + 3;
+  std::vector<int> column_index(columns);  // lattice column -> stored column (clamp: beyond = absent pads)
+  for (int vj = 0; vj < columns; ++vj) column_index[vj] = wrap ? vj % cells_x : std::min(vj, cells_x);
 
   // three rolling rows of (cells_x + 2) cells x L lanes: row ray, column ray, L-infinity, L1
   const std::size_t row_size = std::size_t(cells_x + 2) * L;
@@ -92,60 +124,72 @@ void coarse_quadrant(const detail::Grid& grid, const float* heights, float heigh
   for (auto& row : rows)
     for (auto& a : row) a.assign(row_size, absent);
   enum { ray_x = 0, ray_y = 1, inf = 2, l1 = 3 };
-  auto at = [&](int vi, int kind, int vj) -> float* {
-    const int c = wrap ? vj % cells_x : vj;  // clamp: columns cells_x, cells_x + 1 stay absent
-    return &rows[vi % 3][kind][std::size_t(c) * L];
-  };
-  std::vector<float> threshold(std::size_t(cells_x) * L);  // the row's min(G_inf, G_l1)
-  // per-texel correction oct(s) with s from the corner facing the quadrant (virtual low corner)
+  std::vector<float> threshold(std::size_t(cells_x) * L);  // the cell row's min(G_inf, G_l1)
+  // per-texel correction oct(s), s from the cell corner facing the quadrant (the virtual low corner)
   std::vector<float> correction(std::size_t(B) * B);
   for (int sy = 0; sy < B; ++sy)
     for (int sx = 0; sx < B; ++sx)
       correction[std::size_t(sy) * B + sx] = octagonal(float(sx) * grid.inv_width, float(sy) * grid.inv_height);
   const float nearest_far = std::min(float(pitch_x + 1) * grid.inv_width, float(pitch_y + 1) * grid.inv_height);
-
   const std::vector<float> nothing_row(L, absent);
   const float* nothing = nothing_row.data();
+  TIMING_MARK(1);
+  double texel_ms = 0.0;
   for (int vi = cells_y - 1 + reach_y; vi >= 0; --vi) {
-    const bool first_row = vi == cells_y - 1 + reach_y;
-    // clamp rows beyond the map are absent; wrap's first row reads nothing below it
-    auto row_below = [&](int offset, int kind, int vj) -> const float* {
-      if (wrap ? (first_row || (offset == 2 && vi + 1 == cells_y - 1 + reach_y)) : vi + offset >= cells_y)
-        return nothing;
-      return at(vi + offset, kind, vj);
+    const int top_row = cells_y - 1 + reach_y;
+    // rows below: clamp has nothing beyond the map; wrap's first rows read nothing below the start
+    const bool has_below1 = wrap ? vi + 1 <= top_row : vi + 1 < cells_y;
+    const bool has_below2 = wrap ? vi + 2 <= top_row : vi + 2 < cells_y;
+    std::vector<float>* current = rows[vi % 3];
+    std::vector<float>* below1 = rows[(vi + 1) % 3];
+    std::vector<float>* below2 = rows[(vi + 2) % 3];
+    auto cur = [&](int kind, int vj) { return &current[kind][std::size_t(column_index[vj]) * L]; };
+    auto b1 = [&](int kind, int vj) -> const float* {
+      return has_below1 ? &below1[kind][std::size_t(column_index[vj]) * L] : nothing;
     };
+    auto b2 = [&](int kind, int vj) -> const float* {
+      return has_below2 ? &below2[kind][std::size_t(column_index[vj]) * L] : nothing;
+    };
+    const bool absent_row = !wrap && vi >= cells_y;
+    const float* max_row = &cell_max[std::size_t(vi % cells_y) * max_stride];
     for (int vj = cells_x - 1 + reach_x; vj >= 0; --vj) {
-      const float m = max_at(vi, vj);
+      const float m = absent_row ? absent : max_row[column_index[vj]];
       const bool last_column = vj == cells_x - 1 + reach_x;
-      const float* right_ray = last_column && wrap ? nothing : at(vi, ray_x, vj + 1);
-      const float* right_l1 = last_column && wrap ? nothing : at(vi, l1, vj + 1);
-      const float* below_ray = row_below(1, ray_y, vj);
-      const float* below_l1 = row_below(1, l1, vj);
-      const float* diagonal = row_below(1, inf, vj + 1);
-      float* r_x = at(vi, ray_x, vj);
-      float* r_y = at(vi, ray_y, vj);
-      float* r_inf = at(vi, inf, vj);
-      float* r_l1 = at(vi, l1, vj);
-      alignas(64) float new_x[L], new_l1[L];
+      const float* right_ray = last_column && wrap ? nothing : cur(ray_x, vj + 1);
+      const float* right_l1 = last_column && wrap ? nothing : cur(l1, vj + 1);
+      const float* below_ray = b1(ray_y, vj);
+      const float* below_l1 = b1(l1, vj);
+      const float* diagonal = b1(inf, vj + 1);
+      float* __restrict r_x = cur(ray_x, vj);
+      float* __restrict r_y = cur(ray_y, vj);
+      float* __restrict r_inf = cur(inf, vj);
+      float* __restrict r_l1 = cur(l1, vj);
+      alignas(64) float in_x[L], in_y[L], in_diagonal[L], in_l1_x[L], in_l1_y[L];
+      std::copy_n(right_ray, L, in_x);
+      std::copy_n(below_ray, L, in_y);
+      std::copy_n(diagonal, L, in_diagonal);
+      std::copy_n(right_l1, L, in_l1_x);
+      std::copy_n(below_l1, L, in_l1_y);
       for (int l = 0; l < L; ++l) {
-        new_x[l] = std::max(m, right_ray[l] - step_x[l]);
-        r_y[l] = std::max(m, below_ray[l] - step_y[l]);
-        r_inf[l] = std::max(std::max(new_x[l], r_y[l]), diagonal[l] - step_diagonal[l]);
-        new_l1[l] = std::max(m, std::max(right_l1[l] - step_l1_x[l], below_l1[l] - step_l1_y[l]));
+        const float x = std::max(m, in_x[l] - step_x[l]);
+        const float y = std::max(m, in_y[l] - step_y[l]);
+        r_x[l] = x;
+        r_y[l] = y;
+        r_inf[l] = std::max(std::max(x, y), in_diagonal[l] - step_diagonal[l]);
+        r_l1[l] = std::max(m, std::max(in_l1_x[l] - step_l1_x[l], in_l1_y[l] - step_l1_y[l]));
       }
-      std::copy_n(new_x, L, r_x);
-      std::copy_n(new_l1, L, r_l1);
     }
     if (vi >= cells_y) continue;
-    // far-field thresholds of this cell row (near cells a <= 1 and b <= 1 left out)
+    const auto texel_start = std::chrono::steady_clock::now();
+    // far-field thresholds of this cell row (the near cells a <= 1 and b <= 1 left out)
     for (int cx = 0; cx < cells_x; ++cx) {
-      const float* x0 = at(vi, ray_x, cx + 2);
-      const float* x1 = row_below(1, ray_x, cx + 2);
-      const float* y0 = row_below(2, ray_y, cx);
-      const float* y1 = row_below(2, ray_y, cx + 1);
-      const float* diag2 = row_below(2, inf, cx + 2);
-      const float* l1_right = at(vi, l1, cx + 2);
-      const float* l1_up = row_below(2, l1, cx);
+      const float* x0 = cur(ray_x, cx + 2);
+      const float* x1 = b1(ray_x, cx + 2);
+      const float* y0 = b2(ray_y, cx);
+      const float* y1 = b2(ray_y, cx + 1);
+      const float* diag2 = b2(inf, cx + 2);
+      const float* l1_right = cur(l1, cx + 2);
+      const float* l1_up = b2(l1, cx);
       float* t = &threshold[std::size_t(cx) * L];
       for (int l = 0; l < L; ++l) {
         const float g_inf = std::max(
@@ -158,54 +202,90 @@ void coarse_quadrant(const detail::Grid& grid, const float* heights, float heigh
     }
     // per texel: the largest lane that passes, or a bound from the nearest far texel
     const int row_end = std::min(height, (vi + 1) * B);
-    for (int ti = vi * B; ti < row_end; ++ti)
-      for (int tj = 0; tj < width; ++tj) {
-        const float hc = vh[std::size_t(ti) * width + tj];
-        const float e = correction[std::size_t(ti - vi * B) * B + (tj % B)];
-        const float* t = &threshold[std::size_t(tj / B) * L];
-        float best = 0.0f;
-        for (int l = 0; l < L; ++l) best = std::max(best, t[l] + e * inv_lane[l] <= hc ? passed[l] : 0.0f);
-        if (best == 0.0f) best = height_max > hc ? detail::pair_ratio(nearest_far, height_max - hc) * rounding_margin : 1.0f;
-        ratio_out[std::size_t(ti) * width + tj] = std::min(best, 1.0f);
+    for (int ti = vi * B; ti < row_end; ++ti) {
+      const float* e_row = &correction[std::size_t(ti - vi * B) * B];
+      for (int cx = 0; cx < cells_x; ++cx) {
+        const float* t = &threshold[std::size_t(cx) * L];
+        for (int sx = 0, tj = cx * B; sx < B && tj < width; ++sx, ++tj) {
+          const float hc = vh(ti, tj);
+          const float e = e_row[sx];
+          int top = 0;  // 1 + the largest lane that passes (an integer maximum vectorises)
+          for (int l = 0; l < L; ++l) top = std::max(top, t[l] + e * inv_lane[l] <= hc ? l + 1 : 0);
+          float best = top > 0 ? passed[top - 1] : 0.0f;
+          if (top == 0)
+            best = height_max > hc ? detail::pair_ratio(nearest_far, height_max - hc) * rounding_margin : 1.0f;
+          ratio_out[std::size_t(ti) * width + tj] = std::min(best, 1.0f);
+        }
       }
+    }
+    texel_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - texel_start).count();
   }
+  TIMING_MARK(2);
 
-  // near field in the virtual frame: blockers at offsets dx, dy >= 0 inside cells (0..1, 0..1)
-  const int cw_last = width - (cells_x - 1) * B, ch_last = height - (cells_y - 1) * B;
-  auto cell_width = [&](int c) { return c % cells_x == cells_x - 1 ? cw_last : B; };
-  auto cell_height = [&](int c) { return c % cells_y == cells_y - 1 ? ch_last : B; };
+  // near field in the virtual frame: blockers at offsets dx, dy >= 0 in cells (0..1, 0..1) of the
+  // texel's, as slopes (gap / distance) with one division per texel and a margin for its rounding
+  const int table_size = 2 * B + 1;  // inverse_distance[dy * table_size + dx], made outside the clones
+  auto cell_width = [&](int c) { return c % cells_x == cells_x - 1 ? width - (cells_x - 1) * B : B; };
+  auto cell_height = [&](int c) { return c % cells_y == cells_y - 1 ? height - (cells_y - 1) * B : B; };
+  std::vector<int> gap_x(width), span_x(width);  // texels to the next cell, and to the one after
+  std::vector<float> inverse_gap_x(width), right_max(width), up_max(width), diagonal_max(width), slope(width),
+      inverse_diagonal(width);
+  for (int tj = 0; tj < width; ++tj) {
+    const int cx = tj / B;
+    gap_x[tj] = cell_width(cx) - (tj - cx * B);
+    span_x[tj] = gap_x[tj] + cell_width(cx + 1);
+    inverse_gap_x[tj] = inverse_distance[gap_x[tj]];
+  }
+  constexpr float slope_margin = 1.0f - 1e-6f;
   for (int ti = 0; ti < height; ++ti) {
     const int cy = ti / B, sy = ti - cy * B;
-    for (int tj = 0; tj < width; ++tj) {
-      const int cx = tj / B, sx = tj - cx * B;
-      const float hc = vh[std::size_t(ti) * width + tj];
-      const int gap_x = cell_width(cx) - sx, gap_y = cell_height(cy) - sy;  // texels to the next cell
-      float best = ratio_out[std::size_t(ti) * width + tj];
-      auto blocker = [&](int dx, int dy) {
-        int qi = ti + dy, qj = tj + dx;
-        if (wrap) qi %= height, qj %= width;
-        else if (qi >= height || qj >= width) return;
-        const float hq = vh[std::size_t(qi) * width + qj];
-        if (hq > hc) best = std::min(best, detail::pair_ratio(grid.distance(dx, dy), hq - hc));
-      };
-      if (settings.near_field == NearField::scan) {
-        const int span_x = gap_x + cell_width(cx + 1), span_y = gap_y + cell_height(cy + 1);
-        for (int dy = 0; dy < span_y; ++dy)
-          for (int dx = dy == 0 ? 1 : 0; dx < span_x; ++dx) blocker(dx, dy);
-      } else {
-        for (int dy = 0; dy < gap_y; ++dy)
-          for (int dx = dy == 0 ? 1 : 0; dx < gap_x; ++dx) blocker(dx, dy);
-        auto box = [&](int ox, int oy, int dx, int dy) {
-          const float mb = max_at(cy + oy, cx + ox);
-          if (mb > hc) best = std::min(best, detail::pair_ratio(grid.distance(dx, dy), mb - hc));
-        };
-        box(1, 0, gap_x, 0);
-        box(0, 1, 0, gap_y);
-        box(1, 1, gap_x, gap_y);
+    const int gap_y = cell_height(cy) - sy;
+    const float* h_row = &padded[std::size_t(ti) * padded_width];
+    std::fill(slope.begin(), slope.end(), 0.0f);
+    auto scan = [&](int dy_end, const int* dx_limit, int dx_end) {
+      for (int dy = 0; dy < dy_end; ++dy) {
+        const float* q_row = &padded[std::size_t(ti + dy) * padded_width];
+        for (int dx = dy == 0 ? 1 : 0; dx < dx_end; ++dx) {
+          const float inverse = inverse_distance[std::size_t(dy) * table_size + dx];
+          const float* q = q_row + dx;
+          for (int tj = 0; tj < width; ++tj) {
+            const float s = (q[tj] - h_row[tj]) * inverse;
+            slope[tj] = dx < dx_limit[tj] ? std::max(slope[tj], s) : slope[tj];
+          }
+        }
       }
-      ratio_out[std::size_t(ti) * width + tj] = best;
+    };
+    if (settings.near_field == NearField::scan) {
+      scan(gap_y + cell_height(cy + 1), span_x.data(), 2 * B);
+    } else {
+      scan(gap_y, gap_x.data(), B);
+      // the three neighbouring cells as boxes
+      const bool up_exists = wrap || cy + 1 < cells_y;
+      const float* max_row = &cell_max[std::size_t(cy) * max_stride];
+      const float* up_row = &cell_max[std::size_t((cy + 1) % cells_y) * max_stride];
+      const float inverse_up = inverse_distance[std::size_t(gap_y) * table_size];
+      for (int cx = 0; cx < cells_x; ++cx) {
+        const int right = wrap ? (cx + 1) % cells_x : cx + 1;  // clamp: the absent pad
+        for (int tj = cx * B; tj < std::min(width, (cx + 1) * B); ++tj) {
+          right_max[tj] = max_row[right];
+          up_max[tj] = up_exists ? up_row[cx] : absent;
+          diagonal_max[tj] = up_exists ? up_row[right] : absent;
+          inverse_diagonal[tj] = inverse_distance[std::size_t(gap_y) * table_size + gap_x[tj]];
+        }
+      }
+      for (int tj = 0; tj < width; ++tj) {
+        const float hc = h_row[tj];
+        const float s = std::max(std::max((right_max[tj] - hc) * inverse_gap_x[tj], (up_max[tj] - hc) * inverse_up),
+                                 (diagonal_max[tj] - hc) * inverse_diagonal[tj]);
+        slope[tj] = std::max(slope[tj], s);
+      }
     }
+    float* out_row = &ratio_out[std::size_t(ti) * width];
+    for (int tj = 0; tj < width; ++tj)
+      if (slope[tj] > 0.0f) out_row[tj] = std::min(out_row[tj], slope_margin / slope[tj]);
   }
+  TIMING_MARK(3);
+  TIMING_REPORT();
 }
 
 template <int L>
@@ -216,17 +296,40 @@ std::array<float, L> make_lanes(float lowest) {
   return lanes;
 }
 
+// the instruction-set clones of the per-quadrant work, one per lane count
+#define DISPLACE_COARSE_QUADRANT(L)                                                                              \
+  DISPLACE_BAKE_SIMD_CLONES void coarse_quadrant_##L(const detail::Grid& grid, const float* heights, float top, \
+                                                     float range, int quadrant, const CoarseSweepSettings& s,  \
+                                                     const std::array<float, L>& lanes,                        \
+                                                     const std::vector<float>& table, float* out,              \
+                                                     std::vector<float>& scratch) {                            \
+    coarse_quadrant<L>(grid, heights, top, range, quadrant, s, lanes, table, out, scratch);                    \
+  }
+DISPLACE_COARSE_QUADRANT(16)
+DISPLACE_COARSE_QUADRANT(24)
+DISPLACE_COARSE_QUADRANT(32)
+#undef DISPLACE_COARSE_QUADRANT
+
 template <int L>
 void bake_quadrants(const detail::Grid& grid, const float* heights, const CoarseSweepSettings& settings,
                     std::array<std::vector<float>, 4>& quadrant_ratio) {
   const std::size_t count = std::size_t(grid.width) * grid.height;
   const auto [low, high] = std::minmax_element(heights, heights + count);
   const std::array<float, L> lanes = make_lanes<L>(settings.lowest_lane);
+  // inverse uv distances of the near offsets, made here (not in the instruction-set clones) so that
+  // they round exactly as bake_exact's distances
+  const int table_size = 2 * settings.cell_size + 1;
+  std::vector<float> distance_table(std::size_t(table_size) * table_size);
+  for (int dy = 0; dy < table_size; ++dy)
+    for (int dx = 0; dx < table_size; ++dx)
+      distance_table[std::size_t(dy) * table_size + dx] = dx + dy == 0 ? 0.0f : 1.0f / grid.distance(dx, dy);
   tbb::parallel_for(0, 4, [&](int quadrant) {
     std::vector<float> virtual_heights;
     quadrant_ratio[quadrant].resize(count);
-    coarse_quadrant<L>(grid, heights, *high, *high - *low, quadrant, settings, lanes, quadrant_ratio[quadrant].data(),
-                       virtual_heights);
+    float* out = quadrant_ratio[quadrant].data();
+    if constexpr (L == 16) coarse_quadrant_16(grid, heights, *high, *high - *low, quadrant, settings, lanes, distance_table, out, virtual_heights);
+    if constexpr (L == 24) coarse_quadrant_24(grid, heights, *high, *high - *low, quadrant, settings, lanes, distance_table, out, virtual_heights);
+    if constexpr (L == 32) coarse_quadrant_32(grid, heights, *high, *high - *low, quadrant, settings, lanes, distance_table, out, virtual_heights);
   });
 }
 
