@@ -151,6 +151,7 @@ struct CoarseSweepSettings {
   int lane_count = 24;        // 16, 24 or 32
   float lowest_lane = 0.01f;  // smallest ratio lane, in (0, 1)
   NearField near_field = NearField::boxes;
+  bool chord = true;  // between two lanes, solve on the chord of the dilation (convex in 1 / ratio)
 };
 BakeStats bake_coarse_sweep(HeightView heights, Address address, const CoarseSweepSettings& settings, ConeView out);
 

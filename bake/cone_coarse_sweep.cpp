@@ -29,6 +29,7 @@ namespace {
 constexpr float absent = -1e30f;                 // height of "nothing there"
 constexpr float rounding_margin = 1.0f - 1e-4f;  // covers the rounding the recurrences accumulate
 constexpr float inv_sqrt2 = 0.70710678f;
+constexpr float chord_slack = 1e-4f;  // height units kept below h(c) in the chord test, for rounding
 
 // TEMPORARY stage timing
 #include <cstdio>
@@ -40,7 +41,6 @@ constexpr float inv_sqrt2 = 0.70710678f;
                std::chrono::duration<double, std::milli>(mark_1 - mark_0).count(),                      \
                std::chrono::duration<double, std::milli>(mark_2 - mark_1).count(), texel_ms, cells_x, reach_x,   \
                std::chrono::duration<double, std::milli>(mark_3 - mark_2).count())
-float octagonal(float x, float y) { return std::max(std::max(x, y), (x + y) * inv_sqrt2); }
 
 struct Frame {  // one quadrant seen so that its blockers are at larger virtual (i, j)
   int width, height;
@@ -124,13 +124,20 @@ template <int L>
   for (auto& row : rows)
     for (auto& a : row) a.assign(row_size, absent);
   enum { ray_x = 0, ray_y = 1, inf = 2, l1 = 3 };
-  std::vector<float> threshold(std::size_t(cells_x) * L);  // the cell row's min(G_inf, G_l1)
-  // per-texel correction oct(s), s from the cell corner facing the quadrant (the virtual low corner)
-  std::vector<float> correction(std::size_t(B) * B);
+  // the cell row's far-field dilations per lane, per metric (a lane passes when either metric passes)
+  std::vector<float> threshold_inf(std::size_t(cells_x) * L), threshold_l1(threshold_inf.size());
+  // per-texel corrections L-infinity(s) and L1(s) / sqrt 2, s from the cell corner facing the
+  // quadrant (the virtual low corner): each metric's triangle inequality
+  std::vector<float> correction_inf(std::size_t(B) * B), correction_l1(std::size_t(B) * B);
   for (int sy = 0; sy < B; ++sy)
-    for (int sx = 0; sx < B; ++sx)
-      correction[std::size_t(sy) * B + sx] = octagonal(float(sx) * grid.inv_width, float(sy) * grid.inv_height);
+    for (int sx = 0; sx < B; ++sx) {
+      const float x = float(sx) * grid.inv_width, y = float(sy) * grid.inv_height;
+      correction_inf[std::size_t(sy) * B + sx] = std::max(x, y);
+      correction_l1[std::size_t(sy) * B + sx] = (x + y) * inv_sqrt2;
+    }
   const float nearest_far = std::min(float(pitch_x + 1) * grid.inv_width, float(pitch_y + 1) * grid.inv_height);
+  std::vector<int> top_lane(width), sub_x(width), cell_of(width);
+  for (int tj = 0; tj < width; ++tj) cell_of[tj] = tj / B, sub_x[tj] = tj % B;
   const std::vector<float> nothing_row(L, absent);
   const float* nothing = nothing_row.data();
   TIMING_MARK(1);
@@ -190,32 +197,61 @@ template <int L>
       const float* diag2 = b2(inf, cx + 2);
       const float* l1_right = cur(l1, cx + 2);
       const float* l1_up = b2(l1, cx);
-      float* t = &threshold[std::size_t(cx) * L];
+      float* t_inf = &threshold_inf[std::size_t(cx) * L];
+      float* t_l1 = &threshold_l1[std::size_t(cx) * L];
       for (int l = 0; l < L; ++l) {
         const float g_inf = std::max(
             std::max(std::max(x0[l] - 2.0f * step_x[l], y0[l] - 2.0f * step_y[l]),
                      std::max(x1[l] - step_x[l] - step_diagonal[l], y1[l] - step_y[l] - step_diagonal[l])),
             diag2[l] - 2.0f * step_diagonal[l]);
         const float g_l1 = std::max(l1_right[l] - 2.0f * step_l1_x[l], l1_up[l] - 2.0f * step_l1_y[l]);
-        t[l] = std::min(g_inf, g_l1);
+        t_inf[l] = g_inf;
+        t_l1[l] = g_l1;
       }
     }
-    // per texel: the largest lane that passes, or a bound from the nearest far texel
+    // per texel: the largest lane that passes (pass 1, vectorised over lanes), then the chord to the
+    // next lane (pass 2, vectorised over texels), or a bound from the nearest far texel
     const int row_end = std::min(height, (vi + 1) * B);
     for (int ti = vi * B; ti < row_end; ++ti) {
-      const float* e_row = &correction[std::size_t(ti - vi * B) * B];
+      const float* e_inf_row = &correction_inf[std::size_t(ti - vi * B) * B];
+      const float* e_l1_row = &correction_l1[std::size_t(ti - vi * B) * B];
+      const float* h_row = &padded[std::size_t(ti) * padded_width];
       for (int cx = 0; cx < cells_x; ++cx) {
-        const float* t = &threshold[std::size_t(cx) * L];
+        const float* t_inf = &threshold_inf[std::size_t(cx) * L];
+        const float* t_l1 = &threshold_l1[std::size_t(cx) * L];
         for (int sx = 0, tj = cx * B; sx < B && tj < width; ++sx, ++tj) {
-          const float hc = vh(ti, tj);
-          const float e = e_row[sx];
+          const float hc = h_row[tj];
+          const float e_inf = e_inf_row[sx], e_l1 = e_l1_row[sx];
           int top = 0;  // 1 + the largest lane that passes (an integer maximum vectorises)
-          for (int l = 0; l < L; ++l) top = std::max(top, t[l] + e * inv_lane[l] <= hc ? l + 1 : 0);
-          float best = top > 0 ? passed[top - 1] : 0.0f;
-          if (top == 0)
-            best = height_max > hc ? detail::pair_ratio(nearest_far, height_max - hc) * rounding_margin : 1.0f;
-          ratio_out[std::size_t(ti) * width + tj] = std::min(best, 1.0f);
+          for (int l = 0; l < L; ++l)
+            top = std::max(top, (t_inf[l] + e_inf * inv_lane[l] <= hc) | (t_l1[l] + e_l1 * inv_lane[l] <= hc) ? l + 1 : 0);
+          top_lane[tj] = top;
         }
+      }
+      float* out_row = &ratio_out[std::size_t(ti) * width];
+      for (int tj = 0; tj < width; ++tj) {
+        const float hc = h_row[tj];
+        const int top = top_lane[tj];
+        const int sx = sub_x[tj];
+        float best = passed[std::max(top - 1, 0)];
+        if (settings.chord) {
+          // G(u) = max over D of (M(D) - cost(D) u), u = 1 / r, is convex in u for each metric, so
+          // below its chord between two lanes; where chord + e u <= h, every far blocker passes
+          const int l = std::clamp(top - 1, 0, L - 2);
+          const float u1 = inv_lane[l], u2 = inv_lane[l + 1];
+          const float h_safe = hc - chord_slack;
+          const std::size_t at = std::size_t(cell_of[tj]) * L + l;
+          const float e_inf = e_inf_row[sx], e_l1 = e_l1_row[sx];
+          const float f1_inf = threshold_inf[at] + e_inf * u1 - h_safe, f2_inf = threshold_inf[at + 1] + e_inf * u2 - h_safe;
+          const float f1_l1 = threshold_l1[at] + e_l1 * u1 - h_safe, f2_l1 = threshold_l1[at + 1] + e_l1 * u2 - h_safe;
+          // u where the chord crosses zero: u1 - (u1 - u2) f1 / (f1 - f2), valid when f1 <= 0 < f2
+          const float u_inf = f1_inf <= 0.0f && f2_inf > f1_inf ? u1 + (u1 - u2) * f1_inf / (f2_inf - f1_inf) : u1;
+          const float u_l1 = f1_l1 <= 0.0f && f2_l1 > f1_l1 ? u1 + (u1 - u2) * f1_l1 / (f2_l1 - f1_l1) : u1;
+          const float chord = rounding_margin / std::min(u_inf, u_l1);
+          best = top > 0 && top < L ? std::max(best, chord) : best;
+        }
+        const float fallback = height_max > hc ? detail::pair_ratio(nearest_far, height_max - hc) * rounding_margin : 1.0f;
+        out_row[tj] = std::min(top == 0 ? fallback : best, 1.0f);
       }
     }
     texel_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - texel_start).count();

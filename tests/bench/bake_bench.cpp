@@ -172,6 +172,12 @@ struct Registration {
             auto* b = benchmark::RegisterBenchmark(
                 name.c_str(), [kind, coarse](benchmark::State& state) { run(state, kind, Baker::coarse_sweep, coarse); });
             b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
+            if (lanes != 24) continue;
+            coarse.chord = false;  // lanes only, no chord between them
+            auto* plain = benchmark::RegisterBenchmark(
+                (name + "/nochord").c_str(),
+                [kind, coarse](benchmark::State& state) { run(state, kind, Baker::coarse_sweep, coarse); });
+            plain->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
           }
   }
 } registration;
