@@ -5,6 +5,8 @@
 // ocean frame, sinusoid water and a brick-like map, at 128..1024. `bilinear` (bake_bilinear_cones)
 // bakes another map - cones for the bilinear surface from a texel's whole square, with apex
 // heights - so its tightness is only a comparison of means and it counts no violations.
+// BM_CoarseSweep/<map>/B<cell>/L<lanes>/<near field>[/nochord]/<size> measures the experimental
+// bake_coarse_sweep.
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
@@ -159,7 +161,7 @@ struct Registration {
         }
     // experimental coarse-grid sweep: BM_CoarseSweep/<map>/B<cell>/L<lanes>/<near>/<size>
     for (MapKind kind : {MapKind::ocean, MapKind::bricks})
-      for (int cell : {4, 8})
+      for (int cell : {2, 4, 8})
         for (int lanes : {16, 24, 32})
           for (bake::NearField near : {bake::NearField::scan, bake::NearField::boxes}) {
             bake::CoarseSweepSettings coarse;
