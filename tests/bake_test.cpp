@@ -1,20 +1,21 @@
 // tests/bake_test.cpp - every baker against the definition in bake/bake.h.
+#include "bake/bake.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <functional>
-#include <memory>
 #include <cstdio>
+#include <functional>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "bake/bake.h"
 #include "bake/sweep.h"
 #include "tests/test_maps.h"
 
@@ -60,21 +61,24 @@ ConeMap brute_force(const Map& map, int sectors, Address address) {
                 const double lo = k * sector_width, hi = (k + 1) * sector_width;
                 const double eps = 1e-10;
                 const bool inside = (azimuth >= lo - eps && azimuth <= hi + eps) ||
-                                    (k == sectors - 1 && azimuth <= eps) || (k == 0 && azimuth >= two_pi - eps);
+                                    (k == sectors - 1 && azimuth <= eps) ||
+                                    (k == 0 && azimuth >= two_pi - eps);
                 if (inside && ratio < best[k]) best[k] = ratio;
               }
             }
         }
-      for (int k = 0; k < sectors; ++k) cones.ratios[(std::size_t(ci) * map.width + cj) * sectors + k] = float(best[k]);
+      for (int k = 0; k < sectors; ++k)
+        cones.ratios[(std::size_t(ci) * map.width + cj) * sectors + k] = float(best[k]);
     }
   return cones;
 }
 
 std::vector<Map> hard_maps() {
-  return {test::make_spikes(24, 24),       test::make_terraces(20, 16),  test::make_checkerboard(16, 16),
-          test::make_fractal_cliff(32, 32), test::make_flat(12, 12),      test::make_near_flat_step(17, 13),
-          test::make_flat(1, 1),            test::make_fractal_cliff(13, 7), test::make_bricks(30, 18),
-          test::make_spikes(1, 9)};
+  return {test::make_spikes(24, 24),       test::make_terraces(20, 16),
+          test::make_checkerboard(16, 16), test::make_fractal_cliff(32, 32),
+          test::make_flat(12, 12),         test::make_near_flat_step(17, 13),
+          test::make_flat(1, 1),           test::make_fractal_cliff(13, 7),
+          test::make_bricks(30, 18),       test::make_spikes(1, 9)};
 }
 
 const char* address_name(Address a) { return a == Address::wrap ? "wrap" : "clamp"; }
@@ -100,10 +104,10 @@ TEST(OriginalBaker, EqualsExactBitForBit) {
         ConeMap exact = make_cone_map(map, sectors), original = make_cone_map(map, sectors);
         bake_exact(view_of(map), address, exact.view());
         bake_original(view_of(map), address, original.view());
-        ASSERT_EQ(exact.ratios, original.ratios) << map.name << " sectors " << sectors << " " << address_name(address);
+        ASSERT_EQ(exact.ratios, original.ratios)
+            << map.name << " sectors " << sectors << " " << address_name(address);
       }
 }
-
 
 ConeMap exact_of(const Map& map, int sectors, Address address) {
   ConeMap exact = make_cone_map(map, sectors);
@@ -280,9 +284,10 @@ TEST(PaperAdaptiveBaker, IsNotConservativeAndTheViolationsAreCounted) {
       bake_paper_adaptive(view_of(map), Address::wrap, {3, 0.0f}, strict.view());
       bake_paper_adaptive(view_of(map), Address::wrap, {3, 0.25f}, loose.view());
       const Violations vs = violations(strict, exact), vl = violations(loose, exact);
-      std::printf("paper-adaptive %-22s %2dx%-2d n=%d: similarity 0: %lld violations (worst x%.2f); "
-                  "similarity 0.25: %lld violations (worst x%.2f)\n",
-                  map.name.c_str(), map.width, map.height, sectors, vs.count, vs.worst, vl.count, vl.worst);
+      std::printf(
+          "paper-adaptive %-22s %2dx%-2d n=%d: similarity 0: %lld violations (worst x%.2f); "
+          "similarity 0.25: %lld violations (worst x%.2f)\n",
+          map.name.c_str(), map.width, map.height, sectors, vs.count, vs.worst, vl.count, vl.worst);
       equal_height_violations += vs.count;
       equal_height_worst = std::max(equal_height_worst, vs.worst);
       loose_worst = std::max(loose_worst, vl.worst);
@@ -310,8 +315,8 @@ TEST(BudgetedBaker, ConservativeAtEveryBudget) {
         const ConeMap exact = exact_of(map, sectors, address);
         for (int budget_kind = 0; budget_kind < 4; ++budget_kind) {
           Budget budget;
-          if (budget_kind == 0) budget.milliseconds = 0.0;                     // zero: fallback only
-          if (budget_kind == 1) budget.max_work = 50;                          // tiny
+          if (budget_kind == 0) budget.milliseconds = 0.0;  // zero: fallback only
+          if (budget_kind == 1) budget.max_work = 50;       // tiny
           if (budget_kind == 2) budget.clock = FakeClock{}.function(), budget.milliseconds = 3.0;
           ConeMap cones = make_cone_map(map, sectors);
           const BakeStats stats = bake_budgeted(view_of(map), address, budget, cones.view());
@@ -332,7 +337,8 @@ TEST(BudgetedBaker, ConservativeAtEveryBudget) {
 
 // The O(N) floor's rings on bigger, odd-sized maps (more pyramid levels, partial blocks at the seams).
 TEST(BudgetedBaker, ZeroBudgetFloorIsConservativeOnLargerOddMaps) {
-  for (const Map& map : {test::make_fractal_cliff(100, 60, 5), test::make_spikes(77, 129, 3), test::make_bricks(96, 96)})
+  for (const Map& map :
+       {test::make_fractal_cliff(100, 60, 5), test::make_spikes(77, 129, 3), test::make_bricks(96, 96)})
     for (int sectors : {1, 4, 8})
       for (Address address : {Address::wrap, Address::clamp}) {
         Budget budget;
@@ -341,8 +347,8 @@ TEST(BudgetedBaker, ZeroBudgetFloorIsConservativeOnLargerOddMaps) {
         const BakeStats stats = bake_budgeted(view_of(map), address, budget, cones.view());
         EXPECT_EQ(stats.texels_refined, 0);
         const Violations v = violations(cones, exact_of(map, sectors, address));
-        ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " sectors " << sectors << " "
-                              << address_name(address) << " worst x" << v.worst;
+        ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " sectors " << sectors
+                              << " " << address_name(address) << " worst x" << v.worst;
         for (float r : cones.ratios) ASSERT_GT(r, 0.0f);
       }
 }
@@ -363,15 +369,15 @@ TEST(QuadrantSweep, LowerBoundsTheExactQuadrantRatio) {
       for (int quadrant = 0; quadrant < 4; ++quadrant) {
         std::vector<float> swept(map.values.size(), 0.0f);
         for (int band = 0; band < detail::sweep_band_count; ++band)
-          detail::sweep_quadrant(grid, map.values.data(), *high - *low, quadrant, band, [] { return false; },
-                                 swept.data());
+          detail::sweep_quadrant(
+              grid, map.values.data(), *high - *low, quadrant, band, [] { return false; }, swept.data());
         for (int i = 0; i < map.height; ++i)
           for (int j = 0; j < map.width; ++j) {
             const float value = swept[std::size_t(i) * map.width + j];
             ASSERT_GE(value, 0.0f) << map.name << " quadrant " << quadrant << " texel " << i << "," << j;
-            ASSERT_LE(value, exact.at(i, j, quadrant)) << map.name << " " << map.width << "x" << map.height << " "
-                                                       << address_name(address) << " quadrant " << quadrant
-                                                       << " texel " << i << "," << j;
+            ASSERT_LE(value, exact.at(i, j, quadrant))
+                << map.name << " " << map.width << "x" << map.height << " " << address_name(address)
+                << " quadrant " << quadrant << " texel " << i << "," << j;
             swept_sum += value;
             exact_sum += exact.at(i, j, quadrant);
           }
@@ -385,8 +391,9 @@ TEST(QuadrantSweep, LowerBoundsTheExactQuadrantRatio) {
   // stopped at once: nothing written
   const Map map = test::make_bricks(32, 32);
   std::vector<float> swept(map.values.size(), -1.0f);
-  detail::sweep_quadrant(detail::Grid(32, 32, 4, Address::wrap), map.values.data(), 1.0f, 0, 0, [] { return true; },
-                         swept.data());
+  detail::sweep_quadrant(
+      detail::Grid(32, 32, 4, Address::wrap), map.values.data(), 1.0f, 0, 0, [] { return true; },
+      swept.data());
   for (float v : swept) EXPECT_EQ(v, -1.0f);
 }
 
@@ -455,7 +462,8 @@ TEST(BudgetedBaker, IncrementalUpdatesStayConservativeAndConverge) {
       baker.bake(view_of(map), unlimited, cones.view());
       for (int frame = 0; frame < 12; ++frame) {
         // a random local raise or lowering
-        const int w = 1 + int(test::hash01(seed, frame, 1) * 6), h = 1 + int(test::hash01(seed, frame, 2) * 6);
+        const int w = 1 + int(test::hash01(seed, frame, 1) * 6),
+                  h = 1 + int(test::hash01(seed, frame, 2) * 6);
         const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
         const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
         const bool raise = frame % 3 != 1;
@@ -541,7 +549,8 @@ TEST(RelaxedBaker, MatchesTheDefinitionByBruteForce) {
         return double(map.values[std::size_t(((a % map.height) + map.height) % map.height) * map.width +
                                  ((b % map.width) + map.width) % map.width]);
       };
-      return (at(i, j) * (1 - tx) + at(i, j + 1) * tx) * (1 - ty) + (at(i + 1, j) * (1 - tx) + at(i + 1, j + 1) * tx) * ty;
+      return (at(i, j) * (1 - tx) + at(i, j + 1) * tx) * (1 - ty) +
+             (at(i + 1, j) * (1 - tx) + at(i + 1, j + 1) * tx) * ty;
     };
     double worst = 0.0;
     int far_off = 0, count = 0;
@@ -560,7 +569,10 @@ TEST(RelaxedBaker, MatchesTheDefinitionByBruteForce) {
             if (hd < 1.0) {
               for (double s = 1.0 + 0.01 / len;; s += 0.01 / len) {
                 const double z = 1.0 - (1.0 - hd) * s;
-                if (z <= hc) { constrained = false; break; }
+                if (z <= hc) {
+                  constrained = false;
+                  break;
+                }
                 if (height_at(cj + s * dx, ci + s * dy) <= z) break;
                 s_inside = s;
               }
@@ -573,8 +585,8 @@ TEST(RelaxedBaker, MatchesTheDefinitionByBruteForce) {
             if (azimuth < 0) azimuth += 2 * std::numbers::pi;
             for (int k = 0; k < 4; ++k) {
               const double lo = k * std::numbers::pi / 2, hi = (k + 1) * std::numbers::pi / 2;
-              if ((azimuth >= lo - 1e-12 && azimuth <= hi + 1e-12) || (k == 0 && azimuth >= 2 * std::numbers::pi - 1e-12) ||
-                  (k == 3 && azimuth <= 1e-12))
+              if ((azimuth >= lo - 1e-12 && azimuth <= hi + 1e-12) ||
+                  (k == 0 && azimuth >= 2 * std::numbers::pi - 1e-12) || (k == 3 && azimuth <= 1e-12))
                 best[k] = std::min(best[k], ratio);
             }
           }
@@ -587,8 +599,10 @@ TEST(RelaxedBaker, MatchesTheDefinitionByBruteForce) {
           ++count;
         }
       }
-    std::printf("relaxed %s: largest relative difference to the brute-force definition %.4f, %d of %d off by "
-                "more than 2%%\n", map.name.c_str(), worst, far_off, count);
+    std::printf(
+        "relaxed %s: largest relative difference to the brute-force definition %.4f, %d of %d off by "
+        "more than 2%%\n",
+        map.name.c_str(), worst, far_off, count);
     // the baker solves each bilinear cell exactly; the reference marches at 1/100 texel and can step
     // over an exit thinner than that
     EXPECT_LE(far_off, count / 100) << map.name;
@@ -1247,6 +1261,55 @@ TEST(BilinearCones, RejectsBadInput) {
   EXPECT_NO_THROW(bake_bilinear_cones(view_of(ok), Address::clamp, {ratios.data(), 4, 4, 4}, apex));
   for (float r : ratios) EXPECT_EQ(r, 1.0f);
   for (float h : apex) EXPECT_EQ(h, 0.5f);
+}
+
+// The experimental coarse-grid sweep: never above exact, for every cell size, lane count and near
+// field, on the hard maps (square or not, tiny, flat, partial cells) with wrap and clamp.
+TEST(CoarseSweepBaker, NeverAboveExact) {
+  std::vector<Map> maps = hard_maps();
+  maps.push_back(test::make_fractal_cliff(100, 60, 5));
+  maps.push_back(test::make_bricks(64, 48));
+  maps.push_back(test::make_spikes(77, 41, 3));
+  for (const Map& map : maps)
+    for (Address address : {Address::wrap, Address::clamp}) {
+      const ConeMap exact = exact_of(map, 4, address);
+      for (int cell : {2, 4, 8})
+        for (int lanes : {16, 24, 32})
+          for (NearField near : {NearField::scan, NearField::boxes})
+            for (bool chord : {false, true}) {
+              CoarseSweepSettings settings;
+              settings.chord = chord;
+              settings.cell_size = cell;
+              settings.lane_count = lanes;
+              settings.near_field = near;
+              ConeMap cones = make_cone_map(map, 4);
+              bake_coarse_sweep(view_of(map), address, settings, cones.view());
+              const Violations v = violations(cones, exact);
+              ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " "
+                                    << address_name(address) << " cell " << cell << " lanes " << lanes
+                                    << " near " << int(near) << " chord " << chord << " worst x" << v.worst;
+              for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << map.name;
+            }
+    }
+  // 1 and 8 sectors take the quadrants' bounds
+  for (const Map& map : {test::make_fractal_cliff(32, 32), test::make_spikes(24, 24)})
+    for (int sectors : {1, 8}) {
+      ConeMap cones = make_cone_map(map, sectors);
+      bake_coarse_sweep(view_of(map), Address::wrap, {}, cones.view());
+      EXPECT_EQ(violations(cones, exact_of(map, sectors, Address::wrap)).count, 0)
+          << map.name << " " << sectors;
+    }
+}
+
+TEST(CoarseSweepBaker, RejectsBadSettings) {
+  const Map map = test::make_flat(8, 8);
+  ConeMap cones = make_cone_map(map, 4);
+  CoarseSweepSettings settings;
+  settings.cell_size = 1;
+  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
+  settings = {};
+  settings.lane_count = 20;
+  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
 }
 
 }  // namespace
