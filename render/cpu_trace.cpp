@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 
+#include "render/quadric.h"
 #include "render/render.h"
 
 namespace displace::render {
@@ -16,15 +17,15 @@ namespace {
 
 constexpr int bisection_steps = 60;  // halvings of a monotone piece: far below double precision of s
 
-double texel_at(const HeightField& field, bake::Address address, long long i, long long j) {
-  if (address == bake::Address::wrap) {
-    i = ((i % field.height) + field.height) % field.height;
-    j = ((j % field.width) + field.width) % field.width;
-  } else {
-    i = std::clamp<long long>(i, 0, field.height - 1);
-    j = std::clamp<long long>(j, 0, field.width - 1);
-  }
+// Texel (i, j), each axis wrapped or clamped.
+double texel_at(const HeightField& field, bool wrap_u, bool wrap_v, long long i, long long j) {
+  j = wrap_u ? ((j % field.width) + field.width) % field.width : std::clamp<long long>(j, 0, field.width - 1);
+  i = wrap_v ? ((i % field.height) + field.height) % field.height : std::clamp<long long>(i, 0, field.height - 1);
   return field.heights[std::size_t(i * field.width + j)];
+}
+double texel_at(const HeightField& field, bake::Address address, long long i, long long j) {
+  const bool wrap = address == bake::Address::wrap;
+  return texel_at(field, wrap, wrap, i, j);
 }
 
 // The ray's height above the bilinear patch of one cell: g(s) = z0 - s - b(fx(s), fy(s)), with
@@ -60,16 +61,21 @@ double monotone_root(const CellGap& g, double s0, double s1) {
 
 }  // namespace
 
-// Bilinear height at texture coordinates (u, v), texel centres at (j + 0.5) / W.
-double bilinear_height(const HeightField& field, bake::Address address, double u, double v) {
+double bilinear_height_wrapping(const HeightField& field, bool wrap_u, bool wrap_v, double u, double v) {
   const double x = u * field.width - 0.5, y = v * field.height - 0.5;
   const double x0 = std::floor(x), y0 = std::floor(y);
   const double fx = x - x0, fy = y - y0;
   const long long j = (long long)x0, i = (long long)y0;
-  const double top = texel_at(field, address, i, j) * (1 - fx) + texel_at(field, address, i, j + 1) * fx;
-  const double bottom =
-      texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
+  auto texel = [&](long long row, long long column) { return texel_at(field, wrap_u, wrap_v, row, column); };
+  const double top = texel(i, j) * (1 - fx) + texel(i, j + 1) * fx;
+  const double bottom = texel(i + 1, j) * (1 - fx) + texel(i + 1, j + 1) * fx;
   return top * (1 - fy) + bottom * fy;
+}
+
+// Bilinear height at texture coordinates (u, v), texel centres at (j + 0.5) / W.
+double bilinear_height(const HeightField& field, bake::Address address, double u, double v) {
+  const bool wrap = address == bake::Address::wrap;
+  return bilinear_height_wrapping(field, wrap, wrap, u, v);
 }
 
 double first_crossing(const HeightField& field, bake::Address address, double tile, const glm::dvec3& origin,

@@ -20,25 +20,8 @@ constexpr int max_march_steps = 8 << 20;
 constexpr int bisection_steps = 60;
 
 // u always wraps around the axis; v wraps or clamps with the address mode.
-double texel_at(const HeightField& field, bake::Address address, long long i, long long j) {
-  j = ((j % field.width) + field.width) % field.width;
-  if (address == bake::Address::wrap) {
-    i = ((i % field.height) + field.height) % field.height;
-  } else {
-    i = std::clamp<long long>(i, 0, field.height - 1);
-  }
-  return field.heights[std::size_t(i * field.width + j)];
-}
-
 double quadric_height(const HeightField& field, bake::Address address, double u, double v) {
-  const double x = u * field.width - 0.5, y = v * field.height - 0.5;
-  const double x0 = std::floor(x), y0 = std::floor(y);
-  const double fx = x - x0, fy = y - y0;
-  const long long j = (long long)x0, i = (long long)y0;
-  const double top = texel_at(field, address, i, j) * (1 - fx) + texel_at(field, address, i, j + 1) * fx;
-  const double bottom =
-      texel_at(field, address, i + 1, j) * (1 - fx) + texel_at(field, address, i + 1, j + 1) * fx;
-  return top * (1 - fy) + bottom * fy;
+  return bilinear_height_wrapping(field, true, address == bake::Address::wrap, u, v);
 }
 
 // Least distance from the axis (horizontal) or the anchor (3D) of o + t d over [t0, t1].

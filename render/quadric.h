@@ -7,6 +7,14 @@
 
 #include "render/render.h"
 
+namespace displace::render {
+
+// The bilinear height at (u, v) with each axis wrapped or clamped separately (quadrics: u always
+// wraps around the axis, v follows the address mode); bilinear_height is the case of one mode.
+double bilinear_height_wrapping(const HeightField& field, bool wrap_u, bool wrap_v, double u, double v);
+
+}  // namespace displace::render
+
 namespace displace::render::quadric {
 
 struct Shape {

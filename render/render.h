@@ -108,7 +108,7 @@ struct MethodInfo {
   bool relaxed_cones = false;  // a relaxed ratio layer (bake::bake_relaxed) follows the bilinear cones
 };
 
-// The implemented methods, in display order. A method that is not implemented is not listed.
+// The method table: one row per Method enumerator, in display order.
 std::span<const MethodInfo> method_table();
 const MethodInfo& method_info(Method method);
 const MethodInfo* find_method(std::string_view name);  // nullptr when unknown
