@@ -170,17 +170,7 @@ BakeStats bake_exact(HeightView heights, Address address, ConeView out) {
     total_work += work;
   });
 
-  BakeStats stats;
-  stats.mode = Mode::exact;
-  stats.width = heights.width;
-  stats.height = heights.height;
-  stats.sector_count = sectors;
-  stats.texels_refined = (long long)heights.width * heights.height;
-  stats.work = total_work;
-  stats.milliseconds =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  stats.mean_ratio = detail::mean_of(out.data, std::size_t(heights.width) * heights.height * sectors);
-  return stats;
+  return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
 }
 
 }  // namespace displace::bake

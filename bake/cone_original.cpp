@@ -77,17 +77,7 @@ BakeStats bake_original(HeightView heights, Address address, ConeView out) {
       }
     total_work += work;
   });
-  BakeStats stats;
-  stats.mode = Mode::original;
-  stats.width = heights.width;
-  stats.height = heights.height;
-  stats.sector_count = sectors;
-  stats.texels_refined = (long long)count;
-  stats.work = total_work;
-  stats.milliseconds =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  stats.mean_ratio = detail::mean_of(out.data, count * sectors);
-  return stats;
+  return detail::whole_map_stats(Mode::original, heights, sectors, total_work, start, out.data);
 }
 
 }  // namespace displace::bake

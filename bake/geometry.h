@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -134,6 +135,22 @@ inline double mean_of(const float* data, std::size_t count) {
   double sum = 0.0;
   for (std::size_t i = 0; i < count; ++i) sum += data[i];
   return count ? sum / double(count) : 0.0;
+}
+
+// The stats of a bake that computed every texel of `out` (a W x H map, `sectors` ratios each),
+// started at `start`.
+inline BakeStats whole_map_stats(Mode mode, HeightView heights, int sectors, long long work,
+                                 std::chrono::steady_clock::time_point start, const float* out) {
+  BakeStats stats;
+  stats.mode = mode;
+  stats.width = heights.width;
+  stats.height = heights.height;
+  stats.sector_count = sectors;
+  stats.texels_refined = (long long)heights.width * heights.height;
+  stats.work = work;
+  stats.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats.mean_ratio = mean_of(out, std::size_t(heights.width) * heights.height * sectors);
+  return stats;
 }
 
 }  // namespace displace::bake::detail
