@@ -106,7 +106,7 @@ struct Budget {
   double milliseconds = std::numeric_limits<double>::infinity();
   std::function<double()> clock;
   long long max_work = -1;
-  float tolerance = 0.1f;
+  float tolerance = 0.25f;
 };
 
 // The product baker: hierarchical and adaptive, every emitted ratio is a lower bound of the exact
@@ -137,23 +137,6 @@ class BudgetedBaker {
 
 // Convenience: one budgeted bake from scratch.
 BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budget, ConeView out);
-
-// EXPERIMENTAL (a measurement prototype, see docs/budgeted-speed.md): conservative quadrant ratios
-// from dilation sweeps over coarse cells of cell_size x cell_size texels, one sweep for all
-// lane_count geometric ratio lanes in [lowest_lane, 1], plus a per-texel near field for the cells
-// next to the texel's own: an exact scan of their texels (scan), or the own cell exactly and the
-// three others as boxes (boxes). Every ratio is a lower bound of bake_exact's. Sectors 1, 4, 8 as
-// stage S (an octant takes its quadrant's ratio, one sector the smallest of the four). Stats: mode
-// budgeted, milliseconds (steady clock), mean_ratio.
-enum class NearField { scan, boxes };
-struct CoarseSweepSettings {
-  int cell_size = 4;          // texels per cell side, 2 to 32
-  int lane_count = 24;        // 16, 24 or 32
-  float lowest_lane = 0.01f;  // smallest ratio lane, in (0, 1)
-  NearField near_field = NearField::boxes;
-  bool chord = true;  // between two lanes, solve on the chord of the dilation (convex in 1 / ratio)
-};
-BakeStats bake_coarse_sweep(HeightView heights, Address address, const CoarseSweepSettings& settings, ConeView out);
 
 // Relaxed cone map (Policarpo & Oliveira, "Relaxed Cone Stepping for Relief Mapping"), for 1 or 4
 // sectors. The relaxed ratio of texel c in sector k is the largest r <= 1 such that every ray that

@@ -28,6 +28,10 @@ void validate_heights(HeightView heights, const char* product) {
                     " is larger than the supported 32768x32768");
   }
   const std::size_t count = std::size_t(heights.width) * heights.height;
+  // one branch-free pass (NaN fails both comparisons), then the slow one only to name the texel
+  int bad = 0;
+  for (std::size_t i = 0; i < count; ++i) bad |= int(!(heights.data[i] >= 0.0f)) | int(!(heights.data[i] <= 1.0f));
+  if (bad == 0) return;
   for (std::size_t i = 0; i < count; ++i) {
     const float h = heights.data[i];
     if (!std::isfinite(h)) {

@@ -30,9 +30,10 @@
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <cstdio>
 
+#include "bake/lane_sweep.h"
 #include "bake/search.h"
-#include "bake/sweep.h"
 
 namespace displace::bake {
 
@@ -46,7 +47,9 @@ using detail::SectorMask;
 
 constexpr int group_level = 3;         // groups are 2^3 x 2^3 texels
 constexpr int group_size = 1 << group_level;
-constexpr int open_factor = 2;         // a block is opened while its gap to the group (texels) < factor * size
+constexpr int open_factor = 2;
+constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane is at most this
+constexpr bool lane_knights = true;          // stage L: chamfer with knight moves (see lane_sweep.cpp)         // a block is opened while its gap to the group (texels) < factor * size
 
 struct Candidate {
   int x0, x1, y0, y1;  // unrolled texel coordinates, inclusive
@@ -161,11 +164,15 @@ struct BudgetedBaker::State {
   std::vector<std::array<std::vector<float>, 4>> quadrant_max;
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_x;  // [level][0: towards +u, 1: -u][column]
   std::vector<std::array<std::vector<float>, 2>> inverse_exit_y;  // [level][0: towards +v, 1: -v][row]
-  std::array<std::vector<float>, 4> quadrant_ratio;  // stage S: per quadrant, per texel
   // per texel and sector: the smallest pair ratio of a real blocker found so far (an upper bound of
   // the exact ratio, 1 when none), which starts stage B's search with a tight bound
   std::vector<float> upper;
   int cursor = 0;  // next group the refinement looks at
+  // stage L: the lane plan of the current heights and, per quadrant and texel, the lane count
+  detail::LanePlan lanes;
+  std::vector<std::uint8_t> lane_counts;
+  bool search_ready = false;  // pyramid, roots and stage 0's tables match the heights
+  bool slack_stale = false;   // slack and group_slack still to be derived from lane_counts
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
 
@@ -425,8 +432,10 @@ long long refine_group(BudgetedBaker::State& state, int group, float keep, float
       std::copy_n(exact_best, sectors, &state.upper[t * sectors]);
       float slack = 1.0f;
       for (int k = 0; k < sectors; ++k) {
-        out[t * sectors + k] = std::min(exact_best[k], floor[k]);
-        slack = std::min(slack, out[t * sectors + k] / exact_best[k]);
+        // both this and what out held (stage L's floor) are lower bounds: keep the larger
+        float& ratio = out[t * sectors + k];
+        ratio = std::max(ratio, std::min(exact_best[k], floor[k]));
+        slack = std::min(slack, ratio / exact_best[k]);
       }
       // within the tolerance by construction; the division above can round just below keep
       state.slack[t] = std::max(slack, keep);
@@ -451,7 +460,13 @@ BudgetedBaker::~BudgetedBaker() = default;
 BudgetedBaker::BudgetedBaker(BudgetedBaker&&) noexcept = default;
 BudgetedBaker& BudgetedBaker::operator=(BudgetedBaker&&) noexcept = default;
 
+namespace {
+void ensure_slack(BudgetedBaker::State& state);
+}  // namespace
+
 long long BudgetedBaker::pending(float tolerance) const {
+  if (state_->heights.empty()) return 0;
+  ensure_slack(*state_);
   long long count = 0;
   for (float slack : state_->slack) count += slack < 1.0f - tolerance;
   return count;
@@ -467,54 +482,31 @@ void check_view(const BudgetedBaker::State& state, HeightView heights, const Con
   }
 }
 
+// The pyramid, its roots and stage 0's tables for state.heights, and per-texel upper bounds (1 where
+// none is known): what stages 0, A and B and the incremental update need. A bake() that stage L
+// finishes never builds them.
+void ensure_search_state(BudgetedBaker::State& state) {
+  if (!state.search_ready) {
+    state.pyramid = detail::make_pyramid({state.heights.data(), state.grid.width, state.grid.height});
+    const SearchContext context{state.grid, state.pyramid};
+    state.roots = detail::root_nodes(context);
+    prepare_stage0(state);
+    state.search_ready = true;
+  }
+  if (state.upper.size() != state.heights.size() * state.grid.sector_count)
+    state.upper.assign(state.heights.size() * state.grid.sector_count, 1.0f);
+}
+
 void set_heights(BudgetedBaker::State& state, HeightView heights) {
   state.heights.assign(heights.data, heights.data + std::size_t(heights.width) * heights.height);
-  state.pyramid = detail::make_pyramid(heights);
-  const SearchContext context{state.grid, state.pyramid};
-  state.roots = detail::root_nodes(context);
-  prepare_stage0(state);
+  state.search_ready = false;
+  ensure_search_state(state);
 }
 
 float keep_of(const Budget& budget) {
   if (!(budget.tolerance >= 0.0f && budget.tolerance < 1.0f))
     throw BakeError("budget tolerance must be in [0, 1)");
   return 1.0f - budget.tolerance;
-}
-
-// Stage B over the pending groups, starting at the cursor, until the budget runs out.
-// Stage S: the quadrant sweeps, band by band (two quadrants at a time on two cores), each stopping
-// where the budget runs out; after each band every sector takes the larger of its ratio and its
-// quadrant's sweep ratio (an octant takes the quadrant that holds it, one sector the smallest of
-// the four).
-void run_sweeps(BudgetedBaker::State& state, Clock& clock, float* out) {
-  const Grid& grid = state.grid;
-  const std::size_t count = state.heights.size();
-  const auto [low, high] = std::minmax_element(state.heights.begin(), state.heights.end());
-  const float range = *high - *low;
-  const std::function<bool()> stop = [&clock] { return clock.exhausted(); };
-  const int sectors = grid.sector_count;
-  for (std::vector<float>& ratios : state.quadrant_ratio) ratios.assign(count, 0.0f);
-  for (int band = 0; band < detail::sweep_band_count && !clock.exhausted(); ++band) {
-    tbb::parallel_for(0, 4, [&](int quadrant) {
-      if (!clock.exhausted())
-        detail::sweep_quadrant(grid, state.heights.data(), range, quadrant, band, stop,
-                               state.quadrant_ratio[quadrant].data());
-    });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& texels) {
-      for (std::size_t t = texels.begin(); t < texels.end(); ++t)
-        for (int k = 0; k < sectors; ++k) {
-          float swept;
-          if (sectors == 1) {
-            swept = std::min(std::min(state.quadrant_ratio[0][t], state.quadrant_ratio[1][t]),
-                             std::min(state.quadrant_ratio[2][t], state.quadrant_ratio[3][t]));
-          } else {
-            swept = state.quadrant_ratio[sectors == 4 ? k : k / 2][t];
-          }
-          out[t * sectors + k] = std::max(out[t * sectors + k], swept);
-        }
-    });
-    clock.work += (long long)count * 4;
-  }
 }
 
 // Advances groups in cursor order while the budget lasts: first stage A for every group that only
@@ -552,14 +544,137 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
   }
 }
 
-BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined, float* out) {
+// Stage L, the floor that bake() always completes: the lane sweeps of lane_sweep.cpp, one per
+// quadrant, over the whole map. A texel's quadrant ratio is the largest lane that passes (an octant
+// takes its quadrant's, one sector the smallest of the four); below the lowest lane it keeps
+// (1 texel) / (highest height - its height), which no blocker can beat. The first lane that fails
+// bounds the exact ratio from above, which gives the texel's slack (ensure_slack) - except with 8
+// sectors, where a quadrant bounds neither of its octants, so there the slack is 0 and the
+// refinement stages take every texel.
+struct StageTotals {
+  double ratio_sum = 0.0;  // of every emitted ratio
+  long long pending = 0;   // texel quadrants whose slack may be below keep; 0 exactly when no texel's is
+};
+
+// Slack of a texel from its four lane counts: the emitted ratio's share of the certified upper
+// bound of the exact one.
+float texel_slack(const detail::LanePlan& plan, int sectors, float floor, const std::uint8_t c[4]) {
+  if (sectors == 8) return 0.0f;
+  float slack = 1.0f, smallest = 1.0f, lowest_upper = 1.0f;
+  for (int q = 0; q < 4; ++q) {
+    const float ratio = c[q] == 0 ? floor : plan.lane_ratio[c[q]];
+    slack = std::min(slack, ratio / plan.lane_upper[c[q]]);
+    smallest = std::min(smallest, ratio);
+    lowest_upper = std::min(lowest_upper, plan.lane_upper[c[q]]);
+  }
+  // one sector: the smallest quadrant's ratio, below the smallest bound
+  return std::min(1.0f, sectors == 4 ? slack : smallest / lowest_upper);
+}
+
+StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, float* out) {
+  const Grid& grid = state.grid;
+  const int width = grid.width, height = grid.height, sectors = grid.sector_count;
+  const std::size_t count = state.heights.size();
+  detail::LanePlan& plan = state.lanes;
+  detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap, lane_lowest_ratio,
+                         lane_knights, plan);
+  state.lane_counts.resize(4 * count);
+  std::uint8_t* const counts[4] = {&state.lane_counts[0], &state.lane_counts[count], &state.lane_counts[2 * count],
+                                   &state.lane_counts[3 * count]};
+  // lane counts that may leave a quadrant looser than keep (below the lowest lane the floor may
+  // still be close enough: ensure_slack looks at those texels closely)
+  std::uint8_t pending_count[detail::lane_count + 1];
+  for (int p = 0; p <= detail::lane_count; ++p)
+    pending_count[p] = !(p > 0 && plan.lane_ratio[p] / plan.lane_upper[p] >= keep);
+  const detail::LaneSweepTotals swept =
+      detail::sweep_quadrants(plan, state.heights.data(), counts, sectors == 4 ? out : nullptr, pending_count);
+  clock.work += swept.work;
+  state.slack_stale = true;
+  state.cursor = 0;
+  if (sectors == 4) return {swept.ratio_sum, swept.pending};
+
+  // 1 or 8 sectors: the quadrants into sectors
+  const StageTotals totals = tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, height, 8), StageTotals{},
+      [&](const tbb::blocked_range<int>& rows, StageTotals partial) {
+        for (int i = rows.begin(); i < rows.end(); ++i)
+          for (int j = 0; j < width; ++j) {
+            const std::size_t t = std::size_t(i) * width + j;
+            const float floor = detail::lane_floor(plan, state.heights[t]);
+            float quadrant[4];
+            for (int q = 0; q < 4; ++q) {
+              const std::uint8_t c = counts[q][t];
+              quadrant[q] = c == 0 ? floor : plan.lane_ratio[c];
+              partial.pending += pending_count[c] || sectors == 8;
+            }
+            float* target = out + t * sectors;
+            if (sectors == 8) {
+              for (int k = 0; k < 8; ++k) target[k] = quadrant[k / 2];
+              partial.ratio_sum += 2.0 * ((quadrant[0] + quadrant[1]) + (quadrant[2] + quadrant[3]));
+            } else {
+              target[0] = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+              partial.ratio_sum += target[0];
+            }
+          }
+        return partial;
+      },
+      [](StageTotals a, const StageTotals& b) {
+        a.ratio_sum += b.ratio_sum;
+        a.pending += b.pending;
+        return a;
+      });
+  return totals;
+}
+
+// Per texel and group, the slack that stage L's count bytes certify (what refinement and pending()
+// read), computed only when something needs it.
+void ensure_slack(BudgetedBaker::State& state) {
+  if (!state.slack_stale) return;
+  const Grid& grid = state.grid;
+  const int width = grid.width, sectors = grid.sector_count;
+  const std::size_t count = state.heights.size();
+  const detail::LanePlan& plan = state.lanes;
+  state.slack.resize(count);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t t = r.begin(); t < r.end(); ++t) {
+      const std::uint8_t c[4] = {state.lane_counts[t], state.lane_counts[count + t], state.lane_counts[2 * count + t],
+                                 state.lane_counts[3 * count + t]};
+      state.slack[t] = texel_slack(plan, sectors, detail::lane_floor(plan, state.heights[t]), c);
+    }
+  });
+  const int groups = group_count(grid);
+  state.group_slack.resize(groups);
+  state.group_stage.resize(groups);
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 16), [&](const tbb::blocked_range<int>& range) {
+    for (int group = range.begin(); group < range.end(); ++group) {
+      const GroupRect g = group_rect(grid, group);
+      float group_slack = 1.0f;
+      for (int i = g.i0; i <= g.i1; ++i)
+        for (int j = g.j0; j <= g.j1; ++j) group_slack = std::min(group_slack, state.slack[std::size_t(i) * width + j]);
+      state.group_slack[group] = group_slack;
+      state.group_stage[group] = 1;  // stage A only certifies, and stage L did
+    }
+  });
+  state.slack_stale = false;
+}
+
+BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined, float* out,
+                 const StageTotals* known = nullptr) {
   BakeStats stats;
   stats.mode = Mode::budgeted;
   stats.width = state.grid.width;
   stats.height = state.grid.height;
   stats.sector_count = state.grid.sector_count;
-  // pending texels and the sum of the ratios, in parallel (both are a full pass over the map)
   const int sectors = state.grid.sector_count;
+  if (known) {  // nothing changed since stage L counted them
+    stats.texels_fallback = known->pending;
+    stats.texels_refined = refined;
+    stats.work = clock.work;
+    stats.mean_ratio = known->ratio_sum / double(state.heights.size() * sectors);
+    stats.milliseconds = clock.elapsed();
+    return stats;
+  }
+  // pending texels and the sum of the ratios, in parallel (both are a full pass over the map)
   struct Totals {
     long long pending = 0;
     double ratio_sum = 0.0;
@@ -595,19 +710,17 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   check_view(state, heights, out);
   const float keep = keep_of(budget);
   Clock clock(budget);
-  set_heights(state, heights);
-  const int groups = group_count(state.grid);
-  state.slack.assign(state.heights.size(), 0.0f);
-  state.upper.assign(state.heights.size() * state.grid.sector_count, 1.0f);
-  state.group_slack.assign(groups, 0.0f);
-  state.group_stage.assign(groups, 0);
-  state.cursor = 0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, state.grid.height, 16), [&](const tbb::blocked_range<int>& rows) {
-    stage0_rect(state, rows.begin(), rows.end() - 1, 0, state.grid.width - 1, out.data);
-  });
-  if (!clock.exhausted()) run_sweeps(state, clock, out.data);
+  state.heights.assign(heights.data, heights.data + std::size_t(heights.width) * heights.height);
+  state.search_ready = false;
+  state.upper.clear();  // bounds from real blockers of the previous heights
+  const StageTotals totals = run_stage_l(state, keep, clock, out.data);
+  if (totals.pending == 0) return finish(state, clock, keep, 0, out.data, &totals);
+  ensure_slack(state);
   long long refined = 0;
-  run_refinement(state, clock, keep, out.data, refined);
+  if (!clock.exhausted()) {
+    ensure_search_state(state);
+    run_refinement(state, clock, keep, out.data, refined);
+  }
   return finish(state, clock, keep, refined, out.data);
 }
 
@@ -619,6 +732,8 @@ BakeStats BudgetedBaker::refine(const Budget& budget, ConeView out) {
     throw BakeError("cone map output does not match the baker");
   const float keep = keep_of(budget);
   Clock clock(budget);
+  ensure_slack(state);
+  ensure_search_state(state);
   long long refined = 0;
   run_refinement(state, clock, keep, out.data, refined);
   return finish(state, clock, keep, refined, out.data);
@@ -629,6 +744,7 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
   State& state = *state_;
   if (state.heights.empty()) return bake(heights, budget, out);
   check_view(state, heights, out);
+  ensure_slack(state);  // from the previous frame's stage L, before its heights go
   const float keep = keep_of(budget);
   Clock clock(budget);
   const Grid& grid = state.grid;

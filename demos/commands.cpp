@@ -620,7 +620,7 @@ usage:
       channel). --invert: the image stores depth (1 = deepest). --relaxed bakes relaxed cones
       (sectors 1 or 4). A .png output quantizes the heights to 8 bits before baking so that its
       cones are conservative for the heights it stores. --budget-ms: refinement time per frame
-      (the conservative fallback is always completed). --tolerance T (default 0.1): refine only
+      (the conservative fallback is always completed). --tolerance T (default 0.25): refine only
       while a ratio may be more than T below exact; 0 refines to the exact map. --stats prints one
       JSON line.
 

@@ -48,7 +48,7 @@ struct BakedCones {
   bake::BakeStats stats;
 };
 BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
-                      bake::Address address, double budget_milliseconds, float tolerance = 0.1f);
+                      bake::Address address, double budget_milliseconds, float tolerance = 0.25f);
 
 // The --stats JSON line (no trailing newline).
 std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address);

@@ -53,7 +53,7 @@ struct BakeSettings {
   int sector_count = 4;
   Baker baker = Baker::budgeted;
   double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only
-  float tolerance = 0.1f;  // budgeted only: refine while a ratio may be more than this fraction below exact
+  float tolerance = 0.25f;  // budgeted only: refine while a ratio may be more than this fraction below exact
   bake::Address address = bake::Address::wrap;
   std::filesystem::path output;
   ImageFormat output_format = ImageFormat::exr;

@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "bake/sweep.h"
+#include "bake/lane_sweep.h"
 #include "tests/test_maps.h"
 
 namespace displace::bake {
@@ -353,48 +353,105 @@ TEST(BudgetedBaker, ZeroBudgetFloorIsConservativeOnLargerOddMaps) {
       }
 }
 
-// Stage S on its own: each quadrant sweep is a lower bound of the exact 4-sector ratio of that
-// quadrant, bit for bit, on every hard map, square or not, wrap or clamp; and a stopped sweep leaves
-// the rows it did not reach untouched.
-TEST(QuadrantSweep, LowerBoundsTheExactQuadrantRatio) {
+// Stage L on its own (bake/lane_sweep.cpp): per quadrant, the lane count of every texel gives a
+// ratio at or below the exact 4-sector ratio of that quadrant, bit for bit, and the first lane that
+// fails bounds the exact ratio from above - on every hard map, square or not, wrap or clamp, with and
+// without the knight moves.
+struct LaneRun {
+  detail::LanePlan plan;
+  std::vector<std::uint8_t> counts;
+  long long work = 0;
+  std::uint8_t* plane(int q) { return counts.data() + std::size_t(q) * plan.width * plan.height; }
+};
+
+LaneRun run_lanes(const Map& map, Address address, bool knights, const detail::LaneSweepOptions& options = {},
+                  float lowest = 0.02f) {
+  LaneRun run;
+  detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights, run.plan);
+  run.counts.assign(map.values.size() * 4, 0xff);
+  std::uint8_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
+  const std::uint8_t none[detail::lane_count + 1] = {};
+  run.work = detail::sweep_quadrants(run.plan, map.values.data(), planes, nullptr, none, options).work;
+  return run;
+}
+
+TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
   std::vector<Map> maps = hard_maps();
   maps.push_back(test::make_fractal_cliff(100, 60, 5));
   maps.push_back(test::make_bricks(64, 48));
+  maps.push_back(test::make_spikes(77, 41, 3));
   for (const Map& map : maps)
-    for (Address address : {Address::wrap, Address::clamp}) {
-      const ConeMap exact = exact_of(map, 4, address);
-      const detail::Grid grid(map.width, map.height, 4, address);
-      const auto [low, high] = std::minmax_element(map.values.begin(), map.values.end());
-      double swept_sum = 0.0, exact_sum = 0.0;
-      for (int quadrant = 0; quadrant < 4; ++quadrant) {
-        std::vector<float> swept(map.values.size(), 0.0f);
-        for (int band = 0; band < detail::sweep_band_count; ++band)
-          detail::sweep_quadrant(
-              grid, map.values.data(), *high - *low, quadrant, band, [] { return false; }, swept.data());
-        for (int i = 0; i < map.height; ++i)
-          for (int j = 0; j < map.width; ++j) {
-            const float value = swept[std::size_t(i) * map.width + j];
-            ASSERT_GE(value, 0.0f) << map.name << " quadrant " << quadrant << " texel " << i << "," << j;
-            ASSERT_LE(value, exact.at(i, j, quadrant))
-                << map.name << " " << map.width << "x" << map.height << " " << address_name(address)
-                << " quadrant " << quadrant << " texel " << i << "," << j;
-            swept_sum += value;
-            exact_sum += exact.at(i, j, quadrant);
-          }
+    for (Address address : {Address::wrap, Address::clamp})
+      for (bool knights : {true, false}) {
+        const ConeMap exact = exact_of(map, 4, address);
+        LaneRun run = run_lanes(map, address, knights);
+        double swept_sum = 0.0, exact_sum = 0.0;
+        for (int q = 0; q < 4; ++q)
+          for (int i = 0; i < map.height; ++i)
+            for (int j = 0; j < map.width; ++j) {
+              const int count = run.plane(q)[std::size_t(i) * map.width + j];
+              ASSERT_LE(count, detail::lane_count);
+              const float ratio =
+                  count == 0 ? detail::lane_floor(run.plan, map.values[std::size_t(i) * map.width + j])
+                             : run.plan.lane_ratio[count];
+              const std::string where = map.name + " " + std::to_string(map.width) + "x" +
+                                        std::to_string(map.height) + " " + address_name(address) + " knights " +
+                                        std::to_string(knights) + " quadrant " + std::to_string(q) + " texel " +
+                                        std::to_string(i) + "," + std::to_string(j);
+              ASSERT_GT(ratio, 0.0f) << where;
+              ASSERT_LE(ratio, exact.at(i, j, q)) << where;
+              ASSERT_LE(exact.at(i, j, q), run.plan.lane_upper[count]) << where << " count " << count;
+              swept_sum += ratio;
+              exact_sum += exact.at(i, j, q);
+            }
+        if (map.name == "fractal-cliff" && map.width == 100) {
+          std::printf("lane sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
+                      int(knights), swept_sum / exact_sum);
+          EXPECT_GT(swept_sum, 0.85 * exact_sum);
+        }
       }
-      if (map.name == "fractal-cliff" && map.width == 100) {
-        std::printf("quadrant sweep on %s %s: tightness %.3f\n", map.name.c_str(), address_name(address),
-                    swept_sum / exact_sum);
-        EXPECT_GT(swept_sum, 0.75 * exact_sum);
+}
+
+// The AVX2 and AVX-512 kernels (where this CPU has them) give the generic kernel's counts exactly.
+TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
+  const int best = detail::lane_sweep_best_level();
+  std::printf("lane sweep: best instruction set level here %d\n", best);
+  for (const Map& map : {test::make_fractal_cliff(100, 60, 5), test::make_bricks(64, 48), test::make_spikes(13, 1, 2),
+                         test::make_flat(1, 1)})
+    for (Address address : {Address::wrap, Address::clamp})
+      for (bool knights : {true, false}) {
+        const LaneRun generic = run_lanes(map, address, knights, {0, true});
+        for (int level : {3, 4}) {
+          if (level > best) continue;
+          const LaneRun other = run_lanes(map, address, knights, {level, true});
+          EXPECT_EQ(other.counts, generic.counts) << map.name << " level " << level;
+          EXPECT_EQ(other.work, generic.work) << map.name << " level " << level;
+        }
       }
+}
+
+// The second lap stops where its rows meet the first lap's; what it leaves is what a whole second
+// lap gives, and on a smooth periodic map it does stop early.
+TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
+  Map waves{"waves", 96, 80, std::vector<float>(96 * 80)};
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j)
+      waves.at(i, j) = 0.5f + 0.25f * std::sin(2.0f * std::numbers::pi_v<float> * (3.0f * j / 96.0f + 2.0f * i / 80.0f)) +
+                       0.2f * std::cos(2.0f * std::numbers::pi_v<float> * (5.0f * i / 80.0f - j / 96.0f));
+  std::vector<Map> maps = {waves, test::make_fractal_cliff(100, 60, 5)};
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    maps.push_back(test::make_spikes(20 + int(seed % 7), 9 + int(seed % 5), seed));
+    maps.push_back(test::make_fractal_cliff(12 + int(seed % 9), 7 + int(seed % 4), seed));
+  }
+  for (const Map& map : maps) {
+    const LaneRun early = run_lanes(map, Address::wrap, true, {-1, true});
+    const LaneRun whole = run_lanes(map, Address::wrap, true, {-1, false});
+    EXPECT_EQ(early.counts, whole.counts) << map.name;
+    EXPECT_LE(early.work, whole.work) << map.name;
+    if (map.name == "waves") {
+      EXPECT_LT(early.work, whole.work * 3 / 4) << "the second lap should stop early";
     }
-  // stopped at once: nothing written
-  const Map map = test::make_bricks(32, 32);
-  std::vector<float> swept(map.values.size(), -1.0f);
-  detail::sweep_quadrant(
-      detail::Grid(32, 32, 4, Address::wrap), map.values.data(), 1.0f, 0, 0, [] { return true; },
-      swept.data());
-  for (float v : swept) EXPECT_EQ(v, -1.0f);
+  }
 }
 
 TEST(BudgetedBaker, UnlimitedWithZeroToleranceIsExact) {
@@ -1261,55 +1318,6 @@ TEST(BilinearCones, RejectsBadInput) {
   EXPECT_NO_THROW(bake_bilinear_cones(view_of(ok), Address::clamp, {ratios.data(), 4, 4, 4}, apex));
   for (float r : ratios) EXPECT_EQ(r, 1.0f);
   for (float h : apex) EXPECT_EQ(h, 0.5f);
-}
-
-// The experimental coarse-grid sweep: never above exact, for every cell size, lane count and near
-// field, on the hard maps (square or not, tiny, flat, partial cells) with wrap and clamp.
-TEST(CoarseSweepBaker, NeverAboveExact) {
-  std::vector<Map> maps = hard_maps();
-  maps.push_back(test::make_fractal_cliff(100, 60, 5));
-  maps.push_back(test::make_bricks(64, 48));
-  maps.push_back(test::make_spikes(77, 41, 3));
-  for (const Map& map : maps)
-    for (Address address : {Address::wrap, Address::clamp}) {
-      const ConeMap exact = exact_of(map, 4, address);
-      for (int cell : {2, 4, 8})
-        for (int lanes : {16, 24, 32})
-          for (NearField near : {NearField::scan, NearField::boxes})
-            for (bool chord : {false, true}) {
-              CoarseSweepSettings settings;
-              settings.chord = chord;
-              settings.cell_size = cell;
-              settings.lane_count = lanes;
-              settings.near_field = near;
-              ConeMap cones = make_cone_map(map, 4);
-              bake_coarse_sweep(view_of(map), address, settings, cones.view());
-              const Violations v = violations(cones, exact);
-              ASSERT_EQ(v.count, 0) << map.name << " " << map.width << "x" << map.height << " "
-                                    << address_name(address) << " cell " << cell << " lanes " << lanes
-                                    << " near " << int(near) << " chord " << chord << " worst x" << v.worst;
-              for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << map.name;
-            }
-    }
-  // 1 and 8 sectors take the quadrants' bounds
-  for (const Map& map : {test::make_fractal_cliff(32, 32), test::make_spikes(24, 24)})
-    for (int sectors : {1, 8}) {
-      ConeMap cones = make_cone_map(map, sectors);
-      bake_coarse_sweep(view_of(map), Address::wrap, {}, cones.view());
-      EXPECT_EQ(violations(cones, exact_of(map, sectors, Address::wrap)).count, 0)
-          << map.name << " " << sectors;
-    }
-}
-
-TEST(CoarseSweepBaker, RejectsBadSettings) {
-  const Map map = test::make_flat(8, 8);
-  ConeMap cones = make_cone_map(map, 4);
-  CoarseSweepSettings settings;
-  settings.cell_size = 1;
-  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
-  settings = {};
-  settings.lane_count = 20;
-  EXPECT_THROW(bake_coarse_sweep(view_of(map), Address::wrap, settings, cones.view()), BakeError);
 }
 
 }  // namespace

@@ -5,8 +5,6 @@
 // ocean frame, sinusoid water and a brick-like map, at 128..1024. `bilinear` (bake_bilinear_cones)
 // bakes another map - cones for the bilinear surface from a texel's whole square, with apex
 // heights - so its tightness is only a comparison of means and it counts no violations.
-// BM_CoarseSweep/<map>/B<cell>/L<lanes>/<near field>[/nochord]/<size> measures the experimental
-// bake_coarse_sweep.
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
@@ -88,13 +86,12 @@ enum class Baker {
   budgeted_zero,
   budgeted_frame,
   budgeted_long,
-  bilinear,
-  coarse_sweep
+  bilinear
 };
 constexpr double frame_budget_ms = 16.0;  // one 60 Hz frame
 constexpr double long_budget_ms = 50.0;   // a 20 Hz update
 
-void run(benchmark::State& state, MapKind kind, Baker baker, bake::CoarseSweepSettings coarse = {}) {
+void run(benchmark::State& state, MapKind kind, Baker baker) {
   const int size = int(state.range(0));
   const Reference& ref = reference(kind, size);
   std::vector<float> cones(ref.exact.size()), apex(ref.heights.size());
@@ -110,7 +107,6 @@ void run(benchmark::State& state, MapKind kind, Baker baker, bake::CoarseSweepSe
       case Baker::bilinear:
         stats = bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex);
         break;
-      case Baker::coarse_sweep: stats = bake::bake_coarse_sweep(heights, bake::Address::wrap, coarse, out); break;
       case Baker::paper_adaptive:
         stats = bake::bake_paper_adaptive(heights, bake::Address::wrap, {}, out);
         break;
@@ -159,28 +155,6 @@ struct Registration {
           b->Arg(size)->Unit(benchmark::kMillisecond)->UseRealTime();
           if (baker == Baker::original || baker == Baker::exact) b->Iterations(1);
         }
-    // experimental coarse-grid sweep: BM_CoarseSweep/<map>/B<cell>/L<lanes>/<near>/<size>
-    for (MapKind kind : {MapKind::ocean, MapKind::bricks})
-      for (int cell : {2, 4, 8})
-        for (int lanes : {16, 24, 32})
-          for (bake::NearField near : {bake::NearField::scan, bake::NearField::boxes}) {
-            bake::CoarseSweepSettings coarse;
-            coarse.cell_size = cell;
-            coarse.lane_count = lanes;
-            coarse.near_field = near;
-            const std::string name = std::string("BM_CoarseSweep/") + kind_name(kind) + "/B" + std::to_string(cell) +
-                                     "/L" + std::to_string(lanes) + "/" +
-                                     (near == bake::NearField::scan ? "scan" : "boxes");
-            auto* b = benchmark::RegisterBenchmark(
-                name.c_str(), [kind, coarse](benchmark::State& state) { run(state, kind, Baker::coarse_sweep, coarse); });
-            b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
-            if (lanes != 24) continue;
-            coarse.chord = false;  // lanes only, no chord between them
-            auto* plain = benchmark::RegisterBenchmark(
-                (name + "/nochord").c_str(),
-                [kind, coarse](benchmark::State& state) { run(state, kind, Baker::coarse_sweep, coarse); });
-            plain->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
-          }
   }
 } registration;
 

@@ -1,0 +1,250 @@
+// bake/lane_sweep.cpp - stage L of the budgeted baker: conservative quadrant cone ratios for every
+// texel from four dilation sweeps, each testing 32 ratio lanes at once in 16-bit integers.
+//
+// The test. For a ratio r and a quadrant of directions, texel c's ratio is at least r when no
+// blocker q in the quadrant rises above c's cone: h(q) - d(c, q) / r <= h(c) for all q, that is
+// when the dilation E_r(c) = max over q != c of (h(q) - d(c, q) / r) is at most h(c).
+//
+// The sweep. Replace d by a chamfer distance: the cheapest path from q to c made of the moves
+// (da, db) = (0, 1), (1, 0), (1, 1), (1, 2), (2, 1) - all pointing into the quadrant, so every path
+// stays in it and every texel of the closed quadrant is reached (consecutive moves span unimodular
+// cones). Each move costs its uv length times `scale`, the cosine of half the widest angle between
+// neighbouring moves (0.973 on a square map; cos 22.5 deg = 0.924 without the knight moves), which
+// keeps every path's cost at or below the straight line. The dilation then obeys a recurrence over
+// the two rows below and the texel before in the row, so one pass over the map - rows in the
+// quadrant's order - evaluates it for every texel, for all 32 lanes at once in one 512-bit (or two
+// 256-bit) registers of unsigned 16-bit values.
+//
+// Why it is conservative. Heights are rounded up for blockers (top) and down for the tested texel
+// (bottom), every step is rounded down, and a saturating subtraction never goes below 0, which only
+// raises the dilation; every blocker of the quadrant within uv distance 1 is reached by a path whose
+// cost is at most its distance. So a lane that passes proves the exact ratio is at least that lane;
+// what is emitted is the lane times (1 - 1e-5), which covers the exact baker's own rounding.
+//
+// Wrap. A texel's blockers reach a whole map beyond the seam. Along a row, a fix-up pass carries the
+// row's end round to its start and stops at the first texel it does not change. Across rows, the
+// sweep goes on past the map's last row into a second lap, which re-tests rows until it meets the
+// first lap's values again (the kernel says how that is detected exactly); on the ocean that is
+// about a third of the map.
+//
+// Upper bounds. Every source of a dilation is a real texel, so a lane that fails bounds the exact
+// ratio from above, up to the rounding above and the chamfer's scale: see make_lane_plan. That
+// certifies how loose each ratio may be, so the refinement stages can skip the texels that are
+// already close enough.
+#include "bake/lane_sweep.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/parallel_invoke.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <new>
+#include <vector>
+
+namespace displace::bake::detail {
+
+std::size_t lane_sweep_scratch(int width) { return 2 * (std::size_t(width) + 2) * lane_count; }
+
+float lane_floor(const LanePlan& plan, float h) {
+  if (!(h < plan.highest)) return 1.0f;
+  const float floor = plan.nearest / (plan.highest - h) * (1.0f - 1e-5f);
+  return floor < 1.0f ? floor : 1.0f;
+}
+
+int lane_sweep_best_level() {
+#if defined(DISPLACE_LANE_SWEEP_X86)
+  static const int level = __builtin_cpu_supports("x86-64-v4") ? 4 : __builtin_cpu_supports("x86-64-v3") ? 3 : 0;
+  return level;
+#else
+  return 0;
+#endif
+}
+
+void lane_sweep(LaneSweepJob& job) {
+#if defined(DISPLACE_LANE_SWEEP_X86)
+  const int level = lane_sweep_best_level();
+  if (level == 4) return lane_sweep_avx512(job);
+  if (level == 3) return lane_sweep_avx2(job);
+#endif
+  lane_sweep_generic(job);
+}
+
+#if !defined(DISPLACE_LANE_SWEEP_X86)
+void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
+void lane_sweep_avx512(LaneSweepJob& job) { lane_sweep_generic(job); }
+#endif
+
+void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
+                    LanePlan& plan) {
+  plan.width = width;
+  plan.height = height;
+  plan.wrap = wrap;
+  plan.knights = knights;
+  const std::size_t count = std::size_t(width) * height;
+  plan.top.resize(count);
+  plan.bottom.resize(count);
+  // h * 65535 in float is within 2^-8 of the real product (below 2^16 a float's unit in the last
+  // place is 2^-7), so moving it by 2^-7 before truncating rounds the right way; top and bottom are
+  // within 1.016 of 65535 h
+  std::uint16_t* top = plan.top.data();
+  std::uint16_t* bottom = plan.bottom.data();
+  // the extremes as bit patterns: for heights in [0, 1] (with -0 masked to 0) their order is the
+  // floats' order, and the integer loop vectorises
+  struct Extremes {
+    std::int32_t low = 0x7fffffff, high = 0;
+  };
+  const Extremes extremes = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, count, 1 << 15), Extremes{},
+      [&](const tbb::blocked_range<std::size_t>& range, Extremes found) {
+        for (std::size_t n = range.begin(); n < range.end(); ++n) {
+          const float scaled = heights[n] * float(height_scale);
+          const int up = int(scaled + 0x1p-7f) + 1, down = int(scaled - 0x1p-7f);
+          top[n] = std::uint16_t(up < 65535 ? up : 65535);
+          bottom[n] = std::uint16_t(down > 0 ? down : 0);
+          std::int32_t bits;
+          std::memcpy(&bits, &heights[n], sizeof bits);
+          bits &= 0x7fffffff;
+          found.low = bits < found.low ? bits : found.low;
+          found.high = bits > found.high ? bits : found.high;
+        }
+        return found;
+      },
+      [](Extremes a, const Extremes& b) {
+        a.low = std::min(a.low, b.low);
+        a.high = std::max(a.high, b.high);
+        return a;
+      });
+  float lowest_height;
+  std::memcpy(&plan.highest, &extremes.high, sizeof(float));
+  std::memcpy(&lowest_height, &extremes.low, sizeof(float));
+  plan.nearest = 1.0f / float(std::max(width, height));
+
+  // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
+  // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
+  // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
+  // every texel within 0.75 of exact (make_lane_plan's upper bounds); above it the rest share the
+  // range evenly, since the large ratios are the ones that decide how far a ray steps.
+  const double range = double(plan.highest) - double(lowest_height);
+  const double lowest_lane =
+      range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio)) : double(lowest_ratio);
+  const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28;
+  const int low_lanes = std::min(lane_count / 2, int(std::ceil(std::log(knee / lowest_lane) / std::log(low_spacing))));
+  const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
+  double slope[lane_count];
+  plan.lane_ratio[0] = 0.0f;
+  for (int l = 0; l < lane_count; ++l) {
+    const double ratio = l <= low_lanes ? lowest_lane * std::pow(low_spacing, l)
+                                        : knee_lane * std::pow(highest_lane / knee_lane, double(l - low_lanes) / (lane_count - 1 - low_lanes));
+    slope[l] = 1.0 / ratio;
+    // emitted a little below the lane, for the rounding of the exact baker's own division
+    plan.lane_ratio[l + 1] = float(std::min(1.0, ratio * (1.0 - 1e-5)));
+  }
+
+  // moves (da, db) and their uv lengths; the chamfer scale is the cosine of half the widest angle
+  // between neighbouring moves (in uv, so non-square maps get their own)
+  const int moves[lane_move_count][2] = {{0, 1}, {1, 0}, {1, 1}, {1, 2}, {2, 1}};
+  double length[lane_move_count], angle[lane_move_count];
+  for (int m = 0; m < lane_move_count; ++m) {
+    const double du = double(moves[m][1]) / width, dv = double(moves[m][0]) / height;
+    length[m] = std::sqrt(du * du + dv * dv);
+    angle[m] = std::atan2(dv, du);
+  }
+  // by angle from the row: (0, 1), (1, 2), (1, 1), (2, 1), (1, 0); without knights (0, 1), (1, 1), (1, 0)
+  const int with_knights[] = {0, 3, 2, 4, 1}, without[] = {0, 2, 1};
+  const int* order = knights ? with_knights : without;
+  const int used = knights ? 5 : 3;
+  double scale = 1.0;
+  for (int k = 0; k + 1 < used; ++k) scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
+  scale *= 1.0 - 1e-9;
+  for (int m = 0; m < lane_move_count; ++m)
+    for (int l = 0; l < lane_count; ++l) {
+      const double step = std::floor(scale * length[m] * slope[l] * height_scale);
+      plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
+    }
+
+  // Upper bounds. Lane l (ratio r) fails when some path P of moves from a real blocker q has
+  // top(q) - (sum of its steps) > bottom(c), so top(q) - sum >= bottom(c) + 1. A move of uv length
+  // len costs scale * len * 65535 / r less the fraction its rounding dropped, and that fraction is at
+  // most lambda * len * M (M = the larger side; lambda the largest dropped fraction per texel of
+  // length over the moves, per lane); P is no shorter than the straight line (length d); top is at
+  // most 65535 h + 1.016 and bottom at least 65535 h - 1.016. Together, with d >= 1 / M:
+  // gap > d * (scale / r - (lambda + 1.032) * M / 65535), so the exact ratio is below the inverse of
+  // that bracket when it is positive. (Such a q is within uv distance 1 whenever the bound is below
+  // 1, so the exact baker counts it.) A move whose step is the whole height range leaves nothing
+  // behind it, so it is on no failing path and does not count.
+  const double sides = double(std::max(width, height));
+  for (int p = 0; p < lane_count; ++p) {
+    double lambda = 0.0;
+    for (int m = 0; m < lane_move_count; ++m) {
+      if (!knights && m >= 3) continue;
+      const double exact_step = scale * length[m] * slope[p] * height_scale;
+      if (exact_step >= height_scale) continue;  // such a move leaves 0: it is on no failing path
+      const double dropped = exact_step - double(plan.steps[m * lane_count + p]);
+      lambda = std::max(lambda, dropped / (length[m] * sides));
+    }
+    const double bracket = scale * slope[p] - (lambda + 1.032) * sides / height_scale;
+    plan.lane_upper[p] = bracket > 0.0 ? float(std::min(1.0, (1.0 + 1e-5) / bracket)) : 1.0f;
+  }
+  plan.lane_upper[lane_count] = 1.0f;
+}
+
+LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint8_t* const counts[4], float* out4,
+                                const std::uint8_t* pending_count, const LaneSweepOptions& options) {
+  LaneSweepJob jobs[4];
+  for (int quadrant = 0; quadrant < 4; ++quadrant) {
+    LaneSweepJob& job = jobs[quadrant];
+    job.width = plan.width;
+    job.height = plan.height;
+    job.wrap = plan.wrap;
+    job.knights = plan.knights;
+    // quadrant q holds the blockers of sector q: 0 = +u +v, 1 = -u +v, 2 = -u -v, 3 = +u -v
+    job.flip_x = quadrant == 1 || quadrant == 2;
+    job.flip_y = quadrant >= 2;
+    job.top = plan.top.data();
+    job.bottom = plan.bottom.data();
+    job.steps = plan.steps;
+    job.counts = counts[quadrant];
+    job.out = out4;
+    job.quadrant = quadrant;
+    job.lane_ratio = plan.lane_ratio;
+    job.pending_count = pending_count;
+    job.stop_early = options.stop_early;
+    job.heights = heights;
+    job.highest = plan.highest;
+    job.nearest = plan.nearest;
+  }
+  // Two threads, each sweeping two quadrants in turn: quadrants 0 and 1 go up the map and 2 and 3
+  // down it, so the two running at a time (0 with 2, then 1 with 3) meet only once, in the middle,
+  // on the cache lines of the interleaved output.
+  auto run_pair = [&](int first) {
+    struct Free {
+      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
+    };
+    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
+        ::operator new[](lane_sweep_scratch(plan.width) * sizeof(std::uint16_t), std::align_val_t(64))));
+    std::vector<long long> row_sums(plan.height / 2 + 2);
+    for (int quadrant : {first, first + 1}) {
+      jobs[quadrant].scratch = scratch.get();
+      jobs[quadrant].row_sums = row_sums.data();
+      switch (options.level) {
+        case 0: lane_sweep_generic(jobs[quadrant]); break;
+        case 3: lane_sweep_avx2(jobs[quadrant]); break;
+        case 4: lane_sweep_avx512(jobs[quadrant]); break;
+        default: lane_sweep(jobs[quadrant]);
+      }
+    }
+  };
+  tbb::parallel_invoke([&] { run_pair(0); }, [&] { run_pair(2); });
+  LaneSweepTotals totals;
+  for (const LaneSweepJob& job : jobs) {
+    totals.ratio_sum += job.ratio_sum;
+    totals.pending += job.pending;
+    totals.work += job.work;
+  }
+  return totals;
+}
+
+}  // namespace displace::bake::detail

@@ -1,0 +1,94 @@
+// bake/lane_sweep.h - quadrant cone ratios from chamfer dilation sweeps over 32 ratio lanes in 16-bit
+// integers: the budgeted baker's stage L (internal to bake/; the method and its proofs are in
+// lane_sweep.cpp).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace displace::bake::detail {
+
+constexpr int lane_count = 32;               // ratio lanes tested per sweep
+constexpr int lane_move_count = 5;           // chamfer moves: along the row, across it, diagonal, two knight moves
+constexpr double height_scale = 65535.0;     // heights and dilations are in units of 1 / 65535
+
+// One quadrant sweep. The map is seen from the quadrant: local (a, b) is physical row
+// flip_y ? H - 1 - a : a, column flip_x ? W - 1 - b : b, and the quadrant's blockers of local texel
+// (a, b) are the texels (a + da, b + db) with da, db >= 0.
+struct LaneSweepJob {
+  int width = 0, height = 0;
+  bool wrap = true;
+  bool flip_x = false, flip_y = false;
+  bool knights = true;                    // moves 3 and 4 (else only 0 to 2, with their own steps)
+  const std::uint16_t* top = nullptr;     // ceil(h * 65535) or a little above, physical row-major
+  const std::uint16_t* bottom = nullptr;  // floor(h * 65535) or a little below, physical row-major
+  // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down. Moves
+  // (da, db): 0 = (0, 1), 1 = (1, 0), 2 = (1, 1), 3 = (1, 2), 4 = (2, 1).
+  const std::uint16_t* steps = nullptr;
+  std::uint16_t* scratch = nullptr;   // lane_sweep_scratch(width) values, 64-byte aligned
+  long long* row_sums = nullptr;      // height / 2 + 2 values
+  // out: per physical texel, the count of lanes that pass (lanes pass from the lowest up). The first
+  // lane that fails (if any) failed on a real blocker, so it bounds the exact ratio from above.
+  std::uint8_t* counts = nullptr;
+  // optional, for 4 sectors: out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane
+  // (1 texel) / (highest - h), the bound no blocker can beat (LanePlan::floor); the sum of what it
+  // wrote goes to ratio_sum, and the sum of pending_count[count] to pending
+  float* out = nullptr;
+  int quadrant = 0;
+  const float* lane_ratio = nullptr;            // lane_count + 1 entries
+  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
+  const float* heights = nullptr;
+  float highest = 0.0f, nearest = 0.0f;  // largest height; uv distance to the nearest other texel
+  double ratio_sum = 0.0;
+  long long pending = 0;
+  bool stop_early = true;  // the second lap stops where it meets the first (false: tests only)
+  long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
+};
+
+std::size_t lane_sweep_scratch(int width);
+
+// The same kernel compiled for three instruction sets; lane_sweep picks the best the CPU runs.
+void lane_sweep_generic(LaneSweepJob& job);
+void lane_sweep_avx2(LaneSweepJob& job);
+void lane_sweep_avx512(LaneSweepJob& job);
+void lane_sweep(LaneSweepJob& job);
+// 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run.
+int lane_sweep_best_level();
+
+// Lane ratios, steps and 16-bit heights for a map; built once per frame, shared by the four sweeps.
+struct LanePlan {
+  int width = 0, height = 0;
+  bool wrap = true;
+  bool knights = true;
+  std::vector<std::uint16_t> top, bottom;
+  float highest = 0.0f;  // the largest height
+  float nearest = 0.0f;  // uv distance between a texel and its nearest neighbour
+  alignas(64) std::uint16_t steps[lane_move_count * lane_count];
+  float lane_ratio[lane_count + 1];  // [count]: the ratio that count passing lanes prove (0 for none)
+  // [count]: when lane `count` failed on a real blocker, the exact ratio is below this (1 for all)
+  float lane_upper[lane_count + 1];
+};
+// Geometric lanes to just above 1, from min(lowest_ratio, the smallest ratio the map can have).
+void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
+                    LanePlan& plan);
+
+// The floor below the lowest lane: (1 texel) / (highest - h), rounded down; 1 for the highest texels.
+// (The kernel computes the same, written out, for its 4-sector output.)
+float lane_floor(const LanePlan& plan, float h);
+
+struct LaneSweepTotals {
+  double ratio_sum = 0.0;  // of the ratios written to out4
+  long long pending = 0;   // of pending_count over the quadrant texels
+  long long work = 0;
+};
+// The four quadrant sweeps, on two threads: quadrant q's lane counts go to counts[q]; with out4
+// (4 sectors) the ratios go there too, and pending_count (lane_count + 1 entries) is summed.
+// Tests pick the instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
+struct LaneSweepOptions {
+  int level = -1;
+  bool stop_early = true;
+};
+LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint8_t* const counts[4], float* out4,
+                                const std::uint8_t* pending_count, const LaneSweepOptions& options = {});
+
+}  // namespace displace::bake::detail

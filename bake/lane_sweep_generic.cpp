@@ -1,0 +1,44 @@
+// bake/lane_sweep_generic.cpp - the lane sweep for any CPU: 32 lanes as a GCC/Clang vector type,
+// which the compiler maps onto whatever vector unit the baseline target has.
+// the vector type never crosses a function boundary that another translation unit sees
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+#include "bake/lane_sweep.h"
+
+namespace displace::bake::detail {
+namespace {
+
+struct Ops {
+  typedef std::uint16_t V __attribute__((vector_size(64), aligned(64)));
+  static V load(const std::uint16_t* p) { return *reinterpret_cast<const V*>(p); }
+  static void store(std::uint16_t* p, V v) { *reinterpret_cast<V*>(p) = v; }
+  static V broadcast(std::uint16_t x) { return V{} + x; }
+  static V max(V a, V b) { return a > b ? a : b; }
+  static V subs(V a, V b) { return max(a, b) - b; }
+  static bool same(V a, V b) {
+    for (int l = 0; l < lane_count; ++l)
+      if (a[l] != b[l]) return false;
+    return true;
+  }
+  static unsigned mask_at_most(V a, V b) {
+    unsigned mask = 0;
+    for (int l = 0; l < lane_count; ++l) mask |= unsigned(a[l] <= b[l]) << l;
+    return mask;
+  }
+  static long long sum(const std::uint16_t* p, int texels) {
+    long long total = 0;
+    for (std::size_t n = 0; n < std::size_t(texels) * lane_count; ++n) total += p[n];
+    return total;
+  }
+};
+
+}  // namespace
+}  // namespace displace::bake::detail
+
+#include "bake/lane_sweep_kernel.h"
+
+namespace displace::bake::detail {
+
+void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+
+}  // namespace displace::bake::detail

@@ -1,0 +1,179 @@
+// bake/lane_sweep_kernel.h - the quadrant sweep of lane_sweep.cpp, written once over a lane type.
+//
+// Included by one translation unit per instruction set, after it defines its Ops inside an unnamed
+// namespace; everything here is in that unnamed namespace too and uses no standard-library
+// templates, so that no function compiled for one instruction set is shared with a translation
+// unit built for another.
+//
+// Ops provides, for V = 32 unsigned 16-bit lanes:
+//   static V load(const std::uint16_t* p);    p 64-byte aligned
+//   static void store(std::uint16_t* p, V v);
+//   static V broadcast(std::uint16_t x);
+//   static V max(V a, V b);
+//   static V subs(V a, V b);                  saturating a - b
+//   static bool same(V a, V b);               every lane equal
+//   static unsigned mask_at_most(V a, V b);   bit l set where lane l of a <= lane l of b
+//   static long long sum(const std::uint16_t* p, int texels);  the sum of texels * 32 values
+#pragma once
+
+#include <cstdint>
+
+#include "bake/lane_sweep.h"
+
+namespace displace::bake::detail {
+namespace {
+
+constexpr int lane_stride = lane_count;  // u16 per texel in a row buffer
+
+template <class Ops, bool knights>
+void sweep_kernel(LaneSweepJob& job) {
+  using V = typename Ops::V;
+  const int W = job.width, H = job.height;
+  const bool wrap = job.wrap;
+  const bool flip_x = job.flip_x;
+  const std::size_t row_values = std::size_t(W + 2) * lane_stride;  // two padding texels past the end
+  // Two row buffers: local rows a + 1 and a + 2. Row a is written over row a + 2 as the sweep goes
+  // (each texel of row a + 2 is read once more, one texel later, so it is kept in a register), and
+  // the two then swap roles. Nothing lies below the first row swept.
+  std::uint16_t* below1 = job.scratch;
+  std::uint16_t* below2 = below1 + row_values;
+  for (std::size_t n = 0; n < 2 * row_values; ++n) job.scratch[n] = 0;
+
+  const V step_row = Ops::load(job.steps + 0 * lane_count);
+  const V step_up = Ops::load(job.steps + 1 * lane_count);
+  const V step_diagonal = Ops::load(job.steps + 2 * lane_count);
+  const V step_knight_row = Ops::load(job.steps + 3 * lane_count);
+  const V step_knight_up = Ops::load(job.steps + 4 * lane_count);
+  const V nothing = Ops::broadcast(0);
+
+  // With wrap, the first lap's rows miss the blockers past the seam; its last two rows miss none
+  // within uv distance 1, so a second lap from them sweeps the map again with everything. Dilations
+  // only grow from the first lap to the second, so a row of the second lap equals the first lap's
+  // exactly when their sums are equal; after two equal rows in a row, every later row is equal too
+  // (a row depends only on the two below it), and the first lap's counts there stand. The first
+  // lap's sums are kept for the rows the second lap may reach before that; past them it goes on to
+  // the end of the map.
+  const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
+  long long* row_sums = job.row_sums;
+  int equal_rows = 0;
+  long long work = 0;
+  const int swept_rows = wrap ? 2 * H : H;
+  for (int step = 0; step < swept_rows; ++step) {
+    const bool second_lap = step >= H;
+    const int a = H - 1 - (step % H);
+    const int physical_row = job.flip_y ? H - 1 - a : a;
+    const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
+    const std::uint16_t* bottom_row = job.bottom + std::size_t(physical_row) * W;
+    std::uint8_t* count_row = job.counts + std::size_t(physical_row) * W;
+    const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
+
+    // The row from its last texel to its first. A texel's dilation over its blockers e comes from
+    // the two rows below and from the texel after it (carry); with the texel itself it is what the
+    // texels before it see. The texel passes lane l when nothing in the quadrant rises above its
+    // cone of ratio lane l; lanes pass from the smallest ratio up, so the count of lanes that pass
+    // says which. Row a + 1's texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers
+    // from the texels before.
+    V carry = nothing;
+    V next1 = Ops::load(below1 + std::size_t(W) * lane_stride), next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
+    V knight_source = knights ? Ops::load(below2 + std::size_t(W) * lane_stride) : nothing;
+    for (int b = W - 1; b >= 0; --b) {
+      const V here = Ops::load(below1 + std::size_t(b) * lane_stride);
+      std::uint16_t* target = below2 + std::size_t(b) * lane_stride;
+      V e = Ops::max(Ops::subs(here, step_up), Ops::subs(next1, step_diagonal));
+      if (knights) {
+        e = Ops::max(e, Ops::subs(next2, step_knight_row));
+        e = Ops::max(e, Ops::subs(knight_source, step_knight_up));
+        knight_source = Ops::load(target);
+      }
+      e = Ops::max(e, carry);
+      const int column = first + stride * b;
+      const V d = Ops::max(e, Ops::broadcast(top_row[column]));
+      Ops::store(target, d);
+      count_row[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(e, Ops::broadcast(bottom_row[column]))));
+      carry = Ops::subs(d, step_row);
+      next2 = next1;
+      next1 = here;
+    }
+    work += W;
+    if (wrap) {
+      // Blockers past the row's first texel come round from its last: at most one more lap. A
+      // texel's dilation over blockers becomes max(old, carry), and so does its dilation with
+      // itself; a lane passes now when it passed before and the carry passes it. Once the carry
+      // does not raise a texel's dilation, nothing after it changes.
+      for (int b = W - 1; b >= 0; --b) {
+        std::uint16_t* target = below2 + std::size_t(b) * lane_stride;
+        const V old_d = Ops::load(target);
+        const V d = Ops::max(old_d, carry);
+        const int column = first + stride * b;
+        const int passed = __builtin_popcount(Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column])));
+        if (passed < count_row[column]) count_row[column] = std::uint8_t(passed);
+        ++work;
+        if (Ops::same(d, old_d)) break;
+        Ops::store(target, d);
+        carry = Ops::subs(d, step_row);
+      }
+      for (int k = 0; k < 2; ++k)
+        Ops::store(below2 + std::size_t(W + k) * lane_stride, Ops::load(below2 + std::size_t(k % W) * lane_stride));
+    } else {
+      Ops::store(below2 + std::size_t(W) * lane_stride, nothing);
+      Ops::store(below2 + std::size_t(W + 1) * lane_stride, nothing);
+    }
+
+    const int lap_row = step % H;  // rows into the lap
+    if (lap_row < tracked) {
+      const long long row_sum = Ops::sum(below2, W);
+      if (!second_lap) {
+        row_sums[lap_row] = row_sum;
+      } else {
+        equal_rows = row_sum == row_sums[lap_row] ? equal_rows + 1 : 0;
+        if (equal_rows == 2 && job.stop_early) break;
+      }
+    }
+    std::uint16_t* done = below2;  // now row a
+    below2 = below1;
+    below1 = done;
+  }
+  job.work = work;
+
+  if (job.out) {
+    double ratio_sum = 0.0;
+    long long pending = 0;
+    for (int i = 0; i < H; ++i) {
+      const std::uint8_t* count_row = job.counts + std::size_t(i) * W;
+      const float* height_row = job.heights + std::size_t(i) * W;
+      float* out = job.out + std::size_t(i) * W * 4 + job.quadrant;
+      float partial[4] = {0.0f, 0.0f, 0.0f, 0.0f};  // four sums, so that the adds do not wait on each other
+      int row_pending = 0;
+      for (int j = 0; j < W; ++j) {
+        const int passed = count_row[j];
+        float ratio = job.lane_ratio[passed];
+        if (passed == 0) {  // below the lowest lane: the floor (lane_floor)
+          const float h = height_row[j];
+          ratio = 1.0f;
+          if (h < job.highest) {
+            const float floor = job.nearest / (job.highest - h) * (1.0f - 1e-5f);
+            ratio = floor < 1.0f ? floor : 1.0f;
+          }
+        }
+        out[std::size_t(j) * 4] = ratio;
+        partial[j & 3] += ratio;
+        row_pending += job.pending_count[passed];
+      }
+      ratio_sum += double(partial[0] + partial[1]) + double(partial[2] + partial[3]);
+      pending += row_pending;
+    }
+    job.ratio_sum = ratio_sum;
+    job.pending = pending;
+  }
+}
+
+template <class Ops>
+void sweep_kernel(LaneSweepJob& job) {
+  if (job.knights)
+    sweep_kernel<Ops, true>(job);
+  else
+    sweep_kernel<Ops, false>(job);
+}
+
+}  // namespace
+}  // namespace displace::bake::detail
