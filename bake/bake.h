@@ -61,7 +61,7 @@ struct BakeStats {
   Mode mode = Mode::exact;
   int width = 0, height = 0, sector_count = 0;
   long long texels_refined = 0;   // texels whose ratios came from a search at full resolution
-  long long texels_fallback = 0;  // texels left with a conservative ratio from coarser levels
+  long long texels_fallback = 0;  // budgeted: texels whose ratio may still be looser than the tolerance
   long long work = 0;             // blocker tests: texel pairs plus pyramid nodes examined
   double milliseconds = 0.0;      // measured with the budget's clock (steady clock if none)
   double mean_ratio = 0.0;        // over all texels and sectors
@@ -101,7 +101,8 @@ BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAd
 // units (see BakeStats::work) are spent - a deterministic budget for tests.
 // tolerance: a texel is refined only while its conservative ratio may be below (1 - tolerance) times
 // its exact ratio; every texel that refinement reaches is guaranteed within that factor of exact.
-// Tolerance 0 refines to the exact map.
+// The default, 0.25, is what the always-completed lane sweeps certify for 4 sectors (so an
+// unlimited budget ends with them); tolerance 0 refines to the exact map.
 struct Budget {
   double milliseconds = std::numeric_limits<double>::infinity();
   std::function<double()> clock;
@@ -109,9 +110,11 @@ struct Budget {
   float tolerance = 0.25f;
 };
 
-// The product baker: hierarchical and adaptive, every emitted ratio is a lower bound of the exact
-// ratio at every budget (including zero), refinement continues across calls, and update() rebakes
-// only what a dirty region can have changed. Holds the state between frames.
+// The product baker: every emitted ratio is a lower bound of the exact ratio at every budget
+// (including zero). bake() always completes stage L - conservative lane sweeps over the whole map
+// that also certify how loose each ratio may be - then refines hierarchically (max pyramid) the
+// texels not yet within the tolerance while the budget lasts; refinement continues across calls,
+// and update() rebakes only what a dirty region can have changed. Holds the state between frames.
 class BudgetedBaker {
  public:
   BudgetedBaker(int width, int height, int sector_count, Address address);

@@ -170,9 +170,9 @@ struct BudgetedBaker::State {
   int cursor = 0;  // next group the refinement looks at
   // stage L: the lane plan of the current heights and, per quadrant and texel, the lane count
   detail::LanePlan lanes;
-  std::vector<std::uint8_t> lane_counts;
+  std::vector<std::uint32_t> lane_masks;
   bool search_ready = false;  // pyramid, roots and stage 0's tables match the heights
-  bool slack_stale = false;   // slack and group_slack still to be derived from lane_counts
+  bool slack_stale = false;   // slack and group_slack still to be derived from lane_masks
   State(int w, int h, int sectors, Address address) : grid(w, h, sectors, address) {}
 };
 
@@ -558,7 +558,7 @@ struct StageTotals {
 
 // Slack of a texel from its four lane counts: the emitted ratio's share of the certified upper
 // bound of the exact one.
-float texel_slack(const detail::LanePlan& plan, int sectors, float floor, const std::uint8_t c[4]) {
+float texel_slack(const detail::LanePlan& plan, int sectors, float floor, const int c[4]) {
   if (sectors == 8) return 0.0f;
   float slack = 1.0f, smallest = 1.0f, lowest_upper = 1.0f;
   for (int q = 0; q < 4; ++q) {
@@ -578,16 +578,16 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   detail::LanePlan& plan = state.lanes;
   detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap, lane_lowest_ratio,
                          lane_knights, plan);
-  state.lane_counts.resize(4 * count);
-  std::uint8_t* const counts[4] = {&state.lane_counts[0], &state.lane_counts[count], &state.lane_counts[2 * count],
-                                   &state.lane_counts[3 * count]};
+  state.lane_masks.resize(4 * count);
+  std::uint32_t* const masks[4] = {&state.lane_masks[0], &state.lane_masks[count], &state.lane_masks[2 * count],
+                                   &state.lane_masks[3 * count]};
   // lane counts that may leave a quadrant looser than keep (below the lowest lane the floor may
   // still be close enough: ensure_slack looks at those texels closely)
   std::uint8_t pending_count[detail::lane_count + 1];
   for (int p = 0; p <= detail::lane_count; ++p)
     pending_count[p] = !(p > 0 && plan.lane_ratio[p] / plan.lane_upper[p] >= keep);
   const detail::LaneSweepTotals swept =
-      detail::sweep_quadrants(plan, state.heights.data(), counts, sectors == 4 ? out : nullptr, pending_count);
+      detail::sweep_quadrants(plan, state.heights.data(), masks, sectors == 4 ? out : nullptr, pending_count);
   clock.work += swept.work;
   state.slack_stale = true;
   state.cursor = 0;
@@ -603,7 +603,7 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
             const float floor = detail::lane_floor(plan, state.heights[t]);
             float quadrant[4];
             for (int q = 0; q < 4; ++q) {
-              const std::uint8_t c = counts[q][t];
+              const int c = detail::lanes_passed(masks[q][t]);
               quadrant[q] = c == 0 ? floor : plan.lane_ratio[c];
               partial.pending += pending_count[c] || sectors == 8;
             }
@@ -626,7 +626,7 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   return totals;
 }
 
-// Per texel and group, the slack that stage L's count bytes certify (what refinement and pending()
+// Per texel and group, the slack that stage L's lane masks certify (what refinement and pending()
 // read), computed only when something needs it.
 void ensure_slack(BudgetedBaker::State& state) {
   if (!state.slack_stale) return;
@@ -637,8 +637,8 @@ void ensure_slack(BudgetedBaker::State& state) {
   state.slack.resize(count);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t t = r.begin(); t < r.end(); ++t) {
-      const std::uint8_t c[4] = {state.lane_counts[t], state.lane_counts[count + t], state.lane_counts[2 * count + t],
-                                 state.lane_counts[3 * count + t]};
+      int c[4];
+      for (int q = 0; q < 4; ++q) c[q] = detail::lanes_passed(state.lane_masks[q * count + t]);
       state.slack[t] = texel_slack(plan, sectors, detail::lane_floor(plan, state.heights[t]), c);
     }
   });

@@ -35,7 +35,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
-#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -63,18 +63,11 @@ int lane_sweep_best_level() {
 #endif
 }
 
-void lane_sweep(LaneSweepJob& job) {
-#if defined(DISPLACE_LANE_SWEEP_X86)
-  const int level = lane_sweep_best_level();
-  if (level == 4) return lane_sweep_avx512(job);
-  if (level == 3) return lane_sweep_avx2(job);
-#endif
-  lane_sweep_generic(job);
-}
-
 #if !defined(DISPLACE_LANE_SWEEP_X86)
 void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_sweep_avx512(LaneSweepJob& job) { lane_sweep_generic(job); }
+void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { lane_emit_generic(job, first, last); }
+void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) { lane_emit_generic(job, first, last); }
 #endif
 
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
@@ -191,11 +184,18 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   plan.lane_upper[lane_count] = 1.0f;
 }
 
-LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint8_t* const counts[4], float* out4,
+LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint32_t* const masks[4], float* out4,
                                 const std::uint8_t* pending_count, const LaneSweepOptions& options) {
-  LaneSweepJob jobs[4];
-  for (int quadrant = 0; quadrant < 4; ++quadrant) {
-    LaneSweepJob& job = jobs[quadrant];
+  const int level = options.level < 0 ? lane_sweep_best_level() : options.level;
+  long long works[4] = {};
+  tbb::parallel_for(0, 4, [&](int quadrant) {
+    struct Free {
+      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
+    };
+    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
+        ::operator new[](lane_sweep_scratch(plan.width) * sizeof(std::uint16_t), std::align_val_t(64))));
+    std::vector<long long> row_sums(plan.height / 2 + 2);
+    LaneSweepJob job;
     job.width = plan.width;
     job.height = plan.height;
     job.wrap = plan.wrap;
@@ -206,44 +206,55 @@ LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std:
     job.top = plan.top.data();
     job.bottom = plan.bottom.data();
     job.steps = plan.steps;
-    job.counts = counts[quadrant];
-    job.out = out4;
-    job.quadrant = quadrant;
-    job.lane_ratio = plan.lane_ratio;
-    job.pending_count = pending_count;
+    job.scratch = scratch.get();
+    job.row_sums = row_sums.data();
+    job.masks = masks[quadrant];
     job.stop_early = options.stop_early;
-    job.heights = heights;
-    job.highest = plan.highest;
-    job.nearest = plan.nearest;
-  }
-  // Two threads, each sweeping two quadrants in turn: quadrants 0 and 1 go up the map and 2 and 3
-  // down it, so the two running at a time (0 with 2, then 1 with 3) meet only once, in the middle,
-  // on the cache lines of the interleaved output.
-  auto run_pair = [&](int first) {
-    struct Free {
-      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
-    };
-    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
-        ::operator new[](lane_sweep_scratch(plan.width) * sizeof(std::uint16_t), std::align_val_t(64))));
-    std::vector<long long> row_sums(plan.height / 2 + 2);
-    for (int quadrant : {first, first + 1}) {
-      jobs[quadrant].scratch = scratch.get();
-      jobs[quadrant].row_sums = row_sums.data();
-      switch (options.level) {
-        case 0: lane_sweep_generic(jobs[quadrant]); break;
-        case 3: lane_sweep_avx2(jobs[quadrant]); break;
-        case 4: lane_sweep_avx512(jobs[quadrant]); break;
-        default: lane_sweep(jobs[quadrant]);
-      }
+    switch (level) {
+      case 0: lane_sweep_generic(job); break;
+      case 3: lane_sweep_avx2(job); break;
+      default: lane_sweep_avx512(job); break;
     }
-  };
-  tbb::parallel_invoke([&] { run_pair(0); }, [&] { run_pair(2); });
+    works[quadrant] = job.work;
+  });
   LaneSweepTotals totals;
-  for (const LaneSweepJob& job : jobs) {
-    totals.ratio_sum += job.ratio_sum;
-    totals.pending += job.pending;
-    totals.work += job.work;
-  }
+  totals.work = works[0] + works[1] + works[2] + works[3];
+  if (!out4) return totals;
+
+  // the 4-sector output, all four quadrants of a texel together
+  struct Sums {
+    double ratio_sum = 0.0;
+    long long pending = 0;
+  };
+  const std::size_t count = std::size_t(plan.width) * plan.height;
+  const Sums sums = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, (count + 15) / 16, 256), Sums{},
+      [&](const tbb::blocked_range<std::size_t>& blocks, Sums partial) {
+        LaneEmitJob emit;
+        for (int q = 0; q < 4; ++q) emit.masks[q] = masks[q];
+        emit.heights = heights;
+        emit.out = out4;
+        emit.lane_ratio = plan.lane_ratio;
+        emit.pending_count = pending_count;
+        emit.highest = plan.highest;
+        emit.nearest = plan.nearest;
+        const std::size_t first = blocks.begin() * 16, last = std::min(count, blocks.end() * 16);
+        switch (level) {
+          case 0: lane_emit_generic(emit, first, last); break;
+          case 3: lane_emit_avx2(emit, first, last); break;
+          default: lane_emit_avx512(emit, first, last); break;
+        }
+        partial.ratio_sum += emit.ratio_sum;
+        partial.pending += emit.pending;
+        return partial;
+      },
+      [](Sums a, const Sums& b) {
+        a.ratio_sum += b.ratio_sum;
+        a.pending += b.pending;
+        return a;
+      });
+  totals.ratio_sum = sums.ratio_sum;
+  totals.pending = sums.pending;
   return totals;
 }
 

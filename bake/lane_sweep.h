@@ -27,31 +27,38 @@ struct LaneSweepJob {
   const std::uint16_t* steps = nullptr;
   std::uint16_t* scratch = nullptr;   // lane_sweep_scratch(width) values, 64-byte aligned
   long long* row_sums = nullptr;      // height / 2 + 2 values
-  // out: per physical texel, the count of lanes that pass (lanes pass from the lowest up). The first
-  // lane that fails (if any) failed on a real blocker, so it bounds the exact ratio from above.
-  std::uint8_t* counts = nullptr;
-  // optional, for 4 sectors: out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane
-  // (1 texel) / (highest - h), the bound no blocker can beat (LanePlan::floor); the sum of what it
-  // wrote goes to ratio_sum, and the sum of pending_count[count] to pending
-  float* out = nullptr;
-  int quadrant = 0;
-  const float* lane_ratio = nullptr;            // lane_count + 1 entries
-  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
-  const float* heights = nullptr;
-  float highest = 0.0f, nearest = 0.0f;  // largest height; uv distance to the nearest other texel
-  double ratio_sum = 0.0;
-  long long pending = 0;
+  // out: per physical texel, bit l set when lane l passes. Lanes pass from the lowest up, so the
+  // count of set bits says which; the first lane that fails (if any) failed on a real blocker, so it
+  // bounds the exact ratio from above.
+  std::uint32_t* masks = nullptr;
   bool stop_early = true;  // the second lap stops where it meets the first (false: tests only)
   long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
 };
 
+// The 4-sector output of the four quadrants' masks, for texels [first, last):
+// out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane (1 texel) / (highest - h),
+// the bound no blocker can beat (lane_floor); adds the ratios to ratio_sum and pending_count[count]
+// to pending.
+struct LaneEmitJob {
+  const std::uint32_t* masks[4] = {};
+  const float* heights = nullptr;
+  float* out = nullptr;
+  const float* lane_ratio = nullptr;            // lane_count + 1 entries
+  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
+  float highest = 0.0f, nearest = 0.0f;
+  double ratio_sum = 0.0;
+  long long pending = 0;
+};
+
 std::size_t lane_sweep_scratch(int width);
 
-// The same kernel compiled for three instruction sets; lane_sweep picks the best the CPU runs.
+// The same kernel compiled for three instruction sets (sweep_quadrants picks the best the CPU runs).
 void lane_sweep_generic(LaneSweepJob& job);
 void lane_sweep_avx2(LaneSweepJob& job);
 void lane_sweep_avx512(LaneSweepJob& job);
-void lane_sweep(LaneSweepJob& job);
+void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last);
+void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last);
+void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last);
 // 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run.
 int lane_sweep_best_level();
 
@@ -76,19 +83,22 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
 // (The kernel computes the same, written out, for its 4-sector output.)
 float lane_floor(const LanePlan& plan, float h);
 
+// How many lanes a mask passes (lanes pass from the lowest up, so the mask is 2^count - 1).
+inline int lanes_passed(std::uint32_t mask) { return mask == 0 ? 0 : 32 - __builtin_clz(mask); }
+
 struct LaneSweepTotals {
   double ratio_sum = 0.0;  // of the ratios written to out4
   long long pending = 0;   // of pending_count over the quadrant texels
   long long work = 0;
 };
-// The four quadrant sweeps, on two threads: quadrant q's lane counts go to counts[q]; with out4
+// The four quadrant sweeps, on two threads: quadrant q's lane masks go to masks[q]; with out4
 // (4 sectors) the ratios go there too, and pending_count (lane_count + 1 entries) is summed.
 // Tests pick the instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
 struct LaneSweepOptions {
   int level = -1;
   bool stop_early = true;
 };
-LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint8_t* const counts[4], float* out4,
+LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint32_t* const masks[4], float* out4,
                                 const std::uint8_t* pending_count, const LaneSweepOptions& options = {});
 
 }  // namespace displace::bake::detail

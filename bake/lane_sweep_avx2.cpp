@@ -37,6 +37,7 @@ struct Ops {
     const __m256i bytes = _mm256_permute4x64_epi64(_mm256_packs_epi16(lo, hi), 0xD8);
     return unsigned(_mm256_movemask_epi8(bytes));
   }
+  static void store_mask_at_most(std::uint32_t* p, V a, V b) { *p = mask_at_most(a, b); }
   static long long sum(const std::uint16_t* p, int texels) {
     // (value - 32768) fits a signed 16-bit number; madd adds neighbours into 32-bit ones, and a row
     // of up to 32768 texels stays within 32 bits per part
@@ -64,5 +65,6 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_avx2(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
 
 }  // namespace displace::bake::detail

@@ -2,6 +2,7 @@
 // Compiled with -march=x86-64-v4 (bake/CMakeLists.txt); called only where the CPU has it.
 // GCC 12 warns inside its own AVX-512 headers (a known false positive of the reduce intrinsics)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
 #include "bake/lane_sweep.h"
@@ -18,6 +19,7 @@ struct Ops {
   static V subs(V a, V b) { return _mm512_subs_epu16(a, b); }
   static bool same(V a, V b) { return _mm512_cmpneq_epu16_mask(a, b) == 0; }
   static unsigned mask_at_most(V a, V b) { return unsigned(_mm512_cmple_epu16_mask(a, b)); }
+  static void store_mask_at_most(std::uint32_t* p, V a, V b) { _store_mask32(reinterpret_cast<__mmask32*>(p), _mm512_cmple_epu16_mask(a, b)); }
   static long long sum(const std::uint16_t* p, int texels) {
     // (value - 32768) fits a signed 16-bit number; madd adds neighbours into 32-bit ones, and a row
     // of up to 32768 texels stays within 32 bits per part
@@ -37,5 +39,69 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+
+// Sixteen texels at a time: the count from the mask's leading zeros (the mask is 2^count - 1), the
+// ratio from a 32-entry table in two registers (count 32 and count 0 blended in), and the four
+// quadrants' ratios interleaved with a 4 x 4 transpose per 128-bit lane and one across them.
+void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
+  const __m512 ratios_low = _mm512_loadu_ps(job.lane_ratio), ratios_high = _mm512_loadu_ps(job.lane_ratio + 16);
+  alignas(64) int pending_table[32];
+  for (int c = 0; c < 32; ++c) pending_table[c] = job.pending_count[c];
+  const __m512i pending_low = _mm512_load_si512(pending_table), pending_high = _mm512_load_si512(pending_table + 16);
+  const __m512 top_ratio = _mm512_set1_ps(job.lane_ratio[32]);
+  const __m512i all_lanes = _mm512_set1_epi32(32), none = _mm512_setzero_si512();
+  const __m512i pending_all = _mm512_set1_epi32(job.pending_count[32]);
+  const __m512 highest = _mm512_set1_ps(job.highest), nearest = _mm512_set1_ps(job.nearest);
+  const __m512 one = _mm512_set1_ps(1.0f), margin = _mm512_set1_ps(1.0f - 1e-5f);
+  __m512 sum = _mm512_setzero_ps();
+  __m512i pending = _mm512_setzero_si512();
+  double ratio_sum = 0.0;
+  std::size_t t = first;
+  for (; t + 16 <= last; t += 16) {
+    __m512 ratio[4];
+    __m512 floor = one;
+    bool floor_ready = false;
+    for (int q = 0; q < 4; ++q) {
+      const __m512i count =
+          _mm512_sub_epi32(all_lanes, _mm512_lzcnt_epi32(_mm512_loadu_si512(job.masks[q] + t)));
+      const __mmask16 full = _mm512_cmpeq_epi32_mask(count, all_lanes);
+      const __mmask16 empty = _mm512_cmpeq_epi32_mask(count, none);
+      __m512 r = _mm512_permutex2var_ps(ratios_low, count, ratios_high);
+      r = _mm512_mask_blend_ps(full, r, top_ratio);
+      if (empty) {
+        if (!floor_ready) {  // (1 texel) / (highest - h), at most 1; 1 for the highest texels
+          const __m512 h = _mm512_loadu_ps(job.heights + t);
+          const __mmask16 below = _mm512_cmp_ps_mask(h, highest, _CMP_LT_OQ);
+          floor = _mm512_mask_blend_ps(
+              below, one, _mm512_min_ps(one, _mm512_mul_ps(_mm512_div_ps(nearest, _mm512_sub_ps(highest, h)), margin)));
+          floor_ready = true;
+        }
+        r = _mm512_mask_blend_ps(empty, r, floor);
+      }
+      ratio[q] = r;
+      sum = _mm512_add_ps(sum, r);
+      __m512i p = _mm512_permutex2var_epi32(pending_low, count, pending_high);
+      pending = _mm512_add_epi32(pending, _mm512_mask_blend_epi32(full, p, pending_all));
+    }
+    const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);
+    const __m512 t2 = _mm512_unpacklo_ps(ratio[2], ratio[3]), t3 = _mm512_unpackhi_ps(ratio[2], ratio[3]);
+    const __m512 u0 = _mm512_shuffle_ps(t0, t2, 0x44), u1 = _mm512_shuffle_ps(t0, t2, 0xEE);
+    const __m512 u2 = _mm512_shuffle_ps(t1, t3, 0x44), u3 = _mm512_shuffle_ps(t1, t3, 0xEE);
+    const __m512 v0 = _mm512_shuffle_f32x4(u0, u1, 0x44), v1 = _mm512_shuffle_f32x4(u2, u3, 0x44);
+    const __m512 v2 = _mm512_shuffle_f32x4(u0, u1, 0xEE), v3 = _mm512_shuffle_f32x4(u2, u3, 0xEE);
+    float* out = job.out + t * 4;
+    _mm512_storeu_ps(out, _mm512_shuffle_f32x4(v0, v1, 0x88));
+    _mm512_storeu_ps(out + 16, _mm512_shuffle_f32x4(v0, v1, 0xDD));
+    _mm512_storeu_ps(out + 32, _mm512_shuffle_f32x4(v2, v3, 0x88));
+    _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
+    if (((t - first) & 1023) == 1008) {  // every 64 steps, into double before float sums drift
+      ratio_sum += _mm512_reduce_add_ps(sum);
+      sum = _mm512_setzero_ps();
+    }
+  }
+  job.ratio_sum += ratio_sum + _mm512_reduce_add_ps(sum);
+  job.pending += _mm512_reduce_add_epi32(pending);
+  emit_texels(job, t, last);
+}
 
 }  // namespace displace::bake::detail

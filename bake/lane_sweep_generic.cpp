@@ -25,6 +25,7 @@ struct Ops {
     for (int l = 0; l < lane_count; ++l) mask |= unsigned(a[l] <= b[l]) << l;
     return mask;
   }
+  static void store_mask_at_most(std::uint32_t* p, V a, V b) { *p = mask_at_most(a, b); }
   static long long sum(const std::uint16_t* p, int texels) {
     long long total = 0;
     for (std::size_t n = 0; n < std::size_t(texels) * lane_count; ++n) total += p[n];
@@ -40,5 +41,6 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
 
 }  // namespace displace::bake::detail

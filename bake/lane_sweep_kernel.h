@@ -13,6 +13,7 @@
 //   static V subs(V a, V b);                  saturating a - b
 //   static bool same(V a, V b);               every lane equal
 //   static unsigned mask_at_most(V a, V b);   bit l set where lane l of a <= lane l of b
+//   static void store_mask_at_most(std::uint32_t* p, V a, V b);  the same, stored
 //   static long long sum(const std::uint16_t* p, int texels);  the sum of texels * 32 values
 #pragma once
 
@@ -50,7 +51,7 @@ void sweep_kernel(LaneSweepJob& job) {
   // within uv distance 1, so a second lap from them sweeps the map again with everything. Dilations
   // only grow from the first lap to the second, so a row of the second lap equals the first lap's
   // exactly when their sums are equal; after two equal rows in a row, every later row is equal too
-  // (a row depends only on the two below it), and the first lap's counts there stand. The first
+  // (a row depends only on the two below it), and the first lap's masks there stand. The first
   // lap's sums are kept for the rows the second lap may reach before that; past them it goes on to
   // the end of the map.
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
@@ -64,14 +65,13 @@ void sweep_kernel(LaneSweepJob& job) {
     const int physical_row = job.flip_y ? H - 1 - a : a;
     const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
     const std::uint16_t* bottom_row = job.bottom + std::size_t(physical_row) * W;
-    std::uint8_t* count_row = job.counts + std::size_t(physical_row) * W;
+    std::uint32_t* mask_row = job.masks + std::size_t(physical_row) * W;
     const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
 
     // The row from its last texel to its first. A texel's dilation over its blockers e comes from
     // the two rows below and from the texel after it (carry); with the texel itself it is what the
     // texels before it see. The texel passes lane l when nothing in the quadrant rises above its
-    // cone of ratio lane l; lanes pass from the smallest ratio up, so the count of lanes that pass
-    // says which. Row a + 1's texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers
+    // cone of ratio lane l (bit l of its mask); lanes pass from the smallest ratio up. Row a + 1's texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers
     // from the texels before.
     V carry = nothing;
     V next1 = Ops::load(below1 + std::size_t(W) * lane_stride), next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
@@ -89,7 +89,7 @@ void sweep_kernel(LaneSweepJob& job) {
       const int column = first + stride * b;
       const V d = Ops::max(e, Ops::broadcast(top_row[column]));
       Ops::store(target, d);
-      count_row[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(e, Ops::broadcast(bottom_row[column]))));
+      Ops::store_mask_at_most(mask_row + column, e, Ops::broadcast(bottom_row[column]));
       carry = Ops::subs(d, step_row);
       next2 = next1;
       next1 = here;
@@ -105,8 +105,7 @@ void sweep_kernel(LaneSweepJob& job) {
         const V old_d = Ops::load(target);
         const V d = Ops::max(old_d, carry);
         const int column = first + stride * b;
-        const int passed = __builtin_popcount(Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column])));
-        if (passed < count_row[column]) count_row[column] = std::uint8_t(passed);
+        mask_row[column] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
         ++work;
         if (Ops::same(d, old_d)) break;
         Ops::store(target, d);
@@ -134,37 +133,6 @@ void sweep_kernel(LaneSweepJob& job) {
     below1 = done;
   }
   job.work = work;
-
-  if (job.out) {
-    double ratio_sum = 0.0;
-    long long pending = 0;
-    for (int i = 0; i < H; ++i) {
-      const std::uint8_t* count_row = job.counts + std::size_t(i) * W;
-      const float* height_row = job.heights + std::size_t(i) * W;
-      float* out = job.out + std::size_t(i) * W * 4 + job.quadrant;
-      float partial[4] = {0.0f, 0.0f, 0.0f, 0.0f};  // four sums, so that the adds do not wait on each other
-      int row_pending = 0;
-      for (int j = 0; j < W; ++j) {
-        const int passed = count_row[j];
-        float ratio = job.lane_ratio[passed];
-        if (passed == 0) {  // below the lowest lane: the floor (lane_floor)
-          const float h = height_row[j];
-          ratio = 1.0f;
-          if (h < job.highest) {
-            const float floor = job.nearest / (job.highest - h) * (1.0f - 1e-5f);
-            ratio = floor < 1.0f ? floor : 1.0f;
-          }
-        }
-        out[std::size_t(j) * 4] = ratio;
-        partial[j & 3] += ratio;
-        row_pending += job.pending_count[passed];
-      }
-      ratio_sum += double(partial[0] + partial[1]) + double(partial[2] + partial[3]);
-      pending += row_pending;
-    }
-    job.ratio_sum = ratio_sum;
-    job.pending = pending;
-  }
 }
 
 template <class Ops>
@@ -173,6 +141,34 @@ void sweep_kernel(LaneSweepJob& job) {
     sweep_kernel<Ops, true>(job);
   else
     sweep_kernel<Ops, false>(job);
+}
+
+// The 4-sector output, texels [first, last) one at a time (the AVX-512 translation unit has its own,
+// sixteen at a time, and finishes its tail with this one).
+void emit_texels(LaneEmitJob& job, std::size_t first, std::size_t last) {
+  float sums[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  long long pending = 0;
+  for (std::size_t t = first; t < last; ++t) {
+    for (int q = 0; q < 4; ++q) {
+      const std::uint32_t mask = job.masks[q][t];
+      // lanes pass from the lowest up, so the mask is 2^count - 1
+      const int passed = mask == 0 ? 0 : 32 - __builtin_clz(mask);
+      float ratio = job.lane_ratio[passed];
+      if (passed == 0) {  // below the lowest lane: the floor (lane_floor)
+        const float h = job.heights[t];
+        ratio = 1.0f;
+        if (h < job.highest) {
+          const float floor = job.nearest / (job.highest - h) * (1.0f - 1e-5f);
+          ratio = floor < 1.0f ? floor : 1.0f;
+        }
+      }
+      job.out[t * 4 + q] = ratio;
+      sums[q] += ratio;
+      pending += job.pending_count[passed];
+    }
+  }
+  job.ratio_sum += double(sums[0] + sums[1]) + double(sums[2] + sums[3]);
+  job.pending += pending;
 }
 
 }  // namespace

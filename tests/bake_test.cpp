@@ -359,19 +359,25 @@ TEST(BudgetedBaker, ZeroBudgetFloorIsConservativeOnLargerOddMaps) {
 // without the knight moves.
 struct LaneRun {
   detail::LanePlan plan;
-  std::vector<std::uint8_t> counts;
+  std::vector<std::uint32_t> masks;
+  std::vector<float> out;  // the 4-sector output
+  detail::LaneSweepTotals totals;
   long long work = 0;
-  std::uint8_t* plane(int q) { return counts.data() + std::size_t(q) * plan.width * plan.height; }
+  std::uint32_t* plane(int q) { return masks.data() + std::size_t(q) * plan.width * plan.height; }
 };
 
 LaneRun run_lanes(const Map& map, Address address, bool knights, const detail::LaneSweepOptions& options = {},
                   float lowest = 0.02f) {
   LaneRun run;
   detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights, run.plan);
-  run.counts.assign(map.values.size() * 4, 0xff);
-  std::uint8_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
-  const std::uint8_t none[detail::lane_count + 1] = {};
-  run.work = detail::sweep_quadrants(run.plan, map.values.data(), planes, nullptr, none, options).work;
+  run.masks.assign(map.values.size() * 4, 0xdeadbeef);
+  std::uint32_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
+  // flag the counts whose ratio is below half of their upper bound, to check the pending sum
+  std::uint8_t pending[detail::lane_count + 1];
+  for (int c = 0; c <= detail::lane_count; ++c) pending[c] = run.plan.lane_ratio[c] < 0.5f * run.plan.lane_upper[c];
+  run.out.assign(map.values.size() * 4, -1.0f);
+  run.totals = detail::sweep_quadrants(run.plan, map.values.data(), planes, run.out.data(), pending, options);
+  run.work = run.totals.work;
   return run;
 }
 
@@ -386,11 +392,14 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
         const ConeMap exact = exact_of(map, 4, address);
         LaneRun run = run_lanes(map, address, knights);
         double swept_sum = 0.0, exact_sum = 0.0;
+        long long pending = 0;
         for (int q = 0; q < 4; ++q)
           for (int i = 0; i < map.height; ++i)
             for (int j = 0; j < map.width; ++j) {
-              const int count = run.plane(q)[std::size_t(i) * map.width + j];
-              ASSERT_LE(count, detail::lane_count);
+              const std::uint32_t mask = run.plane(q)[std::size_t(i) * map.width + j];
+              const int count = detail::lanes_passed(mask);
+              // lanes pass from the lowest up
+              ASSERT_EQ(mask, count == 32 ? 0xffffffffu : (1u << count) - 1u);
               const float ratio =
                   count == 0 ? detail::lane_floor(run.plan, map.values[std::size_t(i) * map.width + j])
                              : run.plan.lane_ratio[count];
@@ -399,11 +408,15 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
                                         std::to_string(knights) + " quadrant " + std::to_string(q) + " texel " +
                                         std::to_string(i) + "," + std::to_string(j);
               ASSERT_GT(ratio, 0.0f) << where;
+              ASSERT_EQ(run.out[(std::size_t(i) * map.width + j) * 4 + q], ratio) << where;
               ASSERT_LE(ratio, exact.at(i, j, q)) << where;
               ASSERT_LE(exact.at(i, j, q), run.plan.lane_upper[count]) << where << " count " << count;
               swept_sum += ratio;
               exact_sum += exact.at(i, j, q);
+              pending += run.plan.lane_ratio[count] < 0.5f * run.plan.lane_upper[count];
             }
+        EXPECT_EQ(run.totals.pending, pending) << map.name;
+        EXPECT_NEAR(run.totals.ratio_sum, swept_sum, 1e-5 * swept_sum) << map.name;
         if (map.name == "fractal-cliff" && map.width == 100) {
           std::printf("lane sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
                       int(knights), swept_sum / exact_sum);
@@ -412,7 +425,7 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
       }
 }
 
-// The AVX2 and AVX-512 kernels (where this CPU has them) give the generic kernel's counts exactly.
+// The AVX2 and AVX-512 kernels (where this CPU has them) give the generic kernel's masks exactly.
 TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
   const int best = detail::lane_sweep_best_level();
   std::printf("lane sweep: best instruction set level here %d\n", best);
@@ -424,8 +437,11 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
         for (int level : {3, 4}) {
           if (level > best) continue;
           const LaneRun other = run_lanes(map, address, knights, {level, true});
-          EXPECT_EQ(other.counts, generic.counts) << map.name << " level " << level;
+          EXPECT_EQ(other.masks, generic.masks) << map.name << " level " << level;
           EXPECT_EQ(other.work, generic.work) << map.name << " level " << level;
+          EXPECT_EQ(other.out, generic.out) << map.name << " level " << level;
+          EXPECT_EQ(other.totals.pending, generic.totals.pending) << map.name << " level " << level;
+          EXPECT_NEAR(other.totals.ratio_sum, generic.totals.ratio_sum, 1e-5 * generic.totals.ratio_sum);
         }
       }
 }
@@ -446,7 +462,7 @@ TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
   for (const Map& map : maps) {
     const LaneRun early = run_lanes(map, Address::wrap, true, {-1, true});
     const LaneRun whole = run_lanes(map, Address::wrap, true, {-1, false});
-    EXPECT_EQ(early.counts, whole.counts) << map.name;
+    EXPECT_EQ(early.masks, whole.masks) << map.name;
     EXPECT_LE(early.work, whole.work) << map.name;
     if (map.name == "waves") {
       EXPECT_LT(early.work, whole.work * 3 / 4) << "the second lap should stop early";
