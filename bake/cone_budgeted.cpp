@@ -553,47 +553,53 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
 // refinement stages take every texel.
 struct StageTotals {
   double ratio_sum = 0.0;  // of every emitted ratio
-  long long pending = 0;   // texel quadrants whose slack may be below keep; 0 exactly when no texel's is
+  long long pending = 0;   // texel sectors whose slack may be below keep; 0 exactly when no texel's is
 };
 
-// Slack of a texel from its four lane counts: the emitted ratio's share of the certified upper
-// bound of the exact one.
-float texel_slack(const detail::LanePlan& plan, int sectors, float floor, const int c[4]) {
-  if (sectors == 8) return 0.0f;
+// Stage L sweeps octants (8 planes of lane masks) for 8 sectors on a square map, else quadrants.
+int swept_planes(const BudgetedBaker::State& state) {
+  return state.grid.sector_count == 8 && state.grid.width == state.grid.height ? 8 : 4;
+}
+
+// Slack of a texel from its planes' lane counts: the emitted ratio's share of the certified upper
+// bound of the exact one. 8 sectors from quadrant planes: a quadrant bounds neither of its octants.
+float texel_slack(const detail::LanePlan& plan, int sectors, int planes, float floor, const int* c) {
+  if (sectors == 8 && planes == 4) return 0.0f;
   float slack = 1.0f, smallest = 1.0f, lowest_upper = 1.0f;
-  for (int q = 0; q < 4; ++q) {
+  for (int q = 0; q < planes; ++q) {
     const float ratio = c[q] == 0 ? floor : plan.lane_ratio[c[q]];
     slack = std::min(slack, ratio / plan.lane_upper[c[q]]);
     smallest = std::min(smallest, ratio);
     lowest_upper = std::min(lowest_upper, plan.lane_upper[c[q]]);
   }
   // one sector: the smallest quadrant's ratio, below the smallest bound
-  return std::min(1.0f, sectors == 4 ? slack : smallest / lowest_upper);
+  return std::min(1.0f, sectors == 1 ? smallest / lowest_upper : slack);
 }
 
 StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, float* out) {
   const Grid& grid = state.grid;
   const int width = grid.width, height = grid.height, sectors = grid.sector_count;
+  const int planes = swept_planes(state);
   const std::size_t count = state.heights.size();
   detail::LanePlan& plan = state.lanes;
   detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap, lane_lowest_ratio,
-                         lane_knights, plan);
-  state.lane_masks.resize(4 * count);
-  std::uint32_t* const masks[4] = {&state.lane_masks[0], &state.lane_masks[count], &state.lane_masks[2 * count],
-                                   &state.lane_masks[3 * count]};
-  // lane counts that may leave a quadrant looser than keep (below the lowest lane the floor may
-  // still be close enough: ensure_slack looks at those texels closely)
+                         lane_knights, planes == 8, plan);
+  state.lane_masks.resize(planes * count);
+  std::uint32_t* masks[8];
+  for (int k = 0; k < planes; ++k) masks[k] = &state.lane_masks[k * count];
+  // lane counts that may leave a sector looser than keep (below the lowest lane the floor may still
+  // be close enough: ensure_slack looks at those texels closely)
   std::uint8_t pending_count[detail::lane_count + 1];
   for (int p = 0; p <= detail::lane_count; ++p)
     pending_count[p] = !(p > 0 && plan.lane_ratio[p] / plan.lane_upper[p] >= keep);
-  const detail::LaneSweepTotals swept =
-      detail::sweep_quadrants(plan, state.heights.data(), masks, sectors == 4 ? out : nullptr, pending_count);
+  const detail::LaneSweepTotals swept = detail::sweep_sectors(plan, state.heights.data(), planes, masks,
+                                                              sectors == 4 ? out : nullptr, pending_count);
   clock.work += swept.work;
   state.slack_stale = true;
   state.cursor = 0;
   if (sectors == 4) return {swept.ratio_sum, swept.pending};
 
-  // 1 or 8 sectors: the quadrants into sectors
+  // 1 sector (the smallest quadrant) or 8 (octants, or on a non-square map their quadrants)
   const StageTotals totals = tbb::parallel_reduce(
       tbb::blocked_range<int>(0, height, 8), StageTotals{},
       [&](const tbb::blocked_range<int>& rows, StageTotals partial) {
@@ -601,18 +607,18 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
           for (int j = 0; j < width; ++j) {
             const std::size_t t = std::size_t(i) * width + j;
             const float floor = detail::lane_floor(plan, state.heights[t]);
-            float quadrant[4];
-            for (int q = 0; q < 4; ++q) {
-              const int c = detail::lanes_passed(masks[q][t]);
-              quadrant[q] = c == 0 ? floor : plan.lane_ratio[c];
-              partial.pending += pending_count[c] || sectors == 8;
+            float ratio[8];
+            for (int k = 0; k < planes; ++k) {
+              const int c = detail::lanes_passed(masks[k][t]);
+              ratio[k] = c == 0 ? floor : plan.lane_ratio[c];
+              partial.pending += pending_count[c] || (sectors == 8 && planes == 4);
             }
             float* target = out + t * sectors;
             if (sectors == 8) {
-              for (int k = 0; k < 8; ++k) target[k] = quadrant[k / 2];
-              partial.ratio_sum += 2.0 * ((quadrant[0] + quadrant[1]) + (quadrant[2] + quadrant[3]));
+              for (int k = 0; k < 8; ++k) target[k] = ratio[planes == 8 ? k : k / 2];
+              for (int k = 0; k < 8; ++k) partial.ratio_sum += target[k];
             } else {
-              target[0] = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+              target[0] = std::min(std::min(ratio[0], ratio[1]), std::min(ratio[2], ratio[3]));
               partial.ratio_sum += target[0];
             }
           }
@@ -634,12 +640,13 @@ void ensure_slack(BudgetedBaker::State& state) {
   const int width = grid.width, sectors = grid.sector_count;
   const std::size_t count = state.heights.size();
   const detail::LanePlan& plan = state.lanes;
+  const int planes = swept_planes(state);
   state.slack.resize(count);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t t = r.begin(); t < r.end(); ++t) {
-      int c[4];
-      for (int q = 0; q < 4; ++q) c[q] = detail::lanes_passed(state.lane_masks[q * count + t]);
-      state.slack[t] = texel_slack(plan, sectors, detail::lane_floor(plan, state.heights[t]), c);
+      int c[8];
+      for (int k = 0; k < planes; ++k) c[k] = detail::lanes_passed(state.lane_masks[k * count + t]);
+      state.slack[t] = texel_slack(plan, sectors, planes, detail::lane_floor(plan, state.heights[t]), c);
     }
   });
   const int groups = group_count(grid);

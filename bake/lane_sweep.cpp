@@ -42,6 +42,7 @@
 #include <cstring>
 #include <memory>
 #include <new>
+#include <stdexcept>
 #include <vector>
 
 namespace displace::bake::detail {
@@ -71,7 +72,7 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) { l
 #endif
 
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
-                    LanePlan& plan) {
+                    bool octants, LanePlan& plan) {
   plan.width = width;
   plan.height = height;
   plan.wrap = wrap;
@@ -114,6 +115,23 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   std::memcpy(&plan.highest, &extremes.high, sizeof(float));
   std::memcpy(&lowest_height, &extremes.low, sizeof(float));
   plan.nearest = 1.0f / float(std::max(width, height));
+  if (octants && width == height) {  // in 32 x 32 tiles, so that both sides stay in cache
+    plan.top_transposed.resize(count);
+    plan.bottom_transposed.resize(count);
+    const int n = width;
+    tbb::parallel_for(tbb::blocked_range<int>(0, (n + 31) / 32), [&](const tbb::blocked_range<int>& tiles) {
+      for (int ti = tiles.begin(); ti < tiles.end(); ++ti)
+        for (int tj = 0; tj < (n + 31) / 32; ++tj)
+          for (int i = ti * 32; i < std::min(n, ti * 32 + 32); ++i)
+            for (int j = tj * 32; j < std::min(n, tj * 32 + 32); ++j) {
+              plan.top_transposed[std::size_t(j) * n + i] = top[std::size_t(i) * n + j];
+              plan.bottom_transposed[std::size_t(j) * n + i] = bottom[std::size_t(i) * n + j];
+            }
+    });
+  } else {
+    plan.top_transposed.clear();
+    plan.bottom_transposed.clear();
+  }
 
   // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
   // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
@@ -184,42 +202,56 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   plan.lane_upper[lane_count] = 1.0f;
 }
 
-LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint32_t* const masks[4], float* out4,
-                                const std::uint8_t* pending_count, const LaneSweepOptions& options) {
+LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors, std::uint32_t* const masks[],
+                              float* out4, const std::uint8_t* pending_count, const LaneSweepOptions& options) {
   const int level = options.level < 0 ? lane_sweep_best_level() : options.level;
-  long long works[4] = {};
-  tbb::parallel_for(0, 4, [&](int quadrant) {
+  const bool octants = sectors == 8;
+  if (octants && plan.top_transposed.empty()) throw std::logic_error("lane plan without octants");
+  const int jobs = octants ? 8 : 4;
+  long long works[8] = {};
+  tbb::parallel_for(0, jobs, [&](int n) {
     struct Free {
       void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
     };
-    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
-        ::operator new[](lane_sweep_scratch(plan.width) * sizeof(std::uint16_t), std::align_val_t(64))));
-    std::vector<long long> row_sums(plan.height / 2 + 2);
+    const int quadrant = octants ? n / 2 : n;
+    // quadrant q holds the blockers of sector q: 0 = +u +v, 1 = -u +v, 2 = -u -v, 3 = +u -v
+    const bool flip_x = quadrant == 1 || quadrant == 2, flip_y = quadrant >= 2;
+    // an octant sweep: the half of the quadrant next to the v axis in place, the half next to the
+    // u axis on the transposed map (where u runs down the rows); sectors go round from +u
+    const bool transposed = octants && n % 2 == 0;
+    const int sector = !octants ? quadrant : quadrant % 2 == 0 ? 2 * quadrant + (transposed ? 0 : 1)
+                                                               : 2 * quadrant + (transposed ? 1 : 0);
     LaneSweepJob job;
-    job.width = plan.width;
-    job.height = plan.height;
+    job.width = transposed ? plan.height : plan.width;
+    job.height = transposed ? plan.width : plan.height;
+    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
+        ::operator new[](lane_sweep_scratch(job.width) * sizeof(std::uint16_t), std::align_val_t(64))));
+    std::vector<long long> row_sums(job.height / 2 + 2);
     job.wrap = plan.wrap;
     job.knights = plan.knights;
-    // quadrant q holds the blockers of sector q: 0 = +u +v, 1 = -u +v, 2 = -u -v, 3 = +u -v
-    job.flip_x = quadrant == 1 || quadrant == 2;
-    job.flip_y = quadrant >= 2;
-    job.top = plan.top.data();
-    job.bottom = plan.bottom.data();
+    job.octant = octants;
+    job.flip_x = transposed ? flip_y : flip_x;
+    job.flip_y = transposed ? flip_x : flip_y;
+    job.top = transposed ? plan.top_transposed.data() : plan.top.data();
+    job.bottom = transposed ? plan.bottom_transposed.data() : plan.bottom.data();
     job.steps = plan.steps;
     job.scratch = scratch.get();
     job.row_sums = row_sums.data();
-    job.masks = masks[quadrant];
+    job.masks = masks[sector];
+    job.mask_row_stride = transposed ? 1 : std::size_t(plan.width);
+    job.mask_column_stride = transposed ? std::size_t(plan.width) : 1;
     job.stop_early = options.stop_early;
     switch (level) {
       case 0: lane_sweep_generic(job); break;
       case 3: lane_sweep_avx2(job); break;
       default: lane_sweep_avx512(job); break;
     }
-    works[quadrant] = job.work;
+    works[n] = job.work;
   });
   LaneSweepTotals totals;
-  totals.work = works[0] + works[1] + works[2] + works[3];
+  for (long long w : works) totals.work += w;
   if (!out4) return totals;
+  if (sectors != 4) throw std::logic_error("the lane sweep writes 4-sector output only");
 
   // the 4-sector output, all four quadrants of a texel together
   struct Sums {

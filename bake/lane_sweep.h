@@ -20,6 +20,7 @@ struct LaneSweepJob {
   bool wrap = true;
   bool flip_x = false, flip_y = false;
   bool knights = true;                    // moves 3 and 4 (else only 0 to 2, with their own steps)
+  bool octant = false;                    // only moves 1, 2 and 4: the octant 0 <= db <= da
   const std::uint16_t* top = nullptr;     // ceil(h * 65535) or a little above, physical row-major
   const std::uint16_t* bottom = nullptr;  // floor(h * 65535) or a little below, physical row-major
   // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down. Moves
@@ -31,6 +32,7 @@ struct LaneSweepJob {
   // count of set bits says which; the first lane that fails (if any) failed on a real blocker, so it
   // bounds the exact ratio from above.
   std::uint32_t* masks = nullptr;
+  std::size_t mask_row_stride = 0, mask_column_stride = 1;  // texel (row, column)'s mask index
   bool stop_early = true;  // the second lap stops where it meets the first (false: tests only)
   long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
 };
@@ -52,7 +54,7 @@ struct LaneEmitJob {
 
 std::size_t lane_sweep_scratch(int width);
 
-// The same kernel compiled for three instruction sets (sweep_quadrants picks the best the CPU runs).
+// The same kernel compiled for three instruction sets (sweep_sectors picks the best the CPU runs).
 void lane_sweep_generic(LaneSweepJob& job);
 void lane_sweep_avx2(LaneSweepJob& job);
 void lane_sweep_avx512(LaneSweepJob& job);
@@ -68,6 +70,7 @@ struct LanePlan {
   bool wrap = true;
   bool knights = true;
   std::vector<std::uint16_t> top, bottom;
+  std::vector<std::uint16_t> top_transposed, bottom_transposed;  // for octant sweeps (square maps)
   float highest = 0.0f;  // the largest height
   float nearest = 0.0f;  // uv distance between a texel and its nearest neighbour
   alignas(64) std::uint16_t steps[lane_move_count * lane_count];
@@ -76,8 +79,9 @@ struct LanePlan {
   float lane_upper[lane_count + 1];
 };
 // Geometric lanes to just above 1, from min(lowest_ratio, the smallest ratio the map can have).
+// With octants (square maps only) it also keeps the heights transposed.
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
-                    LanePlan& plan);
+                    bool octants, LanePlan& plan);
 
 // The floor below the lowest lane: (1 texel) / (highest - h), rounded down; 1 for the highest texels.
 // (The kernel computes the same, written out, for its 4-sector output.)
@@ -91,14 +95,16 @@ struct LaneSweepTotals {
   long long pending = 0;   // of pending_count over the quadrant texels
   long long work = 0;
 };
-// The four quadrant sweeps, on two threads: quadrant q's lane masks go to masks[q]; with out4
-// (4 sectors) the ratios go there too, and pending_count (lane_count + 1 entries) is summed.
-// Tests pick the instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
+// The sweeps of 4 sectors (quadrants) or, on a square map whose plan has octants, of 8 (octants: per
+// quadrant, the half next to the v axis swept in place and the half next to the u axis swept on
+// the transposed map), in parallel: sector k's lane masks go to masks[k]; with out4 (4 sectors)
+// the ratios go there too, and pending_count (lane_count + 1 entries) is summed. Tests pick the
+// instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
 struct LaneSweepOptions {
   int level = -1;
   bool stop_early = true;
 };
-LaneSweepTotals sweep_quadrants(const LanePlan& plan, const float* heights, std::uint32_t* const masks[4], float* out4,
-                                const std::uint8_t* pending_count, const LaneSweepOptions& options = {});
+LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors, std::uint32_t* const masks[],
+                              float* out4, const std::uint8_t* pending_count, const LaneSweepOptions& options = {});
 
 }  // namespace displace::bake::detail

@@ -26,7 +26,9 @@ namespace {
 
 constexpr int lane_stride = lane_count;  // u16 per texel in a row buffer
 
-template <class Ops, bool knights>
+// octant: only the moves that advance a row - (1, 0), (1, 1) and the knight (2, 1) - whose paths
+// reach exactly the octant 0 <= db <= da of the quadrant; no carry along the row, so no wrap fix-up.
+template <class Ops, bool knights, bool octant>
 void sweep_kernel(LaneSweepJob& job) {
   using V = typename Ops::V;
   const int W = job.width, H = job.height;
@@ -65,14 +67,16 @@ void sweep_kernel(LaneSweepJob& job) {
     const int physical_row = job.flip_y ? H - 1 - a : a;
     const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
     const std::uint16_t* bottom_row = job.bottom + std::size_t(physical_row) * W;
-    std::uint32_t* mask_row = job.masks + std::size_t(physical_row) * W;
+    // masks go where the caller wants them: a transposed sweep writes them back in the map's layout
+    std::uint32_t* mask_row = job.masks + std::size_t(physical_row) * job.mask_row_stride;
+    const std::size_t mask_step = job.mask_column_stride;
     const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
 
     // The row from its last texel to its first. A texel's dilation over its blockers e comes from
     // the two rows below and from the texel after it (carry); with the texel itself it is what the
     // texels before it see. The texel passes lane l when nothing in the quadrant rises above its
-    // cone of ratio lane l (bit l of its mask); lanes pass from the smallest ratio up. Row a + 1's texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers
-    // from the texels before.
+    // cone of ratio lane l (bit l of its mask); lanes pass from the smallest ratio up. Row a + 1's
+    // texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers from the texels before.
     V carry = nothing;
     V next1 = Ops::load(below1 + std::size_t(W) * lane_stride), next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
     V knight_source = knights ? Ops::load(below2 + std::size_t(W) * lane_stride) : nothing;
@@ -81,21 +85,21 @@ void sweep_kernel(LaneSweepJob& job) {
       std::uint16_t* target = below2 + std::size_t(b) * lane_stride;
       V e = Ops::max(Ops::subs(here, step_up), Ops::subs(next1, step_diagonal));
       if (knights) {
-        e = Ops::max(e, Ops::subs(next2, step_knight_row));
+        if (!octant) e = Ops::max(e, Ops::subs(next2, step_knight_row));
         e = Ops::max(e, Ops::subs(knight_source, step_knight_up));
         knight_source = Ops::load(target);
       }
-      e = Ops::max(e, carry);
+      if (!octant) e = Ops::max(e, carry);
       const int column = first + stride * b;
       const V d = Ops::max(e, Ops::broadcast(top_row[column]));
       Ops::store(target, d);
-      Ops::store_mask_at_most(mask_row + column, e, Ops::broadcast(bottom_row[column]));
-      carry = Ops::subs(d, step_row);
+      Ops::store_mask_at_most(mask_row + column * mask_step, e, Ops::broadcast(bottom_row[column]));
+      if (!octant) carry = Ops::subs(d, step_row);
       next2 = next1;
       next1 = here;
     }
     work += W;
-    if (wrap) {
+    if (wrap && !octant) {
       // Blockers past the row's first texel come round from its last: at most one more lap. A
       // texel's dilation over blockers becomes max(old, carry), and so does its dilation with
       // itself; a lane passes now when it passed before and the carry passes it. Once the carry
@@ -105,12 +109,14 @@ void sweep_kernel(LaneSweepJob& job) {
         const V old_d = Ops::load(target);
         const V d = Ops::max(old_d, carry);
         const int column = first + stride * b;
-        mask_row[column] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
+        mask_row[column * mask_step] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
         ++work;
         if (Ops::same(d, old_d)) break;
         Ops::store(target, d);
         carry = Ops::subs(d, step_row);
       }
+    }
+    if (wrap) {
       for (int k = 0; k < 2; ++k)
         Ops::store(below2 + std::size_t(W + k) * lane_stride, Ops::load(below2 + std::size_t(k % W) * lane_stride));
     } else {
@@ -137,10 +143,10 @@ void sweep_kernel(LaneSweepJob& job) {
 
 template <class Ops>
 void sweep_kernel(LaneSweepJob& job) {
-  if (job.knights)
-    sweep_kernel<Ops, true>(job);
+  if (job.octant)
+    job.knights ? sweep_kernel<Ops, true, true>(job) : sweep_kernel<Ops, false, true>(job);
   else
-    sweep_kernel<Ops, false>(job);
+    job.knights ? sweep_kernel<Ops, true, false>(job) : sweep_kernel<Ops, false, false>(job);
 }
 
 // The 4-sector output, texels [first, last) one at a time (the AVX-512 translation unit has its own,

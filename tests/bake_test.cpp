@@ -369,14 +369,15 @@ struct LaneRun {
 LaneRun run_lanes(const Map& map, Address address, bool knights, const detail::LaneSweepOptions& options = {},
                   float lowest = 0.02f) {
   LaneRun run;
-  detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights, run.plan);
+  detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights, false,
+                         run.plan);
   run.masks.assign(map.values.size() * 4, 0xdeadbeef);
   std::uint32_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
   // flag the counts whose ratio is below half of their upper bound, to check the pending sum
   std::uint8_t pending[detail::lane_count + 1];
   for (int c = 0; c <= detail::lane_count; ++c) pending[c] = run.plan.lane_ratio[c] < 0.5f * run.plan.lane_upper[c];
   run.out.assign(map.values.size() * 4, -1.0f);
-  run.totals = detail::sweep_quadrants(run.plan, map.values.data(), planes, run.out.data(), pending, options);
+  run.totals = detail::sweep_sectors(run.plan, map.values.data(), 4, planes, run.out.data(), pending, options);
   run.work = run.totals.work;
   return run;
 }
@@ -421,6 +422,57 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
           std::printf("lane sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
                       int(knights), swept_sum / exact_sum);
           EXPECT_GT(swept_sum, 0.85 * exact_sum);
+        }
+      }
+}
+
+// Octant sweeps (8 sectors on square maps): the same two-sided bounds against the exact 8-sector
+// ratio, and every instruction set agrees.
+TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
+  std::vector<Map> maps;
+  for (const Map& map : hard_maps())
+    if (map.width == map.height) maps.push_back(map);
+  maps.push_back(test::make_fractal_cliff(64, 64, 5));
+  maps.push_back(test::make_bricks(48, 48));
+  maps.push_back(test::make_spikes(50, 50, 3));
+  ASSERT_GE(maps.size(), 6u);
+  for (const Map& map : maps)
+    for (Address address : {Address::wrap, Address::clamp})
+      for (bool knights : {true, false}) {
+        const ConeMap exact = exact_of(map, 8, address);
+        detail::LanePlan plan;
+        detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, 0.02f, knights,
+                               true, plan);
+        const std::size_t count = map.values.size();
+        std::vector<std::uint32_t> masks(count * 8, 0xdeadbeef);
+        std::uint32_t* planes[8];
+        for (int k = 0; k < 8; ++k) planes[k] = masks.data() + k * count;
+        detail::sweep_sectors(plan, map.values.data(), 8, planes, nullptr, nullptr);
+        double swept_sum = 0.0, exact_sum = 0.0;
+        for (int k = 0; k < 8; ++k)
+          for (std::size_t t = 0; t < count; ++t) {
+            const int c = detail::lanes_passed(planes[k][t]);
+            ASSERT_EQ(planes[k][t], c == 32 ? 0xffffffffu : (1u << c) - 1u) << map.name;
+            const float ratio = c == 0 ? detail::lane_floor(plan, map.values[t]) : plan.lane_ratio[c];
+            const float truth = exact.ratios[t * 8 + k];
+            ASSERT_LE(ratio, truth) << map.name << " " << map.width << " " << address_name(address) << " knights "
+                                    << knights << " octant " << k << " texel " << t;
+            ASSERT_LE(truth, plan.lane_upper[c]) << map.name << " octant " << k << " texel " << t << " count " << c;
+            swept_sum += ratio;
+            exact_sum += truth;
+          }
+        if (map.name == "fractal-cliff" && map.width == 64) {
+          std::printf("octant sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
+                      int(knights), swept_sum / exact_sum);
+          EXPECT_GT(swept_sum, 0.85 * exact_sum);
+        }
+        for (int level : {0, 3}) {
+          if (level > detail::lane_sweep_best_level()) continue;
+          std::vector<std::uint32_t> other(count * 8);
+          std::uint32_t* other_planes[8];
+          for (int k = 0; k < 8; ++k) other_planes[k] = other.data() + k * count;
+          detail::sweep_sectors(plan, map.values.data(), 8, other_planes, nullptr, nullptr, {level, true});
+          EXPECT_EQ(other, masks) << map.name << " level " << level;
         }
       }
 }
