@@ -125,8 +125,13 @@ class BudgetedBaker {
   // A new frame where anything may have changed.
   BakeStats bake(HeightView heights, const Budget& budget, ConeView out);
   // A new frame whose heights differ from the previous call's only inside `dirty`. `out` must hold
-  // the map this baker emitted last time.
-  BakeStats update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out);
+  // the map this baker emitted last time. The repair is incremental - the dirty groups get stage 0,
+  // the groups a raised texel can reach an exact search over the dirty blocks, the groups a lowered
+  // texel could have blocked are marked for refinement - unless that costs more than a whole new
+  // stage L (bake()), which is what `cheaper` picks by an estimate of both.
+  enum class UpdatePolicy { cheaper, incremental, rebake };
+  BakeStats update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
+                   UpdatePolicy policy = UpdatePolicy::cheaper);
   // Spends more budget refining the current frame; `out` must hold the map emitted last time.
   BakeStats refine(const Budget& budget, ConeView out);
   // Texels whose ratio may still be more than `tolerance` below exact (refinement would tighten them).

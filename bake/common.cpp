@@ -30,7 +30,8 @@ void validate_heights(HeightView heights, const char* product) {
   const std::size_t count = std::size_t(heights.width) * heights.height;
   // one branch-free pass (NaN fails both comparisons), then the slow one only to name the texel
   int bad = 0;
-  for (std::size_t i = 0; i < count; ++i) bad |= int(!(heights.data[i] >= 0.0f)) | int(!(heights.data[i] <= 1.0f));
+  for (std::size_t i = 0; i < count; ++i)
+    bad |= int(!(heights.data[i] >= 0.0f)) | int(!(heights.data[i] <= 1.0f));
   if (bad == 0) return;
   for (std::size_t i = 0; i < count; ++i) {
     const float h = heights.data[i];

@@ -29,8 +29,8 @@
 #include <array>
 #include <atomic>
 #include <chrono>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 
 #include "bake/lane_sweep.h"
 #include "bake/search.h"
@@ -45,11 +45,11 @@ using detail::Pyramid;
 using detail::SearchContext;
 using detail::SectorMask;
 
-constexpr int group_level = 3;         // groups are 2^3 x 2^3 texels
+constexpr int group_level = 3;  // groups are 2^3 x 2^3 texels
 constexpr int group_size = 1 << group_level;
-constexpr int open_factor = 2;
+constexpr int open_factor = 2;  // a block is opened while its gap to the group (texels) < factor * size
 constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane is at most this
-constexpr bool lane_knights = true;          // stage L: chamfer with knight moves (see lane_sweep.cpp)         // a block is opened while its gap to the group (texels) < factor * size
+constexpr bool lane_knights = true;         // stage L: chamfer with knight moves (see lane_sweep.cpp)
 
 struct Candidate {
   int x0, x1, y0, y1;  // unrolled texel coordinates, inclusive
@@ -104,7 +104,8 @@ long long collect_candidates(const SearchContext& context, const GroupRect& g, f
       const int child_count_x = pyramid.count_x(level), child_count_y = pyramid.count_y(level);
       for (int dy = 0; dy < 2 && 2 * by + dy < child_count_y; ++dy)
         for (int dx = 0; dx < 2 && 2 * bx + dx < child_count_x; ++dx)
-          stack.push_back({level, tile_x * child_count_x + 2 * bx + dx, tile_y * child_count_y + 2 * by + dy});
+          stack.push_back(
+              {level, tile_x * child_count_x + 2 * bx + dx, tile_y * child_count_y + 2 * by + dy});
       continue;
     }
     out.push_back({x0, x1, y0, y1, block_max, bound, node});
@@ -129,7 +130,8 @@ long long scan_candidates(const Grid& grid, std::span<const Candidate> candidate
     const float ratio = detail::pair_ratio(
         grid.distance(detail::interval_gap(x0, x1), detail::interval_gap(y0, y1)), c.max - hc);
     const bool texel = c.node.level == 0;
-    const SectorMask mask = texel ? detail::point_sectors(grid, x0, y0) : detail::rect_sectors(grid, x0, x1, y0, y1);
+    const SectorMask mask =
+        texel ? detail::point_sectors(grid, x0, y0) : detail::rect_sectors(grid, x0, x1, y0, y1);
     float* target = texel ? exact_best : coarse;
     bool lowered = false;
     for (int k = 0; k < sectors; ++k)
@@ -155,7 +157,7 @@ struct BudgetedBaker::State {
   // per texel: emitted ratio / best known upper bound of the exact ratio (1 = known exact); the
   // texel is refined while its slack is below 1 - tolerance
   std::vector<float> slack;
-  std::vector<float> group_slack;  // smallest slack of each group
+  std::vector<float> group_slack;         // smallest slack of each group
   std::vector<std::uint8_t> group_stage;  // 0: only the O(N) floor so far, 1: stage A done
   // stage 0, per level L >= 1: the max over the level-L blocks that a quadrant of directions from a
   // texel can reach inside its 3 x 3 level-L neighbourhood (quadrant q = sector q of 4), and per
@@ -185,7 +187,8 @@ struct Clock {
   long long max_work = -1;
   std::atomic<long long> work{0};
 
-  explicit Clock(const Budget& budget) : clock(budget.clock), limit(budget.milliseconds), max_work(budget.max_work) {
+  explicit Clock(const Budget& budget)
+      : clock(budget.clock), limit(budget.milliseconds), max_work(budget.max_work) {
     if (!clock) {
       clock = [] {
         return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
@@ -209,7 +212,8 @@ struct Clock {
 // Inverse distances to leave the level-(level - 1) neighbourhood along one axis, per texel index.
 // Blocks are unrolled like the pyramid (the last block of a tile may be partial); with clamp there is
 // nothing beyond the map, so that side's inverse is 0 (no blocker).
-void exit_inverses(const Grid& grid, int level, int size, bool along_u, std::array<std::vector<float>, 2>& out) {
+void exit_inverses(const Grid& grid, int level, int size, bool along_u,
+                   std::array<std::vector<float>, 2>& out) {
   const int fine = level - 1;
   const int count = (size + (1 << fine) - 1) >> fine;
   const bool wrap = grid.address == Address::wrap;
@@ -324,7 +328,8 @@ void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, fl
       float* sector_slope = &slope[std::size_t(k) * span];
       if (sectors == 1) {
         for (int n = 0; n < span; ++n)
-          sector_slope[n] = std::max(std::max(ring[n], ring[span + n]), std::max(ring[2 * span + n], ring[3 * span + n]));
+          sector_slope[n] =
+              std::max(std::max(ring[n], ring[span + n]), std::max(ring[2 * span + n], ring[3 * span + n]));
       } else {
         const int q = sectors == 4 ? k : k / 2;
         std::copy_n(&ring[std::size_t(q) * span], span, sector_slope);
@@ -379,14 +384,16 @@ void stage0_group(BudgetedBaker::State& state, int group, float* out) {
 
 // Stage A for one group: tightens the stage-0 ratios (out holds them) with the group's candidates
 // and records how loose each texel may still be.
-long long fallback_group(BudgetedBaker::State& state, int group, float* out, std::vector<Candidate>& candidates) {
+long long fallback_group(BudgetedBaker::State& state, int group, float* out,
+                         std::vector<Candidate>& candidates) {
   const Grid& grid = state.grid;
   const int sectors = grid.sector_count;
   const SearchContext context{grid, state.pyramid};
   const GroupRect g = group_rect(grid, group);
   float group_min = 1.0f;
   for (int i = g.i0; i <= g.i1; ++i)
-    for (int j = g.j0; j <= g.j1; ++j) group_min = std::min(group_min, state.heights[std::size_t(i) * grid.width + j]);
+    for (int j = g.j0; j <= g.j1; ++j)
+      group_min = std::min(group_min, state.heights[std::size_t(i) * grid.width + j]);
   long long work = collect_candidates(context, g, group_min, state.roots, candidates);
   float group_slack = 1.0f;
   float exact_best[8], coarse[8];
@@ -443,7 +450,8 @@ long long refine_group(BudgetedBaker::State& state, int group, float keep, float
     }
   float group_slack = 1.0f;
   for (int i = g.i0; i <= g.i1; ++i)
-    for (int j = g.j0; j <= g.j1; ++j) group_slack = std::min(group_slack, state.slack[std::size_t(i) * grid.width + j]);
+    for (int j = g.j0; j <= g.j1; ++j)
+      group_slack = std::min(group_slack, state.slack[std::size_t(i) * grid.width + j]);
   state.group_slack[group] = group_slack;
   return work;
 }
@@ -524,19 +532,20 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
     if (order.empty()) continue;
     std::atomic<long long> refined_total{0};
     std::atomic<int> last_started{-1};
-    tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1), [&](const tbb::blocked_range<int>& range) {
-      std::vector<Candidate> candidates;
-      long long local_refined = 0;
-      for (int n = range.begin(); n < range.end(); ++n) {
-        if (clock.exhausted()) break;
-        int seen = last_started.load();
-        while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
-        }
-        clock.work += pass == 0 ? fallback_group(state, order[n], out, candidates)
-                                : refine_group(state, order[n], keep, out, local_refined);
-      }
-      refined_total += local_refined;
-    });
+    tbb::parallel_for(tbb::blocked_range<int>(0, int(order.size()), 1),
+                      [&](const tbb::blocked_range<int>& range) {
+                        std::vector<Candidate> candidates;
+                        long long local_refined = 0;
+                        for (int n = range.begin(); n < range.end(); ++n) {
+                          if (clock.exhausted()) break;
+                          int seen = last_started.load();
+                          while (seen < n && !last_started.compare_exchange_weak(seen, n)) {
+                          }
+                          clock.work += pass == 0 ? fallback_group(state, order[n], out, candidates)
+                                                  : refine_group(state, order[n], keep, out, local_refined);
+                        }
+                        refined_total += local_refined;
+                      });
     refined += refined_total;
     // continue after the furthest group started; groups skipped before it stay pending
     if (last_started >= 0) state.cursor = (order[last_started] + 1) % groups;
@@ -582,8 +591,8 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   const int planes = swept_planes(state);
   const std::size_t count = state.heights.size();
   detail::LanePlan& plan = state.lanes;
-  detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap, lane_lowest_ratio,
-                         lane_knights, planes == 8, plan);
+  detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap,
+                         lane_lowest_ratio, lane_knights, planes == 8, plan);
   state.lane_masks.resize(planes * count);
   std::uint32_t* masks[8];
   for (int k = 0; k < planes; ++k) masks[k] = &state.lane_masks[k * count];
@@ -642,13 +651,14 @@ void ensure_slack(BudgetedBaker::State& state) {
   const detail::LanePlan& plan = state.lanes;
   const int planes = swept_planes(state);
   state.slack.resize(count);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t t = r.begin(); t < r.end(); ++t) {
-      int c[8];
-      for (int k = 0; k < planes; ++k) c[k] = detail::lanes_passed(state.lane_masks[k * count + t]);
-      state.slack[t] = texel_slack(plan, sectors, planes, detail::lane_floor(plan, state.heights[t]), c);
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t t = r.begin(); t < r.end(); ++t) {
+          int c[8];
+          for (int k = 0; k < planes; ++k) c[k] = detail::lanes_passed(state.lane_masks[k * count + t]);
+          state.slack[t] = texel_slack(plan, sectors, planes, detail::lane_floor(plan, state.heights[t]), c);
+        }
+      });
   const int groups = group_count(grid);
   state.group_slack.resize(groups);
   state.group_stage.resize(groups);
@@ -657,7 +667,8 @@ void ensure_slack(BudgetedBaker::State& state) {
       const GroupRect g = group_rect(grid, group);
       float group_slack = 1.0f;
       for (int i = g.i0; i <= g.i1; ++i)
-        for (int j = g.j0; j <= g.j1; ++j) group_slack = std::min(group_slack, state.slack[std::size_t(i) * width + j]);
+        for (int j = g.j0; j <= g.j1; ++j)
+          group_slack = std::min(group_slack, state.slack[std::size_t(i) * width + j]);
       state.group_slack[group] = group_slack;
       state.group_stage[group] = 1;  // stage A only certifies, and stage L did
     }
@@ -665,8 +676,8 @@ void ensure_slack(BudgetedBaker::State& state) {
   state.slack_stale = false;
 }
 
-BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined, float* out,
-                 const StageTotals* known = nullptr) {
+BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined,
+                 float* out, const StageTotals* known = nullptr) {
   BakeStats stats;
   stats.mode = Mode::budgeted;
   stats.width = state.grid.width;
@@ -747,7 +758,7 @@ BakeStats BudgetedBaker::refine(const Budget& budget, ConeView out) {
 }
 
 BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget,
-                                ConeView out) {
+                                ConeView out, UpdatePolicy policy) {
   State& state = *state_;
   if (state.heights.empty()) return bake(heights, budget, out);
   check_view(state, heights, out);
@@ -770,8 +781,8 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
   }
   for (std::size_t t = 0; t < state.heights.size(); ++t)
     if (!inside[t] && heights.data[t] != state.heights[t])
-      throw BakeError("height changed outside the dirty region at texel (" + std::to_string(t / width) + ", " +
-                      std::to_string(t % width) + ")");
+      throw BakeError("height changed outside the dirty region at texel (" + std::to_string(t / width) +
+                      ", " + std::to_string(t % width) + ")");
 
   // per rectangle: the largest new height, and the largest height that fell (old value)
   struct DirtyInfo {
@@ -790,12 +801,6 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
       }
     infos.push_back(info);
   }
-  set_heights(state, heights);
-  const SearchContext context{grid, state.pyramid};
-  // a blocker that fell may have been some texel's best upper bound: forget them all
-  if (std::any_of(infos.begin(), infos.end(), [](const DirtyInfo& info) { return info.fallen_max >= 0.0f; }))
-    std::fill(state.upper.begin(), state.upper.end(), 1.0f);
-
   const int groups = group_count(grid);
   const int tiles = grid.address == Address::wrap ? 1 : 0;
   // group-level bound of a dirty rectangle with height `top` against texels of height >= group_min
@@ -813,12 +818,11 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
     return bound;
   };
 
-  long long refined = 0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
-    std::vector<Candidate> candidates;
-    std::vector<Node> dirty_nodes;
-    long long work = 0;
-    float best[8];
+  // What the change reaches, per group: its own heights changed, a raised texel can lower its ratios
+  // (repair now), or a lowered texel may have been its blocker (refine later).
+  enum : std::uint8_t { touched = 1, raised = 2, fell = 4 };
+  std::vector<std::uint8_t> reach(groups, 0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 16), [&](const tbb::blocked_range<int>& range) {
     for (int group = range.begin(); group < range.end(); ++group) {
       const GroupRect g = group_rect(grid, group);
       bool touches = false;
@@ -828,19 +832,60 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
           const std::size_t t = std::size_t(i) * width + j;
           touches |= inside[t] != 0;
           group_min = std::min(group_min, heights.data[t]);
-          for (int k = 0; k < sectors; ++k) group_max_ratio = std::max(group_max_ratio, out.data[t * sectors + k]);
+          for (int k = 0; k < sectors; ++k)
+            group_max_ratio = std::max(group_max_ratio, out.data[t * sectors + k]);
         }
-      if (touches) {  // the group's own heights changed: its floor now, the rest within the budget
+      std::uint8_t flags = touches ? touched : 0;
+      if (!touches)
+        for (const DirtyInfo& info : infos) {
+          if (rect_bound(g, info.rect, info.new_max, group_min) < group_max_ratio) flags |= raised;
+          if (info.fallen_max >= 0.0f &&
+              rect_bound(g, info.rect, info.fallen_max, group_min) <= group_max_ratio)
+            flags |= fell;
+        }
+      reach[group] = flags;
+    }
+  });
+  if (policy != UpdatePolicy::incremental) {
+    // Rough costs in pyramid-node visits: stage L about 2 per texel; the repair of a raised group
+    // one search over the dirty blocks per texel; a texel left to refine (touched or fell) about
+    // 500, what stage B spends per texel on the ocean.
+    long long dirty_nodes = 0;  // group-level blocks over the rectangles, with their wrap images
+    for (const DirtyInfo& info : infos)
+      dirty_nodes += (long long)(((info.rect.x1 - 1) >> group_level) - (info.rect.x0 >> group_level) + 1) *
+                     (((info.rect.y1 - 1) >> group_level) - (info.rect.y0 >> group_level) + 1) *
+                     (tiles ? 9 : 1);
+    long long incremental = 0;
+    for (std::uint8_t flags : reach) {
+      if (flags & (touched | fell)) incremental += group_size * group_size * 500ll;
+      if (flags & raised) incremental += group_size * group_size * 2 * dirty_nodes;
+    }
+    if (policy == UpdatePolicy::rebake || incremental > 2 * (long long)state.heights.size()) {
+      clock.work += groups;
+      return bake(heights, budget, out);
+    }
+  }
+
+  set_heights(state, heights);
+  const SearchContext context{grid, state.pyramid};
+  // a blocker that fell may have been some texel's best upper bound: forget them all
+  if (std::any_of(infos.begin(), infos.end(), [](const DirtyInfo& info) { return info.fallen_max >= 0.0f; }))
+    std::fill(state.upper.begin(), state.upper.end(), 1.0f);
+
+  long long refined = 0;
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
+    std::vector<Node> dirty_nodes;
+    long long work = 0;
+    float best[8];
+    for (int group = range.begin(); group < range.end(); ++group) {
+      const GroupRect g = group_rect(grid, group);
+      if (reach[group] &
+          touched) {  // the group's own heights changed: its floor now, the rest within the budget
         stage0_group(state, group, out.data);
         continue;
       }
-      bool raised = false, fell = false;
-      for (const DirtyInfo& info : infos) {
-        ++work;
-        raised |= rect_bound(g, info.rect, info.new_max, group_min) < group_max_ratio;
-        fell |= info.fallen_max >= 0.0f && rect_bound(g, info.rect, info.fallen_max, group_min) <= group_max_ratio;
-      }
-      if (raised) {  // repair now: exact search over the dirty blocks, starting from the stored ratios
+      work += (long long)infos.size();
+      if (reach[group] & raised) {  // repair now: exact search over the dirty blocks, from the stored ratios
         for (const DirtyInfo& info : infos) {
           const std::vector<Node> nodes = detail::nodes_covering(context, info.rect, group_level);
           dirty_nodes.insert(dirty_nodes.end(), nodes.begin(), nodes.end());
@@ -854,7 +899,7 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
           }
         dirty_nodes.clear();
       }
-      if (fell) {  // stale ratios stay conservative; tighten them later
+      if (reach[group] & fell) {  // stale ratios stay conservative; tighten them later
         for (int i = g.i0; i <= g.i1; ++i)
           for (int j = g.j0; j <= g.j1; ++j) state.slack[std::size_t(i) * width + j] = 0.0f;
         state.group_slack[group] = 0.0f;

@@ -34,8 +34,8 @@
 #include "bake/lane_sweep.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -57,7 +57,9 @@ float lane_floor(const LanePlan& plan, float h) {
 
 int lane_sweep_best_level() {
 #if defined(DISPLACE_LANE_SWEEP_X86)
-  static const int level = __builtin_cpu_supports("x86-64-v4") ? 4 : __builtin_cpu_supports("x86-64-v3") ? 3 : 0;
+  static const int level = __builtin_cpu_supports("x86-64-v4")   ? 4
+                           : __builtin_cpu_supports("x86-64-v3") ? 3
+                                                                 : 0;
   return level;
 #else
   return 0;
@@ -67,8 +69,12 @@ int lane_sweep_best_level() {
 #if !defined(DISPLACE_LANE_SWEEP_X86)
 void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_sweep_avx512(LaneSweepJob& job) { lane_sweep_generic(job); }
-void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { lane_emit_generic(job, first, last); }
-void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) { lane_emit_generic(job, first, last); }
+void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) {
+  lane_emit_generic(job, first, last);
+}
+void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
+  lane_emit_generic(job, first, last);
+}
 #endif
 
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
@@ -140,15 +146,19 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   // range evenly, since the large ratios are the ones that decide how far a ray steps.
   const double range = double(plan.highest) - double(lowest_height);
   const double lowest_lane =
-      range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio)) : double(lowest_ratio);
+      range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio))
+                  : double(lowest_ratio);
   const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28;
-  const int low_lanes = std::min(lane_count / 2, int(std::ceil(std::log(knee / lowest_lane) / std::log(low_spacing))));
+  const int low_lanes =
+      std::min(lane_count / 2, int(std::ceil(std::log(knee / lowest_lane) / std::log(low_spacing))));
   const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
   double slope[lane_count];
   plan.lane_ratio[0] = 0.0f;
   for (int l = 0; l < lane_count; ++l) {
-    const double ratio = l <= low_lanes ? lowest_lane * std::pow(low_spacing, l)
-                                        : knee_lane * std::pow(highest_lane / knee_lane, double(l - low_lanes) / (lane_count - 1 - low_lanes));
+    const double ratio = l <= low_lanes
+                             ? lowest_lane * std::pow(low_spacing, l)
+                             : knee_lane * std::pow(highest_lane / knee_lane,
+                                                    double(l - low_lanes) / (lane_count - 1 - low_lanes));
     slope[l] = 1.0 / ratio;
     // emitted a little below the lane, for the rounding of the exact baker's own division
     plan.lane_ratio[l + 1] = float(std::min(1.0, ratio * (1.0 - 1e-5)));
@@ -168,7 +178,8 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   const int* order = knights ? with_knights : without;
   const int used = knights ? 5 : 3;
   double scale = 1.0;
-  for (int k = 0; k + 1 < used; ++k) scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
+  for (int k = 0; k + 1 < used; ++k)
+    scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
   scale *= 1.0 - 1e-9;
   for (int m = 0; m < lane_move_count; ++m)
     for (int l = 0; l < lane_count; ++l) {
@@ -202,8 +213,9 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   plan.lane_upper[lane_count] = 1.0f;
 }
 
-LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors, std::uint32_t* const masks[],
-                              float* out4, const std::uint8_t* pending_count, const LaneSweepOptions& options) {
+LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
+                              std::uint32_t* const masks[], float* out4, const std::uint8_t* pending_count,
+                              const LaneSweepOptions& options) {
   const int level = options.level < 0 ? lane_sweep_best_level() : options.level;
   const bool octants = sectors == 8;
   if (octants && plan.top_transposed.empty()) throw std::logic_error("lane plan without octants");
@@ -219,8 +231,9 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
     // an octant sweep: the half of the quadrant next to the v axis in place, the half next to the
     // u axis on the transposed map (where u runs down the rows); sectors go round from +u
     const bool transposed = octants && n % 2 == 0;
-    const int sector = !octants ? quadrant : quadrant % 2 == 0 ? 2 * quadrant + (transposed ? 0 : 1)
-                                                               : 2 * quadrant + (transposed ? 1 : 0);
+    const int sector = !octants            ? quadrant
+                       : quadrant % 2 == 0 ? 2 * quadrant + (transposed ? 0 : 1)
+                                           : 2 * quadrant + (transposed ? 1 : 0);
     LaneSweepJob job;
     job.width = transposed ? plan.height : plan.width;
     job.height = transposed ? plan.width : plan.height;

@@ -8,9 +8,9 @@
 
 namespace displace::bake::detail {
 
-constexpr int lane_count = 32;               // ratio lanes tested per sweep
-constexpr int lane_move_count = 5;           // chamfer moves: along the row, across it, diagonal, two knight moves
-constexpr double height_scale = 65535.0;     // heights and dilations are in units of 1 / 65535
+constexpr int lane_count = 32;      // ratio lanes tested per sweep
+constexpr int lane_move_count = 5;  // chamfer moves: along the row, across it, diagonal, two knight moves
+constexpr double height_scale = 65535.0;  // heights and dilations are in units of 1 / 65535
 
 // One quadrant sweep. The map is seen from the quadrant: local (a, b) is physical row
 // flip_y ? H - 1 - a : a, column flip_x ? W - 1 - b : b, and the quadrant's blockers of local texel
@@ -26,8 +26,8 @@ struct LaneSweepJob {
   // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down. Moves
   // (da, db): 0 = (0, 1), 1 = (1, 0), 2 = (1, 1), 3 = (1, 2), 4 = (2, 1).
   const std::uint16_t* steps = nullptr;
-  std::uint16_t* scratch = nullptr;   // lane_sweep_scratch(width) values, 64-byte aligned
-  long long* row_sums = nullptr;      // height / 2 + 2 values
+  std::uint16_t* scratch = nullptr;  // lane_sweep_scratch(width) values, 64-byte aligned
+  long long* row_sums = nullptr;     // height / 2 + 2 values
   // out: per physical texel, bit l set when lane l passes. Lanes pass from the lowest up, so the
   // count of set bits says which; the first lane that fails (if any) failed on a real blocker, so it
   // bounds the exact ratio from above.
@@ -71,7 +71,7 @@ struct LanePlan {
   bool knights = true;
   std::vector<std::uint16_t> top, bottom;
   std::vector<std::uint16_t> top_transposed, bottom_transposed;  // for octant sweeps (square maps)
-  float highest = 0.0f;  // the largest height
+  float highest = 0.0f;                                          // the largest height
   float nearest = 0.0f;  // uv distance between a texel and its nearest neighbour
   alignas(64) std::uint16_t steps[lane_move_count * lane_count];
   float lane_ratio[lane_count + 1];  // [count]: the ratio that count passing lanes prove (0 for none)
@@ -104,7 +104,8 @@ struct LaneSweepOptions {
   int level = -1;
   bool stop_early = true;
 };
-LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors, std::uint32_t* const masks[],
-                              float* out4, const std::uint8_t* pending_count, const LaneSweepOptions& options = {});
+LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
+                              std::uint32_t* const masks[], float* out4, const std::uint8_t* pending_count,
+                              const LaneSweepOptions& options = {});
 
 }  // namespace displace::bake::detail

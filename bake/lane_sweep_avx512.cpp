@@ -19,14 +19,17 @@ struct Ops {
   static V subs(V a, V b) { return _mm512_subs_epu16(a, b); }
   static bool same(V a, V b) { return _mm512_cmpneq_epu16_mask(a, b) == 0; }
   static unsigned mask_at_most(V a, V b) { return unsigned(_mm512_cmple_epu16_mask(a, b)); }
-  static void store_mask_at_most(std::uint32_t* p, V a, V b) { _store_mask32(reinterpret_cast<__mmask32*>(p), _mm512_cmple_epu16_mask(a, b)); }
+  static void store_mask_at_most(std::uint32_t* p, V a, V b) {
+    _store_mask32(reinterpret_cast<__mmask32*>(p), _mm512_cmple_epu16_mask(a, b));
+  }
   static long long sum(const std::uint16_t* p, int texels) {
     // (value - 32768) fits a signed 16-bit number; madd adds neighbours into 32-bit ones, and a row
     // of up to 32768 texels stays within 32 bits per part
     const __m512i bias = _mm512_set1_epi16(short(0x8000)), ones = _mm512_set1_epi16(1);
     __m512i parts = _mm512_setzero_si512();
     for (int t = 0; t < texels; ++t)
-      parts = _mm512_add_epi32(parts, _mm512_madd_epi16(_mm512_xor_si512(load(p + std::size_t(t) * 32), bias), ones));
+      parts = _mm512_add_epi32(
+          parts, _mm512_madd_epi16(_mm512_xor_si512(load(p + std::size_t(t) * 32), bias), ones));
     return 32768ll * 32 * texels + _mm512_reduce_add_epi32(parts);
   }
 };
@@ -44,10 +47,12 @@ void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 // ratio from a 32-entry table in two registers (count 32 and count 0 blended in), and the four
 // quadrants' ratios interleaved with a 4 x 4 transpose per 128-bit lane and one across them.
 void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
-  const __m512 ratios_low = _mm512_loadu_ps(job.lane_ratio), ratios_high = _mm512_loadu_ps(job.lane_ratio + 16);
+  const __m512 ratios_low = _mm512_loadu_ps(job.lane_ratio),
+               ratios_high = _mm512_loadu_ps(job.lane_ratio + 16);
   alignas(64) int pending_table[32];
   for (int c = 0; c < 32; ++c) pending_table[c] = job.pending_count[c];
-  const __m512i pending_low = _mm512_load_si512(pending_table), pending_high = _mm512_load_si512(pending_table + 16);
+  const __m512i pending_low = _mm512_load_si512(pending_table),
+                pending_high = _mm512_load_si512(pending_table + 16);
   const __m512 top_ratio = _mm512_set1_ps(job.lane_ratio[32]);
   const __m512i all_lanes = _mm512_set1_epi32(32), none = _mm512_setzero_si512();
   const __m512i pending_all = _mm512_set1_epi32(job.pending_count[32]);
@@ -73,7 +78,8 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
           const __m512 h = _mm512_loadu_ps(job.heights + t);
           const __mmask16 below = _mm512_cmp_ps_mask(h, highest, _CMP_LT_OQ);
           floor = _mm512_mask_blend_ps(
-              below, one, _mm512_min_ps(one, _mm512_mul_ps(_mm512_div_ps(nearest, _mm512_sub_ps(highest, h)), margin)));
+              below, one,
+              _mm512_min_ps(one, _mm512_mul_ps(_mm512_div_ps(nearest, _mm512_sub_ps(highest, h)), margin)));
           floor_ready = true;
         }
         r = _mm512_mask_blend_ps(empty, r, floor);

@@ -41,6 +41,8 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
-void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
+void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) {
+  emit_texels(job, first, last);
+}
 
 }  // namespace displace::bake::detail

@@ -78,7 +78,8 @@ void sweep_kernel(LaneSweepJob& job) {
     // cone of ratio lane l (bit l of its mask); lanes pass from the smallest ratio up. Row a + 1's
     // texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers from the texels before.
     V carry = nothing;
-    V next1 = Ops::load(below1 + std::size_t(W) * lane_stride), next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
+    V next1 = Ops::load(below1 + std::size_t(W) * lane_stride),
+      next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
     V knight_source = knights ? Ops::load(below2 + std::size_t(W) * lane_stride) : nothing;
     for (int b = W - 1; b >= 0; --b) {
       const V here = Ops::load(below1 + std::size_t(b) * lane_stride);
@@ -118,7 +119,8 @@ void sweep_kernel(LaneSweepJob& job) {
     }
     if (wrap) {
       for (int k = 0; k < 2; ++k)
-        Ops::store(below2 + std::size_t(W + k) * lane_stride, Ops::load(below2 + std::size_t(k % W) * lane_stride));
+        Ops::store(below2 + std::size_t(W + k) * lane_stride,
+                   Ops::load(below2 + std::size_t(k % W) * lane_stride));
     } else {
       Ops::store(below2 + std::size_t(W) * lane_stride, nothing);
       Ops::store(below2 + std::size_t(W + 1) * lane_stride, nothing);

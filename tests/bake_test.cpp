@@ -369,15 +369,17 @@ struct LaneRun {
 LaneRun run_lanes(const Map& map, Address address, bool knights, const detail::LaneSweepOptions& options = {},
                   float lowest = 0.02f) {
   LaneRun run;
-  detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights, false,
-                         run.plan);
+  detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, lowest, knights,
+                         false, run.plan);
   run.masks.assign(map.values.size() * 4, 0xdeadbeef);
   std::uint32_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
   // flag the counts whose ratio is below half of their upper bound, to check the pending sum
   std::uint8_t pending[detail::lane_count + 1];
-  for (int c = 0; c <= detail::lane_count; ++c) pending[c] = run.plan.lane_ratio[c] < 0.5f * run.plan.lane_upper[c];
+  for (int c = 0; c <= detail::lane_count; ++c)
+    pending[c] = run.plan.lane_ratio[c] < 0.5f * run.plan.lane_upper[c];
   run.out.assign(map.values.size() * 4, -1.0f);
-  run.totals = detail::sweep_sectors(run.plan, map.values.data(), 4, planes, run.out.data(), pending, options);
+  run.totals =
+      detail::sweep_sectors(run.plan, map.values.data(), 4, planes, run.out.data(), pending, options);
   run.work = run.totals.work;
   return run;
 }
@@ -404,10 +406,10 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
               const float ratio =
                   count == 0 ? detail::lane_floor(run.plan, map.values[std::size_t(i) * map.width + j])
                              : run.plan.lane_ratio[count];
-              const std::string where = map.name + " " + std::to_string(map.width) + "x" +
-                                        std::to_string(map.height) + " " + address_name(address) + " knights " +
-                                        std::to_string(knights) + " quadrant " + std::to_string(q) + " texel " +
-                                        std::to_string(i) + "," + std::to_string(j);
+              const std::string where =
+                  map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) + " " +
+                  address_name(address) + " knights " + std::to_string(knights) + " quadrant " +
+                  std::to_string(q) + " texel " + std::to_string(i) + "," + std::to_string(j);
               ASSERT_GT(ratio, 0.0f) << where;
               ASSERT_EQ(run.out[(std::size_t(i) * map.width + j) * 4 + q], ratio) << where;
               ASSERT_LE(ratio, exact.at(i, j, q)) << where;
@@ -419,8 +421,8 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
         EXPECT_EQ(run.totals.pending, pending) << map.name;
         EXPECT_NEAR(run.totals.ratio_sum, swept_sum, 1e-5 * swept_sum) << map.name;
         if (map.name == "fractal-cliff" && map.width == 100) {
-          std::printf("lane sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
-                      int(knights), swept_sum / exact_sum);
+          std::printf("lane sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(),
+                      address_name(address), int(knights), swept_sum / exact_sum);
           EXPECT_GT(swept_sum, 0.85 * exact_sum);
         }
       }
@@ -441,8 +443,8 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
       for (bool knights : {true, false}) {
         const ConeMap exact = exact_of(map, 8, address);
         detail::LanePlan plan;
-        detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, 0.02f, knights,
-                               true, plan);
+        detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, 0.02f,
+                               knights, true, plan);
         const std::size_t count = map.values.size();
         std::vector<std::uint32_t> masks(count * 8, 0xdeadbeef);
         std::uint32_t* planes[8];
@@ -455,15 +457,16 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
             ASSERT_EQ(planes[k][t], c == 32 ? 0xffffffffu : (1u << c) - 1u) << map.name;
             const float ratio = c == 0 ? detail::lane_floor(plan, map.values[t]) : plan.lane_ratio[c];
             const float truth = exact.ratios[t * 8 + k];
-            ASSERT_LE(ratio, truth) << map.name << " " << map.width << " " << address_name(address) << " knights "
-                                    << knights << " octant " << k << " texel " << t;
-            ASSERT_LE(truth, plan.lane_upper[c]) << map.name << " octant " << k << " texel " << t << " count " << c;
+            ASSERT_LE(ratio, truth) << map.name << " " << map.width << " " << address_name(address)
+                                    << " knights " << knights << " octant " << k << " texel " << t;
+            ASSERT_LE(truth, plan.lane_upper[c])
+                << map.name << " octant " << k << " texel " << t << " count " << c;
             swept_sum += ratio;
             exact_sum += truth;
           }
         if (map.name == "fractal-cliff" && map.width == 64) {
-          std::printf("octant sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(), address_name(address),
-                      int(knights), swept_sum / exact_sum);
+          std::printf("octant sweep on %s %s, knights %d: tightness %.3f\n", map.name.c_str(),
+                      address_name(address), int(knights), swept_sum / exact_sum);
           EXPECT_GT(swept_sum, 0.85 * exact_sum);
         }
         for (int level : {0, 3}) {
@@ -481,8 +484,8 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
 TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
   const int best = detail::lane_sweep_best_level();
   std::printf("lane sweep: best instruction set level here %d\n", best);
-  for (const Map& map : {test::make_fractal_cliff(100, 60, 5), test::make_bricks(64, 48), test::make_spikes(13, 1, 2),
-                         test::make_flat(1, 1)})
+  for (const Map& map : {test::make_fractal_cliff(100, 60, 5), test::make_bricks(64, 48),
+                         test::make_spikes(13, 1, 2), test::make_flat(1, 1)})
     for (Address address : {Address::wrap, Address::clamp})
       for (bool knights : {true, false}) {
         const LaneRun generic = run_lanes(map, address, knights, {0, true});
@@ -504,8 +507,9 @@ TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
   Map waves{"waves", 96, 80, std::vector<float>(96 * 80)};
   for (int i = 0; i < waves.height; ++i)
     for (int j = 0; j < waves.width; ++j)
-      waves.at(i, j) = 0.5f + 0.25f * std::sin(2.0f * std::numbers::pi_v<float> * (3.0f * j / 96.0f + 2.0f * i / 80.0f)) +
-                       0.2f * std::cos(2.0f * std::numbers::pi_v<float> * (5.0f * i / 80.0f - j / 96.0f));
+      waves.at(i, j) =
+          0.5f + 0.25f * std::sin(2.0f * std::numbers::pi_v<float> * (3.0f * j / 96.0f + 2.0f * i / 80.0f)) +
+          0.2f * std::cos(2.0f * std::numbers::pi_v<float> * (5.0f * i / 80.0f - j / 96.0f));
   std::vector<Map> maps = {waves, test::make_fractal_cliff(100, 60, 5)};
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
     maps.push_back(test::make_spikes(20 + int(seed % 7), 9 + int(seed % 5), seed));
@@ -577,42 +581,69 @@ TEST(BudgetedBaker, FakeClockBudgetStopsRefinement) {
 
 TEST(BudgetedBaker, IncrementalUpdatesStayConservativeAndConverge) {
   std::uint64_t seed = 99;
-  for (int sectors : {1, 4, 8})
-    for (Address address : {Address::wrap, Address::clamp}) {
-      Map map = test::make_fractal_cliff(40, 32, seed);
-      BudgetedBaker baker(map.width, map.height, sectors, address);
-      ConeMap cones = make_cone_map(map, sectors);
-      Budget unlimited;
-      unlimited.tolerance = 0.0f;
-      baker.bake(view_of(map), unlimited, cones.view());
-      for (int frame = 0; frame < 12; ++frame) {
-        // a random local raise or lowering
-        const int w = 1 + int(test::hash01(seed, frame, 1) * 6),
-                  h = 1 + int(test::hash01(seed, frame, 2) * 6);
-        const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
-        const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
-        const bool raise = frame % 3 != 1;
-        for (int i = y0; i < y0 + h; ++i)
-          for (int j = x0; j < x0 + w; ++j) {
-            float& value = map.at(i, j);
-            value = raise ? std::min(1.0f, value + 0.3f * test::hash01(seed, i, j + frame))
-                          : std::max(0.0f, value - 0.3f * test::hash01(seed, i, j + frame));
+  using Policy = BudgetedBaker::UpdatePolicy;
+  for (Policy policy : {Policy::incremental, Policy::cheaper, Policy::rebake})
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        Map map = test::make_fractal_cliff(40, 32, seed);
+        BudgetedBaker baker(map.width, map.height, sectors, address);
+        ConeMap cones = make_cone_map(map, sectors);
+        Budget unlimited;
+        unlimited.tolerance = 0.0f;
+        baker.bake(view_of(map), unlimited, cones.view());
+        for (int frame = 0; frame < 12; ++frame) {
+          // a random local raise or lowering
+          const int w = 1 + int(test::hash01(seed, frame, 1) * 6),
+                    h = 1 + int(test::hash01(seed, frame, 2) * 6);
+          const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
+          const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
+          const bool raise = frame % 3 != 1;
+          for (int i = y0; i < y0 + h; ++i)
+            for (int j = x0; j < x0 + w; ++j) {
+              float& value = map.at(i, j);
+              value = raise ? std::min(1.0f, value + 0.3f * test::hash01(seed, i, j + frame))
+                            : std::max(0.0f, value - 0.3f * test::hash01(seed, i, j + frame));
+            }
+          const Rect dirty{x0, y0, x0 + w, y0 + h};
+          Budget none;
+          none.milliseconds = 0.0;
+          baker.update(view_of(map), std::span<const Rect>(&dirty, 1), none, cones.view(), policy);
+          const ConeMap exact = exact_of(map, sectors, address);
+          ASSERT_EQ(violations(cones, exact).count, 0)
+              << "frame " << frame << (raise ? " raise" : " lower") << " sectors " << sectors << " "
+              << address_name(address) << " policy " << int(policy);
+          if (frame % 4 == 3) {  // later frames converge to the full rebake
+            baker.refine(unlimited, cones.view());
+            EXPECT_EQ(baker.pending(), 0);
+            ASSERT_EQ(cones.ratios, exact.ratios) << "frame " << frame;
           }
-        const Rect dirty{x0, y0, x0 + w, y0 + h};
-        Budget none;
-        none.milliseconds = 0.0;
-        baker.update(view_of(map), std::span<const Rect>(&dirty, 1), none, cones.view());
-        const ConeMap exact = exact_of(map, sectors, address);
-        ASSERT_EQ(violations(cones, exact).count, 0)
-            << "frame " << frame << (raise ? " raise" : " lower") << " sectors " << sectors << " "
-            << address_name(address);
-        if (frame % 4 == 3) {  // later frames converge to the full rebake
-          baker.refine(unlimited, cones.view());
-          EXPECT_EQ(baker.pending(), 0);
-          ASSERT_EQ(cones.ratios, exact.ratios) << "frame " << frame;
         }
       }
-    }
+}
+
+// `cheaper` repairs a tiny change that reaches little incrementally (the changed group keeps the
+// stage-0 floor until refined, so with no budget it is pending), and rebakes with stage L when the
+// whole map changed (every texel certified at once).
+TEST(BudgetedBaker, UpdatePicksTheCheaperRepair) {
+  Map map = test::make_flat(256, 256, 0.5f);
+  for (int i = 0; i < map.height; ++i)
+    for (int j = 0; j < map.width; ++j) map.at(i, j) += 0.002f * test::hash01(5, i, j);
+  BudgetedBaker baker(map.width, map.height, 4, Address::wrap);
+  ConeMap cones = make_cone_map(map, 4);
+  Budget none;
+  none.milliseconds = 0.0;
+  baker.bake(view_of(map), none, cones.view());
+  EXPECT_EQ(baker.pending(none.tolerance), 0);
+  map.at(100, 100) += 0.001f;  // tiny and local
+  const Rect spot{100, 100, 101, 101};
+  baker.update(view_of(map), std::span<const Rect>(&spot, 1), none, cones.view());
+  EXPECT_GT(baker.pending(none.tolerance), 0) << "expected the incremental repair";
+  EXPECT_EQ(violations(cones, exact_of(map, 4, Address::wrap)).count, 0);
+  for (float& h : map.values) h = std::min(1.0f, h + 0.3f * test::hash01(6, int(&h - map.values.data()), 0));
+  const Rect all{0, 0, map.width, map.height};
+  baker.update(view_of(map), std::span<const Rect>(&all, 1), none, cones.view());
+  EXPECT_EQ(baker.pending(none.tolerance), 0) << "expected a new stage L";
+  EXPECT_EQ(violations(cones, exact_of(map, 4, Address::wrap)).count, 0);
 }
 
 TEST(BudgetedBaker, RejectsHeightsChangedOutsideTheDirtyRegion) {

@@ -105,9 +105,7 @@ void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 
     switch (baker) {
       case Baker::exact: stats = bake::bake_exact(heights, bake::Address::wrap, out); break;
       case Baker::original: stats = bake::bake_original(heights, bake::Address::wrap, out); break;
-      case Baker::bilinear:
-        stats = bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex);
-        break;
+      case Baker::bilinear: stats = bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex); break;
       case Baker::paper_adaptive:
         stats = bake::bake_paper_adaptive(heights, bake::Address::wrap, {}, out);
         break;
@@ -158,8 +156,9 @@ struct Registration {
         }
     // 8 sectors (octant sweeps): BM_Bake8/<map>/budgeted/<size>
     for (MapKind kind : map_kinds) {
-      auto* b = benchmark::RegisterBenchmark((std::string("BM_Bake8/") + kind_name(kind) + "/budgeted").c_str(),
-                                             [kind](benchmark::State& state) { run(state, kind, Baker::budgeted, 8); });
+      auto* b = benchmark::RegisterBenchmark(
+          (std::string("BM_Bake8/") + kind_name(kind) + "/budgeted").c_str(),
+          [kind](benchmark::State& state) { run(state, kind, Baker::budgeted, 8); });
       b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
     }
   }
