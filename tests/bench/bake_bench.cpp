@@ -5,13 +5,16 @@
 // ocean frame, sinusoid water and a brick-like map, at 128..1024. `bilinear` (bake_bilinear_cones)
 // bakes another map - cones for the bilinear surface from a texel's whole square, with apex
 // heights - so its tightness is only a comparison of means and it counts no violations. Maps have
-// 4 sectors; BM_Bake8 is the budgeted baker with 8 (octant sweeps).
+// 4 sectors; BM_Bake8 is the budgeted baker with 8 (octant sweeps). BM_Update times one update()
+// after a local change, with the repair the baker picks and with the incremental one forced.
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <map>
 #include <mutex>
+#include <span>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -133,6 +136,35 @@ void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 
   state.counters["work_per_texel"] = double(stats.work) / double(size * size);
 }
 
+// One frame of update() after a local change: a rect x rect patch raised and lowered in a
+// checkerboard, moved every iteration; the baker picks its repair (cheaper) or is told to repair
+// incrementally (with no limit, so it also refines what the change left loose).
+void run_update(benchmark::State& state, MapKind kind, bake::BudgetedBaker::UpdatePolicy policy) {
+  const int size = int(state.range(0)), rect = int(state.range(1));
+  const Reference& ref = reference(kind, size, 4);
+  std::vector<float> heights = ref.heights, cones(ref.exact.size());
+  bake::BudgetedBaker baker(size, size, 4, bake::Address::wrap);
+  baker.bake({heights.data(), size, size}, {}, {cones.data(), size, size, 4});
+  bake::BakeStats stats;
+  int frame = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const int x0 = (37 * frame) % (size - rect), y0 = (53 * frame) % (size - rect);
+    const float sign = frame % 2 == 0 ? 1.0f : -1.0f;
+    for (int i = y0; i < y0 + rect; ++i)
+      for (int j = x0; j < x0 + rect; ++j) {
+        float& h = heights[std::size_t(i) * size + j];
+        h = std::clamp(h + sign * ((i + j) % 2 == 0 ? 0.05f : -0.05f), 0.0f, 1.0f);
+      }
+    const bake::Rect dirty{x0, y0, x0 + rect, y0 + rect};
+    state.ResumeTiming();
+    stats = baker.update({heights.data(), size, size}, std::span<const bake::Rect>(&dirty, 1), {},
+                         {cones.data(), size, size, 4}, policy);
+    ++frame;
+  }
+  state.counters["pending"] = double(stats.texels_fallback);
+}
+
 struct Registration {
   Registration() {
     const std::pair<Baker, const char*> bakers[] = {{Baker::budgeted, "budgeted"},
@@ -154,6 +186,16 @@ struct Registration {
           b->Arg(size)->Unit(benchmark::kMillisecond)->UseRealTime();
           if (baker == Baker::original || baker == Baker::exact) b->Iterations(1);
         }
+    // BM_Update/<map>/<policy>/<size>/<rect>
+    using Policy = bake::BudgetedBaker::UpdatePolicy;
+    for (MapKind kind : {MapKind::ocean, MapKind::bricks})
+      for (const auto& [policy, name] :
+           {std::pair{Policy::cheaper, "cheaper"}, std::pair{Policy::incremental, "incremental"}}) {
+        auto* b = benchmark::RegisterBenchmark(
+            (std::string("BM_Update/") + kind_name(kind) + "/" + name).c_str(),
+            [kind, policy = policy](benchmark::State& state) { run_update(state, kind, policy); });
+        b->Args({512, 4})->Args({512, 16})->Args({512, 64})->Unit(benchmark::kMillisecond)->UseRealTime();
+      }
     // 8 sectors (octant sweeps): BM_Bake8/<map>/budgeted/<size>
     for (MapKind kind : map_kinds) {
       auto* b = benchmark::RegisterBenchmark(
