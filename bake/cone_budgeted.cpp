@@ -556,13 +556,13 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
   }
 }
 
-// Stage L, the floor that bake() always completes: the lane sweeps of lane_sweep.cpp, one per
-// quadrant, over the whole map. A texel's quadrant ratio is the largest lane that passes (an octant
-// takes its quadrant's, one sector the smallest of the four); below the lowest lane it keeps
-// (1 texel) / (highest height - its height), which no blocker can beat. The first lane that fails
-// bounds the exact ratio from above, which gives the texel's slack (ensure_slack) - except with 8
-// sectors, where a quadrant bounds neither of its octants, so there the slack is 0 and the
-// refinement stages take every texel.
+// Stage L, the floor that bake() always completes: the lane sweeps of lane_sweep.cpp over the whole
+// map, one per quadrant (8 sectors on a square map: one per octant). A texel's ratio in a sector is
+// the largest lane that passes (one sector takes the smallest quadrant's; 8 sectors on a non-square
+// map their quadrant's); below the lowest lane, the exact ratio over its 5 x 5 neighbourhood
+// against a bound for everything further (lane_floor). The first lane that fails - or below the
+// lowest lane a blocking neighbour - bounds the exact ratio from above, which gives the texel's
+// slack (ensure_slack); 8 sectors from quadrants have none, so the refinement stages take them.
 struct StageTotals {
   double ratio_sum = 0.0;  // of every emitted ratio
   long long pending = 0;   // texel sectors whose slack may be below keep; 0 exactly when no texel's is
@@ -573,16 +573,23 @@ int swept_planes(const BudgetedBaker::State& state) {
   return state.grid.sector_count == 8 && state.grid.width == state.grid.height ? 8 : 4;
 }
 
-// Slack of a texel from its planes' lane counts: the emitted ratio's share of the certified upper
+// Slack of texel t from its planes' lane counts: the emitted ratio's share of the certified upper
 // bound of the exact one. 8 sectors from quadrant planes: a quadrant bounds neither of its octants.
-float texel_slack(const detail::LanePlan& plan, int sectors, int planes, float floor, const int* c) {
+float texel_slack(const BudgetedBaker::State& state, int planes, std::size_t t, const int* c) {
+  const detail::LanePlan& plan = state.lanes;
+  const int sectors = state.grid.sector_count;
   if (sectors == 8 && planes == 4) return 0.0f;
   float slack = 1.0f, smallest = 1.0f, lowest_upper = 1.0f;
-  for (int q = 0; q < planes; ++q) {
-    const float ratio = c[q] == 0 ? floor : plan.lane_ratio[c[q]];
-    slack = std::min(slack, ratio / plan.lane_upper[c[q]]);
+  for (int k = 0; k < planes; ++k) {
+    float ratio = plan.lane_ratio[c[k]], upper = plan.lane_upper[c[k]];
+    if (c[k] == 0) {  // below the lowest lane: the neighbours' floor, and their real blockers bound it
+      const detail::LaneFloor floor = detail::lane_floor(plan, state.heights.data(), t, k, planes);
+      ratio = floor.floor;
+      upper = std::min(upper, floor.upper);
+    }
+    slack = std::min(slack, ratio / upper);
     smallest = std::min(smallest, ratio);
-    lowest_upper = std::min(lowest_upper, plan.lane_upper[c[q]]);
+    lowest_upper = std::min(lowest_upper, upper);
   }
   // one sector: the smallest quadrant's ratio, below the smallest bound
   return std::min(1.0f, sectors == 1 ? smallest / lowest_upper : slack);
@@ -618,11 +625,11 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
         for (int i = rows.begin(); i < rows.end(); ++i)
           for (int j = 0; j < width; ++j) {
             const std::size_t t = std::size_t(i) * width + j;
-            const float floor = detail::lane_floor(plan, state.heights[t]);
-            float ratio[8];
+            float ratio[8] = {};
             for (int k = 0; k < planes; ++k) {
               const int c = detail::lanes_passed(masks[k][t]);
-              ratio[k] = c == 0 ? floor : plan.lane_ratio[c];
+              ratio[k] = c == 0 ? detail::lane_floor(plan, state.heights.data(), t, k, planes).floor
+                                : plan.lane_ratio[c];
               partial.pending += pending_count[c] || (sectors == 8 && planes == 4);
             }
             float* target = out + t * sectors;
@@ -649,19 +656,19 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
 void ensure_slack(BudgetedBaker::State& state) {
   if (!state.slack_stale) return;
   const Grid& grid = state.grid;
-  const int width = grid.width, sectors = grid.sector_count;
+  const int width = grid.width;
   const std::size_t count = state.heights.size();
-  const detail::LanePlan& plan = state.lanes;
   const int planes = swept_planes(state);
   state.slack.resize(count);
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t t = r.begin(); t < r.end(); ++t) {
-          int c[8];
-          for (int k = 0; k < planes; ++k) c[k] = detail::lanes_passed(state.lane_masks[k * count + t]);
-          state.slack[t] = texel_slack(plan, sectors, planes, detail::lane_floor(plan, state.heights[t]), c);
-        }
-      });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t t = r.begin(); t < r.end(); ++t) {
+                        int c[8];
+                        for (int k = 0; k < planes; ++k)
+                          c[k] = detail::lanes_passed(state.lane_masks[k * count + t]);
+                        state.slack[t] = texel_slack(state, planes, t, c);
+                      }
+                    });
   const int groups = group_count(grid);
   state.group_slack.resize(groups);
   state.group_stage.resize(groups);

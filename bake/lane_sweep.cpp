@@ -45,14 +45,37 @@
 #include <stdexcept>
 #include <vector>
 
+#include "bake/geometry.h"
+
 namespace displace::bake::detail {
 
 std::size_t lane_sweep_scratch(int width) { return 2 * (std::size_t(width) + 2) * lane_count; }
 
-float lane_floor(const LanePlan& plan, float h) {
-  if (!(h < plan.highest)) return 1.0f;
-  const float floor = plan.nearest / (plan.highest - h) * (1.0f - 1e-5f);
-  return floor < 1.0f ? floor : 1.0f;
+LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, int sector, int sectors) {
+  constexpr int floor_reach = 2;  // the 5 x 5 neighbourhood: a brick's mortar at 2048 x 2048 needs it
+  const int width = plan.width, height = plan.height;
+  const int i = int(n / std::size_t(width)), j = int(n % std::size_t(width));
+  const float h = heights[n];
+  const Grid grid(width, height, sectors, plan.wrap ? Address::wrap : Address::clamp);
+  LaneFloor result;
+  float nearest_blocker = 1.0f;  // the neighbourhood's exact ratio, with the exact baker's arithmetic
+  for (int dy = -floor_reach; dy <= floor_reach; ++dy)
+    for (int dx = -floor_reach; dx <= floor_reach; ++dx) {
+      if ((dx == 0 && dy == 0) || !(point_sectors(grid, dx, dy) >> sector & 1u)) continue;
+      int y = i + dy, x = j + dx;
+      if (!plan.wrap && (y < 0 || y >= height || x < 0 || x >= width)) continue;
+      y = (y + height) % height;
+      x = (x + width) % width;
+      const float other = heights[std::size_t(y) * width + x];
+      if (other > h)
+        nearest_blocker = std::min(nearest_blocker, pair_ratio(grid.distance(dx, dy), other - h));
+    }
+  result.upper = nearest_blocker;
+  // every other texel is at least floor_reach + 1 texels away along u or v
+  const float further =
+      h < plan.highest ? float(floor_reach + 1) * plan.nearest / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
+  result.floor = std::min({nearest_blocker, further, 1.0f});
+  return result;
 }
 
 int lane_sweep_best_level() {
@@ -139,31 +162,6 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
     plan.bottom_transposed.clear();
   }
 
-  // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
-  // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
-  // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
-  // every texel within 0.75 of exact (make_lane_plan's upper bounds); above it the rest share the
-  // range evenly, since the large ratios are the ones that decide how far a ray steps.
-  const double range = double(plan.highest) - double(lowest_height);
-  const double lowest_lane =
-      range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio))
-                  : double(lowest_ratio);
-  const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28;
-  const int low_lanes =
-      std::min(lane_count / 2, int(std::ceil(std::log(knee / lowest_lane) / std::log(low_spacing))));
-  const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
-  double slope[lane_count];
-  plan.lane_ratio[0] = 0.0f;
-  for (int l = 0; l < lane_count; ++l) {
-    const double ratio = l <= low_lanes
-                             ? lowest_lane * std::pow(low_spacing, l)
-                             : knee_lane * std::pow(highest_lane / knee_lane,
-                                                    double(l - low_lanes) / (lane_count - 1 - low_lanes));
-    slope[l] = 1.0 / ratio;
-    // emitted a little below the lane, for the rounding of the exact baker's own division
-    plan.lane_ratio[l + 1] = float(std::min(1.0, ratio * (1.0 - 1e-5)));
-  }
-
   // moves (da, db) and their uv lengths; the chamfer scale is the cosine of half the widest angle
   // between neighbouring moves (in uv, so non-square maps get their own)
   const int moves[lane_move_count][2] = {{0, 1}, {1, 0}, {1, 1}, {1, 2}, {2, 1}};
@@ -181,6 +179,37 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   for (int k = 0; k + 1 < used; ++k)
     scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
   scale *= 1.0 - 1e-9;
+  // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
+  // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
+  // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
+  // every texel within 0.75 of exact (the upper bounds below); above it the rest share the range
+  // evenly, since the large ratios are the ones that decide how far a ray steps. On large maps the
+  // certified bounds loosen (the rounding of the steps grows with the side), so the lanes above the
+  // knee must stay closer, and the lowest lanes give way to them.
+  const double range = double(plan.highest) - double(lowest_height);
+  const double smallest_ratio =
+      range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio))
+                  : double(lowest_ratio);
+  const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28, certified = 0.77;
+  const double worst_loss = 2.032 * double(std::max(width, height)) / height_scale;  // see the upper bounds
+  const double top_spacing = std::max(1.05, (scale - worst_loss) / certified);
+  const int top_lanes = int(std::ceil(std::log(highest_lane / knee) / std::log(top_spacing)));
+  const int low_lanes = std::clamp(int(std::ceil(std::log(knee / smallest_ratio) / std::log(low_spacing))), 0,
+                                   std::max(0, std::min(lane_count / 2, lane_count - 1 - top_lanes)));
+  const double lowest_lane = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes));
+  const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
+  double slope[lane_count];
+  plan.lane_ratio[0] = 0.0f;
+  for (int l = 0; l < lane_count; ++l) {
+    const double ratio = l <= low_lanes
+                             ? lowest_lane * std::pow(low_spacing, l)
+                             : knee_lane * std::pow(highest_lane / knee_lane,
+                                                    double(l - low_lanes) / (lane_count - 1 - low_lanes));
+    slope[l] = 1.0 / ratio;
+    // emitted a little below the lane, for the rounding of the exact baker's own division
+    plan.lane_ratio[l + 1] = float(std::min(1.0, ratio * (1.0 - 1e-5)));
+  }
+
   for (int m = 0; m < lane_move_count; ++m)
     for (int l = 0; l < lane_count; ++l) {
       const double step = std::floor(scale * length[m] * slope[l] * height_scale);
@@ -277,12 +306,11 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
       [&](const tbb::blocked_range<std::size_t>& blocks, Sums partial) {
         LaneEmitJob emit;
         for (int q = 0; q < 4; ++q) emit.masks[q] = masks[q];
+        emit.plan = &plan;
         emit.heights = heights;
         emit.out = out4;
         emit.lane_ratio = plan.lane_ratio;
         emit.pending_count = pending_count;
-        emit.highest = plan.highest;
-        emit.nearest = plan.nearest;
         const std::size_t first = blocks.begin() * 16, last = std::min(count, blocks.end() * 16);
         switch (level) {
           case 0: lane_emit_generic(emit, first, last); break;

@@ -37,17 +37,18 @@ struct LaneSweepJob {
   long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
 };
 
+struct LanePlan;
+
 // The 4-sector output of the four quadrants' masks, for texels [first, last):
-// out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane (1 texel) / (highest - h),
-// the bound no blocker can beat (lane_floor); adds the ratios to ratio_sum and pending_count[count]
-// to pending.
+// out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane lane_floor's floor; adds
+// the ratios to ratio_sum and pending_count[count] to pending.
 struct LaneEmitJob {
   const std::uint32_t* masks[4] = {};
+  const LanePlan* plan = nullptr;
   const float* heights = nullptr;
   float* out = nullptr;
   const float* lane_ratio = nullptr;            // lane_count + 1 entries
   const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
-  float highest = 0.0f, nearest = 0.0f;
   double ratio_sum = 0.0;
   long long pending = 0;
 };
@@ -83,9 +84,14 @@ struct LanePlan {
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan);
 
-// The floor below the lowest lane: (1 texel) / (highest - h), rounded down; 1 for the highest texels.
-// (The kernel computes the same, written out, for its 4-sector output.)
-float lane_floor(const LanePlan& plan, float h);
+// Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over the texels
+// within two of it (the 5 x 5 neighbourhood) in the sector against (3 texels) / (highest - h) for
+// everything further, rounded down (floor); and the smallest pair ratio of a neighbour that blocks
+// (upper, 1 when none), a real upper bound of the exact ratio.
+struct LaneFloor {
+  float floor = 1.0f, upper = 1.0f;
+};
+LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, int sector, int sectors);
 
 // How many lanes a mask passes (lanes pass from the lowest up, so the mask is 2^count - 1).
 inline int lanes_passed(std::uint32_t mask) { return mask == 0 ? 0 : 32 - __builtin_clz(mask); }

@@ -44,8 +44,9 @@ namespace displace::bake::detail {
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 
 // Sixteen texels at a time: the count from the mask's leading zeros (the mask is 2^count - 1), the
-// ratio from a 32-entry table in two registers (count 32 and count 0 blended in), and the four
-// quadrants' ratios interleaved with a 4 x 4 transpose per 128-bit lane and one across them.
+// ratio from a 32-entry table in two registers (count 32 blended in), and the four quadrants'
+// ratios interleaved with a 4 x 4 transpose per 128-bit lane and one across them. A block with a
+// texel below the lowest lane goes to the scalar emit_texels.
 void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
   const __m512 ratios_low = _mm512_loadu_ps(job.lane_ratio),
                ratios_high = _mm512_loadu_ps(job.lane_ratio + 16);
@@ -56,37 +57,29 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
   const __m512 top_ratio = _mm512_set1_ps(job.lane_ratio[32]);
   const __m512i all_lanes = _mm512_set1_epi32(32), none = _mm512_setzero_si512();
   const __m512i pending_all = _mm512_set1_epi32(job.pending_count[32]);
-  const __m512 highest = _mm512_set1_ps(job.highest), nearest = _mm512_set1_ps(job.nearest);
-  const __m512 one = _mm512_set1_ps(1.0f), margin = _mm512_set1_ps(1.0f - 1e-5f);
   __m512 sum = _mm512_setzero_ps();
   __m512i pending = _mm512_setzero_si512();
   double ratio_sum = 0.0;
   std::size_t t = first;
   for (; t + 16 <= last; t += 16) {
-    __m512 ratio[4];
-    __m512 floor = one;
-    bool floor_ready = false;
+    __m512i count[4];
+    __mmask16 empty = 0;
     for (int q = 0; q < 4; ++q) {
-      const __m512i count =
-          _mm512_sub_epi32(all_lanes, _mm512_lzcnt_epi32(_mm512_loadu_si512(job.masks[q] + t)));
-      const __mmask16 full = _mm512_cmpeq_epi32_mask(count, all_lanes);
-      const __mmask16 empty = _mm512_cmpeq_epi32_mask(count, none);
-      __m512 r = _mm512_permutex2var_ps(ratios_low, count, ratios_high);
-      r = _mm512_mask_blend_ps(full, r, top_ratio);
-      if (empty) {
-        if (!floor_ready) {  // (1 texel) / (highest - h), at most 1; 1 for the highest texels
-          const __m512 h = _mm512_loadu_ps(job.heights + t);
-          const __mmask16 below = _mm512_cmp_ps_mask(h, highest, _CMP_LT_OQ);
-          floor = _mm512_mask_blend_ps(
-              below, one,
-              _mm512_min_ps(one, _mm512_mul_ps(_mm512_div_ps(nearest, _mm512_sub_ps(highest, h)), margin)));
-          floor_ready = true;
-        }
-        r = _mm512_mask_blend_ps(empty, r, floor);
-      }
+      count[q] = _mm512_sub_epi32(all_lanes, _mm512_lzcnt_epi32(_mm512_loadu_si512(job.masks[q] + t)));
+      empty |= _mm512_cmpeq_epi32_mask(count[q], none);
+    }
+    if (empty) {  // a texel below the lowest lane: its neighbours decide (lane_floor), one at a time
+      emit_texels(job, t, t + 16);
+      continue;
+    }
+    __m512 ratio[4];
+    for (int q = 0; q < 4; ++q) {
+      const __mmask16 full = _mm512_cmpeq_epi32_mask(count[q], all_lanes);
+      const __m512 r =
+          _mm512_mask_blend_ps(full, _mm512_permutex2var_ps(ratios_low, count[q], ratios_high), top_ratio);
       ratio[q] = r;
       sum = _mm512_add_ps(sum, r);
-      __m512i p = _mm512_permutex2var_epi32(pending_low, count, pending_high);
+      const __m512i p = _mm512_permutex2var_epi32(pending_low, count[q], pending_high);
       pending = _mm512_add_epi32(pending, _mm512_mask_blend_epi32(full, p, pending_all));
     }
     const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);

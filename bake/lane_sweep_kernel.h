@@ -152,7 +152,7 @@ void sweep_kernel(LaneSweepJob& job) {
 }
 
 // The 4-sector output, texels [first, last) one at a time (the AVX-512 translation unit has its own,
-// sixteen at a time, and finishes its tail with this one).
+// sixteen at a time, and leaves this one the tail and the blocks where a texel passes no lane).
 void emit_texels(LaneEmitJob& job, std::size_t first, std::size_t last) {
   float sums[4] = {0.0f, 0.0f, 0.0f, 0.0f};
   long long pending = 0;
@@ -161,15 +161,8 @@ void emit_texels(LaneEmitJob& job, std::size_t first, std::size_t last) {
       const std::uint32_t mask = job.masks[q][t];
       // lanes pass from the lowest up, so the mask is 2^count - 1
       const int passed = mask == 0 ? 0 : 32 - __builtin_clz(mask);
-      float ratio = job.lane_ratio[passed];
-      if (passed == 0) {  // below the lowest lane: the floor (lane_floor)
-        const float h = job.heights[t];
-        ratio = 1.0f;
-        if (h < job.highest) {
-          const float floor = job.nearest / (job.highest - h) * (1.0f - 1e-5f);
-          ratio = floor < 1.0f ? floor : 1.0f;
-        }
-      }
+      const float ratio =
+          passed == 0 ? lane_floor(*job.plan, job.heights, t, q, 4).floor : job.lane_ratio[passed];
       job.out[t * 4 + q] = ratio;
       sums[q] += ratio;
       pending += job.pending_count[passed];

@@ -403,9 +403,10 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
               const int count = detail::lanes_passed(mask);
               // lanes pass from the lowest up
               ASSERT_EQ(mask, count == 32 ? 0xffffffffu : (1u << count) - 1u);
-              const float ratio =
-                  count == 0 ? detail::lane_floor(run.plan, map.values[std::size_t(i) * map.width + j])
-                             : run.plan.lane_ratio[count];
+              const detail::LaneFloor floor =
+                  detail::lane_floor(run.plan, map.values.data(), std::size_t(i) * map.width + j, q, 4);
+              const float ratio = count == 0 ? floor.floor : run.plan.lane_ratio[count];
+              ASSERT_LE(exact.at(i, j, q), floor.upper);
               const std::string where =
                   map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) + " " +
                   address_name(address) + " knights " + std::to_string(knights) + " quadrant " +
@@ -455,7 +456,9 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
           for (std::size_t t = 0; t < count; ++t) {
             const int c = detail::lanes_passed(planes[k][t]);
             ASSERT_EQ(planes[k][t], c == 32 ? 0xffffffffu : (1u << c) - 1u) << map.name;
-            const float ratio = c == 0 ? detail::lane_floor(plan, map.values[t]) : plan.lane_ratio[c];
+            const detail::LaneFloor floor = detail::lane_floor(plan, map.values.data(), t, k, 8);
+            const float ratio = c == 0 ? floor.floor : plan.lane_ratio[c];
+            ASSERT_LE(exact.ratios[t * 8 + k], floor.upper);
             const float truth = exact.ratios[t * 8 + k];
             ASSERT_LE(ratio, truth) << map.name << " " << map.width << " " << address_name(address)
                                     << " knights " << knights << " octant " << k << " texel " << t;
@@ -644,6 +647,28 @@ TEST(BudgetedBaker, UpdatePicksTheCheaperRepair) {
   baker.update(view_of(map), std::span<const Rect>(&all, 1), none, cones.view());
   EXPECT_EQ(baker.pending(none.tolerance), 0) << "expected a new stage L";
   EXPECT_EQ(violations(cones, exact_of(map, 4, Address::wrap)).count, 0);
+}
+
+// On large maps the certified bounds loosen (step rounding grows with the side); the lanes still
+// certify every texel of smooth and brick maps up to 2048 within the default tolerance, so an
+// unlimited bake ends after stage L there too.
+TEST(BudgetedBaker, StageLCertifiesLargeMapsWithinTheDefaultTolerance) {
+  Map waves{"waves", 2048, 1024, std::vector<float>(std::size_t(2048) * 1024)};
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j)
+      waves.at(i, j) =
+          0.5f +
+          0.3f * std::sin(2.0f * std::numbers::pi_v<float> * (7.0f * j / 2048.0f + 3.0f * i / 1024.0f)) +
+          0.15f * std::cos(2.0f * std::numbers::pi_v<float> * (11.0f * i / 1024.0f - 5.0f * j / 2048.0f));
+  for (const Map& map : {waves, test::make_bricks(2048, 2048)}) {
+    BudgetedBaker baker(map.width, map.height, 4, Address::wrap);
+    ConeMap cones = make_cone_map(map, 4);
+    Budget none;
+    none.milliseconds = 0.0;
+    const BakeStats stats = baker.bake(view_of(map), none, cones.view());
+    EXPECT_EQ(stats.texels_fallback, 0) << map.name;
+    EXPECT_EQ(baker.pending(none.tolerance), 0) << map.name;
+  }
 }
 
 TEST(BudgetedBaker, RejectsHeightsChangedOutsideTheDirtyRegion) {
