@@ -1,5 +1,6 @@
-// bake/lane_sweep.cpp - stage L of the budgeted baker: conservative quadrant cone ratios for every
-// texel from four dilation sweeps, each testing 32 ratio lanes at once in 16-bit integers.
+// bake/lane_sweep.cpp - stage L of the budgeted baker: conservative quadrant (or octant) cone ratios
+// for every texel from four (or eight) dilation sweeps, each testing 32 ratio lanes at once in
+// 16-bit integers.
 //
 // The test. For a ratio r and a quadrant of directions, texel c's ratio is at least r when no
 // blocker q in the quadrant rises above c's cone: h(q) - d(c, q) / r <= h(c) for all q, that is
@@ -12,8 +13,11 @@
 // neighbouring moves (0.973 on a square map; cos 22.5 deg = 0.924 without the knight moves), which
 // keeps every path's cost at or below the straight line. The dilation then obeys a recurrence over
 // the two rows below and the texel before in the row, so one pass over the map - rows in the
-// quadrant's order - evaluates it for every texel, for all 32 lanes at once in one 512-bit (or two
-// 256-bit) registers of unsigned 16-bit values.
+// quadrant's order - evaluates it for every texel, for all 32 lanes at once in one 512-bit register
+// (two 256-bit ones, or a generic vector type) of unsigned 16-bit values. An octant (8 sectors,
+// square maps) keeps only the moves that advance a row, (1, 0), (1, 1), (2, 1), whose paths reach
+// exactly the octant next to the v axis; the octant next to the u axis is the same sweep on the
+// transposed map.
 //
 // Why it is conservative. Heights are rounded up for blockers (top) and down for the tested texel
 // (bottom), every step is rounded down, and a saturating subtraction never goes below 0, which only
