@@ -483,6 +483,63 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
       }
 }
 
+// Many small random maps - noise, heights on the 16-bit grid, 0/1 spikes, gaps of one 16-bit step,
+// 1 x n strips - in every sector count and address mode: stage L never claims more than exact, and
+// its certified bounds hold.
+TEST(LaneSweep, RandomMapsNeverOverclaim) {
+  int checked = 0;
+  for (std::uint64_t seed = 1; seed <= 120; ++seed) {
+    const int w = 1 + int(test::hash01(seed, 0, 1) * 24), h = 1 + int(test::hash01(seed, 0, 2) * 24);
+    Map map{"random", w, h, std::vector<float>(std::size_t(w) * h)};
+    const int kind = int(seed % 4);
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) {
+        const float u = test::hash01(seed, i, j);
+        float v = u;
+        if (kind == 1) v = std::round(u * 65535.0f) / 65535.0f;         // on the 16-bit grid
+        if (kind == 2) v = u > 0.9f ? 1.0f : 0.0f;                      // spikes of the full range
+        if (kind == 3) v = 0.5f + (u > 0.5f ? 1.0f : 0.0f) / 65535.0f;  // one 16-bit step
+        map.at(i, j) = v;
+      }
+    const bool square = w == h;
+    for (Address address : {Address::wrap, Address::clamp})
+      for (int sectors : {4, 8}) {
+        if (sectors == 8 && !square) continue;
+        const ConeMap exact = exact_of(map, sectors, address);
+        detail::LanePlan plan;
+        detail::make_lane_plan(map.values.data(), w, h, address == Address::wrap, 0.02f, seed % 2 == 0,
+                               sectors == 8, plan);
+        const std::size_t count = map.values.size();
+        std::vector<std::uint32_t> masks(count * sectors);
+        std::uint32_t* planes[8];
+        for (int k = 0; k < sectors; ++k) planes[k] = masks.data() + k * count;
+        detail::sweep_sectors(plan, map.values.data(), sectors, planes, nullptr, nullptr);
+        for (int k = 0; k < sectors; ++k)
+          for (std::size_t t = 0; t < count; ++t) {
+            const int c = detail::lanes_passed(planes[k][t]);
+            const detail::LaneFloor floor = detail::lane_floor(plan, map.values.data(), t, k, sectors);
+            const float ratio = c == 0 ? floor.floor : plan.lane_ratio[c];
+            const float truth = exact.ratios[t * sectors + k];
+            ASSERT_LE(ratio, truth) << "seed " << seed << " " << w << "x" << h << " " << address_name(address)
+                                    << " sectors " << sectors << " sector " << k << " texel " << t;
+            ASSERT_LE(truth, c == 0 ? std::min(plan.lane_upper[0], floor.upper) : plan.lane_upper[c])
+                << "seed " << seed << " sector " << k << " texel " << t;
+            ++checked;
+          }
+        // and the whole baker with no budget, 1, 4 or 8 sectors
+        for (int n : {1, sectors}) {
+          ConeMap cones = make_cone_map(map, n);
+          Budget none;
+          none.milliseconds = 0.0;
+          bake_budgeted(view_of(map), address, none, cones.view());
+          ASSERT_EQ(violations(cones, exact_of(map, n, address)).count, 0)
+              << "seed " << seed << " sectors " << n;
+        }
+      }
+  }
+  EXPECT_GT(checked, 100000);
+}
+
 // The AVX2 and AVX-512 kernels (where this CPU has them) give the generic kernel's masks exactly.
 TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
   const int best = detail::lane_sweep_best_level();
