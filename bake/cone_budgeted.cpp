@@ -563,10 +563,9 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
 // against a bound for everything further (lane_floor). The first lane that fails - or below the
 // lowest lane a blocking neighbour - bounds the exact ratio from above, which gives the texel's
 // slack (ensure_slack); 8 sectors from quadrants have none, so the refinement stages take them.
-struct StageTotals {
-  double ratio_sum = 0.0;  // of every emitted ratio
-  long long pending = 0;   // texel sectors whose slack may be below keep; 0 exactly when no texel's is
-};
+// ratio_sum: of every emitted ratio; pending: texel sectors whose slack may be below keep, 0
+// exactly when no texel's is
+using StageTotals = detail::LaneSweepTotals;
 
 // Stage L sweeps octants (8 planes of lane masks) for 8 sectors on a square map, else quadrants.
 int swept_planes(const BudgetedBaker::State& state) {
@@ -616,7 +615,7 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   clock.work += swept.work;
   state.slack_stale = true;
   state.cursor = 0;
-  if (sectors == 4) return {swept.ratio_sum, swept.pending};
+  if (sectors == 4) return swept;
 
   // 1 sector (the smallest quadrant) or 8 (octants, or on a non-square map their quadrants)
   const StageTotals totals = tbb::parallel_reduce(
@@ -643,11 +642,7 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
           }
         return partial;
       },
-      [](StageTotals a, const StageTotals& b) {
-        a.ratio_sum += b.ratio_sum;
-        a.pending += b.pending;
-        return a;
-      });
+      StageTotals::add);
   return totals;
 }
 
@@ -694,39 +689,26 @@ BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float ke
   stats.height = state.grid.height;
   stats.sector_count = state.grid.sector_count;
   const int sectors = state.grid.sector_count;
-  if (known) {  // nothing changed since stage L counted them
-    stats.texels_fallback = known->pending;
-    stats.texels_refined = refined;
-    stats.work = clock.work;
-    stats.mean_ratio = known->ratio_sum / double(state.heights.size() * sectors);
-    stats.milliseconds = clock.elapsed();
-    return stats;
-  }
-  // pending texels and the sum of the ratios, in parallel (both are a full pass over the map)
-  struct Totals {
-    long long pending = 0;
-    double ratio_sum = 0.0;
-  };
-  const Totals totals = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, state.slack.size(), 16384), Totals{},
-      [&](const tbb::blocked_range<std::size_t>& texels, Totals partial) {
-        for (std::size_t t = texels.begin(); t < texels.end(); ++t) {
-          partial.pending += state.slack[t] < keep;
-          float row_sum = 0.0f;
-          for (int k = 0; k < sectors; ++k) row_sum += out[t * sectors + k];
-          partial.ratio_sum += row_sum;
-        }
-        return partial;
-      },
-      [](Totals a, const Totals& b) {
-        a.pending += b.pending;
-        a.ratio_sum += b.ratio_sum;
-        return a;
-      });
+  // pending texels and the sum of the ratios: as stage L counted them when nothing changed since,
+  // else a full pass over the map, in parallel
+  const StageTotals totals =
+      known ? *known
+            : tbb::parallel_reduce(
+                  tbb::blocked_range<std::size_t>(0, state.heights.size(), 16384), StageTotals{},
+                  [&](const tbb::blocked_range<std::size_t>& texels, StageTotals partial) {
+                    for (std::size_t t = texels.begin(); t < texels.end(); ++t) {
+                      partial.pending += state.slack[t] < keep;
+                      float row_sum = 0.0f;
+                      for (int k = 0; k < sectors; ++k) row_sum += out[t * sectors + k];
+                      partial.ratio_sum += row_sum;
+                    }
+                    return partial;
+                  },
+                  StageTotals::add);
   stats.texels_fallback = totals.pending;
   stats.texels_refined = refined;
   stats.work = clock.work;
-  stats.mean_ratio = totals.ratio_sum / double(state.slack.size() * sectors);
+  stats.mean_ratio = totals.ratio_sum / double(state.heights.size() * sectors);
   stats.milliseconds = clock.elapsed();
   return stats;
 }

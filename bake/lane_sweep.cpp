@@ -53,6 +53,13 @@
 
 namespace displace::bake::detail {
 
+LaneSweepTotals LaneSweepTotals::add(LaneSweepTotals a, const LaneSweepTotals& b) {
+  a.ratio_sum += b.ratio_sum;
+  a.pending += b.pending;
+  a.work += b.work;
+  return a;
+}
+
 std::size_t lane_sweep_scratch(int width) { return 2 * (std::size_t(width) + 2) * lane_count; }
 
 LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, int sector, int sectors) {
@@ -300,14 +307,10 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   if (sectors != 4) throw std::logic_error("the lane sweep writes 4-sector output only");
 
   // the 4-sector output, all four quadrants of a texel together
-  struct Sums {
-    double ratio_sum = 0.0;
-    long long pending = 0;
-  };
   const std::size_t count = std::size_t(plan.width) * plan.height;
-  const Sums sums = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, (count + 15) / 16, 256), Sums{},
-      [&](const tbb::blocked_range<std::size_t>& blocks, Sums partial) {
+  const LaneSweepTotals sums = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, (count + 15) / 16, 256), LaneSweepTotals{},
+      [&](const tbb::blocked_range<std::size_t>& blocks, LaneSweepTotals partial) {
         LaneEmitJob emit;
         for (int q = 0; q < 4; ++q) emit.masks[q] = masks[q];
         emit.plan = &plan;
@@ -325,11 +328,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
         partial.pending += emit.pending;
         return partial;
       },
-      [](Sums a, const Sums& b) {
-        a.ratio_sum += b.ratio_sum;
-        a.pending += b.pending;
-        return a;
-      });
+      LaneSweepTotals::add);
   totals.ratio_sum = sums.ratio_sum;
   totals.pending = sums.pending;
   return totals;

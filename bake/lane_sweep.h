@@ -97,9 +97,11 @@ LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, 
 inline int lanes_passed(std::uint32_t mask) { return mask == 0 ? 0 : 32 - __builtin_clz(mask); }
 
 struct LaneSweepTotals {
-  double ratio_sum = 0.0;  // of the ratios written to out4
-  long long pending = 0;   // of pending_count over the quadrant texels
+  double ratio_sum = 0.0;  // of the ratios written
+  long long pending = 0;   // of pending_count over the texel sectors written
   long long work = 0;
+  // the two halves of a parallel reduction, added (defined in lane_sweep.cpp)
+  static LaneSweepTotals add(LaneSweepTotals a, const LaneSweepTotals& b);
 };
 // The sweeps of 4 sectors (quadrants) or, on a square map whose plan has octants, of 8 (octants: per
 // quadrant, the half next to the v axis swept in place and the half next to the u axis swept on
