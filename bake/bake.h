@@ -32,7 +32,7 @@
 namespace displace::bake {
 
 enum class Address { wrap, clamp };
-enum class Mode { exact, original, paper_adaptive, budgeted, bilinear };
+enum class Mode { exact, original, paper_adaptive, budgeted, bilinear, bilinear_budgeted };
 
 // Thrown for input the caller got wrong (NaN or out-of-range heights, empty maps, bad sector count).
 struct BakeError : std::runtime_error {
@@ -176,6 +176,35 @@ struct BilinearConeSettings {
 };
 BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                               std::span<float> apex_heights, const BilinearConeSettings& settings = {});
+
+// The renderer's cone maps within a frame budget: exactly bake_bilinear_cones' contract (apex H_c =
+// max of s over Q_c; r_k valid from every p in Q_c towards every x in sector k) for every ratio and
+// apex it emits, at every budget (0 ms, a clock that runs out mid-stage, a work limit of 0). Kept
+// between frames like BudgetedBaker: bake() always completes its first stage (conservative sweeps
+// over the whole map, O(N)), then refines, while the budget lasts, the texels whose ratios are not
+// certified within budget.tolerance of the best ratio the contract allows; refine() continues;
+// update() takes the dirty rectangles of a frame whose heights changed only there. `out` and
+// `apex_heights` (W x H floats) must hold what this baker emitted last time for refine() and
+// update(). 1, 4 or 8 sectors, wrap or clamp, any size validate_heights accepts.
+class BilinearBaker {
+ public:
+  BilinearBaker(int width, int height, int sector_count, Address address);
+  ~BilinearBaker();
+  BilinearBaker(BilinearBaker&&) noexcept;
+  BilinearBaker& operator=(BilinearBaker&&) noexcept;
+
+  BakeStats bake(HeightView heights, const Budget& budget, ConeView out, std::span<float> apex_heights);
+  BakeStats update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
+                   std::span<float> apex_heights);
+  BakeStats refine(const Budget& budget, ConeView out, std::span<float> apex_heights);
+  // Texels whose ratios refinement would still look at (not certified within the last tolerance).
+  long long pending() const;
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> state_;
+};
 
 // Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
 // texels, each the maximum of its (up to four) children; the last level is 1 x 1.

@@ -82,6 +82,7 @@ const char* mode_name(Mode mode) {
     case Mode::paper_adaptive: return "paper-adaptive";
     case Mode::budgeted: return "budgeted";
     case Mode::bilinear: return "bilinear";
+    case Mode::bilinear_budgeted: return "bilinear-budgeted";
   }
   return "unknown";
 }
