@@ -50,6 +50,7 @@
 #include <chrono>
 #include <limits>
 
+#include "bake/bilinear_search.h"
 #include "bake/search.h"
 
 namespace displace::bake {
@@ -407,33 +408,11 @@ float stored_ratio(double ratio) {
   return stored;
 }
 
-}  // namespace
-
-BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
-                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
-  validate(heights, out);
-  const std::size_t texels = std::size_t(heights.width) * heights.height;
-  if (apex_heights.size() != texels) {
-    throw BakeError("bilinear cone map: the apex heights hold " + std::to_string(apex_heights.size()) +
-                    " values for " + std::to_string(texels) + " texels");
-  }
-  if (settings.slope_window < 0 || settings.slope_window > max_slope_window) {
-    throw BakeError("bilinear cone map: slope window " + std::to_string(settings.slope_window) +
-                    " is outside [0, " + std::to_string(max_slope_window) + "] cells");
-  }
-  const auto start = std::chrono::steady_clock::now();
-  const int sectors = out.sector_count;
-  Context context{heights,
-                  detail::Grid(heights.width, heights.height, sectors, address),
-                  Axis(heights.width, address),
-                  Axis(heights.height, address),
-                  settings.slope_window,
-                  {},
-                  {},
-                  {}};
+// Cell maxima, slopes and their pyramid, and the half-plane sector masks: what every texel's search reads.
+void prepare(Context& context) {
+  const HeightView heights = context.heights;
   context.half_texel_u = 0.5 / heights.width;
   context.half_texel_v = 0.5 / heights.height;
-  // cells: maxima (for the pyramid) and slopes
   const Axis& U = context.along_u;
   const Axis& V = context.along_v;
   std::vector<float> cell_max(std::size_t(U.cells) * V.cells);
@@ -456,6 +435,52 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   context.beyond[1] = box_sectors(context, -1, -1, -reach, reach);
   context.beyond[2] = box_sectors(context, -reach, reach, 1, 1);
   context.beyond[3] = box_sectors(context, -reach, reach, -1, -1);
+}
+
+Context make_context(HeightView heights, Address address, int sectors, int window) {
+  Context context{heights,
+                  detail::Grid(heights.width, heights.height, sectors, address),
+                  Axis(heights.width, address),
+                  Axis(heights.height, address),
+                  window,
+                  {},
+                  {},
+                  {}};
+  prepare(context);
+  return context;
+}
+
+// One texel: apex and ratios as stored; `best`, `hull` and `stack` are scratch.
+long long search_texel(const Context& context, int i, int j, std::vector<double>& best, std::vector<double>& hull,
+                       std::vector<TexelSearch::Entry>& stack, float& apex, float* ratios) {
+  double square[3][3];
+  square_values(context, i, j, square);
+  apex = apex_height(square);
+  best.assign(std::size_t(context.grid.sector_count), 1.0);
+  TexelSearch search{context, i, j, double(apex), square, best.data()};
+  if (context.window > 0) search.window_cells(hull);
+  search.far_cells(stack);
+  for (int k = 0; k < context.grid.sector_count; ++k) ratios[k] = stored_ratio(best[k]);
+  return search.work;
+}
+
+}  // namespace
+
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
+  validate(heights, out);
+  const std::size_t texels = std::size_t(heights.width) * heights.height;
+  if (apex_heights.size() != texels) {
+    throw BakeError("bilinear cone map: the apex heights hold " + std::to_string(apex_heights.size()) +
+                    " values for " + std::to_string(texels) + " texels");
+  }
+  if (settings.slope_window < 0 || settings.slope_window > max_slope_window) {
+    throw BakeError("bilinear cone map: slope window " + std::to_string(settings.slope_window) +
+                    " is outside [0, " + std::to_string(max_slope_window) + "] cells");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int sectors = out.sector_count;
+  const Context context = make_context(heights, address, sectors, settings.slope_window);
 
   std::atomic<long long> total_work{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
@@ -465,16 +490,7 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
     for (int i = rows.begin(); i < rows.end(); ++i)
       for (int j = 0; j < heights.width; ++j) {
         const std::size_t t = std::size_t(i) * heights.width + j;
-        double square[3][3];
-        square_values(context, i, j, square);
-        const float apex = apex_height(square);
-        apex_heights[t] = apex;
-        std::fill(best.begin(), best.end(), 1.0);
-        TexelSearch search{context, i, j, double(apex), square, best.data()};
-        if (context.window > 0) search.window_cells(hull);
-        search.far_cells(stack);
-        work += search.work;
-        for (int k = 0; k < sectors; ++k) out.data[t * sectors + k] = stored_ratio(best[k]);
+        work += search_texel(context, i, j, best, hull, stack, apex_heights[t], out.data + t * sectors);
       }
     total_work += work;
   });
@@ -482,4 +498,29 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   return detail::whole_map_stats(Mode::bilinear, heights, sectors, total_work, start, out.data);
 }
 
+namespace detail {
+
+float bilinear_apex(HeightView heights, Address address, int i, int j) {
+  Context context{heights, Grid(heights.width, heights.height, 1, address), Axis(heights.width, address),
+                  Axis(heights.height, address), 0, {}, {}, {}};
+  double square[3][3];
+  square_values(context, i, j, square);
+  return apex_height(square);
+}
+
+struct BilinearSearch::Context {
+  bake::Context context;
+};
+
+BilinearSearch::BilinearSearch(HeightView heights, Address address, int sector_count, int slope_window)
+    : context_(std::make_unique<Context>(Context{make_context(heights, address, sector_count, slope_window)})) {}
+BilinearSearch::~BilinearSearch() = default;
+
+long long BilinearSearch::texel(int i, int j, float& apex, float* ratios) const {
+  thread_local std::vector<double> best, hull;
+  thread_local std::vector<TexelSearch::Entry> stack;
+  return search_texel(context_->context, i, j, best, hull, stack, apex, ratios);
+}
+
+}  // namespace detail
 }  // namespace displace::bake

@@ -334,4 +334,51 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   return totals;
 }
 
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
+                                   const std::uint16_t* bonus, std::uint32_t* const masks[4], int level) {
+  if (level < 0) level = lane_sweep_best_level();
+  long long works[4] = {};
+  tbb::parallel_for(0, 4, [&](int quadrant) {
+    struct Free {
+      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
+    };
+    auto aligned = [](std::size_t values) {
+      return std::unique_ptr<std::uint16_t[], Free>(
+          static_cast<std::uint16_t*>(::operator new[](values * sizeof(std::uint16_t), std::align_val_t(64))));
+    };
+    LaneSweepJob job;
+    job.width = cells.width;
+    job.height = cells.height;
+    const auto scratch = aligned(lane_sweep_scratch(job.width));
+    const auto bilinear_scratch = aligned(bilinear_sweep_scratch(job.width, width));
+    std::vector<long long> row_sums(job.height / 2 + 2);
+    job.wrap = cells.wrap;
+    job.knights = cells.knights;
+    job.flip_x = quadrant == 1 || quadrant == 2;
+    job.flip_y = quadrant >= 2;
+    job.top = cells.top.data();
+    job.steps = cells.steps;
+    job.scratch = scratch.get();
+    job.row_sums = row_sums.data();
+    job.masks = masks[quadrant];
+    job.bilinear = true;
+    job.texel_width = width;
+    job.texel_height = height;
+    // with wrap, a flipped axis sees cell n' between its local texels n' and n' + 1: one before the
+    // convention's (see LaneSweepJob)
+    job.cell_offset_x = cells.wrap && job.flip_x ? -1 : 0;
+    job.cell_offset_y = cells.wrap && job.flip_y ? -1 : 0;
+    job.texel_bottom = texel_bottom;
+    job.bonus = bonus;
+    job.bilinear_scratch = bilinear_scratch.get();
+    switch (level) {
+      case 0: lane_sweep_generic(job); break;
+      case 3: lane_sweep_avx2(job); break;
+      default: lane_sweep_avx512(job); break;
+    }
+    works[quadrant] = job.work;
+  });
+  return works[0] + works[1] + works[2] + works[3];
+}
+
 }  // namespace displace::bake::detail

@@ -35,7 +35,28 @@ struct LaneSweepJob {
   std::size_t mask_row_stride = 0, mask_column_stride = 1;  // texel (row, column)'s mask index
   bool stop_early = true;  // the second lap stops where it meets the first (false: tests only)
   long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
+
+  // Bilinear mode (bilinear_sweep.cpp): the map is the grid of CELLS between texel centres (cell n
+  // between texels n - 1 and n along each axis; wrap: W x H of them, clamp: (W + 1) x (H + 1) with
+  // the half-texel border cells), `top` their maxima, and the tested points are the TEXELS: local
+  // texel (t, b) passes lane l when every cell in the quadrant of one of its five face cells - local
+  // cells (t + 2, b + k) for k = 0, 1, 2 and (t + k, b + 2) for k = 0, 1, shifted by cell_offset_y
+  // and cell_offset_x - other than that face cell lies below its cone: max of the five dilations less
+  // bonus[l] <= texel_bottom. Masks go per physical texel (row stride texel_width); `bottom` and
+  // the octant mode are unused.
+  bool bilinear = false;
+  int texel_width = 0, texel_height = 0;
+  int cell_offset_x = 0, cell_offset_y = 0;      // 0 or -1 (wrap with a flipped axis)
+  const std::uint16_t* texel_bottom = nullptr;  // floor(apex * 65535) or a little below, physical
+  const std::uint16_t* bonus = nullptr;         // lane_count values, rounded down
+  std::uint16_t* bilinear_scratch = nullptr;    // bilinear_sweep_scratch(width, texel_width) values
 };
+
+// Extra scratch of a bilinear sweep: one row of dilations with a padding cell at each end (and one
+// more at the end) and three rows of texel accumulators.
+inline std::size_t bilinear_sweep_scratch(int cell_width, int texel_width) {
+  return (std::size_t(cell_width) + 3 + 3 * std::size_t(texel_width)) * lane_count;
+}
 
 struct LanePlan;
 
@@ -115,5 +136,12 @@ struct LaneSweepOptions {
 LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
                               std::uint32_t* const masks[], float* out4, const std::uint8_t* pending_count,
                               const LaneSweepOptions& options = {});
+
+// The bilinear sweeps (LaneSweepJob::bilinear) of the four quadrants in parallel, over a plan made
+// for the cell grid (make_lane_plan on the cell maxima: W x H cells with wrap, (W + 1) x (H + 1) with
+// clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
+// quadrant q's masks (per texel) to masks[q]. bonus: lane_count values (see bilinear_sweep.cpp).
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
+                                   const std::uint16_t* bonus, std::uint32_t* const masks[4], int level = -1);
 
 }  // namespace displace::bake::detail

@@ -28,7 +28,7 @@ constexpr int lane_stride = lane_count;  // u16 per texel in a row buffer
 
 // octant: only the moves that advance a row - (1, 0), (1, 1) and the knight (2, 1) - whose paths
 // reach exactly the octant 0 <= db <= da of the quadrant; no carry along the row, so no wrap fix-up.
-template <class Ops, bool knights, bool octant>
+template <class Ops, bool knights, bool octant, bool bilinear>
 void sweep_kernel(LaneSweepJob& job) {
   using V = typename Ops::V;
   const int W = job.width, H = job.height;
@@ -56,6 +56,19 @@ void sweep_kernel(LaneSweepJob& job) {
   // (a row depends only on the two below it), and the first lap's masks there stand. The first
   // lap's sums are kept for the rows the second lap may reach before that; past them it goes on to
   // the end of the map.
+  // Bilinear mode: the row's dilations over blockers e (with the wrap fix-up) are kept in
+  // `dilations` (cell n at n + 1; one padding cell before and two after, wrapped or empty), and
+  // three rows of texel accumulators take them: a texel row is begun by the cell row two past it
+  // (its three face cells there), gets the face cell two columns on from the two rows after, and is
+  // tested when the last of them is done. The accumulators go round by step, so a row begun at
+  // step s is tested at step s + 2.
+  std::uint16_t* dilations = bilinear ? job.bilinear_scratch : nullptr;
+  std::uint16_t* accumulators = bilinear ? dilations + (std::size_t(W) + 3) * lane_stride : nullptr;
+  const int texel_width = job.texel_width, texel_height = job.texel_height;
+  if (bilinear)
+    for (std::size_t n = 0; n < (std::size_t(W) + 3 + 3 * std::size_t(texel_width)) * lane_stride; ++n)
+      dilations[n] = 0;
+
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
   long long* row_sums = job.row_sums;
   int equal_rows = 0;
@@ -66,9 +79,9 @@ void sweep_kernel(LaneSweepJob& job) {
     const int a = H - 1 - (step % H);
     const int physical_row = job.flip_y ? H - 1 - a : a;
     const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
-    const std::uint16_t* bottom_row = job.bottom + std::size_t(physical_row) * W;
+    const std::uint16_t* bottom_row = bilinear ? nullptr : job.bottom + std::size_t(physical_row) * W;
     // masks go where the caller wants them: a transposed sweep writes them back in the map's layout
-    std::uint32_t* mask_row = job.masks + std::size_t(physical_row) * job.mask_row_stride;
+    std::uint32_t* mask_row = bilinear ? nullptr : job.masks + std::size_t(physical_row) * job.mask_row_stride;
     const std::size_t mask_step = job.mask_column_stride;
     const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
 
@@ -94,7 +107,10 @@ void sweep_kernel(LaneSweepJob& job) {
       const int column = first + stride * b;
       const V d = Ops::max(e, Ops::broadcast(top_row[column]));
       Ops::store(target, d);
-      Ops::store_mask_at_most(mask_row + column * mask_step, e, Ops::broadcast(bottom_row[column]));
+      if (bilinear)
+        Ops::store(dilations + std::size_t(b + 1) * lane_stride, e);
+      else
+        Ops::store_mask_at_most(mask_row + column * mask_step, e, Ops::broadcast(bottom_row[column]));
       if (!octant) carry = Ops::subs(d, step_row);
       next2 = next1;
       next1 = here;
@@ -110,7 +126,12 @@ void sweep_kernel(LaneSweepJob& job) {
         const V old_d = Ops::load(target);
         const V d = Ops::max(old_d, carry);
         const int column = first + stride * b;
-        mask_row[column * mask_step] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
+        if (bilinear) {
+          std::uint16_t* kept = dilations + std::size_t(b + 1) * lane_stride;
+          Ops::store(kept, Ops::max(Ops::load(kept), carry));
+        } else {
+          mask_row[column * mask_step] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
+        }
         ++work;
         if (Ops::same(d, old_d)) break;
         Ops::store(target, d);
@@ -124,6 +145,44 @@ void sweep_kernel(LaneSweepJob& job) {
     } else {
       Ops::store(below2 + std::size_t(W) * lane_stride, nothing);
       Ops::store(below2 + std::size_t(W + 1) * lane_stride, nothing);
+    }
+
+    if (bilinear) {
+      // padding: the cell before the first and the two after the last, wrapped or empty
+      Ops::store(dilations, wrap ? Ops::load(dilations + std::size_t(W) * lane_stride) : nothing);
+      for (int k = 0; k < 2; ++k)
+        Ops::store(dilations + std::size_t(W + 1 + k) * lane_stride,
+                   wrap ? Ops::load(dilations + std::size_t(1 + k % W) * lane_stride) : nothing);
+      // local texel rows begun, continued and tested by cell row a (unrolled with wrap)
+      auto texel_row = [&](int row) { return wrap ? ((row % texel_height) + texel_height) % texel_height : row; };
+      const int begun = texel_row(a - 2 - job.cell_offset_y), continued = texel_row(a - 1 - job.cell_offset_y),
+                tested = texel_row(a - job.cell_offset_y);
+      const bool begin = begun >= 0 && begun < texel_height, go_on = continued >= 0 && continued < texel_height,
+                 test = tested >= 0 && tested < texel_height;
+      std::uint16_t* begin_row = accumulators + std::size_t((step + 2) % 3) * texel_width * lane_stride;
+      std::uint16_t* go_on_row = accumulators + std::size_t((step + 1) % 3) * texel_width * lane_stride;
+      std::uint16_t* test_row = accumulators + std::size_t(step % 3) * texel_width * lane_stride;
+      const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
+      const std::uint16_t* apex_row = job.texel_bottom + std::size_t(test ? physical_texel_row : 0) * texel_width;
+      std::uint32_t* texel_masks = job.masks + std::size_t(test ? physical_texel_row : 0) * texel_width;
+      const V bonus = Ops::load(job.bonus);
+      // cells b + offset, + 1, + 2 of this row are at dilations[b + offset + 1 ...]
+      const std::uint16_t* cells = dilations + std::size_t(1 + job.cell_offset_x) * lane_stride;
+      for (int b = 0; b < texel_width; ++b) {
+        const V c0 = Ops::load(cells + std::size_t(b) * lane_stride), c1 = Ops::load(cells + std::size_t(b + 1) * lane_stride),
+                c2 = Ops::load(cells + std::size_t(b + 2) * lane_stride);
+        const std::size_t at = std::size_t(b) * lane_stride;
+        if (begin) Ops::store(begin_row + at, Ops::max(Ops::max(c0, c1), c2));
+        if (go_on) Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
+        if (test) {
+          const V all = Ops::max(Ops::load(test_row + at), c2);
+          const int column = job.flip_x ? texel_width - 1 - b : b;
+          Ops::store_mask_at_most(texel_masks + column, Ops::subs(all, bonus), Ops::broadcast(apex_row[column]));
+        }
+      }
+      if (!begin)  // a row that begins past the end of the cells (clamp) starts empty
+        for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin_row[n] = 0;
+      work += texel_width;
     }
 
     const int lap_row = step % H;  // rows into the lap
@@ -145,10 +204,12 @@ void sweep_kernel(LaneSweepJob& job) {
 
 template <class Ops>
 void sweep_kernel(LaneSweepJob& job) {
-  if (job.octant)
-    job.knights ? sweep_kernel<Ops, true, true>(job) : sweep_kernel<Ops, false, true>(job);
+  if (job.bilinear)
+    job.knights ? sweep_kernel<Ops, true, false, true>(job) : sweep_kernel<Ops, false, false, true>(job);
+  else if (job.octant)
+    job.knights ? sweep_kernel<Ops, true, true, false>(job) : sweep_kernel<Ops, false, true, false>(job);
   else
-    job.knights ? sweep_kernel<Ops, true, false>(job) : sweep_kernel<Ops, false, false>(job);
+    job.knights ? sweep_kernel<Ops, true, false, false>(job) : sweep_kernel<Ops, false, false, false>(job);
 }
 
 // The 4-sector output, texels [first, last) one at a time (the AVX-512 translation unit has its own,
