@@ -1,26 +1,364 @@
 // bake/cone_bilinear_budgeted.cpp - the renderer's cone maps (bake_bilinear_cones' contract) within a
 // frame budget, kept between frames (bake.h, BilinearBaker).
 //
-// Interim version: every call is a full bake_bilinear_cones (conservative at every budget, never
-// within one).
+// Stage L (always completed, O(N)): per quadrant, a lower bound of the ratio from two facts about
+// texel c's square Q_c and the quadrant's cells - the squares between texel centres, cell n between
+// texels n - 1 and n, holding the bilinear surface s below their maximum M (a patch peaks at a
+// corner). Offsets m >= 0 count cells away from the cell that ends at c (the quadrant +u +v; the
+// others are mirrored); a point x whose direction from some p in Q_c lies in the closed quadrant is
+// in a cell with m >= 0, and the gap between Q_c and that cell is max(0, m - 1.5) texels per axis.
+// 1. Far cells (m outside {0, 1, 2}^2), through lane sweeps (lane_sweep.cpp, bilinear mode) of the
+//    chamfer dilation of M on the cell grid. For such a cell q, let b be its clamp onto the box
+//    {0, 1, 2}^2: b is one of the box's five far-face cells, q lies in b's quadrant, q != b, and per
+//    axis where q is beyond the box the gap is (m - 2) + 0.5 texels, so |gap| >= |q - b| + t/2 (t the
+//    smaller texel side in uv: with a the part beyond, |a + beta| >= |a| + a.beta / |a| and a.beta >=
+//    t/2 sum a_i >= t/2 |a|). The chamfer distance never exceeds |q - b|, so when, for ratio r,
+//    max over the five b of [max over q in b's quadrant, q != b of (M(q) - chamfer(b, q) / r)] - t / (2r)
+//    <= H_c, every far cell satisfies s(x) - H_c <= M(q) - H_c <= |gap| / r <= |x - p| / r. In 16-bit
+//    integers with blockers rounded up, apexes, steps and the bonus t / (2r) rounded down, and a
+//    saturating subtraction, a passing lane proves this (lane_sweep.cpp's argument).
+// 2. Near cells (m in {0, 1, 2}^2), by the slope: the points x of the quadrant's L-shaped region beyond
+//    Q_c satisfy s(x) <= s(y) + G |x - y| <= H_c + G |x - p| for y the point of Q_c nearest x (|x - y|
+//    <= |x - p|, and the segment from y to x runs towards +u and +v inside the region), G =
+//    sqrt(rise_u^2 + rise_v^2) with rise_u, rise_v the largest rates at which s rises along +u and +v
+//    over the region. On the half-texel grid (samples of s at texel centres, edge midpoints and
+//    corners, exact averages) s is bilinear on every half-texel square, so its rate along u on one
+//    is largest on one of its two u edges, where it is the difference of two samples; the region
+//    [-0.5, 2] texels from c (5 x 5 half squares, Q_c's own included, which only raises G) gives
+//    rise_u as the largest such difference over 6 rows of 5 edges. If no sample of that 6 x 6 window
+//    exceeds H_c, no near point does, and the near cells bound nothing.
+// The ratio is the smaller of the two, clamped to 1; 8 sectors take their quadrant's ratio (an octant
+// lies inside it), 1 sector the smallest of the four.
+//
+// Refinement (while the budget lasts): texels not certified within the tolerance (their ratio is
+// below 1 - tolerance) get bake_bilinear_cones' own search (bilinear_search.h); the larger of the two
+// lower bounds is emitted. update() redoes stage L (cheap) and keeps the searched ratios that cannot
+// have changed: those of texels whose apex is unchanged, where heights only fell (a lower surface
+// keeps every claim) or where the raised texels' cells are far enough that their box bound does not
+// lower them.
+#include "bake/bilinear_search.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
 #include <string>
 #include <vector>
 
-#include "bake/bake.h"
+#include "bake/geometry.h"
+#include "bake/lane_sweep.h"
 
 namespace displace::bake {
+namespace {
+
+constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane is at most this
+constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
+constexpr int near_reach = 4;               // half texels of padding the near field reads past the map
+
+}  // namespace
 
 struct BilinearBaker::State {
   int width = 0, height = 0, sector_count = 0;
   Address address = Address::wrap;
-  std::vector<float> heights;
+  bool has_frame = false;
+  std::vector<float> heights;   // the last frame's
+  std::vector<float> apex;      // H_c as emitted
+  std::vector<float> stage_l;   // per texel and quadrant, stage L's ratios
+  std::vector<float> searched;  // per texel and sector, the search's ratios (valid where searched_flag)
+  std::vector<std::uint8_t> searched_flag;
+  std::vector<int> queue;  // texels still to search, in order
+  std::size_t next = 0;    // queue position
+  float tolerance = 0.25f;
+  std::unique_ptr<detail::BilinearSearch> search;  // for the current heights, made on first use
+  // stage L scratch, kept between frames
+  std::vector<float> cell_max, samples;
+  std::vector<std::uint16_t> apex_bottom;
+  std::vector<std::uint32_t> masks[4];
+  detail::LanePlan plan;
 };
+
+namespace {
+
+using State = BilinearBaker::State;
+
+struct Clock {
+  std::function<double()> source;
+  double start = 0.0;
+  double limit = std::numeric_limits<double>::infinity();
+  long long work_limit = -1;
+  long long work = 0;
+
+  explicit Clock(const Budget& budget) : source(budget.clock), limit(budget.milliseconds), work_limit(budget.max_work) {
+    if (!source) {
+      const auto origin = std::chrono::steady_clock::now();
+      source = [origin] {
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - origin).count();
+      };
+    }
+    start = source();
+  }
+  double elapsed() const { return source() - start; }
+  bool out() const { return (work_limit >= 0 && work >= work_limit) || !(elapsed() < limit); }
+};
+
+void check_view(const State& state, HeightView heights, const ConeView& out, std::span<float> apex) {
+  validate(heights, out);
+  if (heights.width != state.width || heights.height != state.height || out.sector_count != state.sector_count) {
+    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " + std::to_string(state.height) +
+                    " map with " + std::to_string(state.sector_count) + " sectors, given " +
+                    std::to_string(heights.width) + " x " + std::to_string(heights.height) + " with " +
+                    std::to_string(out.sector_count));
+  }
+  if (apex.size() != std::size_t(state.width) * state.height) {
+    throw BakeError("bilinear baker: the apex heights hold " + std::to_string(apex.size()) + " values for " +
+                    std::to_string(std::size_t(state.width) * state.height) + " texels");
+  }
+}
+
+int wrap_index(int n, int count) {
+  const int m = n % count;
+  return m < 0 ? m + count : m;
+}
+
+// The cell maxima (cell n between texels n - 1 and n; wrap W x H, clamp (W + 1) x (H + 1)).
+void make_cells(State& state) {
+  const bool wrap = state.address == Address::wrap;
+  const int W = state.width, H = state.height;
+  const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
+  state.cell_max.resize(std::size_t(cells_u) * cells_v);
+  auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells_v), [&](const tbb::blocked_range<int>& rows) {
+    for (int nv = rows.begin(); nv < rows.end(); ++nv) {
+      const float* row0 = state.heights.data() + std::size_t(texel(nv - 1, H)) * W;
+      const float* row1 = state.heights.data() + std::size_t(texel(nv, H)) * W;
+      for (int nu = 0; nu < cells_u; ++nu) {
+        const int j0 = texel(nu - 1, W), j1 = texel(nu, W);
+        state.cell_max[std::size_t(nv) * cells_u + nu] = std::max(std::max(row0[j0], row0[j1]), std::max(row1[j0], row1[j1]));
+      }
+    }
+  });
+}
+
+// Samples of s on the half-texel grid, padded by near_reach on every side (wrap: periodic; clamp: the
+// edge-extended surface, which only adds constraints where the map is absent):
+// samples[(y + pad) * stride + x + pad] = s at texel-centre coordinates (x / 2, y / 2).
+void make_samples(State& state, int& stride) {
+  const bool wrap = state.address == Address::wrap;
+  const int W = state.width, H = state.height, pad = near_reach;
+  stride = 2 * W + 2 * pad;
+  const int rows = 2 * H + 2 * pad;
+  state.samples.resize(std::size_t(stride) * rows);
+  auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
+  auto h = [&](int i, int j) { return double(state.heights[std::size_t(texel(i, H)) * W + texel(j, W)]); };
+  tbb::parallel_for(tbb::blocked_range<int>(0, rows), [&](const tbb::blocked_range<int>& range) {
+    for (int r = range.begin(); r < range.end(); ++r) {
+      const int y = r - pad;
+      const int i0 = y >= 0 ? y / 2 : -((1 - y) / 2), odd_y = y - 2 * i0;
+      for (int c = 0; c < stride; ++c) {
+        const int x = c - pad;
+        const int j0 = x >= 0 ? x / 2 : -((1 - x) / 2), odd_x = x - 2 * j0;
+        double value = h(i0, j0);
+        if (odd_x && odd_y) value = 0.25 * (h(i0, j0) + h(i0, j0 + 1) + h(i0 + 1, j0) + h(i0 + 1, j0 + 1));
+        else if (odd_x) value = 0.5 * (h(i0, j0) + h(i0, j0 + 1));
+        else if (odd_y) value = 0.5 * (h(i0, j0) + h(i0 + 1, j0));
+        state.samples[std::size_t(r) * stride + c] = float(value);
+      }
+    }
+  });
+}
+
+// The near bound of texel (i, j) for quadrant q (0: +u +v, 1: -u +v, 2: -u -v, 3: +u -v): 1 / G over
+// its 6 x 6 sample window, or infinity when no sample there exceeds the apex. Sample differences are
+// taken in float and raised by a relative 1e-6 plus 1e-7 (more than their rounding).
+float near_bound(const State& state, int stride, int i, int j, int quadrant, float apex) {
+  const int su = quadrant == 0 || quadrant == 3 ? 1 : -1, sv = quadrant <= 1 ? 1 : -1;
+  // window corners from 2j - 1 towards su (6 samples)
+  const int x0 = su > 0 ? 2 * j - 1 : 2 * j - 4, y0 = sv > 0 ? 2 * i - 1 : 2 * i - 4;
+  const float* base = state.samples.data() + std::size_t(y0 + near_reach) * stride + (x0 + near_reach);
+  float highest = 0.0f, rise_u = 0.0f, rise_v = 0.0f;
+  for (int y = 0; y < 6; ++y) {
+    const float* row = base + std::size_t(y) * stride;
+    for (int x = 0; x < 6; ++x) {
+      highest = std::max(highest, row[x]);
+      if (x < 5) rise_u = std::max(rise_u, float(su) * (row[x + 1] - row[x]));
+      if (y < 5) rise_v = std::max(rise_v, float(sv) * (row[x + stride] - row[x]));
+    }
+  }
+  if (!(highest > apex)) return std::numeric_limits<float>::infinity();
+  const double grow = 1.0 + 1e-6;
+  const double gu = (double(rise_u) * grow + 1e-7) * 2.0 * state.width, gv = (double(rise_v) * grow + 1e-7) * 2.0 * state.height;
+  const double bound = 1.0 / std::sqrt(gu * gu + gv * gv);
+  float stored = float(bound * (1.0 - 1e-6));
+  return stored;
+}
+
+// Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
+long long run_stage_l(State& state) {
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  const std::size_t texels = std::size_t(W) * H;
+  const HeightView view{state.heights.data(), W, H};
+  // apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below
+  state.apex.resize(texels);
+  state.apex_bottom.resize(texels);
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    for (int i = rows.begin(); i < rows.end(); ++i)
+      for (int j = 0; j < W; ++j) {
+        const std::size_t t = std::size_t(i) * W + j;
+        const float apex = detail::bilinear_apex(view, state.address, i, j);
+        state.apex[t] = apex;
+        const int down = int(apex * float(detail::height_scale) - 0x1p-7f);
+        state.apex_bottom[t] = std::uint16_t(std::clamp(down, 0, 65535));
+      }
+  });
+  make_cells(state);
+  const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
+  detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
+  // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
+  alignas(64) std::uint16_t bonus[detail::lane_count];
+  const double t = 1.0 / double(std::max(W, H));
+  for (int l = 0; l < detail::lane_count; ++l) {
+    const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
+    bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+  }
+  std::uint32_t* masks[4];
+  for (int q = 0; q < 4; ++q) {
+    state.masks[q].resize(texels);
+    masks[q] = state.masks[q].data();
+  }
+  long long work = detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks);
+  const float highest = state.plan.highest;
+  auto floor_ratio = [&](float apex) {
+    return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
+  };
+  int stride = 0;
+  make_samples(state, stride);
+  state.stage_l.resize(texels * 4);
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    for (int i = rows.begin(); i < rows.end(); ++i)
+      for (int j = 0; j < W; ++j) {
+        const std::size_t n = std::size_t(i) * W + j;
+        for (int q = 0; q < 4; ++q) {
+          const int passed = detail::lanes_passed(masks[q][n]);
+          // below the lowest lane: every far cell is at least half a texel away and at most `highest`
+          const float far = passed > 0 ? state.plan.lane_ratio[passed] : floor_ratio(state.apex[n]);
+          const float near = near_bound(state, stride, i, j, q, state.apex[n]);
+          state.stage_l[n * 4 + q] = std::min({far, near, 1.0f});
+        }
+      }
+  });
+  return work + (long long)texels * 4;
+}
+
+// The emitted ratios of texel t: stage L's quadrants spread to the sectors, and the search's where it ran.
+void emit_texel(const State& state, std::size_t t, float* out) {
+  const int sectors = state.sector_count;
+  const float* quadrant = state.stage_l.data() + t * 4;
+  for (int k = 0; k < sectors; ++k) {
+    const float from_l = sectors == 4   ? quadrant[k]
+                         : sectors == 8 ? quadrant[k / 2]
+                                        : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+    out[t * sectors + k] = state.searched_flag[t] ? std::max(from_l, state.searched[t * sectors + k]) : from_l;
+  }
+}
+
+bool certified(const State& state, std::size_t t) {
+  const float keep = 1.0f - state.tolerance;
+  const float* quadrant = state.stage_l.data() + t * 4;
+  return std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3])) >= keep;
+}
+
+void make_queue(State& state) {
+  state.queue.clear();
+  state.next = 0;
+  const std::size_t texels = std::size_t(state.width) * state.height;
+  for (std::size_t t = 0; t < texels; ++t)
+    if (!state.searched_flag[t] && !certified(state, t)) state.queue.push_back(int(t));
+}
+
+// Searches queued texels while the budget lasts, writing their ratios to out.
+long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined) {
+  if (state.next >= state.queue.size() || clock.out()) return 0;
+  if (!state.search) {
+    state.search = std::make_unique<detail::BilinearSearch>(HeightView{state.heights.data(), state.width, state.height},
+                                                           state.address, state.sector_count,
+                                                           BilinearConeSettings{}.slope_window);
+  }
+  const int sectors = state.sector_count;
+  long long work = 0;
+  const std::size_t batch = std::size_t(refine_chunk) * 2;
+  while (state.next < state.queue.size() && !clock.out()) {
+    const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);
+    const long long batch_work = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(first, last, refine_chunk), 0ll,
+        [&](const tbb::blocked_range<std::size_t>& range, long long sum) {
+          for (std::size_t n = range.begin(); n < range.end(); ++n) {
+            const int t = state.queue[n];
+            float apex;
+            sum += state.search->texel(t / state.width, t % state.width, apex,
+                                       state.searched.data() + std::size_t(t) * sectors);
+            state.searched_flag[t] = 1;
+            emit_texel(state, std::size_t(t), out.data);
+          }
+          return sum;
+        },
+        std::plus<long long>());
+    refined += (long long)(last - first);
+    work += batch_work;
+    clock.work += batch_work;
+    state.next = last;
+  }
+  return work;
+}
+
+BakeStats finish(const State& state, const Clock& clock, ConeView out, long long work, long long refined) {
+  BakeStats stats;
+  stats.mode = Mode::bilinear_budgeted;
+  stats.width = state.width;
+  stats.height = state.height;
+  stats.sector_count = state.sector_count;
+  stats.texels_refined = refined;
+  stats.texels_fallback = (long long)(state.queue.size() - state.next);
+  stats.work = work;
+  stats.milliseconds = clock.elapsed();
+  const std::size_t values = std::size_t(state.width) * state.height * state.sector_count;
+  const double sum = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, values, 1 << 15), 0.0,
+      [&](const tbb::blocked_range<std::size_t>& range, double partial) {
+        for (std::size_t n = range.begin(); n < range.end(); ++n) partial += out.data[n];
+        return partial;
+      },
+      std::plus<double>());
+  stats.mean_ratio = values ? sum / double(values) : 0.0;
+  return stats;
+}
+
+void emit_all(const State& state, ConeView out, std::span<float> apex) {
+  const std::size_t texels = std::size_t(state.width) * state.height;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t t = range.begin(); t < range.end(); ++t) {
+      emit_texel(state, t, out.data);
+      apex[t] = state.apex[t];
+    }
+  });
+}
+
+}  // namespace
 
 BilinearBaker::BilinearBaker(int width, int height, int sector_count, Address address)
     : state_(std::make_unique<State>()) {
+  if (width < 1 || height < 1 || width > 32768 || height > 32768) {
+    throw BakeError("bilinear baker: a " + std::to_string(width) + " x " + std::to_string(height) +
+                    " map (each side must be 1 to 32768 texels)");
+  }
   if (!is_valid_sector_count(sector_count)) {
-    throw BakeError("bilinear cone map: " + std::to_string(sector_count) + " sectors (use 1, 4 or 8)");
+    throw BakeError("bilinear baker: " + std::to_string(sector_count) + " sectors (use 1, 4 or 8)");
   }
   state_->width = width;
   state_->height = height;
@@ -31,29 +369,151 @@ BilinearBaker::~BilinearBaker() = default;
 BilinearBaker::BilinearBaker(BilinearBaker&&) noexcept = default;
 BilinearBaker& BilinearBaker::operator=(BilinearBaker&&) noexcept = default;
 
-BakeStats BilinearBaker::bake(HeightView heights, const Budget&, ConeView out, std::span<float> apex_heights) {
-  State& state = *state_;
-  if (heights.width != state.width || heights.height != state.height) {
-    throw BakeError("bilinear baker: the map is " + std::to_string(heights.width) + " x " +
-                    std::to_string(heights.height) + " but the baker was made for " + std::to_string(state.width) +
-                    " x " + std::to_string(state.height));
+namespace {
+
+void check_tolerance(const Budget& budget) {
+  if (!(budget.tolerance >= 0.0f && budget.tolerance < 1.0f)) {
+    throw BakeError("bilinear baker: tolerance " + std::to_string(budget.tolerance) + " is outside [0, 1)");
   }
-  state.heights.assign(heights.data, heights.data + std::size_t(heights.width) * heights.height);
-  BakeStats stats = bake_bilinear_cones(heights, state.address, out, apex_heights);
-  stats.mode = Mode::bilinear_budgeted;
-  return stats;
 }
 
-BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect>, const Budget& budget, ConeView out,
-                                std::span<float> apex_heights) {
-  return bake(heights, budget, out, apex_heights);
+// Per axis, the uv gap between Q_c = [c - 0.5, c + 0.5] and [first, last] (texel-centre coordinates),
+// over the periodic images with wrap.
+double axis_gap(double c, double first, double last, int count, bool wrap) {
+  auto gap = [&](double shift) { return std::max({0.0, first + shift - (c + 0.5), (c - 0.5) - (last + shift)}); };
+  double best = gap(0.0);
+  if (wrap) {
+    if (last - first >= count) return 0.0;
+    for (int k = -2; k <= 2; ++k) best = std::min(best, gap(double(k) * count));
+  }
+  return best / count;
 }
 
-BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<float> apex_heights) {
+}  // namespace
+
+BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView out, std::span<float> apex) {
   State& state = *state_;
-  return bake({state.heights.data(), state.width, state.height}, budget, out, apex_heights);
+  check_view(state, heights, out, apex);
+  check_tolerance(budget);
+  Clock clock(budget);
+  const std::size_t texels = std::size_t(state.width) * state.height;
+  state.heights.assign(heights.data, heights.data + texels);
+  state.has_frame = true;
+  state.search.reset();
+  state.tolerance = budget.tolerance;
+  long long work = run_stage_l(state);
+  state.searched_flag.assign(texels, 0);
+  state.searched.resize(texels * state.sector_count);
+  emit_all(state, out, apex);
+  make_queue(state);
+  long long refined = 0;
+  work += run_refinement(state, clock, out, refined);
+  return finish(state, clock, out, work, refined);
 }
 
-long long BilinearBaker::pending() const { return 0; }
+BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
+                                std::span<float> apex) {
+  State& state = *state_;
+  if (!state.has_frame) return bake(heights, budget, out, apex);
+  check_view(state, heights, out, apex);
+  check_tolerance(budget);
+  Clock clock(budget);
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  const std::size_t texels = std::size_t(W) * H;
+  // heights may only have changed inside the dirty rectangles; the raised ones, per rectangle
+  std::vector<std::uint8_t> inside(texels, 0);
+  struct Raised {
+    int i0, i1, j0, j1;
+  };
+  std::vector<Raised> raised;
+  for (const Rect& rect : dirty) {
+    if (rect.x0 < 0 || rect.y0 < 0 || rect.x1 > W || rect.y1 > H || rect.x0 > rect.x1 || rect.y0 > rect.y1) {
+      throw BakeError("bilinear baker: dirty rectangle [" + std::to_string(rect.x0) + ", " + std::to_string(rect.x1) +
+                      ") x [" + std::to_string(rect.y0) + ", " + std::to_string(rect.y1) + ") is not inside the " +
+                      std::to_string(W) + " x " + std::to_string(H) + " map");
+    }
+    Raised box{H, -1, W, -1};
+    for (int i = rect.y0; i < rect.y1; ++i)
+      for (int j = rect.x0; j < rect.x1; ++j) {
+        const std::size_t t = std::size_t(i) * W + j;
+        inside[t] = 1;
+        if (heights.data[t] > state.heights[t]) {
+          box.i0 = std::min(box.i0, i);
+          box.i1 = std::max(box.i1, i);
+          box.j0 = std::min(box.j0, j);
+          box.j1 = std::max(box.j1, j);
+        }
+      }
+    if (box.i1 >= 0) raised.push_back(box);
+  }
+  for (std::size_t t = 0; t < texels; ++t)
+    if (!inside[t] && heights.data[t] != state.heights[t]) {
+      throw BakeError("bilinear baker: texel (" + std::to_string(t / W) + ", " + std::to_string(t % W) +
+                      ") changed outside the dirty rectangles");
+    }
+  const std::vector<float> old_apex = state.apex;
+  state.heights.assign(heights.data, heights.data + texels);
+  state.search.reset();
+  state.tolerance = budget.tolerance;
+  long long work = run_stage_l(state);
+  // the raised texels' cells lie within [i0 - 1, i1 + 1] x [j0 - 1, j1 + 1] (texel-centre
+  // coordinates) and below the largest new height there
+  std::vector<float> raised_top(raised.size());
+  for (std::size_t r = 0; r < raised.size(); ++r) {
+    float top = 0.0f;
+    for (int i = raised[r].i0 - 1; i <= raised[r].i1 + 1; ++i)
+      for (int j = raised[r].j0 - 1; j <= raised[r].j1 + 1; ++j) {
+        const int y = wrap ? wrap_index(i, H) : std::clamp(i, 0, H - 1), x = wrap ? wrap_index(j, W) : std::clamp(j, 0, W - 1);
+        top = std::max(top, state.heights[std::size_t(y) * W + x]);
+      }
+    raised_top[r] = top;
+  }
+  const int sectors = state.sector_count;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t t = range.begin(); t < range.end(); ++t) {
+      if (!state.searched_flag[t]) continue;
+      if (state.apex[t] != old_apex[t]) {
+        state.searched_flag[t] = 0;
+        continue;
+      }
+      const int i = int(t / W), j = int(t % W);
+      const float* searched = state.searched.data() + t * sectors;
+      const float largest = *std::max_element(searched, searched + sectors);
+      for (std::size_t r = 0; r < raised.size() && state.searched_flag[t]; ++r) {
+        if (!(raised_top[r] > state.apex[t])) continue;
+        const double gu = axis_gap(j, raised[r].j0 - 1, raised[r].j1 + 1, W, wrap);
+        const double gv = axis_gap(i, raised[r].i0 - 1, raised[r].i1 + 1, H, wrap);
+        const double bound = std::sqrt(gu * gu + gv * gv) / (double(raised_top[r]) - double(state.apex[t]));
+        if (bound * (1.0 - 1e-6) < double(largest)) state.searched_flag[t] = 0;  // may have dropped: search again
+      }
+    }
+  });
+  emit_all(state, out, apex);
+  make_queue(state);
+  long long refined = 0;
+  work += run_refinement(state, clock, out, refined);
+  return finish(state, clock, out, work, refined);
+}
+
+BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<float> apex) {
+  State& state = *state_;
+  if (!state.has_frame) throw BakeError("bilinear baker: refine() before the first bake()");
+  check_view(state, {state.heights.data(), state.width, state.height}, out, apex);
+  check_tolerance(budget);
+  Clock clock(budget);
+  if (budget.tolerance != state.tolerance) {
+    state.tolerance = budget.tolerance;
+    make_queue(state);
+  }
+  long long refined = 0;
+  const long long work = run_refinement(state, clock, out, refined);
+  return finish(state, clock, out, work, refined);
+}
+
+long long BilinearBaker::pending() const {
+  const State& state = *state_;
+  return (long long)(state.queue.size() - state.next);
+}
 
 }  // namespace displace::bake

@@ -1501,5 +1501,220 @@ TEST(BilinearCones, RejectsBadInput) {
   for (float h : apex) EXPECT_EQ(h, 0.5f);
 }
 
+// ---- the budgeted bilinear baker (BilinearBaker): bake_bilinear_cones' contract at every budget
+
+struct BudgetedBilinear {
+  ConeMap cones;
+  std::vector<float> apex;
+  BakeStats stats;
+};
+
+// The budgets every claim is tested at: 0 ms, a work limit of 0, small work limits, fake clocks that
+// run out after a few readings (mid-refinement), and unlimited.
+std::vector<Budget> bilinear_budgets() {
+  std::vector<Budget> budgets;
+  Budget zero;
+  zero.milliseconds = 0.0;
+  budgets.push_back(zero);
+  for (long long work : {0ll, 1ll, 40ll, 400ll}) {
+    Budget b;
+    b.max_work = work;
+    budgets.push_back(b);
+  }
+  for (double ms : {1.0, 2.0, 5.0}) {
+    Budget b;
+    b.clock = FakeClock{}.function();
+    b.milliseconds = ms;
+    budgets.push_back(b);
+  }
+  budgets.push_back(Budget{});
+  Budget exact_search;  // tolerance 0: every texel not already at 1 is searched
+  exact_search.tolerance = 0.0f;
+  budgets.push_back(exact_search);
+  return budgets;
+}
+
+BudgetedBilinear bake_bilinear_budgeted(const Map& map, int sectors, Address address, const Budget& budget) {
+  BudgetedBilinear b{make_cone_map(map, sectors), std::vector<float>(map.values.size()), {}};
+  BilinearBaker baker(map.width, map.height, sectors, address);
+  b.stats = baker.bake(view_of(map), budget, b.cones.view(), b.apex);
+  return b;
+}
+
+TEST(BilinearBaker, NeverPiercedAtAnyBudget) {
+  long long pairs = 0;
+  const std::vector<Budget> budgets = bilinear_budgets();
+  for (const Map& map : bilinear_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BilinearCones full = bake_bilinear(map, sectors, address);
+        for (std::size_t n = 0; n < budgets.size(); ++n) {
+          const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, budgets[n]);
+          // the apex is exactly bake_bilinear_cones'
+          ASSERT_EQ(b.apex, full.apex) << map.name;
+          for (float r : b.cones.ratios) ASSERT_TRUE(r > 0.0f && r <= 1.0f) << map.name << " " << r;
+          // every texel of a 0 ms or 0-work bake keeps stage L's ratios; the check below holds anyway
+          const int stride = n == 0 || n + 2 >= budgets.size() ? 1 : 3;
+          const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex, stride);
+          pairs += check.pairs;
+          ASSERT_EQ(check.violations, 0) << map.name << " " << map.width << "x" << map.height << " sectors "
+                                         << sectors << " " << address_name(address) << " budget " << n
+                                         << " worst " << check.worst;
+          if (n + 1 == budgets.size()) {  // tolerance 0, unlimited: never below the full bake
+            EXPECT_EQ(b.stats.texels_fallback, 0);
+            for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+              ASSERT_GE(b.cones.ratios[v], full.cones.ratios[v]) << map.name << " value " << v;
+          }
+        }
+      }
+  std::printf("budgeted bilinear cones: %lld (p, x) pairs checked\n", pairs);
+  EXPECT_GT(pairs, 1000000);
+}
+
+// The check has teeth on this baker's maps too: stage L's ratios 10% too large are caught.
+TEST(BilinearBaker, CheckCatchesStageLRatiosTenPercentTooLarge) {
+  Budget zero;
+  zero.milliseconds = 0.0;
+  int caught = 0, tried = 0;
+  for (const Map& map : {make_ramp(8, 6), make_noise(6, 6), test::make_fractal_cliff(10, 8), test::make_bricks(12, 8)})
+    for (Address address : {Address::wrap, Address::clamp}) {
+      BudgetedBilinear b = bake_bilinear_budgeted(map, 4, address, zero);
+      for (float& r : b.cones.ratios) r = std::min(1.0f, r * 1.1f);
+      ++tried;
+      if (check_bilinear(map, address, b.cones, b.apex).violations > 0) ++caught;
+    }
+  std::printf("stage L ratios x1.1 caught on %d of %d maps\n", caught, tried);
+  EXPECT_GE(caught, tried / 2);
+}
+
+TEST(BilinearBaker, RandomMapsNeverPierced) {
+  Budget zero;
+  zero.milliseconds = 0.0;
+  // a few spikes on a flat field: away from them only the far cells (the lane sweeps) decide
+  for (int n = 0; n < 6; ++n) {
+    const int w = 14 + n, h = 18 - n;
+    Map map = test::make_flat(w, h, 0.1f);
+    map.name = "sparse-spikes-" + std::to_string(n);
+    for (int s = 0; s < 3; ++s)
+      map.at(int(test::hash01(41, n, s) * h), int(test::hash01(43, n, s) * w)) = 0.3f + 0.7f * test::hash01(47, n, s);
+    for (int sectors : {4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, zero);
+        const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex, 2);
+        ASSERT_EQ(check.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address)
+                                       << " worst " << check.worst;
+      }
+  }
+  for (int n = 0; n < 24; ++n) {
+    const int w = 1 + int(test::hash01(31, n, 1) * 9), h = 1 + int(test::hash01(31, n, 2) * 9);
+    Map map = test::make_flat(w, h, 0.0f);
+    map.name = "random-" + std::to_string(n);
+    const int kind = n % 3;
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) {
+        const float r = test::hash01(37, n * 97 + i, j);
+        map.at(i, j) = kind == 0 ? r : kind == 1 ? (r > 0.8f ? 1.0f : 0.0f) : std::round(r * 4.0f) / 4.0f;
+      }
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, zero);
+        const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex);
+        ASSERT_EQ(check.violations, 0) << map.name << " " << w << "x" << h << " sectors " << sectors << " "
+                                       << address_name(address) << " worst " << check.worst;
+      }
+  }
+}
+
+// Chains of update() with random raises and lowerings inside the dirty rectangles, at budget 0 and
+// unlimited: conservative after every frame; heights changed outside the rectangles are an error.
+TEST(BilinearBaker, UpdateChainsStayConservative) {
+  for (Map map : {make_noise(9, 7), test::make_bricks(12, 8), test::make_spikes(9, 9)})
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp})
+        for (bool unlimited : {false, true}) {
+          Budget budget;
+          if (!unlimited) budget.milliseconds = 0.0;
+          BilinearBaker baker(map.width, map.height, sectors, address);
+          ConeMap cones = make_cone_map(map, sectors);
+          std::vector<float> apex(map.values.size());
+          baker.bake(view_of(map), budget, cones.view(), apex);
+          for (int frame = 0; frame < 6; ++frame) {
+            const std::uint64_t seed = 1000 + frame;
+            Rect rect;
+            rect.x0 = int(test::hash01(seed, 1, 0) * map.width);
+            rect.y0 = int(test::hash01(seed, 2, 0) * map.height);
+            rect.x1 = std::min(map.width, rect.x0 + 1 + int(test::hash01(seed, 3, 0) * 3));
+            rect.y1 = std::min(map.height, rect.y0 + 1 + int(test::hash01(seed, 4, 0) * 3));
+            for (int i = rect.y0; i < rect.y1; ++i)
+              for (int j = rect.x0; j < rect.x1; ++j) {
+                const float change = test::hash01(seed, i, j) - (frame % 2 ? 0.3f : 0.7f);
+                map.at(i, j) = std::clamp(map.at(i, j) + change, 0.0f, 1.0f);
+              }
+            const Rect rects[] = {rect};
+            baker.update(view_of(map), rects, budget, cones.view(), apex);
+            const BilinearCheck check = check_bilinear(map, address, cones, apex);
+            ASSERT_EQ(check.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address)
+                                           << " frame " << frame << " unlimited " << unlimited;
+            const BilinearCones full = bake_bilinear(map, sectors, address);
+            ASSERT_EQ(apex, full.apex) << map.name << " frame " << frame;
+          }
+          // a height changed outside the dirty rectangles is refused
+          Map changed = map;
+          changed.at(0, 0) = changed.at(0, 0) > 0.5f ? 0.1f : 0.9f;
+          const Rect elsewhere[] = {{map.width - 1, map.height - 1, map.width, map.height}};
+          if (map.width > 1 || map.height > 1)
+            EXPECT_THROW(baker.update(view_of(changed), elsewhere, budget, cones.view(), apex), BakeError);
+        }
+}
+
+TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
+  const Map map = test::make_fractal_cliff(24, 20);
+  for (Address address : {Address::wrap, Address::clamp}) {
+    BilinearBaker baker(map.width, map.height, 4, address);
+    ConeMap cones = make_cone_map(map, 4);
+    std::vector<float> apex(map.values.size());
+    Budget zero;
+    zero.max_work = 0;
+    zero.tolerance = 0.0f;
+    baker.bake(view_of(map), zero, cones.view(), apex);
+    const long long first = baker.pending();
+    EXPECT_GT(first, 0);
+    Budget some;
+    some.max_work = 2000;
+    some.tolerance = 0.0f;
+    long long previous = first;
+    for (int call = 0; call < 1000 && baker.pending() > 0; ++call) {
+      baker.refine(some, cones.view(), apex);
+      EXPECT_LT(baker.pending(), previous);
+      previous = baker.pending();
+      ASSERT_EQ(check_bilinear(map, address, cones, apex, 5).violations, 0);
+    }
+    EXPECT_EQ(baker.pending(), 0);
+    const BilinearCones full = bake_bilinear(map, 4, address);
+    for (std::size_t v = 0; v < cones.ratios.size(); ++v) ASSERT_GE(cones.ratios[v], full.cones.ratios[v]);
+  }
+}
+
+TEST(BilinearBaker, RejectsBadInput) {
+  EXPECT_THROW(BilinearBaker(0, 4, 4, Address::wrap), BakeError);
+  EXPECT_THROW(BilinearBaker(4, 4, 3, Address::wrap), BakeError);
+  BilinearBaker baker(4, 4, 4, Address::wrap);
+  const Map ok = test::make_flat(4, 4);
+  std::vector<float> ratios(16 * 4), apex(16);
+  EXPECT_THROW(baker.refine({}, {ratios.data(), 4, 4, 4}, apex), BakeError);  // nothing baked yet
+  EXPECT_THROW(baker.bake(view_of(ok), {}, {ratios.data(), 4, 4, 4}, {apex.data(), 15}), BakeError);
+  const Map other = test::make_flat(5, 4);
+  std::vector<float> other_ratios(20 * 4), other_apex(20);
+  EXPECT_THROW(baker.bake(view_of(other), {}, {other_ratios.data(), 5, 4, 4}, other_apex), BakeError);
+  Map nan_map = test::make_flat(4, 4);
+  nan_map.at(1, 1) = std::nanf("");
+  EXPECT_THROW(baker.bake(view_of(nan_map), {}, {ratios.data(), 4, 4, 4}, apex), BakeError);
+  Budget bad;
+  bad.tolerance = 1.5f;
+  EXPECT_THROW(baker.bake(view_of(ok), bad, {ratios.data(), 4, 4, 4}, apex), BakeError);
+  EXPECT_NO_THROW(baker.bake(view_of(ok), {}, {ratios.data(), 4, 4, 4}, apex));
+  for (float r : ratios) EXPECT_EQ(r, 1.0f);
+}
+
 }  // namespace
 }  // namespace displace::bake
