@@ -12,6 +12,8 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <span>
@@ -165,8 +167,118 @@ void run_update(benchmark::State& state, MapKind kind, bake::BudgetedBaker::Upda
   state.counters["pending"] = double(stats.texels_fallback);
 }
 
+// ---- the render-safe (bilinear-surface) cone maps: BM_BakeBilinear/ocean/{budgeted,full}/N
+
+// Ocean frames 1/60 s apart and, where affordable, bake_bilinear_cones' maps of them.
+struct OceanFrames {
+  std::vector<std::vector<float>> heights;
+  std::vector<double> full_mean;  // per frame; NaN where the full bake was not run
+};
+
+const OceanFrames& ocean_frames(int size) {
+  static std::mutex mutex;
+  static std::map<int, OceanFrames> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  OceanFrames& entry = cache[size];
+  if (entry.heights.empty()) {
+    const int count = size <= 512 ? 4 : 2;
+    sim::OceanParams params;
+    params.size = size;
+    sim::Ocean ocean(params);
+    sim::OceanFrame frame;
+    for (int n = 0; n < count; ++n) {
+      ocean.evaluate(float(n) / 60.0f, sim::ocean_heights, frame);
+      std::vector<float> heights(std::size_t(size) * size);
+      sim::apply_mapping(ocean.mapping(), frame.height, heights);
+      entry.heights.push_back(std::move(heights));
+      double mean = std::numeric_limits<double>::quiet_NaN();
+      if (size <= 1024) {  // the full bake takes about 7 s at 1024 and minutes above
+        std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
+        mean = bake::bake_bilinear_cones({entry.heights.back().data(), size, size}, bake::Address::wrap,
+                                         {cones.data(), size, size, 4}, apex)
+                   .mean_ratio;
+      }
+      entry.full_mean.push_back(mean);
+    }
+  }
+  return entry;
+}
+
+// Sampled check of the contract: for every 97th texel c, points p of Q_c (corners, edge midpoints,
+// centre) and surface points x on the half-texel grid within 12 texels, s(x) <= H_c + |x - p| / r_k
+// for each quadrant k holding x - p (both on a boundary). Returns the pairs that fail by over 1e-6.
+long long sampled_violations(const std::vector<float>& heights, int size, const std::vector<float>& cones,
+                             const std::vector<float>& apex) {
+  auto h = [&](int i, int j) { return double(heights[std::size_t((i % size + size) % size) * size + (j % size + size) % size]); };
+  auto s = [&](int y, int x) {  // at half-texel coordinates (x / 2, y / 2) from texel centres
+    const int i0 = y >= 0 ? y / 2 : -((1 - y) / 2), j0 = x >= 0 ? x / 2 : -((1 - x) / 2);
+    const double fy = (y - 2 * i0) * 0.5, fx = (x - 2 * j0) * 0.5;
+    return (h(i0, j0) * (1 - fx) + h(i0, j0 + 1) * fx) * (1 - fy) + (h(i0 + 1, j0) * (1 - fx) + h(i0 + 1, j0 + 1) * fx) * fy;
+  };
+  constexpr int reach = 24;  // half texels
+  long long violations = 0;
+  for (std::size_t t = 0; t < heights.size(); t += 97) {
+    const int i = int(t / size), j = int(t % size);
+    const double hc = apex[t];
+    for (int py = 2 * i - 1; py <= 2 * i + 1; ++py)
+      for (int px = 2 * j - 1; px <= 2 * j + 1; ++px)
+        for (int y = py - reach; y <= py + reach; ++y)
+          for (int x = px - reach; x <= px + reach; ++x) {
+            const double above = s(y, x) - hc;
+            if (!(above > 1e-6)) continue;
+            const int dx = x - px, dy = y - py;
+            const double distance = std::hypot(dx * 0.5 / size, dy * 0.5 / size);
+            for (int k = 0; k < 4; ++k) {
+              const bool in = (k == 0 || k == 3 ? dx >= 0 : dx <= 0) && (k <= 1 ? dy >= 0 : dy <= 0);
+              if (in && above > distance / cones[t * 4 + k] + 1e-6) ++violations;
+            }
+          }
+  }
+  return violations;
+}
+
+void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std::numeric_limits<double>::infinity()) {
+  const int size = int(state.range(0));
+  const OceanFrames& frames = ocean_frames(size);
+  std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
+  const bake::ConeView out{cones.data(), size, size, 4};
+  bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);  // kept from frame to frame
+  bake::BakeStats stats;
+  std::size_t frame = 0, last = 0;
+  for (auto _ : state) {
+    last = frame % frames.heights.size();
+    const bake::HeightView heights{frames.heights[last].data(), size, size};
+    bake::Budget budget;
+    budget.milliseconds = budget_ms;
+    stats = budgeted ? baker.bake(heights, budget, out, apex)
+                     : bake::bake_bilinear_cones(heights, bake::Address::wrap, out, apex);
+    benchmark::DoNotOptimize(cones.data());
+    ++frame;
+  }
+  if (!std::isnan(frames.full_mean[last])) state.counters["mean_ratio_vs_full"] = stats.mean_ratio / frames.full_mean[last];
+  state.counters["mean_ratio"] = stats.mean_ratio;
+  state.counters["violations"] = double(sampled_violations(frames.heights[last], size, cones, apex));
+  state.counters["searched_frac"] = double(stats.texels_refined) / double(size * size);
+}
+
 struct Registration {
   Registration() {
+    for (bool budgeted : {true, false})
+      for (int size : {256, 512, 1024, 2048}) {
+        if (!budgeted && size > 512) continue;  // the full bake: 7 s at 1024, minutes above
+        auto* b = benchmark::RegisterBenchmark(
+            (std::string("BM_BakeBilinear/ocean/") + (budgeted ? "budgeted" : "full")).c_str(),
+            [budgeted](benchmark::State& state) { run_bilinear(state, budgeted); });
+        b->Arg(size)->Unit(benchmark::kMillisecond)->UseRealTime();
+        if (!budgeted || size >= 2048) b->Iterations(2);
+      }
+    // stage L alone (0 ms) and a 60 Hz frame's worth of refinement
+    for (double ms : {0.0, 16.0}) {
+      auto* b = benchmark::RegisterBenchmark(
+          (std::string("BM_BakeBilinear/ocean/budgeted-") + (ms == 0.0 ? "0ms" : "16ms")).c_str(),
+          [ms](benchmark::State& state) { run_bilinear(state, true, ms); });
+      b->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMillisecond)->UseRealTime();
+    }
     const std::pair<Baker, const char*> bakers[] = {{Baker::budgeted, "budgeted"},
                                                     {Baker::budgeted_zero, "budgeted-0ms"},
                                                     {Baker::budgeted_frame, "budgeted-16ms"},
