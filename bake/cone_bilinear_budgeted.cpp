@@ -61,6 +61,15 @@ constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane is at mo
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 4;               // half texels of padding the near field reads past the map
 
+struct SubCells {
+  int columns = 0, rows = 0;  // per plane
+  // [field][parity]: 0 max, 1 rise +u, 2 rise -u, 3 rise +v, 4 rise -v
+  std::vector<float> planes[5][2];
+  const float* row(int field, int parity, int y) const {
+    return planes[field][parity].data() + std::size_t(y + near_reach) * columns;
+  }
+};
+
 }  // namespace
 
 struct BilinearBaker::State {
@@ -77,10 +86,11 @@ struct BilinearBaker::State {
   float tolerance = 0.25f;
   std::unique_ptr<detail::BilinearSearch> search;  // for the current heights, made on first use
   // stage L scratch, kept between frames
-  std::vector<float> cell_max, samples;
+  std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
   std::vector<std::uint32_t> masks[4];
   detail::LanePlan plan;
+  SubCells sub_cells;
 };
 
 namespace {
@@ -145,57 +155,118 @@ void make_cells(State& state) {
   });
 }
 
-// Samples of s on the half-texel grid, padded by near_reach on every side (wrap: periodic; clamp: the
-// edge-extended surface, which only adds constraints where the map is absent):
-// samples[(y + pad) * stride + x + pad] = s at texel-centre coordinates (x / 2, y / 2).
-void make_samples(State& state, int& stride) {
+// The near field's data, on the half-texel grid: samples of s at texel-centre coordinates
+// (X / 2, Y / 2) - texel centres, edge midpoints and corners, where s is an exact average of one, two
+// or four texels - and per half-texel square ("sub-cell", lower corner (X, Y)) its maximum and the
+// largest rates at which s rises along +u, -u, +v and -v over it. s is bilinear on a sub-cell (it
+// lies in one cell), so its maximum is at a corner and its rate along u is largest on one of its two
+// u edges, where it is the difference of two samples over half a texel. Computed in double, stored
+// rounded up. Sub-cells are split by the parity of X, so that texel j's sub-cell at a fixed offset
+// is at a fixed index j + k in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
+
+float round_up(double value) {
+  float f = float(value);
+  if (double(f) < value) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+void make_sub_cells(const State& state, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
-  stride = 2 * W + 2 * pad;
-  const int rows = 2 * H + 2 * pad;
-  state.samples.resize(std::size_t(stride) * rows);
+  cells.columns = W + pad;  // X from -pad to 2 W + pad - 1
+  cells.rows = 2 * H + 2 * pad;
+  for (auto& field : cells.planes)
+    for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
   auto h = [&](int i, int j) { return double(state.heights[std::size_t(texel(i, H)) * W + texel(j, W)]); };
-  tbb::parallel_for(tbb::blocked_range<int>(0, rows), [&](const tbb::blocked_range<int>& range) {
+  // s at half-texel coordinates (X, Y)
+  auto sample = [&](int X, int Y) {
+    const int j0 = X >= 0 ? X / 2 : -((1 - X) / 2), i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
+    const bool odd_x = X != 2 * j0, odd_y = Y != 2 * i0;
+    if (odd_x && odd_y) return 0.25 * ((h(i0, j0) + h(i0, j0 + 1)) + (h(i0 + 1, j0) + h(i0 + 1, j0 + 1)));
+    if (odd_x) return 0.5 * (h(i0, j0) + h(i0, j0 + 1));
+    if (odd_y) return 0.5 * (h(i0, j0) + h(i0 + 1, j0));
+    return h(i0, j0);
+  };
+  const double per_u = 2.0 * W, per_v = 2.0 * H;  // 1 / (half a texel) in uv
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells.rows), [&](const tbb::blocked_range<int>& range) {
     for (int r = range.begin(); r < range.end(); ++r) {
-      const int y = r - pad;
-      const int i0 = y >= 0 ? y / 2 : -((1 - y) / 2), odd_y = y - 2 * i0;
-      for (int c = 0; c < stride; ++c) {
-        const int x = c - pad;
-        const int j0 = x >= 0 ? x / 2 : -((1 - x) / 2), odd_x = x - 2 * j0;
-        double value = h(i0, j0);
-        if (odd_x && odd_y) value = 0.25 * (h(i0, j0) + h(i0, j0 + 1) + h(i0 + 1, j0) + h(i0 + 1, j0 + 1));
-        else if (odd_x) value = 0.5 * (h(i0, j0) + h(i0, j0 + 1));
-        else if (odd_y) value = 0.5 * (h(i0, j0) + h(i0 + 1, j0));
-        state.samples[std::size_t(r) * stride + c] = float(value);
+      const int Y = r - pad;
+      for (int X = -pad; X < 2 * W + pad; ++X) {
+        const double s00 = sample(X, Y), s10 = sample(X + 1, Y), s01 = sample(X, Y + 1), s11 = sample(X + 1, Y + 1);
+        const double du0 = (s10 - s00) * per_u, du1 = (s11 - s01) * per_u;
+        const double dv0 = (s01 - s00) * per_v, dv1 = (s11 - s10) * per_v;
+        const int parity = (X + pad) & 1;
+        const std::size_t at = std::size_t(r) * cells.columns + (X + pad) / 2;
+        cells.planes[0][parity][at] = round_up(std::max(std::max(s00, s10), std::max(s01, s11)));
+        cells.planes[1][parity][at] = round_up(std::max(0.0, std::max(du0, du1)));
+        cells.planes[2][parity][at] = round_up(std::max(0.0, -std::min(du0, du1)));
+        cells.planes[3][parity][at] = round_up(std::max(0.0, std::max(dv0, dv1)));
+        cells.planes[4][parity][at] = round_up(std::max(0.0, -std::min(dv0, dv1)));
       }
     }
   });
 }
 
-// The near bound of texel (i, j) for quadrant q (0: +u +v, 1: -u +v, 2: -u -v, 3: +u -v): 1 / G over
-// its 6 x 6 sample window, or infinity when no sample there exceeds the apex. Sample differences are
-// taken in float and raised by a relative 1e-6 plus 1e-7 (more than their rounding).
-float near_bound(const State& state, int stride, int i, int j, int quadrant, float apex) {
-  const int su = quadrant == 0 || quadrant == 3 ? 1 : -1, sv = quadrant <= 1 ? 1 : -1;
-  // window corners from 2j - 1 towards su (6 samples)
-  const int x0 = su > 0 ? 2 * j - 1 : 2 * j - 4, y0 = sv > 0 ? 2 * i - 1 : 2 * i - 4;
-  const float* base = state.samples.data() + std::size_t(y0 + near_reach) * stride + (x0 + near_reach);
-  float highest = 0.0f, rise_u = 0.0f, rise_v = 0.0f;
-  for (int y = 0; y < 6; ++y) {
-    const float* row = base + std::size_t(y) * stride;
-    for (int x = 0; x < 6; ++x) {
-      highest = std::max(highest, row[x]);
-      if (x < 5) rise_u = std::max(rise_u, float(su) * (row[x + 1] - row[x]));
-      if (y < 5) rise_v = std::max(rise_v, float(sv) * (row[x + stride] - row[x]));
+// The near bounds of texel row i, for quadrant q (0: +u +v, 1: -u +v, 2: -u -v, 3: +u -v), into
+// near[j]: the quadrant's L-shaped region beyond Q_c within 2 texels (sub-cells at offsets (x, y) in
+// [0, 5)^2 outside Q_c's own [0, 2)^2, counted from Q_c's first sub-cell towards the quadrant). Where
+// the surface at x exceeds H_c, the segment from y (x's nearest point of Q_c) to x ends inside
+// sub-cells whose maximum exceeds H_c after its last point at height H_c, so s(x) - H_c <= G |x - y|
+// with G = sqrt(rise_u^2 + rise_v^2) over those sub-cells - rise_u only over the ones beyond Q_c's
+// edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
+// bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
+// file comment), infinity where nothing in the region exceeds H_c.
+void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near) {
+  const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
+  thread_local std::vector<float> rise_u, rise_v, gap_bound;
+  thread_local std::vector<std::uint8_t> touching, above_any;
+  rise_u.assign(width, 0.0f);
+  rise_v.assign(width, 0.0f);
+  gap_bound.assign(width, std::numeric_limits<float>::infinity());
+  touching.assign(width, 0);
+  above_any.assign(width, 0);
+  for (int y = 0; y < 5; ++y)
+    for (int x = 0; x < 5; ++x) {
+      if (x < 2 && y < 2) continue;
+      // sub-cell lower corner: X = 2 j - 1 + x (+u) or 2 j - x (-u); Y likewise
+      const int Y = sv > 0 ? 2 * i - 1 + y : 2 * i - y;
+      const int parity = su > 0 ? (x + 1) & 1 : x & 1;
+      const int k0 = su > 0 ? (x + 3 - parity) / 2 : (4 - x - parity) / 2;  // index of texel 0's sub-cell
+      const float* top = cells.row(0, parity, Y) + k0;
+      const float* along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
+      const float* along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
+      const bool beyond_u = x >= 2, beyond_v = y >= 2;
+      const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
+      const float gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
+      float* ru = rise_u.data();
+      float* rv = rise_v.data();
+      float* fa = gap_bound.data();
+      std::uint8_t* touch = touching.data();
+      std::uint8_t* any = above_any.data();
+      for (int j = 0; j < width; ++j) {
+        const bool above = top[j] > apex[j];
+        if (beyond_u) ru[j] = above && along_u[j] > ru[j] ? along_u[j] : ru[j];
+        if (beyond_v) rv[j] = above && along_v[j] > rv[j] ? along_v[j] : rv[j];
+        if (gap > 0.0f) {
+          const float bound = gap / (top[j] - apex[j]);
+          fa[j] = above && bound < fa[j] ? bound : fa[j];
+        } else {
+          touch[j] |= above;
+        }
+        any[j] |= above;
+      }
     }
+  for (int j = 0; j < width; ++j) {
+    if (!above_any[j]) {
+      near[j] = std::numeric_limits<float>::infinity();
+      continue;
+    }
+    const double g = std::sqrt(double(rise_u[j]) * rise_u[j] + double(rise_v[j]) * rise_v[j]);
+    const double slope_bound = g > 0.0 ? (1.0 / g) * (1.0 - 1e-6) : std::numeric_limits<double>::infinity();
+    const double far = touching[j] ? 0.0 : double(gap_bound[j]) * (1.0 - 1e-6);
+    near[j] = float(g > 0.0 ? std::max(far, slope_bound) : far);
   }
-  if (!(highest > apex)) return std::numeric_limits<float>::infinity();
-  const double grow = 1.0 + 1e-6;
-  const double gu = (double(rise_u) * grow + 1e-7) * 2.0 * state.width, gv = (double(rise_v) * grow + 1e-7) * 2.0 * state.height;
-  const double bound = 1.0 / std::sqrt(gu * gu + gv * gv);
-  float stored = float(bound * (1.0 - 1e-6));
-  return stored;
 }
 
 // Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
@@ -237,19 +308,20 @@ long long run_stage_l(State& state) {
   auto floor_ratio = [&](float apex) {
     return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
   };
-  int stride = 0;
-  make_samples(state, stride);
+  make_sub_cells(state, state.sub_cells);
   state.stage_l.resize(texels * 4);
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    thread_local std::vector<float> near;
+    near.resize(W);
     for (int i = rows.begin(); i < rows.end(); ++i)
-      for (int j = 0; j < W; ++j) {
-        const std::size_t n = std::size_t(i) * W + j;
-        for (int q = 0; q < 4; ++q) {
+      for (int q = 0; q < 4; ++q) {
+        near_row(state.sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data());
+        for (int j = 0; j < W; ++j) {
+          const std::size_t n = std::size_t(i) * W + j;
           const int passed = detail::lanes_passed(masks[q][n]);
           // below the lowest lane: every far cell is at least half a texel away and at most `highest`
           const float far = passed > 0 ? state.plan.lane_ratio[passed] : floor_ratio(state.apex[n]);
-          const float near = near_bound(state, stride, i, j, q, state.apex[n]);
-          state.stage_l[n * 4 + q] = std::min({far, near, 1.0f});
+          state.stage_l[n * 4 + q] = std::min({far, near[j], 1.0f});
         }
       }
   });
