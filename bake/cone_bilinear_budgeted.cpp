@@ -57,9 +57,10 @@
 namespace displace::bake {
 namespace {
 
-constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane is at most this
+constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane of make_lane_plan (replaced below)
+constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below this ratio, dense above
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
-constexpr int near_reach = 4;               // half texels of padding the near field reads past the map
+constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 
 struct SubCells {
   int columns = 0, rows = 0;  // per plane
@@ -88,7 +89,10 @@ struct BilinearBaker::State {
   // stage L scratch, kept between frames
   std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
-  std::vector<std::uint32_t> masks[4];
+  std::vector<std::uint32_t> masks[4], masks3[4];
+  // per texel and quadrant: the lanes' bounds for the cells beyond the boxes {0, 1, 2}^2 and
+  // {0, ..., 3}^2 (0: none)
+  std::vector<float> far, far3;
   detail::LanePlan plan;
   SubCells sub_cells;
 };
@@ -217,22 +221,28 @@ void make_sub_cells(const State& state, SubCells& cells) {
 // edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
 // bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
 // file comment), infinity where nothing in the region exceeds H_c.
-void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near) {
+void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near,
+              float* slope3) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
-  thread_local std::vector<float> rise_u, rise_v, gap_bound;
-  thread_local std::vector<std::uint8_t> touching, above_any;
+  thread_local std::vector<float> rise_u, rise_v, rise_u3, rise_v3, gap_bound;
+  thread_local std::vector<std::uint8_t> touching, above_any, above_any3;
   rise_u.assign(width, 0.0f);
   rise_v.assign(width, 0.0f);
+  rise_u3.assign(width, 0.0f);
+  rise_v3.assign(width, 0.0f);
   gap_bound.assign(width, std::numeric_limits<float>::infinity());
   touching.assign(width, 0);
   above_any.assign(width, 0);
-  for (int y = 0; y < 5; ++y)
-    for (int x = 0; x < 5; ++x) {
+  above_any3.assign(width, 0);
+  for (int y = 0; y < 7; ++y)
+    for (int x = 0; x < 7; ++x) {
       if (x < 2 && y < 2) continue;
+      const bool box2 = x < 5 && y < 5;
       // sub-cell lower corner: X = 2 j - 1 + x (+u) or 2 j - x (-u); Y likewise
       const int Y = sv > 0 ? 2 * i - 1 + y : 2 * i - y;
       const int parity = su > 0 ? (x + 1) & 1 : x & 1;
-      const int k0 = su > 0 ? (x + 3 - parity) / 2 : (4 - x - parity) / 2;  // index of texel 0's sub-cell
+      // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
+      const int k0 = su > 0 ? (x - 1 + near_reach - parity) / 2 : (near_reach - x - parity) / 2;
       const float* top = cells.row(0, parity, Y) + k0;
       const float* along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
       const float* along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
@@ -241,11 +251,18 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
       const float gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
       float* ru = rise_u.data();
       float* rv = rise_v.data();
+      float* ru3 = rise_u3.data();
+      float* rv3 = rise_v3.data();
       float* fa = gap_bound.data();
       std::uint8_t* touch = touching.data();
       std::uint8_t* any = above_any.data();
+      std::uint8_t* any3 = above_any3.data();
       for (int j = 0; j < width; ++j) {
         const bool above = top[j] > apex[j];
+        if (beyond_u) ru3[j] = above && along_u[j] > ru3[j] ? along_u[j] : ru3[j];
+        if (beyond_v) rv3[j] = above && along_v[j] > rv3[j] ? along_v[j] : rv3[j];
+        any3[j] |= above;
+        if (!box2) continue;
         if (beyond_u) ru[j] = above && along_u[j] > ru[j] ? along_u[j] : ru[j];
         if (beyond_v) rv[j] = above && along_v[j] > rv[j] ? along_v[j] : rv[j];
         if (gap > 0.0f) {
@@ -257,15 +274,18 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
         any[j] |= above;
       }
     }
+  constexpr float infinite = std::numeric_limits<float>::infinity();
   for (int j = 0; j < width; ++j) {
+    const double g3 = std::sqrt(double(rise_u3[j]) * rise_u3[j] + double(rise_v3[j]) * rise_v3[j]);
+    slope3[j] = !above_any3[j] ? infinite : g3 > 0.0 ? float((1.0 / g3) * (1.0 - 1e-6)) : 0.0f;
     if (!above_any[j]) {
-      near[j] = std::numeric_limits<float>::infinity();
+      near[j] = infinite;
       continue;
     }
     const double g = std::sqrt(double(rise_u[j]) * rise_u[j] + double(rise_v[j]) * rise_v[j]);
-    const double slope_bound = g > 0.0 ? (1.0 / g) * (1.0 - 1e-6) : std::numeric_limits<double>::infinity();
+    const double slope_bound = g > 0.0 ? (1.0 / g) * (1.0 - 1e-6) : 0.0;
     const double far = touching[j] ? 0.0 : double(gap_bound[j]) * (1.0 - 1e-6);
-    near[j] = float(g > 0.0 ? std::max(far, slope_bound) : far);
+    near[j] = float(std::max(far, slope_bound));
   }
 }
 
@@ -291,19 +311,60 @@ long long run_stage_l(State& state) {
   make_cells(state);
   const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
   detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
-  // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
-  alignas(64) std::uint16_t bonus[detail::lane_count];
+  // 64 lanes in two sweeps of 32, interleaved: from the smallest ratio a map can have (one texel
+  // over its height range) to just above 1, 1.3x apart below lane_knee and evenly geometric above
+  double lanes[2 * detail::lane_count];
+  {
+    const double range = double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
+    const double smallest = range > 0.0 ? std::clamp(double(state.plan.nearest) / range, 1.0 / 8192.0, lane_knee) : lane_knee;
+    const int total = 2 * detail::lane_count;
+    const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
+    const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
+    for (int l = 0; l < total; ++l)
+      lanes[l] = l <= low ? lowest * std::pow(1.3, l)
+                          : lowest * std::pow(1.3, low) *
+                                std::pow(1.0001 / (lowest * std::pow(1.3, low)), double(l - low) / (total - 1 - low));
+  }
   const double t = 1.0 / double(std::max(W, H));
-  for (int l = 0; l < detail::lane_count; ++l) {
-    const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
-    bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+  long long work = 0;
+  for (int sweep = 0; sweep < 2; ++sweep) {
+    double ratios[detail::lane_count];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    detail::set_lane_ratios(state.plan, ratios);
+    // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
+    alignas(64) std::uint16_t bonus[detail::lane_count];
+    for (int l = 0; l < detail::lane_count; ++l) {
+      const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
+      bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+    }
+    // the box {0, ..., 3}^2: the gap beyond its far faces is at least 1.5 texels more
+    alignas(64) std::uint16_t bonus3[detail::lane_count];
+    for (int l = 0; l < detail::lane_count; ++l) {
+      const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
+      bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+    }
+    std::uint32_t* masks[4];
+    std::uint32_t* masks3[4];
+    for (int q = 0; q < 4; ++q) {
+      state.masks[q].resize(texels);
+      masks[q] = state.masks[q].data();
+      state.masks3[q].resize(texels);
+      masks3[q] = state.masks3[q].data();
+    }
+    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks, bonus3, masks3);
+    // the larger of the two sweeps' passing lanes, as a ratio
+    state.far.resize(texels * 4);
+    state.far3.resize(texels * 4);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t n = range.begin(); n < range.end(); ++n)
+        for (int q = 0; q < 4; ++q) {
+          const float ratio = state.plan.lane_ratio[detail::lanes_passed(masks[q][n])];
+          const float ratio3 = state.plan.lane_ratio[detail::lanes_passed(masks3[q][n])];
+          state.far[n * 4 + q] = sweep == 0 ? ratio : std::max(state.far[n * 4 + q], ratio);
+          state.far3[n * 4 + q] = sweep == 0 ? ratio3 : std::max(state.far3[n * 4 + q], ratio3);
+        }
+    });
   }
-  std::uint32_t* masks[4];
-  for (int q = 0; q < 4; ++q) {
-    state.masks[q].resize(texels);
-    masks[q] = state.masks[q].data();
-  }
-  long long work = detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks);
   const float highest = state.plan.highest;
   auto floor_ratio = [&](float apex) {
     return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
@@ -311,17 +372,20 @@ long long run_stage_l(State& state) {
   make_sub_cells(state, state.sub_cells);
   state.stage_l.resize(texels * 4);
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
-    thread_local std::vector<float> near;
+    thread_local std::vector<float> near, slope3;
     near.resize(W);
+    slope3.resize(W);
     for (int i = rows.begin(); i < rows.end(); ++i)
       for (int q = 0; q < 4; ++q) {
-        near_row(state.sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data());
+        near_row(state.sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data(), slope3.data());
         for (int j = 0; j < W; ++j) {
           const std::size_t n = std::size_t(i) * W + j;
-          const int passed = detail::lanes_passed(masks[q][n]);
           // below the lowest lane: every far cell is at least half a texel away and at most `highest`
-          const float far = passed > 0 ? state.plan.lane_ratio[passed] : floor_ratio(state.apex[n]);
-          state.stage_l[n * 4 + q] = std::min({far, near[j], 1.0f});
+          const float floor = floor_ratio(state.apex[n]);
+          const float beyond2 = std::max(state.far[n * 4 + q], floor);
+          const float beyond3 = std::max(state.far3[n * 4 + q], floor);
+          // cells beyond box 3: the lanes; between the boxes: the lanes or the slope; box 2: near
+          state.stage_l[n * 4 + q] = std::min({beyond3, std::max(beyond2, slope3[j]), near[j], 1.0f});
         }
       }
   });

@@ -111,6 +111,42 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
 }
 #endif
 
+// The moves (da, db) of the chamfer, their uv lengths and the chamfer scale.
+void chamfer_moves(int width, int height, bool knights, double (&length)[lane_move_count], double& scale) {
+  // moves (da, db) and their uv lengths; the chamfer scale is the cosine of half the widest angle
+  // between neighbouring moves (in uv, so non-square maps get their own)
+  const int moves[lane_move_count][2] = {{0, 1}, {1, 0}, {1, 1}, {1, 2}, {2, 1}};
+  double angle[lane_move_count];
+  for (int m = 0; m < lane_move_count; ++m) {
+    const double du = double(moves[m][1]) / width, dv = double(moves[m][0]) / height;
+    length[m] = std::sqrt(du * du + dv * dv);
+    angle[m] = std::atan2(dv, du);
+  }
+  // by angle from the row: (0, 1), (1, 2), (1, 1), (2, 1), (1, 0); without knights (0, 1), (1, 1), (1, 0)
+  const int with_knights[] = {0, 3, 2, 4, 1}, without[] = {0, 2, 1};
+  const int* order = knights ? with_knights : without;
+  const int used = knights ? 5 : 3;
+  scale = 1.0;
+  for (int k = 0; k + 1 < used; ++k)
+    scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
+  scale *= 1.0 - 1e-9;
+}
+
+void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]) {
+  double length[lane_move_count], scale;
+  chamfer_moves(plan.width, plan.height, plan.knights, length, scale);
+  plan.lane_ratio[0] = 0.0f;
+  for (int l = 0; l < lane_count; ++l) {
+    plan.lane_ratio[l + 1] = float(std::min(1.0, ratios[l] * (1.0 - 1e-5)));
+    for (int m = 0; m < lane_move_count; ++m) {
+      const double step = std::floor(scale * length[m] / ratios[l] * height_scale);
+      plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
+    }
+    plan.lane_upper[l] = 1.0f;  // not certified
+  }
+  plan.lane_upper[lane_count] = 1.0f;
+}
+
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan) {
   plan.width = width;
@@ -173,23 +209,8 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
     plan.bottom_transposed.clear();
   }
 
-  // moves (da, db) and their uv lengths; the chamfer scale is the cosine of half the widest angle
-  // between neighbouring moves (in uv, so non-square maps get their own)
-  const int moves[lane_move_count][2] = {{0, 1}, {1, 0}, {1, 1}, {1, 2}, {2, 1}};
-  double length[lane_move_count], angle[lane_move_count];
-  for (int m = 0; m < lane_move_count; ++m) {
-    const double du = double(moves[m][1]) / width, dv = double(moves[m][0]) / height;
-    length[m] = std::sqrt(du * du + dv * dv);
-    angle[m] = std::atan2(dv, du);
-  }
-  // by angle from the row: (0, 1), (1, 2), (1, 1), (2, 1), (1, 0); without knights (0, 1), (1, 1), (1, 0)
-  const int with_knights[] = {0, 3, 2, 4, 1}, without[] = {0, 2, 1};
-  const int* order = knights ? with_knights : without;
-  const int used = knights ? 5 : 3;
-  double scale = 1.0;
-  for (int k = 0; k + 1 < used; ++k)
-    scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
-  scale *= 1.0 - 1e-9;
+  double length[lane_move_count], scale;
+  chamfer_moves(width, height, knights, length, scale);
   // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
   // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
   // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
@@ -335,7 +356,8 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 }
 
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint32_t* const masks[4], int level) {
+                                   const std::uint16_t* bonus, std::uint32_t* const masks[4],
+                                   const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(0, 4, [&](int quadrant) {
@@ -370,6 +392,8 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.cell_offset_y = cells.wrap && job.flip_y ? -1 : 0;
     job.texel_bottom = texel_bottom;
     job.bonus = bonus;
+    job.masks3 = masks3[quadrant];
+    job.bonus3 = bonus3;
     job.bilinear_scratch = bilinear_scratch.get();
     switch (level) {
       case 0: lane_sweep_generic(job); break;

@@ -50,12 +50,16 @@ struct LaneSweepJob {
   const std::uint16_t* texel_bottom = nullptr;  // floor(apex * 65535) or a little below, physical
   const std::uint16_t* bonus = nullptr;         // lane_count values, rounded down
   std::uint16_t* bilinear_scratch = nullptr;    // bilinear_sweep_scratch(width, texel_width) values
+  // the same test through the seven face cells of the box {0, ..., 3}^2 - cells (t + 3, b + k),
+  // k = 0..3, and (t + k, b + 3), k = 0..2 - with its own bonus, into masks3
+  std::uint32_t* masks3 = nullptr;
+  const std::uint16_t* bonus3 = nullptr;
 };
 
-// Extra scratch of a bilinear sweep: one row of dilations with a padding cell at each end (and one
-// more at the end) and three rows of texel accumulators.
+// Extra scratch of a bilinear sweep: one row of dilations with one padding cell before and four
+// after, and three plus four rows of texel accumulators.
 inline std::size_t bilinear_sweep_scratch(int cell_width, int texel_width) {
-  return (std::size_t(cell_width) + 3 + 3 * std::size_t(texel_width)) * lane_count;
+  return (std::size_t(cell_width) + 5 + 7 * std::size_t(texel_width)) * lane_count;
 }
 
 struct LanePlan;
@@ -105,6 +109,10 @@ struct LanePlan {
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan);
 
+// Other lanes for a plan: ratios[l] increasing, lane_ratio and steps remade as make_lane_plan does
+// them (lane_upper becomes 1: no upper bounds).
+void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]);
+
 // Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over the texels
 // within two of it (the 5 x 5 neighbourhood) in the sector against (3 texels) / (highest - h) for
 // everything further, rounded down (floor); and the smallest pair ratio of a neighbour that blocks
@@ -142,6 +150,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
 // quadrant q's masks (per texel) to masks[q]. bonus: lane_count values (see bilinear_sweep.cpp).
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint32_t* const masks[4], int level = -1);
+                                   const std::uint16_t* bonus, std::uint32_t* const masks[4],
+                                   const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level = -1);
 
 }  // namespace displace::bake::detail

@@ -57,23 +57,28 @@ void sweep_kernel(LaneSweepJob& job) {
   // lap's sums are kept for the rows the second lap may reach before that; past them it goes on to
   // the end of the map.
   // Bilinear mode: the row's dilations over blockers e (with the wrap fix-up) are kept in
-  // `dilations` (cell n at n + 1; one padding cell before and two after, wrapped or empty), and
+  // `dilations` (cell n at n + 1; one padding cell before and four after, wrapped or empty), and
   // three rows of texel accumulators take them: a texel row is begun by the cell row two past it
   // (its three face cells there), gets the face cell two columns on from the two rows after, and is
   // tested when the last of them is done. The accumulators go round by step, so a row begun at
-  // step s is tested at step s + 2.
+  // step s is tested at step s + 2. The box {0, ..., 3}^2 does the same with four rows.
   std::uint16_t* dilations = bilinear ? job.bilinear_scratch : nullptr;
-  std::uint16_t* accumulators = bilinear ? dilations + (std::size_t(W) + 3) * lane_stride : nullptr;
+  std::uint16_t* accumulators = bilinear ? dilations + (std::size_t(W) + 5) * lane_stride : nullptr;
   const int texel_width = job.texel_width, texel_height = job.texel_height;
+  std::uint16_t* accumulators3 = bilinear ? accumulators + 3 * std::size_t(texel_width) * lane_stride : nullptr;
   if (bilinear)
-    for (std::size_t n = 0; n < (std::size_t(W) + 3 + 3 * std::size_t(texel_width)) * lane_stride; ++n)
+    for (std::size_t n = 0; n < (std::size_t(W) + 5 + 7 * std::size_t(texel_width)) * lane_stride; ++n)
       dilations[n] = 0;
 
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
   long long* row_sums = job.row_sums;
   int equal_rows = 0;
   long long work = 0;
-  const int swept_rows = wrap ? 2 * H : H;
+  // Bilinear mode: a texel row tested at the start of the second lap reads the dilations of the
+  // first lap's last three rows, which may still miss blockers past the seam. They are complete when
+  // the second lap stops before reaching them (equal to its rows); otherwise the sweep goes on for
+  // three rows of a third lap, which re-test those texel rows from the second lap's complete rows.
+  const int swept_rows = wrap ? (bilinear ? 2 * H + 3 : 2 * H) : H;
   for (int step = 0; step < swept_rows; ++step) {
     const bool second_lap = step >= H;
     const int a = H - 1 - (step % H);
@@ -150,7 +155,7 @@ void sweep_kernel(LaneSweepJob& job) {
     if (bilinear) {
       // padding: the cell before the first and the two after the last, wrapped or empty
       Ops::store(dilations, wrap ? Ops::load(dilations + std::size_t(W) * lane_stride) : nothing);
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < 4; ++k)
         Ops::store(dilations + std::size_t(W + 1 + k) * lane_stride,
                    wrap ? Ops::load(dilations + std::size_t(1 + k % W) * lane_stride) : nothing);
       // local texel rows begun, continued and tested by cell row a (unrolled with wrap)
@@ -182,6 +187,38 @@ void sweep_kernel(LaneSweepJob& job) {
       }
       if (!begin)  // a row that begins past the end of the cells (clamp) starts empty
         for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin_row[n] = 0;
+      // the box {0, ..., 3}^2: begun three rows before its test, four accumulators round by step
+      {
+        const int begun3 = texel_row(a - 3 - job.cell_offset_y);
+        const int middle[2] = {texel_row(a - 2 - job.cell_offset_y), texel_row(a - 1 - job.cell_offset_y)};
+        const bool begin3 = begun3 >= 0 && begun3 < texel_height;
+        std::uint16_t* begin3_row = accumulators3 + std::size_t((step + 3) % 4) * texel_width * lane_stride;
+        std::uint16_t* middle_rows[2] = {accumulators3 + std::size_t((step + 2) % 4) * texel_width * lane_stride,
+                                         accumulators3 + std::size_t((step + 1) % 4) * texel_width * lane_stride};
+        const bool middle_valid[2] = {middle[0] >= 0 && middle[0] < texel_height,
+                                      middle[1] >= 0 && middle[1] < texel_height};
+        std::uint16_t* test3_row = accumulators3 + std::size_t(step % 4) * texel_width * lane_stride;
+        std::uint32_t* texel_masks3 = job.masks3 + std::size_t(test ? physical_texel_row : 0) * texel_width;
+        const V bonus3 = Ops::load(job.bonus3);
+        for (int b = 0; b < texel_width; ++b) {
+          const V c3 = Ops::load(cells + std::size_t(b + 3) * lane_stride);
+          const std::size_t at = std::size_t(b) * lane_stride;
+          if (begin3)
+            Ops::store(begin3_row + at,
+                       Ops::max(Ops::max(Ops::load(cells + std::size_t(b) * lane_stride),
+                                         Ops::load(cells + std::size_t(b + 1) * lane_stride)),
+                                Ops::max(Ops::load(cells + std::size_t(b + 2) * lane_stride), c3)));
+          for (int k = 0; k < 2; ++k)
+            if (middle_valid[k]) Ops::store(middle_rows[k] + at, Ops::max(Ops::load(middle_rows[k] + at), c3));
+          if (test) {
+            const V all = Ops::max(Ops::load(test3_row + at), c3);
+            const int column = job.flip_x ? texel_width - 1 - b : b;
+            Ops::store_mask_at_most(texel_masks3 + column, Ops::subs(all, bonus3), Ops::broadcast(apex_row[column]));
+          }
+        }
+        if (!begin3)
+          for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin3_row[n] = 0;
+      }
       work += texel_width;
     }
 
@@ -192,7 +229,7 @@ void sweep_kernel(LaneSweepJob& job) {
         row_sums[lap_row] = row_sum;
       } else {
         equal_rows = row_sum == row_sums[lap_row] ? equal_rows + 1 : 0;
-        if (equal_rows == 2 && job.stop_early) break;
+        if (equal_rows == 2 && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
       }
     }
     std::uint16_t* done = below2;  // now row a
