@@ -168,46 +168,70 @@ void make_cells(State& state) {
 // rounded up. Sub-cells are split by the parity of X, so that texel j's sub-cell at a fixed offset
 // is at a fixed index j + k in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
 
-float round_up(double value) {
-  float f = float(value);
-  if (double(f) < value) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
+// x rounded up to float, for 0 <= x <= 2^64: the product is at least x (1 + 2^-22) before its
+// rounding to nearest, which loses at most a relative 2^-24 (the 1e-30 covers subnormals)
+inline float round_up_positive(double x) { return float(x * (1.0 + 0x1p-22) + 1e-30); }
+constexpr double rate_margin = 1e-9;  // uv^-1: covers the double rounding of sample differences
+
+
+// One row of sub-cells (lower corners Y and Y + 1 rows of samples s0, s1, X from -near_reach).
+void sub_cell_row(const double* s0, const double* s1, int count, double per_u, double per_v, float* const out[5][2],
+                  std::size_t at) {
+  for (int parity = 0; parity < 2; ++parity) {
+    float* top = out[0][parity] + at;
+    float* plus_u = out[1][parity] + at;
+    float* minus_u = out[2][parity] + at;
+    float* plus_v = out[3][parity] + at;
+    float* minus_v = out[4][parity] + at;
+    for (int k = 0; k < count; ++k) {
+      const int x = 2 * k + parity;
+      const double a = s0[x], b = s0[x + 1], c = s1[x], d = s1[x + 1];
+      const double du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
+      top[k] = round_up_positive(std::max(std::max(a, b), std::max(c, d)));
+      plus_u[k] = round_up_positive(std::max(0.0, std::max(du0, du1)) + rate_margin);
+      minus_u[k] = round_up_positive(std::max(0.0, -std::min(du0, du1)) + rate_margin);
+      plus_v[k] = round_up_positive(std::max(0.0, std::max(dv0, dv1)) + rate_margin);
+      minus_v[k] = round_up_positive(std::max(0.0, -std::min(dv0, dv1)) + rate_margin);
+    }
+  }
 }
 
 void make_sub_cells(const State& state, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
-  cells.columns = W + pad;  // X from -pad to 2 W + pad - 1
+  cells.columns = W + pad;  // X from -pad to 2 W + pad - 1, per parity
   cells.rows = 2 * H + 2 * pad;
   for (auto& field : cells.planes)
     for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
-  auto h = [&](int i, int j) { return double(state.heights[std::size_t(texel(i, H)) * W + texel(j, W)]); };
-  // s at half-texel coordinates (X, Y)
-  auto sample = [&](int X, int Y) {
-    const int j0 = X >= 0 ? X / 2 : -((1 - X) / 2), i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
-    const bool odd_x = X != 2 * j0, odd_y = Y != 2 * i0;
-    if (odd_x && odd_y) return 0.25 * ((h(i0, j0) + h(i0, j0 + 1)) + (h(i0 + 1, j0) + h(i0 + 1, j0 + 1)));
-    if (odd_x) return 0.5 * (h(i0, j0) + h(i0, j0 + 1));
-    if (odd_y) return 0.5 * (h(i0, j0) + h(i0 + 1, j0));
-    return h(i0, j0);
-  };
+  // sample columns X from -pad to 2 W + pad (one past the last sub-cell): the texels on either side
+  const int sample_count = 2 * W + 2 * pad + 1;
+  std::vector<int> left(sample_count), right(sample_count);
+  for (int c = 0; c < sample_count; ++c) {
+    const int X = c - pad, j0 = X >= 0 ? X / 2 : -((1 - X) / 2);
+    left[c] = texel(j0, W);
+    right[c] = texel(X == 2 * j0 ? j0 : j0 + 1, W);
+  }
   const double per_u = 2.0 * W, per_v = 2.0 * H;  // 1 / (half a texel) in uv
-  tbb::parallel_for(tbb::blocked_range<int>(0, cells.rows), [&](const tbb::blocked_range<int>& range) {
+  float* out[5][2];
+  for (int f = 0; f < 5; ++f)
+    for (int p = 0; p < 2; ++p) out[f][p] = cells.planes[f][p].data();
+  // a row of samples at Y: the average of the texel rows on either side (the same row at a centre)
+  auto sample_row = [&](int Y, std::vector<double>& row) {
+    const int i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
+    const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
+    const float* b = state.heights.data() + std::size_t(texel(Y == 2 * i0 ? i0 : i0 + 1, H)) * W;
+    row.resize(sample_count);
+    for (int c = 0; c < sample_count; ++c)
+      row[c] = 0.25 * ((double(a[left[c]]) + double(a[right[c]])) + (double(b[left[c]]) + double(b[right[c]])));
+  };
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells.rows, 16), [&](const tbb::blocked_range<int>& range) {
+    std::vector<double> lower, upper;
+    sample_row(range.begin() - pad, lower);
     for (int r = range.begin(); r < range.end(); ++r) {
-      const int Y = r - pad;
-      for (int X = -pad; X < 2 * W + pad; ++X) {
-        const double s00 = sample(X, Y), s10 = sample(X + 1, Y), s01 = sample(X, Y + 1), s11 = sample(X + 1, Y + 1);
-        const double du0 = (s10 - s00) * per_u, du1 = (s11 - s01) * per_u;
-        const double dv0 = (s01 - s00) * per_v, dv1 = (s11 - s10) * per_v;
-        const int parity = (X + pad) & 1;
-        const std::size_t at = std::size_t(r) * cells.columns + (X + pad) / 2;
-        cells.planes[0][parity][at] = round_up(std::max(std::max(s00, s10), std::max(s01, s11)));
-        cells.planes[1][parity][at] = round_up(std::max(0.0, std::max(du0, du1)));
-        cells.planes[2][parity][at] = round_up(std::max(0.0, -std::min(du0, du1)));
-        cells.planes[3][parity][at] = round_up(std::max(0.0, std::max(dv0, dv1)));
-        cells.planes[4][parity][at] = round_up(std::max(0.0, -std::min(dv0, dv1)));
-      }
+      sample_row(r - pad + 1, upper);
+      sub_cell_row(lower.data(), upper.data(), cells.columns, per_u, per_v, out, std::size_t(r) * cells.columns);
+      std::swap(lower, upper);
     }
   });
 }
@@ -224,68 +248,37 @@ void make_sub_cells(const State& state, SubCells& cells) {
 void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near,
               float* slope3) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
-  thread_local std::vector<float> rise_u, rise_v, rise_u3, rise_v3, gap_bound;
-  thread_local std::vector<std::uint8_t> touching, above_any, above_any3;
-  rise_u.assign(width, 0.0f);
-  rise_v.assign(width, 0.0f);
-  rise_u3.assign(width, 0.0f);
-  rise_v3.assign(width, 0.0f);
-  gap_bound.assign(width, std::numeric_limits<float>::infinity());
-  touching.assign(width, 0);
-  above_any.assign(width, 0);
-  above_any3.assign(width, 0);
+  detail::NearOffset offsets[45];
+  int count = 0;
   for (int y = 0; y < 7; ++y)
     for (int x = 0; x < 7; ++x) {
       if (x < 2 && y < 2) continue;
-      const bool box2 = x < 5 && y < 5;
       // sub-cell lower corner: X = 2 j - 1 + x (+u) or 2 j - x (-u); Y likewise
       const int Y = sv > 0 ? 2 * i - 1 + y : 2 * i - y;
       const int parity = su > 0 ? (x + 1) & 1 : x & 1;
       // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
       const int k0 = su > 0 ? (x - 1 + near_reach - parity) / 2 : (near_reach - x - parity) / 2;
-      const float* top = cells.row(0, parity, Y) + k0;
-      const float* along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
-      const float* along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
-      const bool beyond_u = x >= 2, beyond_v = y >= 2;
+      detail::NearOffset& offset = offsets[count++];
+      offset.top = cells.row(0, parity, Y) + k0;
+      offset.along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
+      offset.along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
+      offset.beyond_u = x >= 2;
+      offset.beyond_v = y >= 2;
+      offset.box2 = x < 5 && y < 5;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      const float gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
-      float* ru = rise_u.data();
-      float* rv = rise_v.data();
-      float* ru3 = rise_u3.data();
-      float* rv3 = rise_v3.data();
-      float* fa = gap_bound.data();
-      std::uint8_t* touch = touching.data();
-      std::uint8_t* any = above_any.data();
-      std::uint8_t* any3 = above_any3.data();
-      for (int j = 0; j < width; ++j) {
-        const bool above = top[j] > apex[j];
-        if (beyond_u) ru3[j] = above && along_u[j] > ru3[j] ? along_u[j] : ru3[j];
-        if (beyond_v) rv3[j] = above && along_v[j] > rv3[j] ? along_v[j] : rv3[j];
-        any3[j] |= above;
-        if (!box2) continue;
-        if (beyond_u) ru[j] = above && along_u[j] > ru[j] ? along_u[j] : ru[j];
-        if (beyond_v) rv[j] = above && along_v[j] > rv[j] ? along_v[j] : rv[j];
-        if (gap > 0.0f) {
-          const float bound = gap / (top[j] - apex[j]);
-          fa[j] = above && bound < fa[j] ? bound : fa[j];
-        } else {
-          touch[j] |= above;
-        }
-        any[j] |= above;
-      }
+      offset.gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
     }
-  constexpr float infinite = std::numeric_limits<float>::infinity();
-  for (int j = 0; j < width; ++j) {
-    const double g3 = std::sqrt(double(rise_u3[j]) * rise_u3[j] + double(rise_v3[j]) * rise_v3[j]);
-    slope3[j] = !above_any3[j] ? infinite : g3 > 0.0 ? float((1.0 / g3) * (1.0 - 1e-6)) : 0.0f;
-    if (!above_any[j]) {
-      near[j] = infinite;
-      continue;
-    }
-    const double g = std::sqrt(double(rise_u[j]) * rise_u[j] + double(rise_v[j]) * rise_v[j]);
-    const double slope_bound = g > 0.0 ? (1.0 / g) * (1.0 - 1e-6) : 0.0;
-    const double far = touching[j] ? 0.0 : double(gap_bound[j]) * (1.0 - 1e-6);
-    near[j] = float(std::max(far, slope_bound));
+  detail::NearRowJob job;
+  job.offsets = offsets;
+  job.offset_count = count;
+  job.apex = apex;
+  job.width = width;
+  job.near = near;
+  job.slope3 = slope3;
+  switch (detail::lane_sweep_best_level()) {
+    case 0: detail::near_row_generic(job); break;
+    case 3: detail::near_row_avx2(job); break;
+    default: detail::near_row_avx512(job); break;
   }
 }
 
@@ -298,15 +291,37 @@ long long run_stage_l(State& state) {
   // apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below
   state.apex.resize(texels);
   state.apex_bottom.resize(texels);
+  // the neighbouring columns of every column (wrapped or clamped)
+  std::vector<int> before(W), after(W);
+  for (int j = 0; j < W; ++j) {
+    before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
+    after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
+  }
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
+      const float* rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
       for (int j = 0; j < W; ++j) {
         const std::size_t t = std::size_t(i) * W + j;
-        const float apex = detail::bilinear_apex(view, state.address, i, j);
+        // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
+        // corners, edge midpoints and centre, rounded up to float
+        const int columns[3] = {before[j], j, after[j]};
+        double h[3][3];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
+        double highest = 0.0;
+        for (int b = 0; b < 3; ++b)
+          for (int a = 0; a < 3; ++a) {
+            const int r1 = b == 1 ? 1 : b, c1 = a == 1 ? 1 : a;
+            highest = std::max(highest, 0.25 * (h[1][1] + h[1][c1] + h[r1][1] + h[r1][c1]));
+          }
+        float apex = float(highest);
+        if (double(apex) < highest) apex = std::nextafter(apex, 2.0f);
         state.apex[t] = apex;
-        const int down = int(apex * float(detail::height_scale) - 0x1p-7f);
-        state.apex_bottom[t] = std::uint16_t(std::clamp(down, 0, 65535));
+        const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
+        state.apex_bottom[t] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
       }
+    }
   });
   make_cells(state);
   const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;

@@ -101,6 +101,8 @@ int lane_sweep_best_level() {
 }
 
 #if !defined(DISPLACE_LANE_SWEEP_X86)
+void near_row_avx2(const NearRowJob& job) { near_row_generic(job); }
+void near_row_avx512(const NearRowJob& job) { near_row_generic(job); }
 void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_sweep_avx512(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) {

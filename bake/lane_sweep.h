@@ -153,4 +153,30 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* bonus, std::uint32_t* const masks[4],
                                    const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level = -1);
 
+// The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
+// says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and
+// its rates of rise along_u[j], along_v[j]; where top[j] > apex[j] the sub-cell raises the rates
+// along the axes it lies beyond Q_c's edge for (box 2 and box 3 apart), and, in box 2, bounds by
+// gap / (top - apex) or, at gap 0, touches Q_c. Out per texel: near[j] (box 2) and slope3[j]
+// (1 / G over box 3, infinity where nothing there is above the apex). Built per instruction set
+// like the sweeps; 16 texels at a time with the offsets' accumulators in registers.
+struct NearOffset {
+  const float* top = nullptr;
+  const float* along_u = nullptr;
+  const float* along_v = nullptr;
+  float gap = 0.0f;
+  bool beyond_u = false, beyond_v = false, box2 = false;
+};
+struct NearRowJob {
+  const NearOffset* offsets = nullptr;
+  int offset_count = 0;
+  const float* apex = nullptr;
+  int width = 0;
+  float* near = nullptr;
+  float* slope3 = nullptr;
+};
+void near_row_generic(const NearRowJob& job);
+void near_row_avx2(const NearRowJob& job);
+void near_row_avx512(const NearRowJob& job);
+
 }  // namespace displace::bake::detail

@@ -1,8 +1,11 @@
 // bake/lane_sweep_avx2.cpp - the lane sweep for x86-64-v3 (AVX2): 32 lanes in two 256-bit registers.
 // Compiled with -march=x86-64-v3 (bake/CMakeLists.txt); called only where the CPU has it.
+// the 16-float vectors of the near field are 512 bits wide, two registers here
+#pragma GCC diagnostic ignored "-Wpsabi"
 #include <immintrin.h>
 
 #include "bake/lane_sweep.h"
+#include "bake/near_field_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -65,6 +68,7 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_avx2(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+void near_row_avx2(const NearRowJob& job) { near_row_kernel(job); }
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
 
 }  // namespace displace::bake::detail

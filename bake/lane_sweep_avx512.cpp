@@ -6,6 +6,7 @@
 #include <immintrin.h>
 
 #include "bake/lane_sweep.h"
+#include "bake/near_field_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -42,6 +43,7 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+void near_row_avx512(const NearRowJob& job) { near_row_kernel(job); }
 
 // Sixteen texels at a time: the count from the mask's leading zeros (the mask is 2^count - 1), the
 // ratio from a 32-entry table in two registers (count 32 blended in), and the four quadrants'

@@ -4,6 +4,7 @@
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 #include "bake/lane_sweep.h"
+#include "bake/near_field_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -41,6 +42,7 @@ struct Ops {
 namespace displace::bake::detail {
 
 void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
+void near_row_generic(const NearRowJob& job) { near_row_kernel(job); }
 void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) {
   emit_texels(job, first, last);
 }
