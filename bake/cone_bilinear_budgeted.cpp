@@ -93,7 +93,10 @@ struct BilinearBaker::State {
   // per texel and quadrant: the lanes' bounds for the cells beyond the boxes {0, 1, 2}^2 and
   // {0, ..., 3}^2 (0: none)
   std::vector<float> far, far3;
-  detail::LanePlan plan;
+  detail::LanePlan plan, upper_plan;
+  std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
+  bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
+  std::vector<double> lanes;  // stage L's 64 lane ratios
   SubCells sub_cells;
 };
 
@@ -384,6 +387,8 @@ long long run_stage_l(State& state) {
   auto floor_ratio = [&](float apex) {
     return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
   };
+  state.lanes.assign(lanes, lanes + 2 * detail::lane_count);
+  state.upper_ready = false;
   make_sub_cells(state, state.sub_cells);
   state.stage_l.resize(texels * 4);
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
@@ -419,10 +424,56 @@ void emit_texel(const State& state, std::size_t t, float* out) {
   }
 }
 
+// Certified upper bounds of the best ratio per texel and quadrant, for the tolerance.
+long long ensure_upper(State& state) {
+  if (state.upper_ready) return 0;
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  const std::size_t texels = std::size_t(W) * H;
+  const double* lanes = state.lanes.data();
+  long long work = 0;
+  // Upper bounds, for the tolerance (made when refinement first needs them): the centre-to-centre lane sweep of the texels tested against
+  // the apexes. Where lane l fails, some texel centre q in the quadrant has h(q) above the apex by
+  // more than lane l's cone from c allows (lane_sweep.cpp's bound, with the apex for h(c): its
+  // rounding is the same), and q is a surface point that the contract's cone from p = c must clear,
+  // so the best ratio is below lane_upper.
+  detail::make_lane_plan(state.heights.data(), W, H, wrap, lane_lowest_ratio, true, false, state.upper_plan);
+  state.upper_plan.bottom = state.apex_bottom;
+  state.upper.assign(texels * 4, 1.0f);
+  for (int sweep = 0; sweep < 2; ++sweep) {  // the same 64 lanes, the smaller bound
+    double ratios[detail::lane_count];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    detail::set_lane_ratios(state.upper_plan, ratios);
+    std::uint32_t* masks[4];
+    for (int q = 0; q < 4; ++q) masks[q] = state.masks[q].data();
+    work += detail::sweep_sectors(state.upper_plan, state.heights.data(), 4, masks, nullptr, nullptr).work;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t n = range.begin(); n < range.end(); ++n)
+        for (int q = 0; q < 4; ++q)
+          state.upper[n * 4 + q] =
+              std::min(state.upper[n * 4 + q], state.upper_plan.lane_upper[detail::lanes_passed(masks[q][n])]);
+    });
+  }
+  state.upper_ready = true;
+  return work;
+}
+
+// Within the tolerance of the best ratio the contract allows: against the certified upper bounds
+// (1 and 4 sectors; an octant has none, so 8 sectors certify only what reaches the tolerance of 1).
 bool certified(const State& state, std::size_t t) {
   const float keep = 1.0f - state.tolerance;
   const float* quadrant = state.stage_l.data() + t * 4;
-  return std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3])) >= keep;
+  static const float none[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+  const float* upper = state.upper_ready ? state.upper.data() + t * 4 : none;
+  const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+  switch (state.sector_count) {
+    case 4:
+      for (int q = 0; q < 4; ++q)
+        if (quadrant[q] < keep * upper[q]) return false;
+      return true;
+    case 1: return lowest >= keep * std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3]));
+    default: return lowest >= keep;
+  }
 }
 
 void make_queue(State& state) {
@@ -436,13 +487,21 @@ void make_queue(State& state) {
 // Searches queued texels while the budget lasts, writing their ratios to out.
 long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined) {
   if (state.next >= state.queue.size() || clock.out()) return 0;
+  long long work = 0;
+  if (!state.upper_ready) {  // certify with the upper bounds before searching: drop what they certify
+    work += ensure_upper(state);
+    std::size_t kept = state.next;
+    for (std::size_t n = state.next; n < state.queue.size(); ++n)
+      if (!certified(state, std::size_t(state.queue[n]))) state.queue[kept++] = state.queue[n];
+    state.queue.resize(kept);
+    if (state.next >= state.queue.size()) return work;
+  }
   if (!state.search) {
     state.search = std::make_unique<detail::BilinearSearch>(HeightView{state.heights.data(), state.width, state.height},
                                                            state.address, state.sector_count,
                                                            BilinearConeSettings{}.slope_window);
   }
   const int sectors = state.sector_count;
-  long long work = 0;
   const std::size_t batch = std::size_t(refine_chunk) * 2;
   while (state.next < state.queue.size() && !clock.out()) {
     const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);

@@ -134,19 +134,50 @@ void chamfer_moves(int width, int height, bool knights, double (&length)[lane_mo
   scale *= 1.0 - 1e-9;
 }
 
+// The certified upper bounds of the lanes (lane_upper) for a plan whose steps are made.
+void lane_upper_bounds(LanePlan& plan, double scale, const double (&length)[lane_move_count], const double* slope) {
+  const int width = plan.width, height = plan.height;
+  const bool knights = plan.knights;
+  // Upper bounds. Lane l (ratio r) fails when some path P of moves from a real blocker q has
+  // top(q) - (sum of its steps) > bottom(c), so top(q) - sum >= bottom(c) + 1. A move of uv length
+  // len costs scale * len * 65535 / r less the fraction its rounding dropped, and that fraction is at
+  // most lambda * len * M (M = the larger side; lambda the largest dropped fraction per texel of
+  // length over the moves, per lane); P is no shorter than the straight line (length d); top is at
+  // most 65535 h + 1.016 and bottom at least 65535 h - 1.016. Together, with d >= 1 / M:
+  // gap > d * (scale / r - (lambda + 1.032) * M / 65535), so the exact ratio is below the inverse of
+  // that bracket when it is positive. (Such a q is within uv distance 1 whenever the bound is below
+  // 1, so the exact baker counts it.) A move whose step is the whole height range leaves nothing
+  // behind it, so it is on no failing path and does not count.
+  const double sides = double(std::max(width, height));
+  for (int p = 0; p < lane_count; ++p) {
+    double lambda = 0.0;
+    for (int m = 0; m < lane_move_count; ++m) {
+      if (!knights && m >= 3) continue;
+      const double exact_step = scale * length[m] * slope[p] * height_scale;
+      if (exact_step >= height_scale) continue;  // such a move leaves 0: it is on no failing path
+      const double dropped = exact_step - double(plan.steps[m * lane_count + p]);
+      lambda = std::max(lambda, dropped / (length[m] * sides));
+    }
+    const double bracket = scale * slope[p] - (lambda + 1.032) * sides / height_scale;
+    plan.lane_upper[p] = bracket > 0.0 ? float(std::min(1.0, (1.0 + 1e-5) / bracket)) : 1.0f;
+  }
+  plan.lane_upper[lane_count] = 1.0f;
+}
+
 void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]) {
   double length[lane_move_count], scale;
   chamfer_moves(plan.width, plan.height, plan.knights, length, scale);
   plan.lane_ratio[0] = 0.0f;
+  double slope[lane_count];
   for (int l = 0; l < lane_count; ++l) {
+    slope[l] = 1.0 / ratios[l];
     plan.lane_ratio[l + 1] = float(std::min(1.0, ratios[l] * (1.0 - 1e-5)));
     for (int m = 0; m < lane_move_count; ++m) {
-      const double step = std::floor(scale * length[m] / ratios[l] * height_scale);
+      const double step = std::floor(scale * length[m] * slope[l] * height_scale);
       plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
     }
-    plan.lane_upper[l] = 1.0f;  // not certified
   }
-  plan.lane_upper[lane_count] = 1.0f;
+  lane_upper_bounds(plan, scale, length, slope);
 }
 
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
@@ -250,30 +281,7 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
       plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
     }
 
-  // Upper bounds. Lane l (ratio r) fails when some path P of moves from a real blocker q has
-  // top(q) - (sum of its steps) > bottom(c), so top(q) - sum >= bottom(c) + 1. A move of uv length
-  // len costs scale * len * 65535 / r less the fraction its rounding dropped, and that fraction is at
-  // most lambda * len * M (M = the larger side; lambda the largest dropped fraction per texel of
-  // length over the moves, per lane); P is no shorter than the straight line (length d); top is at
-  // most 65535 h + 1.016 and bottom at least 65535 h - 1.016. Together, with d >= 1 / M:
-  // gap > d * (scale / r - (lambda + 1.032) * M / 65535), so the exact ratio is below the inverse of
-  // that bracket when it is positive. (Such a q is within uv distance 1 whenever the bound is below
-  // 1, so the exact baker counts it.) A move whose step is the whole height range leaves nothing
-  // behind it, so it is on no failing path and does not count.
-  const double sides = double(std::max(width, height));
-  for (int p = 0; p < lane_count; ++p) {
-    double lambda = 0.0;
-    for (int m = 0; m < lane_move_count; ++m) {
-      if (!knights && m >= 3) continue;
-      const double exact_step = scale * length[m] * slope[p] * height_scale;
-      if (exact_step >= height_scale) continue;  // such a move leaves 0: it is on no failing path
-      const double dropped = exact_step - double(plan.steps[m * lane_count + p]);
-      lambda = std::max(lambda, dropped / (length[m] * sides));
-    }
-    const double bracket = scale * slope[p] - (lambda + 1.032) * sides / height_scale;
-    plan.lane_upper[p] = bracket > 0.0 ? float(std::min(1.0, (1.0 + 1e-5) / bracket)) : 1.0f;
-  }
-  plan.lane_upper[lane_count] = 1.0f;
+  lane_upper_bounds(plan, scale, length, slope);
 }
 
 LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,

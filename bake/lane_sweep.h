@@ -109,8 +109,8 @@ struct LanePlan {
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan);
 
-// Other lanes for a plan: ratios[l] increasing, lane_ratio and steps remade as make_lane_plan does
-// them (lane_upper becomes 1: no upper bounds).
+// Other lanes for a plan: ratios[l] increasing; lane_ratio, steps and lane_upper remade as
+// make_lane_plan makes them.
 void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]);
 
 // Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over the texels
