@@ -50,6 +50,7 @@
 #include <chrono>
 #include <limits>
 
+#include "bake/progress.h"
 #include "bake/search.h"
 
 namespace displace::bake {
@@ -458,11 +459,12 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   context.beyond[3] = box_sectors(context, -reach, reach, -1, -1);
 
   std::atomic<long long> total_work{0};
+  detail::RowProgress rows_done(settings.progress, heights.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<double> best(sectors), hull;
     std::vector<TexelSearch::Entry> stack;
     long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
       for (int j = 0; j < heights.width; ++j) {
         const std::size_t t = std::size_t(i) * heights.width + j;
         double square[3][3];
@@ -476,8 +478,11 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
         work += search.work;
         for (int k = 0; k < sectors; ++k) out.data[t * sectors + k] = stored_ratio(best[k]);
       }
+      rows_done.row_done();
+    }
     total_work += work;
   });
+  rows_done.finish();
 
   return detail::whole_map_stats(Mode::bilinear, heights, sectors, total_work, start, out.data);
 }
