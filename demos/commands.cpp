@@ -253,6 +253,7 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
     case Baker::relaxed:
       baked.stats = bake::bake_relaxed(view, address, cones);
       break;
+    case Baker::full: throw usage_error("--mode full bakes bilinear cones only (--cones bilinear)");
   }
   const double elapsed = milliseconds_since(start);
   if (!(baked.stats.milliseconds > 0.0) || !std::isfinite(baked.stats.milliseconds)) {
@@ -264,14 +265,39 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
   return baked;
 }
 
-std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address) {
+BakedCones bake_bilinear(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                         bake::Address address, double budget_milliseconds, float tolerance) {
+  if (baker != Baker::budgeted && baker != Baker::full) {
+    throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
+                      baker_name(baker));
+  }
+  BakedCones baked;
+  const std::size_t texels = std::size_t(width) * std::size_t(height);
+  baked.ratios.assign(texels * std::size_t(sector_count), 0.0f);
+  baked.apex.assign(texels, 0.0f);
+  const bake::HeightView view{heights.data(), width, height};
+  const bake::ConeView cones{baked.ratios.data(), width, height, sector_count};
+  if (baker == Baker::full) {
+    baked.stats = bake::bake_bilinear_cones(view, address, cones, baked.apex);
+  } else {
+    bake::Budget budget;
+    budget.milliseconds = budget_milliseconds;
+    budget.tolerance = tolerance;
+    bake::BilinearBaker bilinear_baker(width, height, sector_count, address);
+    baked.stats = bilinear_baker.bake(view, budget, cones, baked.apex);
+  }
+  return baked;
+}
+
+std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address, ConeKind kind) {
   const auto finite = [](double value) { return std::isfinite(value) ? value : 0.0; };
   return format(
-      "{\"mode\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\",\"milliseconds\":%.6f,"
-      "\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%.9g}",
-      baker_name(baker), stats.width, stats.height, stats.sector_count, address_name(address),
-      finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback, stats.work,
-      finite(stats.mean_ratio));
+      "{\"mode\":\"%s\",\"cones\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\","
+      "\"milliseconds\":%.6f,\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%."
+      "9g}",
+      baker_name(baker), cone_kind_name(kind), stats.width, stats.height, stats.sector_count,
+      address_name(address), finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback,
+      stats.work, finite(stats.mean_ratio));
 }
 
 void run_sim(const SimSettings& settings, std::ostream& out) {
@@ -288,11 +314,13 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   const bool png = settings.output_format == ImageFormat::png;
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
 
-  const BakedCones baked = bake_cones(input.heights, input.width, input.height, settings.sector_count,
-                                      settings.baker, settings.address, settings.budget_milliseconds,
-                                      settings.tolerance);
-  const ConeMapExport cones{input.width,  input.height,     settings.sector_count, input.heights,
-                            baked.ratios, settings.address, settings.baker};
+  const bool bilinear = settings.cones == ConeKind::bilinear;
+  const BakedCones baked = (bilinear ? bake_bilinear : bake_cones)(
+      input.heights, input.width, input.height, settings.sector_count, settings.baker, settings.address,
+      settings.budget_milliseconds, settings.tolerance);
+  const ConeMapExport cones{input.width,    input.height,   settings.sector_count,
+                            input.heights,  baked.ratios,   settings.address,
+                            settings.baker, settings.cones, baked.apex};
   Metadata metadata = input.metadata;
   metadata.push_back({"displace:heights_quantized_8bit", png ? 1 : 0});
   if (png) {
@@ -302,11 +330,12 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   }
 
   if (settings.stats) {
-    out << stats_json(baked.stats, settings.baker, settings.address) << '\n';
+    out << stats_json(baked.stats, settings.baker, settings.address, settings.cones) << '\n';
   } else {
-    out << "displace: baked " << settings.sector_count << "-sector cones for " << input.width << " x "
-        << input.height << " heights from " << input.description << " with the " << baker_name(settings.baker)
-        << " baker (" << address_name(settings.address)
+    out << "displace: baked " << settings.sector_count
+        << (bilinear ? "-sector bilinear cones (with apex heights) for " : "-sector cones for ")
+        << input.width << " x " << input.height << " heights from " << input.description << " with the "
+        << baker_name(settings.baker) << " baker (" << address_name(settings.address)
         << (settings.baker == Baker::budgeted ? ", " + budget_phrase(settings.budget_milliseconds) : "")
         << "): " << stats_phrase(baked.stats) << "; wrote '" << settings.output.string() << "'"
         << (png ? " (heights quantized to 8 bits before baking)" : "") << '\n';
@@ -612,7 +641,8 @@ usage:
   displace bake (--input H.png|H.exr [--channel C] [--invert] [--height-range LO,HI]
                 | --source ocean|sinusoids --size N --time T [synthesis options])
                 --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] [--tolerance T]
-                                 | --relaxed)
+                                 | --relaxed
+                                 | --cones bilinear --mode budgeted|full [--budget-ms X] [--tolerance T])
                 [--address wrap|clamp] --output C.exr|C.png [--stats]
       Bake a cone map. --input: 8/16-bit images map as value / maximum; float images map their
       min..max to 0..1 unless --height-range LO,HI is given or the file was written by
@@ -623,6 +653,12 @@ usage:
       (the conservative fallback is always completed). --tolerance T (default 0.25): refine only
       while a ratio may be more than T below exact; 0 refines to the exact map. --stats prints one
       JSON line.
+      --cones center (the default): cones between texel centres, as above. --cones bilinear: the
+      renderer's cone maps, safe for the bilinear surface from anywhere in a texel's square, with an
+      apex height per texel; --mode full bakes them whole, --mode budgeted with the budgeted bilinear
+      baker within --budget-ms (0 allowed: conservative at any budget). Their .exr has channels
+      height, apex, cone0..cone{n-1}; their .png adds an apex panel after the height panel, rounded
+      up (ratios are rounded down), so the decoded maps stay conservative.
 
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]

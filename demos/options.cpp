@@ -176,7 +176,10 @@ constexpr std::pair<std::string_view, sim::Spectrum> spectrum_words[] = {
 constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::exact},
                                                              {"original", Baker::original},
                                                              {"paper-adaptive", Baker::paper_adaptive},
-                                                             {"budgeted", Baker::budgeted}};
+                                                             {"budgeted", Baker::budgeted},
+                                                             {"full", Baker::full}};
+constexpr std::pair<std::string_view, ConeKind> cone_kind_words[] = {{"center", ConeKind::center},
+                                                                     {"bilinear", ConeKind::bilinear}};
 constexpr std::pair<std::string_view, bake::Address> address_words[] = {{"wrap", bake::Address::wrap},
                                                                         {"clamp", bake::Address::clamp}};
 
@@ -415,6 +418,8 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
       sectors = value;
     } else if (flag == "--mode") {
       mode = parse_word(flag, reader.value(), mode_words);
+    } else if (flag == "--cones") {
+      settings.cones = parse_word(flag, reader.value(), cone_kind_words);
     } else if (flag == "--budget-ms") {
       const double value = parse_number(flag, reader.value());
       if (value < 0.0 || value > max_budget_milliseconds) {
@@ -448,7 +453,15 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   // the baker
   if (!sectors) throw usage_error("'displace bake' needs --sectors 1|4|8");
   settings.sector_count = *sectors;
-  if (relaxed) {
+  if (settings.cones == ConeKind::bilinear) {
+    if (relaxed) throw usage_error("--cones bilinear bakes with --mode budgeted|full, not --relaxed");
+    if (!mode) throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
+    if (*mode != Baker::budgeted && *mode != Baker::full) {
+      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") +
+                        baker_name(*mode));
+    }
+    settings.baker = *mode;
+  } else if (relaxed) {
     if (settings.sector_count != 1 && settings.sector_count != 4) {
       throw usage_error("--relaxed supports --sectors 1 or 4, got " + std::to_string(settings.sector_count));
     }
@@ -457,6 +470,8 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   } else {
     if (!mode)
       throw usage_error("'displace bake' needs --mode exact|original|paper-adaptive|budgeted (or --relaxed)");
+    if (*mode == Baker::full)
+      throw usage_error("--mode full bakes bilinear cones only: add --cones bilinear");
     settings.baker = *mode;
   }
   if (budget) {

@@ -51,8 +51,9 @@ struct SimSettings {
 struct BakeSettings {
   std::variant<FileInput, SourceSettings> input;
   int sector_count = 4;
+  ConeKind cones = ConeKind::center;  // bilinear: Baker::budgeted or Baker::full
   Baker baker = Baker::budgeted;
-  double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only
+  double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only (0 allowed)
   float tolerance = 0.25f;  // budgeted only: refine while a ratio may be more than this fraction below exact
   bake::Address address = bake::Address::wrap;
   std::filesystem::path output;
