@@ -118,7 +118,7 @@ struct Budget {
   std::function<double()> clock;
   long long max_work = -1;
   float tolerance = 0.25f;
-  std::function<void(double fraction_done)> progress;
+  std::function<void(double fraction_done)> progress = {};
 };
 
 // The product baker: every emitted ratio is a lower bound of the exact ratio at every budget
@@ -184,7 +184,7 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
 // the claim on dense samples of p and x. Stats as bake_exact's (mode bilinear).
 struct BilinearConeSettings {
   int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
-  std::function<void(double fraction_done)> progress;  // see Progress: rows done over all rows
+  std::function<void(double fraction_done)> progress = {};  // see Progress: rows done over all rows
 };
 BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                               std::span<float> apex_heights, const BilinearConeSettings& settings = {});

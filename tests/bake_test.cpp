@@ -1246,16 +1246,10 @@ struct BilinearCones {
   BakeStats stats;
 };
 
-BilinearConeSettings with_window(int slope_window) {
-  BilinearConeSettings settings;
-  settings.slope_window = slope_window;
-  return settings;
-}
-
 BilinearCones bake_bilinear(const Map& map, int sectors, Address address,
                             int window = BilinearConeSettings{}.slope_window) {
   BilinearCones b{make_cone_map(map, sectors), std::vector<float>(map.values.size()), {}};
-  b.stats = bake_bilinear_cones(view_of(map), address, b.cones.view(), b.apex, with_window(window));
+  b.stats = bake_bilinear_cones(view_of(map), address, b.cones.view(), b.apex, {window});
   return b;
 }
 
@@ -1497,12 +1491,10 @@ TEST(BilinearCones, RejectsBadInput) {
   EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 3}, apex), BakeError);
   EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, {apex.data(), 15}),
                BakeError);
-  EXPECT_THROW(
-      bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, with_window(-1)),
-      BakeError);
-  EXPECT_THROW(
-      bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, with_window(65)),
-      BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {-1}),
+               BakeError);
+  EXPECT_THROW(bake_bilinear_cones(view_of(ok), Address::wrap, {ratios.data(), 4, 4, 4}, apex, {65}),
+               BakeError);
   Map nan_map = test::make_flat(4, 4);
   nan_map.at(2, 2) = std::nanf("");
   EXPECT_THROW(bake_bilinear_cones(view_of(nan_map), Address::clamp, {ratios.data(), 4, 4, 4}, apex),
