@@ -6,16 +6,18 @@
 #include "demos/commands.h"
 
 #include <algorithm>
-#include <fstream>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iostream>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
 
 #include "demos/obj_io.h"
+#include "demos/progress.h"
 
 namespace displace::app {
 namespace {
@@ -223,7 +225,8 @@ BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& inpu
 }
 
 BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
-                      bake::Address address, double budget_milliseconds, float tolerance) {
+                      bake::Address address, double budget_milliseconds, float tolerance,
+                      const bake::Progress& progress) {
   if (baker == Baker::relaxed && sector_count != 1 && sector_count != 4) {
     throw usage_error("the relaxed baker supports 1 or 4 sectors, not " + std::to_string(sector_count));
   }
@@ -234,12 +237,8 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
 
   const auto start = Clock::now();
   switch (baker) {
-    case Baker::exact:
-      baked.stats = bake::bake_exact(view, address, cones);
-      break;
-    case Baker::original:
-      baked.stats = bake::bake_original(view, address, cones);
-      break;
+    case Baker::exact: baked.stats = bake::bake_exact(view, address, cones, progress); break;
+    case Baker::original: baked.stats = bake::bake_original(view, address, cones, progress); break;
     case Baker::paper_adaptive:
       baked.stats = bake::bake_paper_adaptive(view, address, bake::PaperAdaptiveSettings{}, cones);
       break;
@@ -250,9 +249,7 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
       baked.stats = bake::bake_budgeted(view, address, budget, cones);
       break;
     }
-    case Baker::relaxed:
-      baked.stats = bake::bake_relaxed(view, address, cones);
-      break;
+    case Baker::relaxed: baked.stats = bake::bake_relaxed(view, address, cones, progress); break;
     case Baker::full: throw usage_error("--mode full bakes bilinear cones only (--cones bilinear)");
   }
   const double elapsed = milliseconds_since(start);
@@ -266,7 +263,8 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
 }
 
 BakedCones bake_bilinear(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
-                         bake::Address address, double budget_milliseconds, float tolerance) {
+                         bake::Address address, double budget_milliseconds, float tolerance,
+                         const bake::Progress& progress) {
   if (baker != Baker::budgeted && baker != Baker::full) {
     throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
                       baker_name(baker));
@@ -278,11 +276,14 @@ BakedCones bake_bilinear(std::span<const float> heights, int width, int height, 
   const bake::HeightView view{heights.data(), width, height};
   const bake::ConeView cones{baked.ratios.data(), width, height, sector_count};
   if (baker == Baker::full) {
-    baked.stats = bake::bake_bilinear_cones(view, address, cones, baked.apex);
+    bake::BilinearConeSettings settings;
+    settings.progress = progress;
+    baked.stats = bake::bake_bilinear_cones(view, address, cones, baked.apex, settings);
   } else {
     bake::Budget budget;
     budget.milliseconds = budget_milliseconds;
     budget.tolerance = tolerance;
+    budget.progress = progress;
     bake::BilinearBaker bilinear_baker(width, height, sector_count, address);
     baked.stats = bilinear_baker.bake(view, budget, cones, baked.apex);
   }
@@ -315,9 +316,14 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
 
   const bool bilinear = settings.cones == ConeKind::bilinear;
+  ProgressLine progress(std::cerr, stderr_is_terminal(),
+                        "baking " + std::to_string(settings.sector_count) + "-sector " +
+                            (bilinear ? "bilinear cones" : "cones") + " (" + baker_name(settings.baker) +
+                            ")");
   const BakedCones baked = (bilinear ? bake_bilinear : bake_cones)(
       input.heights, input.width, input.height, settings.sector_count, settings.baker, settings.address,
-      settings.budget_milliseconds, settings.tolerance);
+      settings.budget_milliseconds, settings.tolerance, progress.callback());
+  progress.finish();
   const ConeMapExport cones{input.width,    input.height,   settings.sector_count,
                             input.heights,  baked.ratios,   settings.address,
                             settings.baker, settings.cones, baked.apex};
@@ -659,6 +665,7 @@ usage:
       baker within --budget-ms (0 allowed: conservative at any budget). Their .exr has channels
       height, apex, cone0..cone{n-1}; their .png adds an apex panel after the height panel, rounded
       up (ratios are rounded down), so the decoded maps stay conservative.
+      On a terminal, a bake that runs for more than a second shows its progress on stderr.
 
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
