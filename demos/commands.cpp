@@ -450,7 +450,9 @@ void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& fi
 void run_render(const RenderSettings& settings, std::ostream& out) {
   BakeInput input = prepare_bake_input(settings.input);
   render::Renderer renderer(settings.renderer);
-  renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+  bake::Budget cone_budget;
+  cone_budget.milliseconds = settings.bake_budget_milliseconds;
+  renderer.set_height_field({input.width, input.height, std::move(input.heights)}, cone_budget);
   if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
   if (!settings.mesh.empty()) renderer.set_mesh(read_obj(settings.mesh));
   const render::MethodInfo& info = render::method_info(settings.method.method);
@@ -459,6 +461,9 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   metadata.push_back({"displace:method", std::string(info.name)});
   metadata.push_back({"displace:steps", settings.method.steps});
   metadata.push_back({"displace:refine", settings.method.refine});
+  const bool budgeted_cones = std::isfinite(settings.bake_budget_milliseconds);
+  if (budgeted_cones)
+    metadata.push_back({"displace:bake_budget_ms", float(settings.bake_budget_milliseconds)});
   if (settings.view.surface != render::Surface::plane) {
     metadata.push_back({"displace:surface", std::string(render::surface_name(settings.view.surface))});
     metadata.push_back({"displace:radius", settings.view.radius});
@@ -471,6 +476,10 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
                 info.name, settings.method.steps, settings.method.refine, renderer.device().name.c_str(),
                 renderer.device().type.c_str(), frame.width, frame.height, summary.hit_pixels,
                 frame.gpu_milliseconds, summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
+  if (budgeted_cones) {
+    out << "  cone maps baked by the budgeted bilinear baker within a "
+        << budget_phrase(settings.bake_budget_milliseconds) << " (conservative at any budget)\n";
+  }
   out << "  wrote " << settings.output.string();
   for (const AovOutput& aov : settings.aovs) out << ", " << aov.file.string();
   out << '\n';
@@ -670,7 +679,7 @@ usage:
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
-                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH]
+                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH] [--bake-budget-ms B]
                   [--surface plane|sphere|cylinder|cone|mesh:FILE.obj] [--radius R] --output F.png|F.exr
                   [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
@@ -690,6 +699,9 @@ usage:
       prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
       --surface mesh:FILE.obj: any OBJ mesh with texture coordinates as the top of the relief
       (height 0 lies D inside along the normal); every method; silhouettes from the mesh's curvature.
+      --bake-budget-ms B (cone methods: csm, acm4, acm8, acm4-interval, relaxed): bake their cone
+      maps with the budgeted bilinear baker within B ms (default unlimited; 0 allowed). The maps are
+      conservative at any budget: a starved bake costs cone steps, never a wrong hit.
       --shadows traces from each hit towards the light with the same method (self-shadowing).
       --albedo shades with an image (1-4 channels, used as stored) instead of the procedural grid.
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the

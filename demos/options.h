@@ -82,6 +82,8 @@ struct RenderSettings {
   std::filesystem::path albedo;  // empty: the procedural grid
   std::filesystem::path mesh;    // --surface mesh:FILE.obj
   bool compare_reference = false;
+  // the budget of the cone maps' bake (bake::BilinearBaker), for the methods that read cone maps
+  double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
   render::RendererOptions renderer;
 };
 

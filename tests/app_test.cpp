@@ -607,6 +607,17 @@ TEST(Options, ParsesBilinearCones) {
   EXPECT_EQ(center.cones, ConeKind::center);
 }
 
+TEST(Options, ParsesTheRenderBakeBudget) {
+  const RenderSettings budget =
+      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                      "--method", "acm8", "--bake-budget-ms", "0", "--output", "f.png"}));
+  EXPECT_EQ(budget.bake_budget_milliseconds, 0.0);
+  const RenderSettings unlimited =
+      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                      "--method", "acm8", "--output", "f.png"}));
+  EXPECT_TRUE(std::isinf(unlimited.bake_budget_milliseconds));
+}
+
 // ---------------------------------------------------------------------------------------------
 // the binary
 
@@ -972,6 +983,26 @@ TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   EXPECT_TRUE(fs::exists(out));
 }
 
+// --bake-budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
+// picture still matches the reference (the maps are conservative at any budget).
+TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
+  TempDir dir;
+  for (const char* method : {"acm4", "relaxed"}) {
+    const std::string out = (dir / (std::string(method) + ".png")).string();
+    const RunResult result = run_displace(
+        dir, std::string("render --source bricks --map-size 32 --seed 2 --size 48x40 --steps 64 --method ") +
+                 method + " --bake-budget-ms 0 --compare reference --output '" + out + "'");
+    ASSERT_EQ(result.exit_code, 0) << method << "\n" << result.err;
+    EXPECT_NE(result.out.find("within a 0 ms budget"), std::string::npos) << result.out;
+    const std::size_t at = result.out.find("compare reference: rmse ");
+    ASSERT_NE(at, std::string::npos) << result.out;
+    EXPECT_LT(std::stod(result.out.substr(at + 24)), 3.0) << method << "\n" << result.out;
+    const Attribute* budget = find_attribute(read_rgba8_image(out).metadata, "displace:bake_budget_ms");
+    ASSERT_NE(budget, nullptr) << method;
+    EXPECT_EQ(std::get<std::string>(budget->value), "0") << method;  // PNG text chunks hold numbers as text
+  }
+}
+
 // --albedo and --shadows: a red albedo image shades every hit red (green and blue hold only the
 // white highlight, equal), and shadows darken some pixels without changing which pixels hit.
 TEST(Cli, RendersWithAnAlbedoImageAndShadows) {
@@ -1048,6 +1079,9 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --shadows yes", 2},
       {ok + " --method pom --surface mesh:", 2},
       {ok + " --method pom --surface mesh:'" + (dir / "missing.obj").string() + "'", 1},
+      {ok + " --method pom --bake-budget-ms 0", 2},  // pom reads no cone map
+      {ok + " --method acm4 --bake-budget-ms -1", 2},
+      {ok + " --method acm4 --bake-budget-ms inf", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
