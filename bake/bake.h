@@ -78,12 +78,20 @@ void validate(HeightView heights, const ConeView& out);
 // The largest sector count a baker supports; the relaxed baker accepts 1 and 4.
 bool is_valid_sector_count(int sector_count);
 
+// Progress of a long bake, for a user watching it: called with the fraction of the call's work
+// that is done, in (0, 1] and strictly increasing from call to call, the last call with exactly 1
+// when the bake completes (none after a throw). Calls come from the baking threads, one at a time
+// (never two at once), at most about max_progress_reports of them per bake; keep them cheap.
+// An empty function is never called.
+using Progress = std::function<void(double fraction_done)>;
+inline constexpr int max_progress_reports = 200;  // calls per bake, besides the last one (1)
+
 // Exact to the definition above (branch and bound over a max pyramid; tested against all pairs).
-BakeStats bake_exact(HeightView heights, Address address, ConeView out);
+BakeStats bake_exact(HeightView heights, Address address, ConeView out, const Progress& progress = {});
 
 // Chen & Chuang's per-texel search, as published: rings of growing radius, each sector stops when
 // no texel further out can lower its ratio. A baseline for the speed figures; exact.
-BakeStats bake_original(HeightView heights, Address address, ConeView out);
+BakeStats bake_original(HeightView heights, Address address, ConeView out, const Progress& progress = {});
 
 // Chen & Chuang, Algorithm 1, as published: a max pyramid; the top level is searched; going down,
 // a texel whose height is within `similarity` of its parent's copies the parent's ratio, others
@@ -103,11 +111,14 @@ BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAd
 // its exact ratio; every texel that refinement reaches is guaranteed within that factor of exact.
 // The default, 0.25, is what the always-completed lane sweeps certify for 4 sectors (so an
 // unlimited budget ends with them); tolerance 0 refines to the exact map.
+// progress: reports of the call's progress (see Progress), for a user watching a long bake; for
+// BilinearBaker, which is to report through it. BudgetedBaker ignores it (it ends in milliseconds).
 struct Budget {
   double milliseconds = std::numeric_limits<double>::infinity();
   std::function<double()> clock;
   long long max_work = -1;
   float tolerance = 0.25f;
+  std::function<void(double fraction_done)> progress = {};
 };
 
 // The product baker: every emitted ratio is a lower bound of the exact ratio at every budget
@@ -151,7 +162,7 @@ BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budge
 // starts on the top plane (height 1) within the cone of ratio r above c and travels to c's apex
 // (c, h(c)), through directions of sector k, crosses the height field at most once: it never leaves
 // the relief after entering it. It is never smaller than the conservative ratio.
-BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
+BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const Progress& progress = {});
 
 // Cone map for the BILINEAR surface, conservative from anywhere in a texel's square, for cone
 // stepping with no slack (the renderer's csm / acm4 / acm8 / acm4-interval). The cone maps above
@@ -173,6 +184,7 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out);
 // the claim on dense samples of p and x. Stats as bake_exact's (mode bilinear).
 struct BilinearConeSettings {
   int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
+  std::function<void(double fraction_done)> progress = {};  // see Progress: rows done over all rows
 };
 BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                               std::span<float> apex_heights, const BilinearConeSettings& settings = {});

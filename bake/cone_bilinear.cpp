@@ -51,6 +51,7 @@
 #include <limits>
 
 #include "bake/bilinear_search.h"
+#include "bake/progress.h"
 #include "bake/search.h"
 
 namespace displace::bake {
@@ -483,17 +484,21 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   const Context context = make_context(heights, address, sectors, settings.slope_window);
 
   std::atomic<long long> total_work{0};
+  detail::RowProgress rows_done(settings.progress, heights.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<double> best(sectors), hull;
     std::vector<TexelSearch::Entry> stack;
     long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
       for (int j = 0; j < heights.width; ++j) {
         const std::size_t t = std::size_t(i) * heights.width + j;
         work += search_texel(context, i, j, best, hull, stack, apex_heights[t], out.data + t * sectors);
       }
+      rows_done.row_done();
+    }
     total_work += work;
   });
+  rows_done.finish();
 
   return detail::whole_map_stats(Mode::bilinear, heights, sectors, total_work, start, out.data);
 }

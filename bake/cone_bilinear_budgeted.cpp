@@ -485,7 +485,13 @@ void make_queue(State& state) {
 }
 
 // Searches queued texels while the budget lasts, writing their ratios to out.
-long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined) {
+long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined, const Progress& progress) {
+  struct Finish {  // the call's last report, 1, however it ends
+    const Progress& progress;
+    ~Finish() {
+      if (progress) progress(1.0);
+    }
+  } finish_report{progress};
   if (state.next >= state.queue.size() || clock.out()) return 0;
   long long work = 0;
   if (!state.upper_ready) {  // certify with the upper bounds before searching: drop what they certify
@@ -503,6 +509,8 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   }
   const int sectors = state.sector_count;
   const std::size_t batch = std::size_t(refine_chunk) * 2;
+  const std::size_t first_queued = state.next;
+  double next_report = 1.0 / max_progress_reports;
   while (state.next < state.queue.size() && !clock.out()) {
     const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);
     const long long batch_work = tbb::parallel_reduce(
@@ -523,6 +531,11 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
     work += batch_work;
     clock.work += batch_work;
     state.next = last;
+    const double done = double(state.next - first_queued) / double(state.queue.size() - first_queued);
+    if (progress && done >= next_report && done < 1.0) {
+      progress(done);
+      next_report = done + 1.0 / max_progress_reports;
+    }
   }
   return work;
 }
@@ -617,7 +630,7 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   emit_all(state, out, apex);
   make_queue(state);
   long long refined = 0;
-  work += run_refinement(state, clock, out, refined);
+  work += run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, out, work, refined);
 }
 
@@ -702,7 +715,7 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
   emit_all(state, out, apex);
   make_queue(state);
   long long refined = 0;
-  work += run_refinement(state, clock, out, refined);
+  work += run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, out, work, refined);
 }
 
@@ -717,7 +730,7 @@ BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<fl
     make_queue(state);
   }
   long long refined = 0;
-  const long long work = run_refinement(state, clock, out, refined);
+  const long long work = run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, out, work, refined);
 }
 

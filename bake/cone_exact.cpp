@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 
+#include "bake/progress.h"
 #include "bake/search.h"
 
 namespace displace::bake::detail {
@@ -148,7 +149,7 @@ long long search_texel_leaves(const SearchContext& context, int ci, int cj, floa
 
 namespace displace::bake {
 
-BakeStats bake_exact(HeightView heights, Address address, ConeView out) {
+BakeStats bake_exact(HeightView heights, Address address, ConeView out, const Progress& progress) {
   validate(heights, out);
   const auto start = std::chrono::steady_clock::now();
   const detail::Grid grid(heights.width, heights.height, out.sector_count, address);
@@ -157,6 +158,7 @@ BakeStats bake_exact(HeightView heights, Address address, ConeView out) {
   const std::vector<detail::Node> roots = detail::root_nodes(context);
   const int sectors = out.sector_count;
   std::atomic<long long> total_work{0};
+  detail::RowProgress rows_done(progress, heights.height);
 
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     long long work = 0;
@@ -166,9 +168,11 @@ BakeStats bake_exact(HeightView heights, Address address, ConeView out) {
         std::fill(best, best + sectors, 1.0f);
         work += detail::search_texel(context, i, j, heights.data[std::size_t(i) * heights.width + j], roots, best);
       }
+      rows_done.row_done();
     }
     total_work += work;
   });
+  rows_done.finish();
 
   return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
 }

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 
+#include "bake/progress.h"
 #include "bake/search.h"
 
 namespace displace::bake {
@@ -59,7 +60,7 @@ long long ring_search(const Grid& grid, const float* heights, float global_max, 
 
 }  // namespace detail
 
-BakeStats bake_original(HeightView heights, Address address, ConeView out) {
+BakeStats bake_original(HeightView heights, Address address, ConeView out, const Progress& progress) {
   validate(heights, out);
   const auto start = std::chrono::steady_clock::now();
   const detail::Grid grid(heights.width, heights.height, out.sector_count, address);
@@ -67,16 +68,20 @@ BakeStats bake_original(HeightView heights, Address address, ConeView out) {
   const float global_max = *std::max_element(heights.data, heights.data + count);
   const int sectors = out.sector_count;
   std::atomic<long long> total_work{0};
+  detail::RowProgress rows_done(progress, heights.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
       for (int j = 0; j < heights.width; ++j) {
         float* best = out.data + (std::size_t(i) * heights.width + j) * sectors;
         std::fill(best, best + sectors, 1.0f);
         work += detail::ring_search(grid, heights.data, global_max, i, j, best);
       }
+      rows_done.row_done();
+    }
     total_work += work;
   });
+  rows_done.finish();
   return detail::whole_map_stats(Mode::original, heights, sectors, total_work, start, out.data);
 }
 

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "bake/progress.h"
 #include "bake/search.h"
 
 namespace displace::bake {
@@ -98,7 +99,7 @@ double exit_parameter(const Surface& surface, double x0, double y0, double dx, d
 
 }  // namespace
 
-BakeStats bake_relaxed(HeightView heights, Address address, ConeView out) {
+BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const Progress& progress) {
   validate(heights, out);
   if (out.sector_count != 1 && out.sector_count != 4)
     throw BakeError("relaxed cone maps support 1 or 4 sectors, not " + std::to_string(out.sector_count));
@@ -110,10 +111,11 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out) {
   const Surface surface{heights.data, heights.width, heights.height, address};
   const int sectors = out.sector_count;
   std::atomic<long long> total_work{0};
+  detail::RowProgress rows_done(progress, heights.height);
 
   tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
     long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
       for (int j = 0; j < heights.width; ++j) {
         const std::size_t t = std::size_t(i) * heights.width + j;
         const float hc = heights.data[t];
@@ -133,8 +135,11 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out) {
         std::fill_n(best, sectors, 1.0f);
         work += detail::search_texel_leaves(context, i, j, hc, roots, 1.0f, best, nullptr, &leaf);
       }
+      rows_done.row_done();
+    }
     total_work += work;
   });
+  rows_done.finish();
 
   return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
 }

@@ -6,16 +6,18 @@
 #include "demos/commands.h"
 
 #include <algorithm>
-#include <fstream>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iostream>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
 
 #include "demos/obj_io.h"
+#include "demos/progress.h"
 
 namespace displace::app {
 namespace {
@@ -223,7 +225,8 @@ BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& inpu
 }
 
 BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
-                      bake::Address address, double budget_milliseconds, float tolerance) {
+                      bake::Address address, double budget_milliseconds, float tolerance,
+                      const bake::Progress& progress) {
   if (baker == Baker::relaxed && sector_count != 1 && sector_count != 4) {
     throw usage_error("the relaxed baker supports 1 or 4 sectors, not " + std::to_string(sector_count));
   }
@@ -234,12 +237,8 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
 
   const auto start = Clock::now();
   switch (baker) {
-    case Baker::exact:
-      baked.stats = bake::bake_exact(view, address, cones);
-      break;
-    case Baker::original:
-      baked.stats = bake::bake_original(view, address, cones);
-      break;
+    case Baker::exact: baked.stats = bake::bake_exact(view, address, cones, progress); break;
+    case Baker::original: baked.stats = bake::bake_original(view, address, cones, progress); break;
     case Baker::paper_adaptive:
       baked.stats = bake::bake_paper_adaptive(view, address, bake::PaperAdaptiveSettings{}, cones);
       break;
@@ -250,9 +249,8 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
       baked.stats = bake::bake_budgeted(view, address, budget, cones);
       break;
     }
-    case Baker::relaxed:
-      baked.stats = bake::bake_relaxed(view, address, cones);
-      break;
+    case Baker::relaxed: baked.stats = bake::bake_relaxed(view, address, cones, progress); break;
+    case Baker::full: throw usage_error("--mode full bakes bilinear cones only (--cones bilinear)");
   }
   const double elapsed = milliseconds_since(start);
   if (!(baked.stats.milliseconds > 0.0) || !std::isfinite(baked.stats.milliseconds)) {
@@ -264,14 +262,43 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
   return baked;
 }
 
-std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address) {
+BakedCones bake_bilinear(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                         bake::Address address, double budget_milliseconds, float tolerance,
+                         const bake::Progress& progress) {
+  if (baker != Baker::budgeted && baker != Baker::full) {
+    throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
+                      baker_name(baker));
+  }
+  BakedCones baked;
+  const std::size_t texels = std::size_t(width) * std::size_t(height);
+  baked.ratios.assign(texels * std::size_t(sector_count), 0.0f);
+  baked.apex.assign(texels, 0.0f);
+  const bake::HeightView view{heights.data(), width, height};
+  const bake::ConeView cones{baked.ratios.data(), width, height, sector_count};
+  if (baker == Baker::full) {
+    bake::BilinearConeSettings settings;
+    settings.progress = progress;
+    baked.stats = bake::bake_bilinear_cones(view, address, cones, baked.apex, settings);
+  } else {
+    bake::Budget budget;
+    budget.milliseconds = budget_milliseconds;
+    budget.tolerance = tolerance;
+    budget.progress = progress;
+    bake::BilinearBaker bilinear_baker(width, height, sector_count, address);
+    baked.stats = bilinear_baker.bake(view, budget, cones, baked.apex);
+  }
+  return baked;
+}
+
+std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address, ConeKind kind) {
   const auto finite = [](double value) { return std::isfinite(value) ? value : 0.0; };
   return format(
-      "{\"mode\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\",\"milliseconds\":%.6f,"
-      "\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%.9g}",
-      baker_name(baker), stats.width, stats.height, stats.sector_count, address_name(address),
-      finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback, stats.work,
-      finite(stats.mean_ratio));
+      "{\"mode\":\"%s\",\"cones\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\","
+      "\"milliseconds\":%.6f,\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%."
+      "9g}",
+      baker_name(baker), cone_kind_name(kind), stats.width, stats.height, stats.sector_count,
+      address_name(address), finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback,
+      stats.work, finite(stats.mean_ratio));
 }
 
 void run_sim(const SimSettings& settings, std::ostream& out) {
@@ -288,11 +315,18 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   const bool png = settings.output_format == ImageFormat::png;
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
 
-  const BakedCones baked = bake_cones(input.heights, input.width, input.height, settings.sector_count,
-                                      settings.baker, settings.address, settings.budget_milliseconds,
-                                      settings.tolerance);
-  const ConeMapExport cones{input.width,  input.height,     settings.sector_count, input.heights,
-                            baked.ratios, settings.address, settings.baker};
+  const bool bilinear = settings.cones == ConeKind::bilinear;
+  ProgressLine progress(std::cerr, stderr_is_terminal(),
+                        "baking " + std::to_string(settings.sector_count) + "-sector " +
+                            (bilinear ? "bilinear cones" : "cones") + " (" + baker_name(settings.baker) +
+                            ")");
+  const BakedCones baked = (bilinear ? bake_bilinear : bake_cones)(
+      input.heights, input.width, input.height, settings.sector_count, settings.baker, settings.address,
+      settings.budget_milliseconds, settings.tolerance, progress.callback());
+  progress.finish();
+  const ConeMapExport cones{input.width,    input.height,   settings.sector_count,
+                            input.heights,  baked.ratios,   settings.address,
+                            settings.baker, settings.cones, baked.apex};
   Metadata metadata = input.metadata;
   metadata.push_back({"displace:heights_quantized_8bit", png ? 1 : 0});
   if (png) {
@@ -302,11 +336,12 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   }
 
   if (settings.stats) {
-    out << stats_json(baked.stats, settings.baker, settings.address) << '\n';
+    out << stats_json(baked.stats, settings.baker, settings.address, settings.cones) << '\n';
   } else {
-    out << "displace: baked " << settings.sector_count << "-sector cones for " << input.width << " x "
-        << input.height << " heights from " << input.description << " with the " << baker_name(settings.baker)
-        << " baker (" << address_name(settings.address)
+    out << "displace: baked " << settings.sector_count
+        << (bilinear ? "-sector bilinear cones (with apex heights) for " : "-sector cones for ")
+        << input.width << " x " << input.height << " heights from " << input.description << " with the "
+        << baker_name(settings.baker) << " baker (" << address_name(settings.address)
         << (settings.baker == Baker::budgeted ? ", " + budget_phrase(settings.budget_milliseconds) : "")
         << "): " << stats_phrase(baked.stats) << "; wrote '" << settings.output.string() << "'"
         << (png ? " (heights quantized to 8 bits before baking)" : "") << '\n';
@@ -415,7 +450,9 @@ void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& fi
 void run_render(const RenderSettings& settings, std::ostream& out) {
   BakeInput input = prepare_bake_input(settings.input);
   render::Renderer renderer(settings.renderer);
-  renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+  bake::Budget cone_budget;
+  cone_budget.milliseconds = settings.bake_budget_milliseconds;
+  renderer.set_height_field({input.width, input.height, std::move(input.heights)}, cone_budget);
   if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
   if (!settings.mesh.empty()) renderer.set_mesh(read_obj(settings.mesh));
   const render::MethodInfo& info = render::method_info(settings.method.method);
@@ -424,6 +461,9 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   metadata.push_back({"displace:method", std::string(info.name)});
   metadata.push_back({"displace:steps", settings.method.steps});
   metadata.push_back({"displace:refine", settings.method.refine});
+  const bool budgeted_cones = std::isfinite(settings.bake_budget_milliseconds);
+  if (budgeted_cones)
+    metadata.push_back({"displace:bake_budget_ms", float(settings.bake_budget_milliseconds)});
   if (settings.view.surface != render::Surface::plane) {
     metadata.push_back({"displace:surface", std::string(render::surface_name(settings.view.surface))});
     metadata.push_back({"displace:radius", settings.view.radius});
@@ -436,6 +476,10 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
                 info.name, settings.method.steps, settings.method.refine, renderer.device().name.c_str(),
                 renderer.device().type.c_str(), frame.width, frame.height, summary.hit_pixels,
                 frame.gpu_milliseconds, summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
+  if (budgeted_cones) {
+    out << "  cone maps baked by the budgeted bilinear baker within a "
+        << budget_phrase(settings.bake_budget_milliseconds) << " (conservative at any budget)\n";
+  }
   out << "  wrote " << settings.output.string();
   for (const AovOutput& aov : settings.aovs) out << ", " << aov.file.string();
   out << '\n';
@@ -612,7 +656,8 @@ usage:
   displace bake (--input H.png|H.exr [--channel C] [--invert] [--height-range LO,HI]
                 | --source ocean|sinusoids --size N --time T [synthesis options])
                 --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] [--tolerance T]
-                                 | --relaxed)
+                                 | --relaxed
+                                 | --cones bilinear --mode budgeted|full [--budget-ms X] [--tolerance T])
                 [--address wrap|clamp] --output C.exr|C.png [--stats]
       Bake a cone map. --input: 8/16-bit images map as value / maximum; float images map their
       min..max to 0..1 unless --height-range LO,HI is given or the file was written by
@@ -623,11 +668,18 @@ usage:
       (the conservative fallback is always completed). --tolerance T (default 0.25): refine only
       while a ratio may be more than T below exact; 0 refines to the exact map. --stats prints one
       JSON line.
+      --cones center (the default): cones between texel centres, as above. --cones bilinear: the
+      renderer's cone maps, safe for the bilinear surface from anywhere in a texel's square, with an
+      apex height per texel; --mode full bakes them whole, --mode budgeted with the budgeted bilinear
+      baker within --budget-ms (0 allowed: conservative at any budget). Their .exr has channels
+      height, apex, cone0..cone{n-1}; their .png adds an apex panel after the height panel, rounded
+      up (ratios are rounded down), so the decoded maps stay conservative.
+      On a terminal, a bake that runs for more than a second shows its progress on stderr.
 
   displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
-                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH]
+                  [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH] [--bake-budget-ms B]
                   [--surface plane|sphere|cylinder|cone|mesh:FILE.obj] [--radius R] --output F.png|F.exr
                   [--aov NAME=FILE ...] [--compare reference] [--device N|NAME] [--validate]
       Render the height field on the plane x, y in [0, 1] (z up; height 1 on the plane z = 0, height 0
@@ -647,6 +699,9 @@ usage:
       prints RMSE, maximum error and the share of pixels off by more than 10 (8-bit).
       --surface mesh:FILE.obj: any OBJ mesh with texture coordinates as the top of the relief
       (height 0 lies D inside along the normal); every method; silhouettes from the mesh's curvature.
+      --bake-budget-ms B (cone methods: csm, acm4, acm8, acm4-interval, relaxed): bake their cone
+      maps with the budgeted bilinear baker within B ms (default unlimited; 0 allowed). The maps are
+      conservative at any budget: a starved bake costs cone steps, never a wrong hit.
       --shadows traces from each hit towards the light with the same method (self-shadowing).
       --albedo shades with an image (1-4 channels, used as stored) instead of the procedural grid.
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the

@@ -176,7 +176,10 @@ constexpr std::pair<std::string_view, sim::Spectrum> spectrum_words[] = {
 constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::exact},
                                                              {"original", Baker::original},
                                                              {"paper-adaptive", Baker::paper_adaptive},
-                                                             {"budgeted", Baker::budgeted}};
+                                                             {"budgeted", Baker::budgeted},
+                                                             {"full", Baker::full}};
+constexpr std::pair<std::string_view, ConeKind> cone_kind_words[] = {{"center", ConeKind::center},
+                                                                     {"bilinear", ConeKind::bilinear}};
 constexpr std::pair<std::string_view, bake::Address> address_words[] = {{"wrap", bake::Address::wrap},
                                                                         {"clamp", bake::Address::clamp}};
 
@@ -392,6 +395,16 @@ std::variant<FileInput, SourceSettings> finish_input(const InputDraft& draft, co
   throw usage_error("'displace " + command + "' needs --input FILE or --source ocean|sinusoids");
 }
 
+// --budget-ms and --bake-budget-ms: milliseconds, 0 allowed
+double parse_budget(std::string_view flag, std::string_view text) {
+  const double value = parse_number(flag, text);
+  if (value < 0.0 || value > max_budget_milliseconds) {
+    throw usage_error(std::string(flag) + " must be between 0 and " +
+                      std::to_string(max_budget_milliseconds) + ", got " + std::to_string(value));
+  }
+  return value;
+}
+
 BakeSettings parse_bake(std::span<const std::string_view> args) {
   FlagReader reader(args);
   BakeSettings settings;
@@ -415,13 +428,10 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
       sectors = value;
     } else if (flag == "--mode") {
       mode = parse_word(flag, reader.value(), mode_words);
+    } else if (flag == "--cones") {
+      settings.cones = parse_word(flag, reader.value(), cone_kind_words);
     } else if (flag == "--budget-ms") {
-      const double value = parse_number(flag, reader.value());
-      if (value < 0.0 || value > max_budget_milliseconds) {
-        throw usage_error("--budget-ms must be between 0 and " + std::to_string(max_budget_milliseconds) +
-                          ", got " + std::to_string(value));
-      }
-      budget = value;
+      budget = parse_budget(flag, reader.value());
     } else if (flag == "--tolerance") {
       const double value = parse_number(flag, reader.value());
       if (!(value >= 0.0 && value < 1.0)) {
@@ -448,7 +458,15 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   // the baker
   if (!sectors) throw usage_error("'displace bake' needs --sectors 1|4|8");
   settings.sector_count = *sectors;
-  if (relaxed) {
+  if (settings.cones == ConeKind::bilinear) {
+    if (relaxed) throw usage_error("--cones bilinear bakes with --mode budgeted|full, not --relaxed");
+    if (!mode) throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
+    if (*mode != Baker::budgeted && *mode != Baker::full) {
+      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") +
+                        baker_name(*mode));
+    }
+    settings.baker = *mode;
+  } else if (relaxed) {
     if (settings.sector_count != 1 && settings.sector_count != 4) {
       throw usage_error("--relaxed supports --sectors 1 or 4, got " + std::to_string(settings.sector_count));
     }
@@ -457,6 +475,8 @@ BakeSettings parse_bake(std::span<const std::string_view> args) {
   } else {
     if (!mode)
       throw usage_error("'displace bake' needs --mode exact|original|paper-adaptive|budgeted (or --relaxed)");
+    if (*mode == Baker::full)
+      throw usage_error("--mode full bakes bilinear cones only: add --cones bilinear");
     settings.baker = *mode;
   }
   if (budget) {
@@ -595,6 +615,7 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   SceneDraft scene;
   std::optional<std::filesystem::path> output;
   std::optional<render::Method> method;
+  std::optional<double> bake_budget;
   while (!reader.done()) {
     const std::string_view flag = reader.next_flag();
     if (take_scene_flag(flag, reader, scene) || take_renderer_flag(flag, reader, settings.renderer)) continue;
@@ -625,6 +646,8 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
       const std::string_view text = reader.value();
       if (text != "reference") throw usage_error("--compare supports only 'reference', got " + quoted(text));
       settings.compare_reference = true;
+    } else if (flag == "--bake-budget-ms") {
+      bake_budget = parse_budget(flag, reader.value());
     } else {
       throw usage_error("unknown flag " + quoted(flag) + " for 'displace render'");
     }
@@ -639,6 +662,19 @@ RenderSettings parse_render(std::span<const std::string_view> args) {
   if (!render::supports_surface(*method, settings.view.surface)) {
     throw usage_error(std::string("--method ") + render::method_info(*method).name + " does not support --surface " +
                       render::surface_name(settings.view.surface));
+  }
+  if (bake_budget) {
+    if (render::method_info(*method).cone_sectors == 0) {
+      std::string cone_methods;
+      for (const render::MethodInfo& info : render::method_table()) {
+        if (info.cone_sectors == 0) continue;
+        if (!cone_methods.empty()) cone_methods += ", ";
+        cone_methods += info.name;
+      }
+      throw usage_error("--bake-budget-ms applies to the methods that read cone maps (" + cone_methods +
+                        "), not --method " + render::method_info(*method).name);
+    }
+    settings.bake_budget_milliseconds = *bake_budget;
   }
   if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");
   settings.output = *output;

@@ -51,8 +51,9 @@ struct SimSettings {
 struct BakeSettings {
   std::variant<FileInput, SourceSettings> input;
   int sector_count = 4;
+  ConeKind cones = ConeKind::center;  // bilinear: Baker::budgeted or Baker::full
   Baker baker = Baker::budgeted;
-  double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only
+  double budget_milliseconds = std::numeric_limits<double>::infinity();  // budgeted only (0 allowed)
   float tolerance = 0.25f;  // budgeted only: refine while a ratio may be more than this fraction below exact
   bake::Address address = bake::Address::wrap;
   std::filesystem::path output;
@@ -81,6 +82,8 @@ struct RenderSettings {
   std::filesystem::path albedo;  // empty: the procedural grid
   std::filesystem::path mesh;    // --surface mesh:FILE.obj
   bool compare_reference = false;
+  // the budget of the cone maps' bake (bake::BilinearBaker), for the methods that read cone maps
+  double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
   render::RendererOptions renderer;
 };
 

@@ -207,10 +207,11 @@ class Renderer {
   const DeviceInfo& device() const;
 
   // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them - cone maps for the bilinear surface (bake::bake_bilinear_cones; relaxed adds
-  // bake::bake_relaxed's 1-sector ratios to them), the dual max pyramid, bake_distance_map's distance map - and kept until the
-  // heights change.
-  void set_height_field(const HeightField& field);
+  // them - cone maps for the bilinear surface (bake::BilinearBaker within `cone_budget`; relaxed
+  // adds bake::bake_relaxed's 1-sector ratios to them), the dual max pyramid, bake_distance_map's
+  // distance map - and kept until the heights change. The cone maps are conservative at any
+  // budget, so a starved bake (0 ms) costs cone steps, never a wrong hit; unlimited by default.
+  void set_height_field(const HeightField& field, const bake::Budget& cone_budget = {});
 
   // The albedo the hit is shaded with, sampled at the hit's texture coordinates (bilinear, the
   // view's address mode, repeated with the tile); its 8-bit values are used as they are (no sRGB

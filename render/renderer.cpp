@@ -89,8 +89,8 @@ void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers
 }
 
 // The cone maps of the cone methods: per texel and sector a ratio, and per texel an apex height
-// (bake::bake_bilinear_cones); for relaxed cone stepping also a 1-sector relaxed ratio
-// (bake::bake_relaxed).
+// (bake::BilinearBaker, bake_bilinear_cones' contract); for relaxed cone stepping also a 1-sector
+// relaxed ratio (bake::bake_relaxed).
 struct ConeMaps {
   std::vector<float> ratios;   // interleaved, bake conventions
   std::vector<float> apex;
@@ -155,7 +155,7 @@ int surface_id(Surface surface) {
 
 // Cone maps are baked for one sector count, address mode and kind.
 enum class ConeKind {
-  bilinear,  // bake_bilinear_cones: conservative for the bilinear surface, with apex heights
+  bilinear,  // BilinearBaker: conservative for the bilinear surface, with apex heights
   relaxed,   // the bilinear cones and bake_relaxed's 1-sector ratios
 };
 int cone_key(int sectors, bake::Address address, ConeKind kind) {
@@ -198,6 +198,7 @@ struct Renderer::Impl {
   Buffer uniforms;
 
   HeightField field;
+  bake::Budget cone_budget;  // of the BilinearBaker that makes cone_maps
   Image height_image;
   Image dummy_cones;
   Image albedo_image, dummy_albedo;
@@ -564,8 +565,9 @@ const ConeMaps& Renderer::Impl::cones(int sectors, bake::Address address, ConeKi
   } else {
     maps.ratios.resize(std::size_t(field.width) * field.height * sectors);
     maps.apex.resize(field.heights.size());
-    bake::bake_bilinear_cones(heights, address, bake::ConeView{maps.ratios.data(), field.width, field.height, sectors},
-                              maps.apex);
+    bake::BilinearBaker baker(field.width, field.height, sectors, address);
+    baker.bake(heights, cone_budget, bake::ConeView{maps.ratios.data(), field.width, field.height, sectors},
+               maps.apex);
   }
   return cone_maps.emplace(key, std::move(maps)).first->second;
 }
@@ -843,7 +845,7 @@ const DeviceInfo& Renderer::device() const { return impl_->context.info(); }
 
 long long Renderer::validation_messages() const { return impl_->context.validation_messages(); }
 
-void Renderer::set_height_field(const HeightField& field) {
+void Renderer::set_height_field(const HeightField& field, const bake::Budget& cone_budget) {
   if (field.width < 1 || field.height < 1 || field.width > max_map_side || field.height > max_map_side ||
       field.heights.size() != std::size_t(field.width) * field.height) {
     throw RenderError("height field must be between 1x1 and 16384x16384 texels with one height per texel");
@@ -854,6 +856,7 @@ void Renderer::set_height_field(const HeightField& field) {
   Impl& impl = *impl_;
   vkDeviceWaitIdle(impl.context.device());
   impl.field = field;
+  impl.cone_budget = cone_budget;
   impl.cone_maps.clear();
   impl.uploaded_cone_key = -1;
   impl.cone_image = Image{};

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -14,6 +15,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bake/bake.h"
@@ -22,6 +24,7 @@
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
 #include "demos/options.h"
+#include "demos/progress.h"
 
 namespace {
 
@@ -354,11 +357,177 @@ TEST(ConeExport, ExrRoundTripIsExact) {
   EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:mode")->value), "exact");
 }
 
+TEST(ConeExport, HeightBytesRoundUpByAtMostOneStep) {
+  std::mt19937 random(17);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  std::vector<float> heights = {0.0f,
+                                1.0f,
+                                1e-30f,
+                                0.5f,
+                                128.0f / 255.0f,
+                                std::nextafter(128.0f / 255.0f, 1.0f),
+                                std::nextafter(1.0f, 0.0f)};
+  for (int k = 0; k < 20000; ++k) heights.push_back(uniform(random));
+  for (int k = 0; k <= 255; ++k) heights.push_back(float(k) / 255.0f);
+  for (const float h : heights) {
+    const std::uint8_t byte = encode_height_up(h);
+    EXPECT_GE(decode_height(byte), h) << h;
+    if (byte > 0) {
+      EXPECT_LT(decode_height(std::uint8_t(byte - 1)), h) << h;
+    }
+  }
+  for (int k = 0; k <= 255; ++k) EXPECT_EQ(encode_height_up(float(k) / 255.0f), k);
+}
+
+// A bilinear cone map in a PNG: ratios rounded down, apex heights rounded up, heights exact, and
+// its layout: cone panels, the height panel, the apex panel.
+TEST(ConeExport, BilinearPngDecodesToConservativeRatiosAndApexesAndItsLayout) {
+  TempDir dir;
+  for (const int sectors : {1, 4, 8}) {
+    RandomConeMap map = random_cone_map(7, 5, sectors, unsigned(sectors + 20));
+    quantize_heights_8bit(map.heights);
+    std::vector<float> apex(map.heights.size());
+    for (std::size_t t = 0; t < apex.size(); ++t) {
+      apex[t] =
+          std::min(1.0f, map.heights[t] + 0.3f * map.ratios[t * std::size_t(sectors)]);  // off the 8-bit grid
+    }
+    ConeMapExport view = map.view();
+    view.kind = ConeKind::bilinear;
+    view.baker = Baker::full;
+    view.apex = apex;
+    const fs::path file = dir / ("bilinear" + std::to_string(sectors) + ".png");
+    write_cone_png(file, view);
+
+    const DecodedConeMap decoded = read_cone_png(file);
+    ASSERT_EQ(decoded.kind, ConeKind::bilinear);
+    ASSERT_EQ(decoded.width, 7);
+    ASSERT_EQ(decoded.height, 5);
+    ASSERT_EQ(decoded.apex.size(), apex.size());
+    EXPECT_EQ(decoded.heights, map.heights);
+    for (std::size_t k = 0; k < map.ratios.size(); ++k) EXPECT_LE(decoded.ratios[k], map.ratios[k]) << k;
+    for (std::size_t t = 0; t < apex.size(); ++t) {
+      EXPECT_GE(decoded.apex[t], apex[t]) << t;
+      EXPECT_LE(decoded.apex[t], apex[t] + 1.0f / 255.0f + 1e-6f) << t;
+    }
+
+    const Rgba8Image image = read_rgba8_image(file);
+    const int panels = (sectors + 3) / 4;
+    ASSERT_EQ(image.width, (panels + 2) * 7);
+    for (int i = 0; i < 5; ++i)
+      for (int j = 0; j < 7; ++j) {
+        const std::size_t t = std::size_t(i * 7 + j);
+        const std::uint8_t* height_pixel = &image.pixels[std::size_t(i * image.width + panels * 7 + j) * 4];
+        const std::uint8_t* apex_pixel = height_pixel + 7 * 4;
+        EXPECT_EQ(height_pixel[0], std::lround(map.heights[t] * 255.0f));
+        EXPECT_EQ(apex_pixel[0], encode_height_up(apex[t]));
+        for (const std::uint8_t* pixel : {height_pixel, apex_pixel}) {
+          EXPECT_EQ(pixel[1], 0);
+          EXPECT_EQ(pixel[2], 0);
+          EXPECT_EQ(pixel[3], 255);
+        }
+      }
+  }
+  // heights off the 8-bit grid would not be what the cones were baked for
+  RandomConeMap unquantized = random_cone_map(3, 2, 4, 1);
+  std::vector<float> apex(unquantized.heights.size(), 1.0f);
+  ConeMapExport view = unquantized.view();
+  view.kind = ConeKind::bilinear;
+  view.apex = apex;
+  EXPECT_THROW(write_cone_png(dir / "bad.png", view), AppError);
+}
+
 TEST(ConeExport, QuantizedHeightsAreWhatThePngStores) {
   std::vector<float> heights = {0.0f, 1.0f, 0.5f, 0.123f, 0.998f, 0.002f};
   quantize_heights_8bit(heights);
   for (float h : heights) EXPECT_EQ(h, std::round(h * 255.0f) / 255.0f);
   EXPECT_EQ(heights[2], 128.0f / 255.0f);
+}
+
+// ---------------------------------------------------------------------------------------------
+// progress line
+
+// A fake clock in seconds.
+struct FakeClock {
+  double now = 0.0;
+  ProgressLine::Clock clock() {
+    return [this] { return now; };
+  }
+};
+
+TEST(ProgressLine, DrawsOnATerminalOnlyAfterASecondThenErasesItself) {
+  std::ostringstream stream;
+  FakeClock time;  // steps of binary fractions, so the printed tenths are not ties
+  ProgressLine line(stream, true, "baking cones", time.clock());
+  time.now += 0.25;
+  line.update(0.1);
+  time.now += 0.5;
+  line.update(0.3);
+  EXPECT_EQ(stream.str(), "") << "a bake under a second shows nothing";
+  time.now += 0.75;  // 1.5 s
+  line.callback()(0.42);
+  EXPECT_EQ(stream.str(), "\rdisplace: baking cones  42% (1.5 s)");
+  time.now += 0.0625;
+  line.update(0.5);  // too soon after the last redraw
+  EXPECT_EQ(stream.str(), "\rdisplace: baking cones  42% (1.5 s)");
+  time.now += 8.8125;  // 10.375 s: the line grows by a character
+  line.update(0.999);
+  time.now += 0.0625;
+  line.update(1.0);  // the last report is always drawn
+  const std::string drawn = stream.str();
+  EXPECT_NE(drawn.find("\rdisplace: baking cones  99% (10.4 s)"), std::string::npos) << drawn;
+  const std::string last = "displace: baking cones 100% (10.4 s)";
+  EXPECT_TRUE(drawn.ends_with("\r" + last)) << drawn;
+  line.finish();
+  const std::string erased = stream.str().substr(drawn.size());
+  EXPECT_EQ(erased, "\r" + std::string(last.size(), ' ') + "\r");
+  EXPECT_EQ(stream.str().find('\n'), std::string::npos) << "one line, updated in place";
+  line.update(1.0);
+  line.finish();
+  EXPECT_EQ(stream.str().size(), drawn.size() + erased.size()) << "nothing after finish";
+}
+
+TEST(ProgressLine, DrawsNothingWhenNotATerminalOrWhenQuick) {
+  std::ostringstream stream;
+  FakeClock time;
+  {
+    ProgressLine line(stream, false, "baking cones", time.clock());
+    for (int k = 1; k <= 100; ++k) {
+      time.now += 0.5;
+      line.update(k / 100.0);
+    }
+  }
+  {
+    ProgressLine quick(stream, true, "baking cones", time.clock());
+    time.now += 0.5;
+    quick.update(1.0);
+  }
+  EXPECT_EQ(stream.str(), "");
+}
+
+// From many threads at once (as a bake's reports could come, were they not serialized): every draw
+// is whole.
+TEST(ProgressLine, UpdatesFromManyThreadsDrawWholeLines) {
+  std::ostringstream stream;
+  std::atomic<int> ticks{0};
+  ProgressLine line(stream, true, "baking", [&] { return 10.0 * ticks.fetch_add(1); });
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&] {
+      for (int k = 0; k < 200; ++k) line.update(k / 200.0);
+    });
+  for (std::thread& thread : threads) thread.join();
+  line.finish();
+  const std::string text = stream.str();
+  std::size_t lines = 0;
+  for (std::size_t at = text.find("\rdisplace: baking "); at != std::string::npos;
+       at = text.find("\rdisplace: baking ", at + 1)) {
+    ++lines;
+    const std::size_t end = text.find('\r', at + 1);
+    const std::string one = text.substr(at + 1, end - at - 1);
+    EXPECT_NE(one.find("%"), std::string::npos) << one;
+    EXPECT_NE(one.find(" s)"), std::string::npos) << one;
+  }
+  EXPECT_EQ(lines, 800u);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -412,6 +581,41 @@ TEST(Options, RejectsWhatDoesNotApply) {
                      "--output", "c.exr"}));
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--mode", "original",
                      "--output", "c.exr"}));
+  for (const char* mode : {"exact", "original", "paper-adaptive"}) {
+    EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", mode,
+                       "--output", "c.exr"}));
+  }
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "full", "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
+                     "--budget-ms", "0", "--output", "c.exr"}));
+}
+
+TEST(Options, ParsesBilinearCones) {
+  const BakeSettings budgeted =
+      std::get<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "8", "--cones", "bilinear",
+                                    "--mode", "budgeted", "--budget-ms", "0", "--output", "c.exr"}));
+  EXPECT_EQ(budgeted.cones, ConeKind::bilinear);
+  EXPECT_EQ(budgeted.baker, Baker::budgeted);
+  EXPECT_EQ(budgeted.budget_milliseconds, 0.0);
+  const BakeSettings full =
+      std::get<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "1", "--cones=bilinear",
+                                    "--mode", "full", "--output", "c.png"}));
+  EXPECT_EQ(full.cones, ConeKind::bilinear);
+  EXPECT_EQ(full.baker, Baker::full);
+  const BakeSettings center = std::get<BakeSettings>(
+      parse({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
+  EXPECT_EQ(center.cones, ConeKind::center);
+}
+
+TEST(Options, ParsesTheRenderBakeBudget) {
+  const RenderSettings budget =
+      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                      "--method", "acm8", "--bake-budget-ms", "0", "--output", "f.png"}));
+  EXPECT_EQ(budget.bake_budget_milliseconds, 0.0);
+  const RenderSettings unlimited =
+      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                      "--method", "acm8", "--output", "f.png"}));
+  EXPECT_TRUE(std::isinf(unlimited.bake_budget_milliseconds));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -554,6 +758,169 @@ TEST(Cli, BakesAPngWhoseConesHoldForItsHeights) {
   for (std::size_t k = 0; k < pixels.size(); ++k) EXPECT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
 }
 
+// `bake --cones bilinear`: an EXR with channels height, apex and cone0..cone{n-1}, at budget 0 and
+// with the full baker, whose maps are bake_bilinear_cones' own for the heights it stores.
+TEST(Cli, BakesBilinearConesToAnExrWithApexHeights) {
+  TempDir dir;
+  namespace bake = displace::bake;
+  const std::string source =
+      "bake --source bricks --size 24 --seed 3 --sectors 4 --address clamp --cones bilinear ";
+  const RunResult budgeted =
+      run_displace(dir, source + "--mode budgeted --budget-ms 0 --output '" + (dir / "b.exr").string() + "'");
+  ASSERT_EQ(budgeted.exit_code, 0) << budgeted.err;
+  EXPECT_NE(budgeted.out.find("bilinear cones"), std::string::npos) << budgeted.out;
+  EXPECT_NE(budgeted.out.find("0 ms budget"), std::string::npos) << budgeted.out;
+  const RunResult full =
+      run_displace(dir, source + "--mode full --stats --output '" + (dir / "f.exr").string() + "'");
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  for (const char* key :
+       {"\"mode\":\"full\"", "\"cones\":\"bilinear\"", "\"sectors\":4", "\"mean_ratio\":"}) {
+    EXPECT_NE(full.out.find(key), std::string::npos) << key << " in " << full.out;
+  }
+
+  for (const auto& [file, mode] : {std::pair{"b.exr", "budgeted"}, std::pair{"f.exr", "full"}}) {
+    const FloatImage image = read_float_image(dir / file);
+    std::vector<std::string> names = image.channel_names;  // EXR stores channels sorted by name
+    std::sort(names.begin(), names.end());
+    EXPECT_EQ(names, (std::vector<std::string>{"apex", "cone0", "cone1", "cone2", "cone3", "height"}))
+        << file;
+    EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:cones")->value), "bilinear")
+        << file;
+    EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:mode")->value), mode) << file;
+    const std::vector<float> heights = image.channel("height"), apex = image.channel("apex");
+    ASSERT_EQ(heights.size(), 24u * 24u);
+    std::vector<float> ratios(heights.size() * 4), baked_apex(heights.size());
+    bake::bake_bilinear_cones({heights.data(), 24, 24}, bake::Address::clamp, {ratios.data(), 24, 24, 4},
+                              baked_apex);
+    const bool full_mode = std::string(mode) == "full";
+    if (full_mode) {
+      EXPECT_EQ(apex, baked_apex);
+    }
+    std::vector<std::vector<float>> planes;
+    for (int k = 0; k < 4; ++k) planes.push_back(image.channel("cone" + std::to_string(k)));
+    for (std::size_t t = 0; t < heights.size(); ++t) {
+      EXPECT_GE(apex[t], heights[t]) << file << " texel " << t;
+      for (int k = 0; k < 4; ++k) {
+        const float ratio = planes[std::size_t(k)][t];
+        EXPECT_TRUE(ratio > 0.0f && ratio <= 1.0f) << file << " texel " << t;
+        if (full_mode) {
+          EXPECT_EQ(ratio, ratios[t * 4 + std::size_t(k)]) << t;
+        }
+      }
+    }
+  }
+}
+
+// A bake of about a second or more with stderr in a file, not a terminal: no progress line.
+TEST(Cli, ALongBakeDrawsNoProgressWhenStderrIsNotATerminal) {
+  TempDir dir;
+  const RunResult result =
+      run_displace(dir,
+                   "bake --source ocean --size 256 --time 0 --sectors 4 --cones bilinear "
+                   "--mode full --output '" +
+                       (dir / "c.exr").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_EQ(result.err, "");
+  EXPECT_NE(result.out.find("displace: baked 4-sector bilinear cones"), std::string::npos) << result.out;
+}
+
+// Modes and flags that do not go with --cones bilinear: exit 2, one error naming the problem.
+TEST(Cli, BilinearConesRefuseOtherModesWithOneError) {
+  TempDir dir;
+  const std::string bake =
+      "bake --source ocean --size 16 --time 0 --sectors 4 --output '" + (dir / "c.exr").string() + "' ";
+  const struct {
+    std::string arguments, message;
+  } cases[] = {
+      {bake + "--cones bilinear --mode exact", "--cones bilinear bakes with --mode budgeted|full"},
+      {bake + "--cones bilinear --mode original", "--cones bilinear bakes with --mode budgeted|full"},
+      {bake + "--cones bilinear --mode paper-adaptive", "--cones bilinear bakes with --mode budgeted|full"},
+      {bake + "--cones bilinear --relaxed", "not --relaxed"},
+      {bake + "--cones bilinear", "needs --mode budgeted|full"},
+      {bake + "--mode full", "--mode full bakes bilinear cones only"},
+      {bake + "--cones center --mode full", "--mode full bakes bilinear cones only"},
+      {bake + "--cones bilinear --mode full --budget-ms 0", "--budget-ms applies to --mode budgeted only"},
+      {bake + "--cones bilinear --mode full --tolerance 0.1", "--tolerance applies to --mode budgeted only"},
+      {bake + "--cones bilinear --mode budgeted --budget-ms -1", "--budget-ms must be between 0"},
+      {bake + "--cones sideways --mode full", "--cones must be one of center|bilinear"},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments);
+    EXPECT_TRUE(result.exited) << test.arguments;
+    EXPECT_EQ(result.exit_code, 2) << test.arguments << "\n" << result.err;
+    EXPECT_NE(result.err.find(test.message), std::string::npos) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+}
+
+// A bilinear cone map PNG for engines, decoded: every ratio at most and every apex at least what
+// bake_bilinear_cones bakes for the heights it stores, on every texel; cone panels, then the height
+// panel, then the apex panel.
+TEST(Cli, BakesABilinearPngThatDecodesConservatively) {
+  TempDir dir;
+  namespace bake = displace::bake;
+  std::mt19937 random(8);
+  std::vector<std::uint8_t> pixels(20 * 14);
+  for (auto& p : pixels) p = std::uint8_t(random() % 4 == 0 ? random() : 90 + random() % 20);
+  write_with_oiio(dir / "h.png", 20, 14, 1, OIIO::TypeDesc::UINT8, pixels.data());
+  for (const int sectors : {1, 4, 8})
+    for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
+      const std::string address_word = address == bake::Address::wrap ? "wrap" : "clamp";
+      const fs::path file = dir / ("c" + std::to_string(sectors) + address_word + ".png");
+      const RunResult result =
+          run_displace(dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " +
+                                std::to_string(sectors) + " --address " + address_word +
+                                " --cones bilinear --mode full --output '" + file.string() + "'");
+      ASSERT_EQ(result.exit_code, 0) << result.err;
+
+      const DecodedConeMap decoded = read_cone_png(file);
+      ASSERT_EQ(decoded.kind, ConeKind::bilinear);
+      ASSERT_EQ(decoded.width, 20);
+      ASSERT_EQ(decoded.height, 14);
+      ASSERT_EQ(decoded.sector_count, sectors);
+      for (std::size_t k = 0; k < pixels.size(); ++k)
+        ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
+      std::vector<float> ratios(pixels.size() * std::size_t(sectors)), apex(pixels.size());
+      bake::bake_bilinear_cones({decoded.heights.data(), 20, 14}, address, {ratios.data(), 20, 14, sectors},
+                                apex);
+      long long below = 0;
+      for (std::size_t k = 0; k < ratios.size(); ++k) {
+        EXPECT_LE(decoded.ratios[k], ratios[k]) << sectors << " " << address_word << " " << k;
+        below += decoded.ratios[k] < ratios[k];
+      }
+      EXPECT_GT(below, 0);  // the check compares against something, not against itself
+      for (std::size_t t = 0; t < apex.size(); ++t) {
+        EXPECT_GE(decoded.apex[t], apex[t]) << sectors << " " << address_word << " " << t;
+        EXPECT_LE(decoded.apex[t], apex[t] + 1.0f / 255.0f + 1e-6f);
+      }
+
+      // layout: ceil(n / 4) cone panels, the height panel, the apex panel
+      const Rgba8Image image = read_rgba8_image(file);
+      const int panels = (sectors + 3) / 4;
+      ASSERT_EQ(image.width, (panels + 2) * 20);
+      ASSERT_EQ(image.height, 14);
+      for (int i = 0; i < 14; ++i)
+        for (int j = 0; j < 20; ++j) {
+          const std::size_t t = std::size_t(i * 20 + j);
+          const auto pixel = [&](int panel) {
+            return &image.pixels[std::size_t(i * image.width + panel * 20 + j) * 4];
+          };
+          EXPECT_EQ(pixel(panels)[0], pixels[t]);
+          EXPECT_EQ(pixel(panels + 1)[0], encode_height_up(apex[t]));
+          for (const int panel : {panels, panels + 1}) {
+            EXPECT_EQ(pixel(panel)[1], 0);
+            EXPECT_EQ(pixel(panel)[2], 0);
+            EXPECT_EQ(pixel(panel)[3], 255);
+          }
+          if (sectors == 1) {
+            EXPECT_EQ(pixel(0)[1], 0);
+            EXPECT_EQ(pixel(0)[3], 255);
+          }
+        }
+    }
+}
+
 TEST(Cli, SimWritesMetresWithItsMapping) {
   TempDir dir;
   const RunResult result =
@@ -614,6 +981,26 @@ TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   EXPECT_TRUE(fs::exists(dir / "it.png"));
   EXPECT_TRUE(fs::exists(dir / "depth.exr"));
   EXPECT_TRUE(fs::exists(out));
+}
+
+// --bake-budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
+// picture still matches the reference (the maps are conservative at any budget).
+TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
+  TempDir dir;
+  for (const char* method : {"acm4", "relaxed"}) {
+    const std::string out = (dir / (std::string(method) + ".png")).string();
+    const RunResult result = run_displace(
+        dir, std::string("render --source bricks --map-size 32 --seed 2 --size 48x40 --steps 64 --method ") +
+                 method + " --bake-budget-ms 0 --compare reference --output '" + out + "'");
+    ASSERT_EQ(result.exit_code, 0) << method << "\n" << result.err;
+    EXPECT_NE(result.out.find("within a 0 ms budget"), std::string::npos) << result.out;
+    const std::size_t at = result.out.find("compare reference: rmse ");
+    ASSERT_NE(at, std::string::npos) << result.out;
+    EXPECT_LT(std::stod(result.out.substr(at + 24)), 3.0) << method << "\n" << result.out;
+    const Attribute* budget = find_attribute(read_rgba8_image(out).metadata, "displace:bake_budget_ms");
+    ASSERT_NE(budget, nullptr) << method;
+    EXPECT_EQ(std::get<std::string>(budget->value), "0") << method;  // PNG text chunks hold numbers as text
+  }
 }
 
 // --albedo and --shadows: a red albedo image shades every hit red (green and blue hold only the
@@ -692,6 +1079,9 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --shadows yes", 2},
       {ok + " --method pom --surface mesh:", 2},
       {ok + " --method pom --surface mesh:'" + (dir / "missing.obj").string() + "'", 1},
+      {ok + " --method pom --bake-budget-ms 0", 2},  // pom reads no cone map
+      {ok + " --method acm4 --bake-budget-ms -1", 2},
+      {ok + " --method acm4 --bake-budget-ms inf", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);

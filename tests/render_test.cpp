@@ -2,11 +2,14 @@
 // with the validation layer on: every method against the exact CPU intersection on analytic fields,
 // numerical stability at grazing, vertical, axis and sector-boundary rays, and zero validation
 // messages.
+#include "render/render.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
+#include <initializer_list>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -14,7 +17,6 @@
 #include <vector>
 
 #include "render/mesh.h"
-#include "render/render.h"
 #include "sim/sim.h"
 #include "tests/render_fixtures.h"
 
@@ -915,14 +917,11 @@ TEST(Mesh, SphereSilhouetteWhereTheAnalyticRadiusPutsIt) {
 
 namespace {
 
-// The cone methods' steps are safe for the bilinear surface from wherever the ray is (cone maps
-// baked for it, bake::bake_bilinear_cones): with any number of steps, however few, a ray never ends
-// beyond its exact first crossing, on wrap and clamp, sharp and smooth fields. Relaxed cone steps
-// too: each is verified with the bilinear cones from both of its ends, and one that lands below the
-// surface is searched with conservative and exact cell steps. (Accepting every relaxed step that
-// lands above the surface, unverified, ends 51 rays beyond it on the spikes, by up to 0.16, and 2
-// on the noise.)
-TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
+// Over 1..64 steps of each of `methods`, on sharp and smooth fields with wrap and clamp, the rays
+// that end beyond their exact first crossing (render::cpu_trace), with the cone maps baked within
+// `cone_budget`: none may.
+void expect_no_ray_past_the_first_crossing(std::initializer_list<Method> methods,
+                                           const bake::Budget& cone_budget, const char* label) {
   constexpr double tolerance = 1e-4;  // world units (a texel here is 0.03): float rounding of the march
   HeightField bricks{32, 32, std::vector<float>(32 * 32)};
   displace::sim::brick_heights(32, 32, 1, bricks.heights);
@@ -941,8 +940,8 @@ TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
       for (int py = 0; py < view.camera.height; ++py)
         for (int px = 0; px < view.camera.width; ++px)
           truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
-      shared_renderer().set_height_field(field);
-      for (const Method method : {Method::csm, Method::acm4, Method::acm8, Method::relaxed}) {
+      shared_renderer().set_height_field(field, cone_budget);
+      for (const Method method : methods) {
         long long compared = 0, beyond = 0;
         double worst = 0.0;
         for (int steps : {1, 2, 3, 5, 8, 16, 64}) {
@@ -955,15 +954,36 @@ TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
             if (past > tolerance) ++beyond;
           }
         }
-        std::printf("%-6s %-5s %-7s %lld rays, %lld beyond the first crossing, worst %.2g\n", name.c_str(),
-                    address == bake::Address::wrap ? "wrap" : "clamp", render::method_info(method).name,
-                    compared, beyond, worst);
+        std::printf("%s: %-6s %-5s %-7s %lld rays, %lld beyond the first crossing, worst %.2g\n", label,
+                    name.c_str(), address == bake::Address::wrap ? "wrap" : "clamp",
+                    render::method_info(method).name, compared, beyond, worst);
         EXPECT_GT(compared, 5000);
-        EXPECT_EQ(beyond, 0) << name << " / " << render::method_info(method).name;
+        EXPECT_EQ(beyond, 0) << label << " " << name << " / " << render::method_info(method).name;
       }
     }
   }
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+// The cone methods' steps are safe for the bilinear surface from wherever the ray is (cone maps
+// baked for it, bake_bilinear_cones' contract): with any number of steps, however few, a ray never
+// ends beyond its exact first crossing, on wrap and clamp, sharp and smooth fields. Relaxed cone
+// steps too: each is verified with the bilinear cones from both of its ends, and one that lands
+// below the surface is searched with conservative and exact cell steps. (Accepting every relaxed
+// step that lands above the surface, unverified, ends 51 rays beyond it on the spikes, by up to
+// 0.16, and 2 on the noise.)
+TEST(Renderer, ConeStepsNeverPassTheFirstCrossing) {
+  expect_no_ray_past_the_first_crossing({Method::csm, Method::acm4, Method::acm8, Method::relaxed}, {},
+                                        "unlimited");
+}
+
+// The same with the cone maps baked at budget 0 (0 ms and no work past the baker's first stage):
+// a starved bake is looser, never unsafe.
+TEST(Renderer, ConeStepsOnMapsBakedAtBudgetZeroNeverPassTheFirstCrossing) {
+  bake::Budget starved;
+  starved.milliseconds = 0.0;
+  starved.max_work = 0;
+  expect_no_ray_past_the_first_crossing({Method::csm, Method::acm4, Method::acm8}, starved, "budget 0");
 }
 
 }  // namespace
