@@ -17,25 +17,36 @@
 //    <= H_c, every far cell satisfies s(x) - H_c <= M(q) - H_c <= |gap| / r <= |x - p| / r. In 16-bit
 //    integers with blockers rounded up, apexes, steps and the bonus t / (2r) rounded down, and a
 //    saturating subtraction, a passing lane proves this (lane_sweep.cpp's argument).
-// 2. Near cells (m in {0, 1, 2}^2), by the slope: the points x of the quadrant's L-shaped region beyond
-//    Q_c satisfy s(x) <= s(y) + G |x - y| <= H_c + G |x - p| for y the point of Q_c nearest x (|x - y|
-//    <= |x - p|, and the segment from y to x runs towards +u and +v inside the region), G =
-//    sqrt(rise_u^2 + rise_v^2) with rise_u, rise_v the largest rates at which s rises along +u and +v
-//    over the region. On the half-texel grid (samples of s at texel centres, edge midpoints and
-//    corners, exact averages) s is bilinear on every half-texel square, so its rate along u on one
-//    is largest on one of its two u edges, where it is the difference of two samples; the region
-//    [-0.5, 2] texels from c (5 x 5 half squares, Q_c's own included, which only raises G) gives
-//    rise_u as the largest such difference over 6 rows of 5 edges. If no sample of that 6 x 6 window
-//    exceeds H_c, no near point does, and the near cells bound nothing.
-// The ratio is the smaller of the two, clamped to 1; 8 sectors take their quadrant's ratio (an octant
-// lies inside it), 1 sector the smallest of the four.
+//    The same holds for the box {0, ..., 3}^2 (seven face cells, bonus 3t / (2r): the gap beyond its
+//    faces is (m - 3) + 1.5 texels). Both tests run in one sweep; 64 ratio lanes in two sweeps of 32
+//    (1.3x apart below 0.03, 1.056x above), and a texel's bound is its highest passing lane. Below
+//    the lowest lane: every far cell is at least half a texel away and at most the map's highest.
+// 2. Near cells, by the slope. For x beyond Q_c with s(x) > H_c, let y be x's nearest point of Q_c
+//    (|x - y| <= |x - p|; the segment from y to x runs along +u, along +v or towards the corner) and
+//    tau the segment's last point at height H_c (s(y) <= H_c). After tau the segment only crosses
+//    half-texel squares ("sub-cells", which lie in one cell each, so s is bilinear there) whose
+//    maximum exceeds H_c, so s(x) - H_c <= G |x - tau| <= G |x - p| with G = sqrt(rise_u^2 +
+//    rise_v^2), rise_u the largest rate of rise along +u over the sub-cells beyond Q_c's edge along
+//    u that rise above H_c (a segment moves along u only there), rise_v likewise. On a sub-cell the
+//    rate along u is largest on one of its two u edges, where it is a difference of two samples of s
+//    (at texel centres, edge midpoints and corners: exact averages of texels, in double, rounded
+//    up). Each sub-cell above H_c also bounds by its gap to Q_c over its rise above H_c, so the
+//    region's bound is max(smallest gap bound, 1 / G) (0 for the first term when a sub-cell
+//    touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels) this covers the near
+//    cells; box 3's G also bounds the ring between the boxes.
+// The quadrant's ratio is min(box 3's lanes, max(box 2's lanes, box 3's 1 / G), box 2's near bound),
+// clamped to 1; 8 sectors take their quadrant's ratio (an octant lies inside it), 1 sector the
+// smallest of the four.
 //
-// Refinement (while the budget lasts): texels not certified within the tolerance (their ratio is
-// below 1 - tolerance) get bake_bilinear_cones' own search (bilinear_search.h); the larger of the two
-// lower bounds is emitted. update() redoes stage L (cheap) and keeps the searched ratios that cannot
-// have changed: those of texels whose apex is unchanged, where heights only fell (a lower surface
-// keeps every claim) or where the raised texels' cells are far enough that their box bound does not
-// lower them.
+// Refinement (while the budget lasts): texels not certified within the tolerance get
+// bake_bilinear_cones' own search (bilinear_search.h), and the larger of the two lower bounds is
+// emitted. Certified means every quadrant's ratio is at least (1 - tolerance) times a certified upper
+// bound of the best ratio: the centre-to-centre lane sweep of the texels against the apexes (a texel
+// centre q above H_c that a lane's cone from p = c does not clear bounds every conservative ratio;
+// lane_sweep.cpp's bound), made when refinement first needs it. 8 sectors have no octant bounds and
+// certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched ratios that
+// cannot have changed: those of texels whose apex is unchanged, where heights only fell (a lower
+// surface keeps every claim) or where the raised texels' region is too far to lower them.
 #include "bake/bilinear_search.h"
 
 #include <tbb/blocked_range.h>
