@@ -175,21 +175,31 @@ struct OceanFrames {
   std::vector<double> full_mean;  // per frame; NaN where the full bake was not run
 };
 
-const OceanFrames& ocean_frames(int size) {
+const OceanFrames& ocean_frames(int size, MapKind kind = MapKind::ocean) {
   static std::mutex mutex;
-  static std::map<int, OceanFrames> cache;
+  static std::map<std::pair<int, int>, OceanFrames> cache;
   std::lock_guard<std::mutex> lock(mutex);
-  OceanFrames& entry = cache[size];
+  OceanFrames& entry = cache[{size, int(kind)}];
   if (entry.heights.empty()) {
     const int count = size <= 512 ? 4 : 2;
     sim::OceanParams params;
     params.size = size;
     sim::Ocean ocean(params);
     sim::OceanFrame frame;
+    sim::SinusoidParams sinusoid_params;
+    const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(sinusoid_params);
     for (int n = 0; n < count; ++n) {
-      ocean.evaluate(float(n) / 60.0f, sim::ocean_heights, frame);
       std::vector<float> heights(std::size_t(size) * size);
-      sim::apply_mapping(ocean.mapping(), frame.height, heights);
+      if (kind == MapKind::ocean) {
+        ocean.evaluate(float(n) / 60.0f, sim::ocean_heights, frame);
+        sim::apply_mapping(ocean.mapping(), frame.height, heights);
+      } else if (kind == MapKind::sinusoids) {
+        std::vector<float> raw(heights.size());
+        sim::sinusoid_heights(waves, sinusoid_params.patch_size, float(n) / 60.0f, size, size, raw);
+        sim::apply_mapping(sim::sinusoid_mapping(waves), raw, heights);
+      } else {
+        heights = test::make_bricks(size, size).values;
+      }
       entry.heights.push_back(std::move(heights));
       double mean = std::numeric_limits<double>::quiet_NaN();
       if (size <= 1024) {  // the full bake takes about 7 s at 1024 and minutes above
@@ -237,9 +247,10 @@ long long sampled_violations(const std::vector<float>& heights, int size, const 
   return violations;
 }
 
-void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std::numeric_limits<double>::infinity()) {
+void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std::numeric_limits<double>::infinity(),
+                  MapKind kind = MapKind::ocean) {
   const int size = int(state.range(0));
-  const OceanFrames& frames = ocean_frames(size);
+  const OceanFrames& frames = ocean_frames(size, kind);
   std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
   const bake::ConeView out{cones.data(), size, size, 4};
   bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);  // kept from frame to frame
@@ -279,6 +290,15 @@ struct Registration {
           [ms](benchmark::State& state) { run_bilinear(state, true, ms); });
       b->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMillisecond)->UseRealTime();
     }
+    // the other benchmark maps: stage L alone against the full bake
+    for (MapKind kind : {MapKind::sinusoids, MapKind::bricks})
+      for (bool budgeted : {true, false}) {
+        auto* b = benchmark::RegisterBenchmark(
+            (std::string("BM_BakeBilinear/") + kind_name(kind) + "/" + (budgeted ? "budgeted-0ms" : "full")).c_str(),
+            [kind, budgeted](benchmark::State& state) { run_bilinear(state, budgeted, 0.0, kind); });
+        b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
+        if (!budgeted) b->Iterations(2);
+      }
     const std::pair<Baker, const char*> bakers[] = {{Baker::budgeted, "budgeted"},
                                                     {Baker::budgeted_zero, "budgeted-0ms"},
                                                     {Baker::budgeted_frame, "budgeted-16ms"},
