@@ -173,33 +173,55 @@ void sweep_kernel(LaneSweepJob& job) {
       const V bonus = Ops::load(job.bonus);
       // cells b + offset, + 1, + 2 of this row are at dilations[b + offset + 1 ...]
       const std::uint16_t* cells = dilations + std::size_t(1 + job.cell_offset_x) * lane_stride;
-      for (int b = 0; b < texel_width; ++b) {
-        const V c0 = Ops::load(cells + std::size_t(b) * lane_stride), c1 = Ops::load(cells + std::size_t(b + 1) * lane_stride),
-                c2 = Ops::load(cells + std::size_t(b + 2) * lane_stride);
-        const std::size_t at = std::size_t(b) * lane_stride;
-        if (begin) Ops::store(begin_row + at, Ops::max(Ops::max(c0, c1), c2));
-        if (go_on) Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
-        if (test) {
-          const V all = Ops::max(Ops::load(test_row + at), c2);
-          const int column = job.flip_x ? texel_width - 1 - b : b;
-          Ops::store_mask_at_most(texel_masks + column, Ops::subs(all, bonus), Ops::broadcast(apex_row[column]));
-        }
-      }
-      if (!begin)  // a row that begins past the end of the cells (clamp) starts empty
-        for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin_row[n] = 0;
       // the box {0, ..., 3}^2: begun three rows before its test, four accumulators round by step
-      {
-        const int begun3 = texel_row(a - 3 - job.cell_offset_y);
-        const int middle[2] = {texel_row(a - 2 - job.cell_offset_y), texel_row(a - 1 - job.cell_offset_y)};
-        const bool begin3 = begun3 >= 0 && begun3 < texel_height;
-        std::uint16_t* begin3_row = accumulators3 + std::size_t((step + 3) % 4) * texel_width * lane_stride;
-        std::uint16_t* middle_rows[2] = {accumulators3 + std::size_t((step + 2) % 4) * texel_width * lane_stride,
-                                         accumulators3 + std::size_t((step + 1) % 4) * texel_width * lane_stride};
-        const bool middle_valid[2] = {middle[0] >= 0 && middle[0] < texel_height,
-                                      middle[1] >= 0 && middle[1] < texel_height};
-        std::uint16_t* test3_row = accumulators3 + std::size_t(step % 4) * texel_width * lane_stride;
-        std::uint32_t* texel_masks3 = job.masks3 + std::size_t(test ? physical_texel_row : 0) * texel_width;
-        const V bonus3 = Ops::load(job.bonus3);
+      const int begun3 = texel_row(a - 3 - job.cell_offset_y);
+      const int middle[2] = {texel_row(a - 2 - job.cell_offset_y), texel_row(a - 1 - job.cell_offset_y)};
+      const bool begin3 = begun3 >= 0 && begun3 < texel_height;
+      std::uint16_t* begin3_row = accumulators3 + std::size_t((step + 3) % 4) * texel_width * lane_stride;
+      std::uint16_t* middle_rows[2] = {accumulators3 + std::size_t((step + 2) % 4) * texel_width * lane_stride,
+                                       accumulators3 + std::size_t((step + 1) % 4) * texel_width * lane_stride};
+      const bool middle_valid[2] = {middle[0] >= 0 && middle[0] < texel_height,
+                                    middle[1] >= 0 && middle[1] < texel_height};
+      std::uint16_t* test3_row = accumulators3 + std::size_t(step % 4) * texel_width * lane_stride;
+      std::uint32_t* texel_masks3 = job.masks3 + std::size_t(test ? physical_texel_row : 0) * texel_width;
+      const V bonus3 = Ops::load(job.bonus3);
+      if (begin && go_on && test && begin3 && middle_valid[0] && middle_valid[1]) {
+        // every row in the map (all of them with wrap): both boxes in one pass, the four cells in
+        // registers as the window slides
+        V c0 = Ops::load(cells), c1 = Ops::load(cells + lane_stride), c2 = Ops::load(cells + 2 * lane_stride);
+        for (int b = 0; b < texel_width; ++b) {
+          const V c3 = Ops::load(cells + std::size_t(b + 3) * lane_stride);
+          const std::size_t at = std::size_t(b) * lane_stride;
+          const V first3 = Ops::max(Ops::max(c0, c1), c2);
+          Ops::store(begin_row + at, first3);
+          Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
+          Ops::store(begin3_row + at, Ops::max(first3, c3));
+          Ops::store(middle_rows[0] + at, Ops::max(Ops::load(middle_rows[0] + at), c3));
+          Ops::store(middle_rows[1] + at, Ops::max(Ops::load(middle_rows[1] + at), c3));
+          const int column = job.flip_x ? texel_width - 1 - b : b;
+          const V apex = Ops::broadcast(apex_row[column]);
+          Ops::store_mask_at_most(texel_masks + column, Ops::subs(Ops::max(Ops::load(test_row + at), c2), bonus), apex);
+          Ops::store_mask_at_most(texel_masks3 + column, Ops::subs(Ops::max(Ops::load(test3_row + at), c3), bonus3),
+                                  apex);
+          c0 = c1;
+          c1 = c2;
+          c2 = c3;
+        }
+      } else {
+        for (int b = 0; b < texel_width; ++b) {
+          const V c0 = Ops::load(cells + std::size_t(b) * lane_stride), c1 = Ops::load(cells + std::size_t(b + 1) * lane_stride),
+                  c2 = Ops::load(cells + std::size_t(b + 2) * lane_stride);
+          const std::size_t at = std::size_t(b) * lane_stride;
+          if (begin) Ops::store(begin_row + at, Ops::max(Ops::max(c0, c1), c2));
+          if (go_on) Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
+          if (test) {
+            const V all = Ops::max(Ops::load(test_row + at), c2);
+            const int column = job.flip_x ? texel_width - 1 - b : b;
+            Ops::store_mask_at_most(texel_masks + column, Ops::subs(all, bonus), Ops::broadcast(apex_row[column]));
+          }
+        }
+        if (!begin)  // a row that begins past the end of the cells (clamp) starts empty
+          for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin_row[n] = 0;
         for (int b = 0; b < texel_width; ++b) {
           const V c3 = Ops::load(cells + std::size_t(b + 3) * lane_stride);
           const std::size_t at = std::size_t(b) * lane_stride;
