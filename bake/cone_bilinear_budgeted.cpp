@@ -72,13 +72,16 @@ constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane of make_
 constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below this ratio, dense above
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
+constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
 
+// Made for a band of rows at a time (first_row on), so that a thread's planes stay O(W).
 struct SubCells {
   int columns = 0, rows = 0;  // per plane
+  int first_row = 0;          // Y of the planes' first row
   // [field][parity]: 0 max, 1 rise +u, 2 rise -u, 3 rise +v, 4 rise -v
   std::vector<float> planes[5][2];
   const float* row(int field, int parity, int y) const {
-    return planes[field][parity].data() + std::size_t(y + near_reach) * columns;
+    return planes[field][parity].data() + std::size_t(y - first_row) * columns;
   }
 };
 
@@ -108,7 +111,6 @@ struct BilinearBaker::State {
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
   std::vector<double> lanes;  // stage L's 64 lane ratios
-  SubCells sub_cells;
 };
 
 namespace {
@@ -210,17 +212,21 @@ void sub_cell_row(const double* s0, const double* s1, int count, double per_u, d
   }
 }
 
-void make_sub_cells(const State& state, SubCells& cells) {
+// Sub-cell rows Y in [first_row, last_row) (within [-near_reach, 2 H + near_reach)).
+void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
   cells.columns = W + pad;  // X from -pad to 2 W + pad - 1, per parity
-  cells.rows = 2 * H + 2 * pad;
+  cells.rows = last_row - first_row;
+  cells.first_row = first_row;
   for (auto& field : cells.planes)
     for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
   // sample columns X from -pad to 2 W + pad (one past the last sub-cell): the texels on either side
   const int sample_count = 2 * W + 2 * pad + 1;
-  std::vector<int> left(sample_count), right(sample_count);
+  thread_local std::vector<int> left, right;
+  left.resize(sample_count);
+  right.resize(sample_count);
   for (int c = 0; c < sample_count; ++c) {
     const int X = c - pad, j0 = X >= 0 ? X / 2 : -((1 - X) / 2);
     left[c] = texel(j0, W);
@@ -239,15 +245,13 @@ void make_sub_cells(const State& state, SubCells& cells) {
     for (int c = 0; c < sample_count; ++c)
       row[c] = 0.25 * ((double(a[left[c]]) + double(a[right[c]])) + (double(b[left[c]]) + double(b[right[c]])));
   };
-  tbb::parallel_for(tbb::blocked_range<int>(0, cells.rows, 16), [&](const tbb::blocked_range<int>& range) {
-    std::vector<double> lower, upper;
-    sample_row(range.begin() - pad, lower);
-    for (int r = range.begin(); r < range.end(); ++r) {
-      sample_row(r - pad + 1, upper);
-      sub_cell_row(lower.data(), upper.data(), cells.columns, per_u, per_v, out, std::size_t(r) * cells.columns);
-      std::swap(lower, upper);
-    }
-  });
+  thread_local std::vector<double> lower, upper;
+  sample_row(first_row, lower);
+  for (int Y = first_row; Y < last_row; ++Y) {
+    sample_row(Y + 1, upper);
+    sub_cell_row(lower.data(), upper.data(), cells.columns, per_u, per_v, out, std::size_t(Y - first_row) * cells.columns);
+    std::swap(lower, upper);
+  }
 }
 
 // The near bounds of texel row i, for quadrant q (0: +u +v, 1: -u +v, 2: -u -v, 3: +u -v), into
@@ -400,15 +404,17 @@ long long run_stage_l(State& state) {
   };
   state.lanes.assign(lanes, lanes + 2 * detail::lane_count);
   state.upper_ready = false;
-  make_sub_cells(state, state.sub_cells);
   state.stage_l.resize(texels * 4);
-  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+  // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
     thread_local std::vector<float> near, slope3;
+    thread_local SubCells sub_cells;
     near.resize(W);
     slope3.resize(W);
+    make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, sub_cells);
     for (int i = rows.begin(); i < rows.end(); ++i)
       for (int q = 0; q < 4; ++q) {
-        near_row(state.sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data(), slope3.data());
+        near_row(sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data(), slope3.data());
         for (int j = 0; j < W; ++j) {
           const std::size_t n = std::size_t(i) * W + j;
           // below the lowest lane: every far cell is at least half a texel away and at most `highest`
