@@ -557,19 +557,20 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
 }
 
 // Stage L, the floor that bake() always completes: the lane sweeps of lane_sweep.cpp over the whole
-// map, one per quadrant (8 sectors on a square map: one per octant). A texel's ratio in a sector is
-// the largest lane that passes (one sector takes the smallest quadrant's; 8 sectors on a non-square
-// map their quadrant's); below the lowest lane, the exact ratio over its 5 x 5 neighbourhood
-// against a bound for everything further (lane_floor). The first lane that fails - or below the
+// map, one per quadrant (8 sectors where one side of the map is a multiple of the other: one per
+// octant). A texel's ratio in a sector is the largest lane that passes (one sector takes the
+// smallest quadrant's; 8 sectors on other maps their quadrant's); below the lowest lane, the exact
+// ratio over its 5 x 5 neighbourhood against a bound for everything further (lane_floor). The first lane that fails - or below the
 // lowest lane a blocking neighbour - bounds the exact ratio from above, which gives the texel's
 // slack (ensure_slack); 8 sectors from quadrants have none, so the refinement stages take them.
 // ratio_sum: of every emitted ratio; pending: texel sectors whose slack may be below keep, 0
 // exactly when no texel's is
 using StageTotals = detail::LaneSweepTotals;
 
-// Stage L sweeps octants (8 planes of lane masks) for 8 sectors on a square map, else quadrants.
+// Stage L sweeps octants (8 planes of lane masks) for 8 sectors where the lane plan has them, else
+// quadrants.
 int swept_planes(const BudgetedBaker::State& state) {
-  return state.grid.sector_count == 8 && state.grid.width == state.grid.height ? 8 : 4;
+  return state.grid.sector_count == 8 && state.lanes.octant_split > 0 ? 8 : 4;
 }
 
 // Slack of texel t from its planes' lane counts: the emitted ratio's share of the certified upper
@@ -597,11 +598,11 @@ float texel_slack(const BudgetedBaker::State& state, int planes, std::size_t t, 
 StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, float* out) {
   const Grid& grid = state.grid;
   const int width = grid.width, height = grid.height, sectors = grid.sector_count;
-  const int planes = swept_planes(state);
   const std::size_t count = state.heights.size();
   detail::LanePlan& plan = state.lanes;
   detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap,
-                         lane_lowest_ratio, lane_knights, planes == 8, plan);
+                         lane_lowest_ratio, lane_knights, sectors == 8, plan);
+  const int planes = swept_planes(state);
   state.lane_masks.resize(planes * count);
   std::uint32_t* masks[8];
   for (int k = 0; k < planes; ++k) masks[k] = &state.lane_masks[k * count];
@@ -617,7 +618,7 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   state.cursor = 0;
   if (sectors == 4) return swept;
 
-  // 1 sector (the smallest quadrant) or 8 (octants, or on a non-square map their quadrants)
+  // 1 sector (the smallest quadrant) or 8 (octants, or where there are none their quadrants)
   const StageTotals totals = tbb::parallel_reduce(
       tbb::blocked_range<int>(0, height, 8), StageTotals{},
       [&](const tbb::blocked_range<int>& rows, StageTotals partial) {
