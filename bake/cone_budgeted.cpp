@@ -560,7 +560,8 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
 // map, one per quadrant (8 sectors where one side of the map is a multiple of the other: one per
 // octant). A texel's ratio in a sector is the largest lane that passes (one sector takes the
 // smallest quadrant's; 8 sectors on other maps their quadrant's); below the lowest lane, the exact
-// ratio over its 5 x 5 neighbourhood against a bound for everything further (lane_floor). The first lane that fails - or below the
+// ratio over a window around it (5 x 5 on a square map) against a bound for everything further
+// (lane_floor). The first lane that fails - or below the
 // lowest lane a blocking neighbour - bounds the exact ratio from above, which gives the texel's
 // slack (ensure_slack); 8 sectors from quadrants have none, so the refinement stages take them.
 // ratio_sum: of every emitted ratio; pending: texel sectors whose slack may be below keep, 0

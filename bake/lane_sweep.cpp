@@ -59,7 +59,9 @@
 // Upper bounds. Every source of a dilation is a real texel, so a lane that fails bounds the exact
 // ratio from above, up to the rounding above and the chamfer's scale: see make_lane_plan. That
 // certifies how loose each ratio may be, so the refinement stages can skip the texels that are
-// already close enough.
+// already close enough. The rounding weighs against the shortest move (1 / M uv, M the longer side)
+// and matters only for lanes near 1, so the lanes are spaced by what each needs; below the lowest
+// lane, lane_floor's window reaches as far in uv along both axes.
 #include "bake/lane_sweep.h"
 
 #include <tbb/blocked_range.h>
@@ -92,28 +94,36 @@ std::size_t lane_sweep_scratch(LaneSweepJob& job) {
 }
 
 LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, int sector, int sectors) {
-  constexpr int floor_reach = 2;  // the 5 x 5 neighbourhood: a brick's mortar at 2048 x 2048 needs it
+  // the window: two texels each way along the shorter side (a brick's mortar at 2048 x 2048 needs
+  // them) and as far in uv along the longer one
+  constexpr int floor_reach = 2;
   const int width = plan.width, height = plan.height;
+  const int reach_x = width > height ? int(std::ceil(double(floor_reach + 1) * width / height)) - 1 : floor_reach;
+  const int reach_y = height > width ? int(std::ceil(double(floor_reach + 1) * height / width)) - 1 : floor_reach;
   const int i = int(n / std::size_t(width)), j = int(n % std::size_t(width));
   const float h = heights[n];
   const Grid grid(width, height, sectors, plan.wrap ? Address::wrap : Address::clamp);
+  // the sector's quadrant of offsets (all four for one sector)
+  const int quadrant = sectors == 4 ? sector : sectors == 8 ? sector / 2 : -1;
+  const int x_first = quadrant == 0 || quadrant == 3 ? 0 : -reach_x, x_last = quadrant == 1 || quadrant == 2 ? 0 : reach_x;
+  const int y_first = quadrant == 0 || quadrant == 1 ? 0 : -reach_y, y_last = quadrant >= 2 ? 0 : reach_y;
   LaneFloor result;
-  float nearest_blocker = 1.0f;  // the neighbourhood's exact ratio, with the exact baker's arithmetic
-  for (int dy = -floor_reach; dy <= floor_reach; ++dy)
-    for (int dx = -floor_reach; dx <= floor_reach; ++dx) {
+  float nearest_blocker = 1.0f;  // the window's exact ratio, with the exact baker's arithmetic
+  for (int dy = y_first; dy <= y_last; ++dy)
+    for (int dx = x_first; dx <= x_last; ++dx) {
       if ((dx == 0 && dy == 0) || !(point_sectors(grid, dx, dy) >> sector & 1u)) continue;
       int y = i + dy, x = j + dx;
       if (!plan.wrap && (y < 0 || y >= height || x < 0 || x >= width)) continue;
-      y = (y + height) % height;
-      x = (x + width) % width;
+      y = (y % height + height) % height;
+      x = (x % width + width) % width;
       const float other = heights[std::size_t(y) * width + x];
       if (other > h)
         nearest_blocker = std::min(nearest_blocker, pair_ratio(grid.distance(dx, dy), other - h));
     }
   result.upper = nearest_blocker;
-  // every other texel is at least floor_reach + 1 texels away along u or v
-  const float further =
-      h < plan.highest ? float(floor_reach + 1) * plan.nearest / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
+  // every other texel is at least reach_x + 1 texels away along u or reach_y + 1 along v
+  const float nearest_outside = std::min(float(reach_x + 1) / float(width), float(reach_y + 1) / float(height));
+  const float further = h < plan.highest ? nearest_outside / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
   result.floor = std::min({nearest_blocker, further, 1.0f});
   return result;
 }
@@ -285,27 +295,50 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
   // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
   // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
-  // every texel within 0.75 of exact (the upper bounds below); above it the rest share the range
-  // evenly, since the large ratios are the ones that decide how far a ray steps. On large maps the
-  // certified bounds loosen (the rounding of the steps grows with the side), so the lanes above the
-  // knee must stay closer, and the lowest lanes give way to them.
+  // every texel within 0.75 of exact (the upper bounds below); above it they are as close as the
+  // certified bound needs, since the large ratios are the ones that decide how far a ray steps. A
+  // lane r that fails bounds the exact ratio by r / (scale - loss r), loss growing with the larger
+  // side M (the rounding of heights and steps against the shortest move, 1 / M): near 1 on a large
+  // map the lanes must stay closer, lower down they may spread, and the lowest lanes give way to
+  // the upper ones where there are not enough.
   const double range = double(plan.highest) - double(lowest_height);
   const double smallest_ratio =
       range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio))
                   : double(lowest_ratio);
   const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28, certified = 0.77;
   const double worst_loss = 2.032 * double(std::max(width, height)) / height_scale;  // see the upper bounds
-  const double top_spacing = std::max(1.05, (scale - worst_loss) / certified);
-  const int top_lanes = int(std::ceil(std::log(highest_lane / knee) / std::log(top_spacing)));
+  // the spacing below lane r that still certifies `certified`, made `closer` times closer (in log)
+  auto spacing_below = [&](double r, double closer) {
+    return std::pow(std::max(1.05, (scale - worst_loss * r) / certified), 1.0 / closer);
+  };
+  auto lane_below_top = [&](int steps, double closer) {  // the lane `steps` below the highest
+    double r = highest_lane;
+    for (int k = 0; k < steps; ++k) r /= spacing_below(r, closer);
+    return r;
+  };
+  int top_lanes = 0;
+  while (top_lanes < lane_count - 1 && lane_below_top(top_lanes, 1.0) > knee) ++top_lanes;
   const int low_lanes = std::clamp(int(std::ceil(std::log(knee / smallest_ratio) / std::log(low_spacing))), 0,
                                    std::max(0, std::min(lane_count / 2, lane_count - 1 - top_lanes)));
-  const double lowest_lane = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes));
-  const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
+  top_lanes = lane_count - 1 - low_lanes;
+  // the upper lanes end on the knee lane (the top of the lower ones): the closeness that puts them
+  // there, by bisection (they only get closer than needed); if even 1 leaves them above it, the
+  // lower lanes go on from where they end
+  double closer = 1.0;
+  double knee_lane = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
+  if (lane_below_top(top_lanes, 1.0) < knee_lane) {
+    double below = 1.0, above = 64.0;
+    for (int k = 0; k < 60; ++k) {
+      const double middle = 0.5 * (below + above);
+      (lane_below_top(top_lanes, middle) < knee_lane ? below : above) = middle;
+    }
+    closer = above;
+  }
+  knee_lane = lane_below_top(top_lanes, closer);
   double ratios[lane_count];
   for (int l = 0; l < lane_count; ++l)
-    ratios[l] = l <= low_lanes ? lowest_lane * std::pow(low_spacing, l)
-                               : knee_lane * std::pow(highest_lane / knee_lane,
-                                                      double(l - low_lanes) / (lane_count - 1 - low_lanes));
+    ratios[l] = l <= low_lanes ? knee_lane / std::pow(low_spacing, low_lanes - l)
+                               : lane_below_top(lane_count - 1 - l, closer);
   set_lane_ratios(plan, ratios);
 }
 

@@ -133,9 +133,10 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
 // make_lane_plan makes them.
 void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]);
 
-// Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over the texels
-// within two of it (the 5 x 5 neighbourhood) in the sector against (3 texels) / (highest - h) for
-// everything further, rounded down (floor); and the smallest pair ratio of a neighbour that blocks
+// Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over a window in
+// the sector - two texels each way along the map's shorter side, as far in uv along the longer
+// (5 x 5 on a square map) - against (the nearest texel outside it) / (highest - h) for everything
+// further, rounded down (floor); and the smallest pair ratio of a texel of the window that blocks
 // (upper, 1 when none), a real upper bound of the exact ratio.
 struct LaneFloor {
   float floor = 1.0f, upper = 1.0f;

@@ -747,6 +747,36 @@ TEST(BudgetedBaker, NonSquareMapsConservativeAtEveryBudget) {
       }
 }
 
+// Non-square maps of 0.26 to 2.1 million texels, wide and tall up to 16:1, wrap and clamp, 4 and 8
+// sectors: stage L certifies every texel within the default tolerance, so an unlimited bake ends
+// after it (before the moves were fitted to the aspect, a 1024 x 512 brick map left 287,000 texels
+// to the refinement and 8 sectors all of them).
+TEST(BudgetedBaker, StageLCertifiesNonSquareMapsWithinTheDefaultTolerance) {
+  Map waves{"waves", 4096, 256, std::vector<float>(std::size_t(4096) * 256)};
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j)
+      waves.at(i, j) =
+          0.5f + 0.3f * std::sin(2.0f * std::numbers::pi_v<float> * (7.0f * j / 4096.0f + 3.0f * i / 256.0f)) +
+          0.15f * std::cos(2.0f * std::numbers::pi_v<float> * (11.0f * i / 256.0f - 5.0f * j / 4096.0f));
+  const Map maps[] = {test::make_ocean(2048, 1024), test::make_ocean(1024, 2048), test::make_bricks(1024, 512),
+                      test::make_bricks(512, 1024),  waves,                         test::make_bricks(4096, 256),
+                      test::make_bricks(256, 4096)};
+  for (const Map& map : maps)
+    for (int sectors : {4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        BudgetedBaker baker(map.width, map.height, sectors, address);
+        ConeMap cones = make_cone_map(map, sectors);
+        Budget none;
+        none.milliseconds = 0.0;
+        const BakeStats stats = baker.bake(view_of(map), none, cones.view());
+        const std::string where = map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) +
+                                  " " + address_name(address) + " sectors " + std::to_string(sectors);
+        EXPECT_EQ(stats.texels_fallback, 0) << where;
+        EXPECT_EQ(baker.pending(none.tolerance), 0) << where;
+        EXPECT_EQ(stats.texels_refined, 0) << where;
+      }
+}
+
 TEST(BudgetedBaker, UnlimitedWithZeroToleranceIsExact) {
   for (const Map& map : hard_maps())
     for (int sectors : {1, 4, 8})
