@@ -607,13 +607,15 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
   state.lane_masks.resize(planes * count);
   std::uint32_t* masks[8];
   for (int k = 0; k < planes; ++k) masks[k] = &state.lane_masks[k * count];
-  // lane counts that may leave a sector looser than keep (below the lowest lane the floor may still
-  // be close enough: ensure_slack looks at those texels closely)
+  // lane counts that may leave a sector looser than keep (below the lowest lane the floor decides,
+  // against its certified bound, as texel_slack does)
   std::uint8_t pending_count[detail::lane_count + 1];
   for (int p = 0; p <= detail::lane_count; ++p)
     pending_count[p] = !(p > 0 && plan.lane_ratio[p] / plan.lane_upper[p] >= keep);
-  const detail::LaneSweepTotals swept = detail::sweep_sectors(plan, state.heights.data(), planes, masks,
-                                                              sectors == 4 ? out : nullptr, pending_count);
+  detail::LaneSweepOptions options;
+  options.floor_keep = keep;
+  const detail::LaneSweepTotals swept = detail::sweep_sectors(
+      plan, state.heights.data(), planes, masks, sectors == 4 ? out : nullptr, pending_count, options);
   clock.work += swept.work;
   state.slack_stale = true;
   state.cursor = 0;
@@ -629,9 +631,15 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
             float ratio[8] = {};
             for (int k = 0; k < planes; ++k) {
               const int c = detail::lanes_passed(masks[k][t]);
-              ratio[k] = c == 0 ? detail::lane_floor(plan, state.heights.data(), t, k, planes).floor
-                                : plan.lane_ratio[c];
-              partial.pending += pending_count[c] || (sectors == 8 && planes == 4);
+              bool loose = pending_count[c];
+              if (c == 0) {  // the floor, certified as texel_slack certifies it
+                const detail::LaneFloor floor = detail::lane_floor(plan, state.heights.data(), t, k, planes);
+                loose = floor.floor / std::min(plan.lane_upper[0], floor.upper) < keep;
+                ratio[k] = floor.floor;
+              } else {
+                ratio[k] = plan.lane_ratio[c];
+              }
+              partial.pending += loose || (sectors == 8 && planes == 4);
             }
             float* target = out + t * sectors;
             if (sectors == 8) {

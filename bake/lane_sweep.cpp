@@ -98,14 +98,17 @@ LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, 
   // them) and as far in uv along the longer one
   constexpr int floor_reach = 2;
   const int width = plan.width, height = plan.height;
-  const int reach_x = width > height ? int(std::ceil(double(floor_reach + 1) * width / height)) - 1 : floor_reach;
-  const int reach_y = height > width ? int(std::ceil(double(floor_reach + 1) * height / width)) - 1 : floor_reach;
+  const int reach_x =
+      width > height ? int(std::ceil(double(floor_reach + 1) * width / height)) - 1 : floor_reach;
+  const int reach_y =
+      height > width ? int(std::ceil(double(floor_reach + 1) * height / width)) - 1 : floor_reach;
   const int i = int(n / std::size_t(width)), j = int(n % std::size_t(width));
   const float h = heights[n];
   const Grid grid(width, height, sectors, plan.wrap ? Address::wrap : Address::clamp);
   // the sector's quadrant of offsets (all four for one sector)
   const int quadrant = sectors == 4 ? sector : sectors == 8 ? sector / 2 : -1;
-  const int x_first = quadrant == 0 || quadrant == 3 ? 0 : -reach_x, x_last = quadrant == 1 || quadrant == 2 ? 0 : reach_x;
+  const int x_first = quadrant == 0 || quadrant == 3 ? 0 : -reach_x,
+            x_last = quadrant == 1 || quadrant == 2 ? 0 : reach_x;
   const int y_first = quadrant == 0 || quadrant == 1 ? 0 : -reach_y, y_last = quadrant >= 2 ? 0 : reach_y;
   LaneFloor result;
   float nearest_blocker = 1.0f;  // the window's exact ratio, with the exact baker's arithmetic
@@ -122,7 +125,8 @@ LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, 
     }
   result.upper = nearest_blocker;
   // every other texel is at least reach_x + 1 texels away along u or reach_y + 1 along v
-  const float nearest_outside = std::min(float(reach_x + 1) / float(width), float(reach_y + 1) / float(height));
+  const float nearest_outside =
+      std::min(float(reach_x + 1) / float(width), float(reach_y + 1) / float(height));
   const float further = h < plan.highest ? nearest_outside / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
   result.floor = std::min({nearest_blocker, further, 1.0f});
   return result;
@@ -325,7 +329,8 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   // there, by bisection (they only get closer than needed); if even 1 leaves them above it, the
   // lower lanes go on from where they end
   double closer = 1.0;
-  double knee_lane = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
+  double knee_lane =
+      std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
   if (lane_below_top(top_lanes, 1.0) < knee_lane) {
     double below = 1.0, above = 64.0;
     for (int k = 0; k < 60; ++k) {
@@ -417,6 +422,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
         emit.out = out4;
         emit.lane_ratio = plan.lane_ratio;
         emit.pending_count = pending_count;
+        emit.floor_keep = options.floor_keep;
         const std::size_t first = blocks.begin() * 16, last = std::min(count, blocks.end() * 16);
         switch (level) {
           case 0: lane_emit_generic(emit, first, last); break;

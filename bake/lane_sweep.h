@@ -14,7 +14,7 @@ constexpr int lane_count = 32;  // ratio lanes tested per sweep
 // holds one row of lane_count values per move, in this order.
 constexpr int lane_reach_limit = 64;  // the longest row or column move, in texels
 constexpr int lane_move_carry = 0;
-constexpr int lane_move_row = 1;                               // (1, k): lane_move_row + k
+constexpr int lane_move_row = 1;                                        // (1, k): lane_move_row + k
 constexpr int lane_move_column = lane_move_row + lane_reach_limit + 1;  // (k, 1): lane_move_column + k - 2
 constexpr int lane_move_limit = lane_move_column + lane_reach_limit - 1;
 constexpr double height_scale = 65535.0;  // heights and dilations are in units of 1 / 65535
@@ -28,10 +28,10 @@ struct LaneSweepJob {
   int width = 0, height = 0;
   bool wrap = true;
   bool flip_x = false, flip_y = false;
-  bool carry = true;                   // move (0, 1): the dilation runs along the row
+  bool carry = true;                       // move (0, 1): the dilation runs along the row
   int row_first = 0, row_count = 3;        // row moves (1, k); at least one
   int column_first = 2, column_count = 1;  // column moves (k, 1)
-  int depth = 2, padding = 2;  // row buffers kept, texels past a buffer's end (lane_sweep_scratch)
+  int depth = 2, padding = 2;             // row buffers kept, texels past a buffer's end (lane_sweep_scratch)
   const std::uint16_t* top = nullptr;     // ceil(h * 65535) or a little above, physical row-major
   const std::uint16_t* bottom = nullptr;  // floor(h * 65535) or a little below, physical row-major
   // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down (m as
@@ -76,14 +76,16 @@ struct LanePlan;
 
 // The 4-sector output of the four quadrants' masks, for texels [first, last):
 // out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane lane_floor's floor; adds
-// the ratios to ratio_sum and pending_count[count] to pending.
+// the ratios to ratio_sum and to pending pending_count[count], or below the lowest lane 1 where the
+// floor is below floor_keep times its certified bound (lane_upper[0] or the floor's upper).
 struct LaneEmitJob {
   const std::uint32_t* masks[4] = {};
   const LanePlan* plan = nullptr;
   const float* heights = nullptr;
   float* out = nullptr;
   const float* lane_ratio = nullptr;            // lane_count + 1 entries
-  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
+  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries ([0] unused)
+  float floor_keep = 1.0f;
   double ratio_sum = 0.0;
   long long pending = 0;
 };
@@ -155,12 +157,14 @@ struct LaneSweepTotals {
 };
 // The sweeps of 4 sectors (quadrants) or, where the plan has octants, of 8 (octants: per quadrant,
 // the half next to the v axis without the carry and the half next to the u axis with it), in
-// parallel: sector k's lane masks go to masks[k]; with out4 (4 sectors)
-// the ratios go there too, and pending_count (lane_count + 1 entries) is summed. Tests pick the
-// instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
+// parallel: sector k's lane masks go to masks[k]; with out4 (4 sectors) the ratios go there too,
+// and the pending texel sectors are counted (LaneEmitJob: pending_count, lane_count + 1 entries, and
+// floor_keep below the lowest lane). Tests pick the instruction set (level: -1 the best, 0, 3 or 4)
+// and can make the second lap whole.
 struct LaneSweepOptions {
   int level = -1;
   bool stop_early = true;
+  float floor_keep = 1.0f;
 };
 LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
                               std::uint32_t* const masks[], float* out4, const std::uint8_t* pending_count,

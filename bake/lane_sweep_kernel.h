@@ -111,7 +111,8 @@ void sweep_kernel(LaneSweepJob& job) {
     for (int k = 0; k < column_in_buffers; ++k) column_source[k] = below[job.column_first + k] + lane_stride;
     // row moves with a fixed count: window[k] holds texel b + k of row_source, kept from texel to texel
     V window[fixed_rows > 0 ? fixed_rows : 1];
-    for (int k = 1; k < fixed_rows; ++k) window[k] = Ops::load(row_source + std::size_t(W - 1 + k) * lane_stride);
+    for (int k = 1; k < fixed_rows; ++k)
+      window[k] = Ops::load(row_source + std::size_t(W - 1 + k) * lane_stride);
     for (int b = W - 1; b >= 0; --b) {
       std::uint16_t* target = written + std::size_t(b) * lane_stride;
       const std::size_t here = std::size_t(b) * lane_stride;
@@ -134,7 +135,8 @@ void sweep_kernel(LaneSweepJob& job) {
         e = Ops::max(e, Ops::subs(deepest_source, fixed_column_step[fixed_columns - 1]));
       } else if (fixed_columns < 0 && column_count > 0) {
         for (int k = 0; k < column_in_buffers; ++k)
-          e = Ops::max(e, Ops::subs(Ops::load(column_source[k] + here), Ops::load(column_steps + k * lane_count)));
+          e = Ops::max(
+              e, Ops::subs(Ops::load(column_source[k] + here), Ops::load(column_steps + k * lane_count)));
         e = Ops::max(e, Ops::subs(deepest_source, Ops::load(column_steps + column_in_buffers * lane_count)));
       }
       if (column_count > 0) deepest_source = Ops::load(target);
@@ -305,11 +307,17 @@ void emit_texels(LaneEmitJob& job, std::size_t first, std::size_t last) {
       const std::uint32_t mask = job.masks[q][t];
       // lanes pass from the lowest up, so the mask is 2^count - 1
       const int passed = mask == 0 ? 0 : 32 - __builtin_clz(mask);
-      const float ratio =
-          passed == 0 ? lane_floor(*job.plan, job.heights, t, q, 4).floor : job.lane_ratio[passed];
+      float ratio = job.lane_ratio[passed];
+      if (passed == 0) {  // the floor, pending unless within floor_keep of its certified bound
+        const LaneFloor floor = lane_floor(*job.plan, job.heights, t, q, 4);
+        const float upper = job.plan->lane_upper[0] < floor.upper ? job.plan->lane_upper[0] : floor.upper;
+        ratio = floor.floor;
+        pending += ratio / upper < job.floor_keep ? 1 : 0;
+      } else {
+        pending += job.pending_count[passed];
+      }
       job.out[t * 4 + q] = ratio;
       sums[q] += ratio;
-      pending += job.pending_count[passed];
     }
   }
   job.ratio_sum += double(sums[0] + sums[1]) + double(sums[2] + sums[3]);

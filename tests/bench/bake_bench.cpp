@@ -246,7 +246,8 @@ long long sampled_violations(const std::vector<float>& heights, int size, const 
   return violations;
 }
 
-void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std::numeric_limits<double>::infinity()) {
+void run_bilinear(benchmark::State& state, bool budgeted,
+                  double budget_ms = std::numeric_limits<double>::infinity()) {
   const int size = int(state.range(0));
   const OceanFrames& frames = ocean_frames(size);
   std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
@@ -332,8 +333,8 @@ struct Registration {
       for (MapKind kind : {MapKind::ocean, MapKind::bricks})
         for (const auto& [width, height] : sizes) {
           auto* b = benchmark::RegisterBenchmark(
-              (std::string(sectors == 8 ? "BM_BakeNonSquare8/" : "BM_BakeNonSquare/") + kind_name(kind) + "/" +
-               std::to_string(width) + "x" + std::to_string(height))
+              (std::string(sectors == 8 ? "BM_BakeNonSquare8/" : "BM_BakeNonSquare/") + kind_name(kind) +
+               "/" + std::to_string(width) + "x" + std::to_string(height))
                   .c_str(),
               [kind, sectors, width = width, height = height](benchmark::State& state) {
                 run_map(state, kind, Baker::budgeted, width, height, sectors);
