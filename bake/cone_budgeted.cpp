@@ -557,19 +557,21 @@ void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float
 }
 
 // Stage L, the floor that bake() always completes: the lane sweeps of lane_sweep.cpp over the whole
-// map, one per quadrant (8 sectors on a square map: one per octant). A texel's ratio in a sector is
-// the largest lane that passes (one sector takes the smallest quadrant's; 8 sectors on a non-square
-// map their quadrant's); below the lowest lane, the exact ratio over its 5 x 5 neighbourhood
-// against a bound for everything further (lane_floor). The first lane that fails - or below the
+// map, one per quadrant (8 sectors where one side of the map is a multiple of the other: one per
+// octant). A texel's ratio in a sector is the largest lane that passes (one sector takes the
+// smallest quadrant's; 8 sectors on other maps their quadrant's); below the lowest lane, the exact
+// ratio over a window around it (5 x 5 on a square map) against a bound for everything further
+// (lane_floor). The first lane that fails - or below the
 // lowest lane a blocking neighbour - bounds the exact ratio from above, which gives the texel's
 // slack (ensure_slack); 8 sectors from quadrants have none, so the refinement stages take them.
 // ratio_sum: of every emitted ratio; pending: texel sectors whose slack may be below keep, 0
 // exactly when no texel's is
 using StageTotals = detail::LaneSweepTotals;
 
-// Stage L sweeps octants (8 planes of lane masks) for 8 sectors on a square map, else quadrants.
+// Stage L sweeps octants (8 planes of lane masks) for 8 sectors where the lane plan has them, else
+// quadrants.
 int swept_planes(const BudgetedBaker::State& state) {
-  return state.grid.sector_count == 8 && state.grid.width == state.grid.height ? 8 : 4;
+  return state.grid.sector_count == 8 && state.lanes.octant_split > 0 ? 8 : 4;
 }
 
 // Slack of texel t from its planes' lane counts: the emitted ratio's share of the certified upper
@@ -597,27 +599,29 @@ float texel_slack(const BudgetedBaker::State& state, int planes, std::size_t t, 
 StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, float* out) {
   const Grid& grid = state.grid;
   const int width = grid.width, height = grid.height, sectors = grid.sector_count;
-  const int planes = swept_planes(state);
   const std::size_t count = state.heights.size();
   detail::LanePlan& plan = state.lanes;
   detail::make_lane_plan(state.heights.data(), width, height, grid.address == Address::wrap,
-                         lane_lowest_ratio, lane_knights, planes == 8, plan);
+                         lane_lowest_ratio, lane_knights, sectors == 8, plan);
+  const int planes = swept_planes(state);
   state.lane_masks.resize(planes * count);
   std::uint32_t* masks[8];
   for (int k = 0; k < planes; ++k) masks[k] = &state.lane_masks[k * count];
-  // lane counts that may leave a sector looser than keep (below the lowest lane the floor may still
-  // be close enough: ensure_slack looks at those texels closely)
+  // lane counts that may leave a sector looser than keep (below the lowest lane the floor decides,
+  // against its certified bound, as texel_slack does)
   std::uint8_t pending_count[detail::lane_count + 1];
   for (int p = 0; p <= detail::lane_count; ++p)
     pending_count[p] = !(p > 0 && plan.lane_ratio[p] / plan.lane_upper[p] >= keep);
-  const detail::LaneSweepTotals swept = detail::sweep_sectors(plan, state.heights.data(), planes, masks,
-                                                              sectors == 4 ? out : nullptr, pending_count);
+  detail::LaneSweepOptions options;
+  options.floor_keep = keep;
+  const detail::LaneSweepTotals swept = detail::sweep_sectors(
+      plan, state.heights.data(), planes, masks, sectors == 4 ? out : nullptr, pending_count, options);
   clock.work += swept.work;
   state.slack_stale = true;
   state.cursor = 0;
   if (sectors == 4) return swept;
 
-  // 1 sector (the smallest quadrant) or 8 (octants, or on a non-square map their quadrants)
+  // 1 sector (the smallest quadrant) or 8 (octants, or where there are none their quadrants)
   const StageTotals totals = tbb::parallel_reduce(
       tbb::blocked_range<int>(0, height, 8), StageTotals{},
       [&](const tbb::blocked_range<int>& rows, StageTotals partial) {
@@ -627,9 +631,15 @@ StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, f
             float ratio[8] = {};
             for (int k = 0; k < planes; ++k) {
               const int c = detail::lanes_passed(masks[k][t]);
-              ratio[k] = c == 0 ? detail::lane_floor(plan, state.heights.data(), t, k, planes).floor
-                                : plan.lane_ratio[c];
-              partial.pending += pending_count[c] || (sectors == 8 && planes == 4);
+              bool loose = pending_count[c];
+              if (c == 0) {  // the floor, certified as texel_slack certifies it
+                const detail::LaneFloor floor = detail::lane_floor(plan, state.heights.data(), t, k, planes);
+                loose = floor.floor / std::min(plan.lane_upper[0], floor.upper) < keep;
+                ratio[k] = floor.floor;
+              } else {
+                ratio[k] = plan.lane_ratio[c];
+              }
+              partial.pending += loose || (sectors == 8 && planes == 4);
             }
             float* target = out + t * sectors;
             if (sectors == 8) {

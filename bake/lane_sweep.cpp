@@ -6,18 +6,43 @@
 // blocker q in the quadrant rises above c's cone: h(q) - d(c, q) / r <= h(c) for all q, that is
 // when the dilation E_r(c) = max over q != c of (h(q) - d(c, q) / r) is at most h(c).
 //
-// The sweep. Replace d by a chamfer distance: the cheapest path from q to c made of the moves
-// (da, db) = (0, 1), (1, 0), (1, 1), (1, 2), (2, 1) - all pointing into the quadrant, so every path
-// stays in it and every texel of the closed quadrant is reached (consecutive moves span unimodular
-// cones). Each move costs its uv length times `scale`, the cosine of half the widest angle between
-// neighbouring moves (0.973 on a square map; cos 22.5 deg = 0.924 without the knight moves), which
-// keeps every path's cost at or below the straight line. The dilation then obeys a recurrence over
-// the two rows below and the texel before in the row, so one pass over the map - rows in the
-// quadrant's order - evaluates it for every texel, for all 32 lanes at once in one 512-bit register
-// (two 256-bit ones, or a generic vector type) of unsigned 16-bit values. An octant (8 sectors,
-// square maps) keeps only the moves that advance a row, (1, 0), (1, 1), (2, 1), whose paths reach
-// exactly the octant next to the v axis; the octant next to the u axis is the same sweep on the
-// transposed map.
+// The sweep. Replace d by a chamfer distance: the cheapest path from q to c made of moves (da, db)
+// (rows, columns) that all point into the quadrant, so that every path stays in it, each costing
+// its uv length times `scale` (below). The dilation then obeys a recurrence over a few rows below
+// and the texel after in the row, so one pass over the map - rows in the quadrant's order -
+// evaluates it for every texel, for all 32 lanes at once in one 512-bit register (two 256-bit
+// ones, or a generic vector type) of unsigned 16-bit values.
+//
+// The moves, fitted to the map's aspect A = W / H. A move (da, db) points at the uv angle
+// atan((da / H) / (db / W)) from the u axis, so the same texel moves point elsewhere on a
+// non-square map (on a 2:1 map (1, 2) is the uv diagonal). make_lane_plan takes the carry (0, 1),
+// the row moves (1, k) for k = 0 .. R and the column moves (k, 1) for k = 2 .. C, with R = ceil(A /
+// 0.51) and C = ceil((1 / A) / 0.51) (each at least 1; C = 1 means none), capped at 64: the
+// smallest reaches that bring the last move within 2% (in tangent) of the square map's atan(1 / 2)
+// from its axis. By angle from the v axis they are (1, 0), (C, 1) .. (2, 1), (1, 1) .. (1, R), (0, 1);
+// on a square map that is (1, 0), (2, 1), (1, 1), (1, 2), (0, 1), the set this sweep was built with.
+// Proof that no path is longer than the straight line, for every lattice point p of the closed
+// quadrant: (i) any two neighbouring moves x, y form a unimodular pair (|det| = 1: (1, 0) and (C, 1),
+// (k + 1, 1) and (k, 1), (1, k) and (1, k + 1), (1, R) and (0, 1)), and p lies in the cone of one
+// such pair, so p = a x + b y with integers a, b >= 0 - a path of moves that never leaves the
+// quadrant; (ii) for vectors x, y at angle t, |a x + b y| >= cos(t / 2) (a |x| + b |y|), so with
+// `scale` the cosine of half the widest angle between neighbouring moves (in uv) that path costs
+// at most |p|. The moves are the Hilbert basis of the cones, so none can be left out: on a 16:1 map
+// every (1, k) up to (1, 32) is needed, and the sweep costs a subtraction and a maximum per move and
+// texel - 5 to 6 moves up to 2:1, about twice the aspect beyond. scale stays the square map's 0.973
+// up to 32:1 (LaneSweep.ChamferPathsAreNeverLongerThanTheStraightLine checks (i) and (ii) on the
+// lattice). Without knights only (0, 1), (1, 1), (1, 0) (scale cos 22.5 deg = 0.924 on a square
+// map).
+//
+// Octants (8 sectors) where one side is n times the other: then the uv diagonal between a
+// quadrant's two octants is the move (1, n) (or (n, 1) on a tall map), and it splits the moves in
+// two runs of neighbours: from (1, 0) to the diagonal, without the carry, and from the diagonal to
+// (0, 1), with it. By (i) every lattice point of the closed octant next to v is a combination of two
+// neighbours of the first run, and a path of those never leaves that octant; likewise the second
+// run and the octant next to u; (ii) holds with the same scale. So each octant sweep sees exactly
+// its octant's blockers, passes and fails like a quadrant's and certifies like one. (A square map is
+// n = 1.) Other aspects have no such move (1024 x 1023: the diagonal is (1023, 1024)) and keep
+// quadrant sweeps, whose lanes bound neither octant from above.
 //
 // Why it is conservative. Heights are rounded up for blockers (top) and down for the tested texel
 // (bottom), every step is rounded down, and a saturating subtraction never goes below 0, which only
@@ -26,15 +51,17 @@
 // what is emitted is the lane times (1 - 1e-5), which covers the exact baker's own rounding.
 //
 // Wrap. A texel's blockers reach a whole map beyond the seam. Along a row, a fix-up pass carries the
-// row's end round to its start and stops at the first texel it does not change. Across rows, the
-// sweep goes on past the map's last row into a second lap, which re-tests rows until it meets the
-// first lap's values again (the kernel says how that is detected exactly); on the ocean that is
-// about a third of the map.
+// row's end round to its start and stops at the first texel it does not change; the row moves read
+// the row's start again past its end. Across rows, the sweep goes on past the map's last row into a
+// second lap, which re-tests rows until it meets the first lap's values again (the kernel says how
+// that is detected exactly); on the ocean that is about a third of the map.
 //
 // Upper bounds. Every source of a dilation is a real texel, so a lane that fails bounds the exact
 // ratio from above, up to the rounding above and the chamfer's scale: see make_lane_plan. That
 // certifies how loose each ratio may be, so the refinement stages can skip the texels that are
-// already close enough.
+// already close enough. The rounding weighs against the shortest move (1 / M uv, M the longer side)
+// and matters only for lanes near 1, so the lanes are spaced by what each needs; below the lowest
+// lane, lane_floor's window reaches as far in uv along both axes.
 #include "bake/lane_sweep.h"
 
 #include <tbb/blocked_range.h>
@@ -60,31 +87,47 @@ LaneSweepTotals LaneSweepTotals::add(LaneSweepTotals a, const LaneSweepTotals& b
   return a;
 }
 
-std::size_t lane_sweep_scratch(int width) { return 2 * (std::size_t(width) + 2) * lane_count; }
+std::size_t lane_sweep_scratch(LaneSweepJob& job) {
+  job.depth = std::max(2, job.column_count > 0 ? job.column_first + job.column_count - 1 : 1);
+  job.padding = std::max(2, job.row_first + job.row_count - 1);
+  return std::size_t(job.depth) * (std::size_t(job.width) + std::size_t(job.padding)) * lane_count;
+}
 
 LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, int sector, int sectors) {
-  constexpr int floor_reach = 2;  // the 5 x 5 neighbourhood: a brick's mortar at 2048 x 2048 needs it
+  // the window: two texels each way along the shorter side (a brick's mortar at 2048 x 2048 needs
+  // them) and as far in uv along the longer one
+  constexpr int floor_reach = 2;
   const int width = plan.width, height = plan.height;
+  const int reach_x =
+      width > height ? int(std::ceil(double(floor_reach + 1) * width / height)) - 1 : floor_reach;
+  const int reach_y =
+      height > width ? int(std::ceil(double(floor_reach + 1) * height / width)) - 1 : floor_reach;
   const int i = int(n / std::size_t(width)), j = int(n % std::size_t(width));
   const float h = heights[n];
   const Grid grid(width, height, sectors, plan.wrap ? Address::wrap : Address::clamp);
+  // the sector's quadrant of offsets (all four for one sector)
+  const int quadrant = sectors == 4 ? sector : sectors == 8 ? sector / 2 : -1;
+  const int x_first = quadrant == 0 || quadrant == 3 ? 0 : -reach_x,
+            x_last = quadrant == 1 || quadrant == 2 ? 0 : reach_x;
+  const int y_first = quadrant == 0 || quadrant == 1 ? 0 : -reach_y, y_last = quadrant >= 2 ? 0 : reach_y;
   LaneFloor result;
-  float nearest_blocker = 1.0f;  // the neighbourhood's exact ratio, with the exact baker's arithmetic
-  for (int dy = -floor_reach; dy <= floor_reach; ++dy)
-    for (int dx = -floor_reach; dx <= floor_reach; ++dx) {
+  float nearest_blocker = 1.0f;  // the window's exact ratio, with the exact baker's arithmetic
+  for (int dy = y_first; dy <= y_last; ++dy)
+    for (int dx = x_first; dx <= x_last; ++dx) {
       if ((dx == 0 && dy == 0) || !(point_sectors(grid, dx, dy) >> sector & 1u)) continue;
       int y = i + dy, x = j + dx;
       if (!plan.wrap && (y < 0 || y >= height || x < 0 || x >= width)) continue;
-      y = (y + height) % height;
-      x = (x + width) % width;
+      y = (y % height + height) % height;
+      x = (x % width + width) % width;
       const float other = heights[std::size_t(y) * width + x];
       if (other > h)
         nearest_blocker = std::min(nearest_blocker, pair_ratio(grid.distance(dx, dy), other - h));
     }
   result.upper = nearest_blocker;
-  // every other texel is at least floor_reach + 1 texels away along u or v
-  const float further =
-      h < plan.highest ? float(floor_reach + 1) * plan.nearest / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
+  // every other texel is at least reach_x + 1 texels away along u or reach_y + 1 along v
+  const float nearest_outside =
+      std::min(float(reach_x + 1) / float(width), float(reach_y + 1) / float(height));
+  const float further = h < plan.highest ? nearest_outside / (plan.highest - h) * (1.0f - 1e-5f) : 1.0f;
   result.floor = std::min({nearest_blocker, further, 1.0f});
   return result;
 }
@@ -113,31 +156,46 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
 }
 #endif
 
-// The moves (da, db) of the chamfer, their uv lengths and the chamfer scale.
-void chamfer_moves(int width, int height, bool knights, double (&length)[lane_move_count], double& scale) {
-  // moves (da, db) and their uv lengths; the chamfer scale is the cosine of half the widest angle
-  // between neighbouring moves (in uv, so non-square maps get their own)
-  const int moves[lane_move_count][2] = {{0, 1}, {1, 0}, {1, 1}, {1, 2}, {2, 1}};
-  double angle[lane_move_count];
-  for (int m = 0; m < lane_move_count; ++m) {
-    const double du = double(moves[m][1]) / width, dv = double(moves[m][0]) / height;
-    length[m] = std::sqrt(du * du + dv * dv);
-    angle[m] = std::atan2(dv, du);
-  }
-  // by angle from the row: (0, 1), (1, 2), (1, 1), (2, 1), (1, 0); without knights (0, 1), (1, 1), (1, 0)
-  const int with_knights[] = {0, 3, 2, 4, 1}, without[] = {0, 2, 1};
-  const int* order = knights ? with_knights : without;
-  const int used = knights ? 5 : 3;
-  scale = 1.0;
-  for (int k = 0; k + 1 < used; ++k)
-    scale = std::min(scale, std::cos(0.5 * (angle[order[k + 1]] - angle[order[k]])));
-  scale *= 1.0 - 1e-9;
+namespace {
+
+// A chamfer move (da, db) and the row of steps it uses.
+struct ChamferMove {
+  int index, da, db;
+};
+
+// The plan's moves by angle from the v axis - (1, 0), (column_reach, 1) .. (2, 1), (1, 1) ..
+// (1, row_reach), (0, 1) - and their uv lengths.
+std::vector<ChamferMove> chamfer_moves(const LanePlan& plan, double (&length)[lane_move_limit]) {
+  std::vector<ChamferMove> moves;
+  moves.push_back({lane_move_row, 1, 0});
+  for (int k = plan.column_reach; k >= 2; --k) moves.push_back({lane_move_column + k - 2, k, 1});
+  for (int k = 1; k <= plan.row_reach; ++k) moves.push_back({lane_move_row + k, 1, k});
+  moves.push_back({lane_move_carry, 0, 1});
+  for (const ChamferMove& move : moves)
+    length[move.index] = std::hypot(double(move.db) / plan.width, double(move.da) / plan.height);
+  return moves;
 }
 
-// The certified upper bounds of the lanes (lane_upper) for a plan whose steps are made.
-void lane_upper_bounds(LanePlan& plan, double scale, const double (&length)[lane_move_count], const double* slope) {
-  const int width = plan.width, height = plan.height;
-  const bool knights = plan.knights;
+}  // namespace
+
+void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]) {
+  double length[lane_move_limit] = {};
+  const std::vector<ChamferMove> moves = chamfer_moves(plan, length);
+  const double scale = plan.scale;
+  double slope[lane_count];
+  plan.lane_ratio[0] = 0.0f;
+  for (int l = 0; l < lane_count; ++l) {
+    slope[l] = 1.0 / ratios[l];
+    // emitted a little below the lane, for the rounding of the exact baker's own division
+    plan.lane_ratio[l + 1] = float(std::min(1.0, ratios[l] * (1.0 - 1e-5)));
+  }
+  std::fill(std::begin(plan.steps), std::end(plan.steps), std::uint16_t(0));
+  for (const ChamferMove& move : moves)
+    for (int l = 0; l < lane_count; ++l) {
+      const double step = std::floor(scale * length[move.index] * slope[l] * height_scale);
+      plan.steps[move.index * lane_count + l] = std::uint16_t(std::min(step, height_scale));
+    }
+
   // Upper bounds. Lane l (ratio r) fails when some path P of moves from a real blocker q has
   // top(q) - (sum of its steps) > bottom(c), so top(q) - sum >= bottom(c) + 1. A move of uv length
   // len costs scale * len * 65535 / r less the fraction its rounding dropped, and that fraction is at
@@ -148,15 +206,14 @@ void lane_upper_bounds(LanePlan& plan, double scale, const double (&length)[lane
   // that bracket when it is positive. (Such a q is within uv distance 1 whenever the bound is below
   // 1, so the exact baker counts it.) A move whose step is the whole height range leaves nothing
   // behind it, so it is on no failing path and does not count.
-  const double sides = double(std::max(width, height));
+  const double sides = double(std::max(plan.width, plan.height));
   for (int p = 0; p < lane_count; ++p) {
     double lambda = 0.0;
-    for (int m = 0; m < lane_move_count; ++m) {
-      if (!knights && m >= 3) continue;
-      const double exact_step = scale * length[m] * slope[p] * height_scale;
+    for (const ChamferMove& move : moves) {
+      const double exact_step = scale * length[move.index] * slope[p] * height_scale;
       if (exact_step >= height_scale) continue;  // such a move leaves 0: it is on no failing path
-      const double dropped = exact_step - double(plan.steps[m * lane_count + p]);
-      lambda = std::max(lambda, dropped / (length[m] * sides));
+      const double dropped = exact_step - double(plan.steps[move.index * lane_count + p]);
+      lambda = std::max(lambda, dropped / (length[move.index] * sides));
     }
     const double bracket = scale * slope[p] - (lambda + 1.032) * sides / height_scale;
     plan.lane_upper[p] = bracket > 0.0 ? float(std::min(1.0, (1.0 + 1e-5) / bracket)) : 1.0f;
@@ -164,28 +221,11 @@ void lane_upper_bounds(LanePlan& plan, double scale, const double (&length)[lane
   plan.lane_upper[lane_count] = 1.0f;
 }
 
-void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]) {
-  double length[lane_move_count], scale;
-  chamfer_moves(plan.width, plan.height, plan.knights, length, scale);
-  plan.lane_ratio[0] = 0.0f;
-  double slope[lane_count];
-  for (int l = 0; l < lane_count; ++l) {
-    slope[l] = 1.0 / ratios[l];
-    plan.lane_ratio[l + 1] = float(std::min(1.0, ratios[l] * (1.0 - 1e-5)));
-    for (int m = 0; m < lane_move_count; ++m) {
-      const double step = std::floor(scale * length[m] * slope[l] * height_scale);
-      plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
-    }
-  }
-  lane_upper_bounds(plan, scale, length, slope);
-}
-
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan) {
   plan.width = width;
   plan.height = height;
   plan.wrap = wrap;
-  plan.knights = knights;
   const std::size_t count = std::size_t(width) * height;
   plan.top.resize(count);
   plan.bottom.resize(count);
@@ -224,64 +264,87 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   std::memcpy(&plan.highest, &extremes.high, sizeof(float));
   std::memcpy(&lowest_height, &extremes.low, sizeof(float));
   plan.nearest = 1.0f / float(std::max(width, height));
-  if (octants && width == height) {  // in 32 x 32 tiles, so that both sides stay in cache
-    plan.top_transposed.resize(count);
-    plan.bottom_transposed.resize(count);
-    const int n = width;
-    tbb::parallel_for(tbb::blocked_range<int>(0, (n + 31) / 32), [&](const tbb::blocked_range<int>& tiles) {
-      for (int ti = tiles.begin(); ti < tiles.end(); ++ti)
-        for (int tj = 0; tj < (n + 31) / 32; ++tj)
-          for (int i = ti * 32; i < std::min(n, ti * 32 + 32); ++i)
-            for (int j = tj * 32; j < std::min(n, tj * 32 + 32); ++j) {
-              plan.top_transposed[std::size_t(j) * n + i] = top[std::size_t(i) * n + j];
-              plan.bottom_transposed[std::size_t(j) * n + i] = bottom[std::size_t(i) * n + j];
-            }
-    });
-  } else {
-    plan.top_transposed.clear();
-    plan.bottom_transposed.clear();
-  }
 
-  double length[lane_move_count], scale;
-  chamfer_moves(width, height, knights, length, scale);
+  // The moves, fitted to the aspect (see the header comment): row moves (1, 0 .. row_reach) and
+  // column moves (2 .. column_reach, 1), each reach the smallest that keeps the last move within
+  // 2% (in tangent) of the square map's atan(1 / 2) of its axis. Octants where the diagonal that
+  // separates them is a move.
+  const double aspect = double(width) / double(height);
+  constexpr double widest_tangent = 0.51;  // tan of the widest angle wanted between neighbouring moves
+  auto reach_for = [&](double stretch) {
+    return knights ? std::clamp(int(std::ceil(stretch / widest_tangent)), 1, lane_reach_limit) : 1;
+  };
+  plan.row_reach = reach_for(aspect);
+  plan.column_reach = reach_for(1.0 / aspect);
+  plan.octant_split = 0;
+  if (octants && width == height)
+    plan.octant_split = 1;
+  else if (octants && knights && width % height == 0 && width / height <= plan.row_reach)
+    plan.octant_split = width / height;
+  else if (octants && knights && height % width == 0 && height / width <= plan.column_reach)
+    plan.octant_split = height / width;
+
+  // the chamfer scale: the cosine of half the widest angle (in uv) between neighbouring moves
+  double length[lane_move_limit] = {};
+  const std::vector<ChamferMove> moves = chamfer_moves(plan, length);
+  double scale = 1.0;
+  for (std::size_t m = 1; m < moves.size(); ++m) {
+    auto angle = [&](const ChamferMove& move) {  // from the v axis
+      return std::atan2(double(move.db) / width, double(move.da) / height);
+    };
+    scale = std::min(scale, std::cos(0.5 * (angle(moves[m]) - angle(moves[m - 1]))));
+  }
+  plan.scale = scale * (1.0 - 1e-9);
+
   // Lanes reach up to just above 1 (so that passing the top lane proves a ratio of 1 after
   // rounding) and down to the smallest ratio any texel can have - the nearest texel over the largest
   // gap - but no higher than lowest_ratio. Below a knee they are 1.28x apart, which still certifies
-  // every texel within 0.75 of exact (the upper bounds below); above it the rest share the range
-  // evenly, since the large ratios are the ones that decide how far a ray steps. On large maps the
-  // certified bounds loosen (the rounding of the steps grows with the side), so the lanes above the
-  // knee must stay closer, and the lowest lanes give way to them.
+  // every texel within 0.75 of exact (the upper bounds below); above it they are as close as the
+  // certified bound needs, since the large ratios are the ones that decide how far a ray steps. A
+  // lane r that fails bounds the exact ratio by r / (scale - loss r), loss growing with the larger
+  // side M (the rounding of heights and steps against the shortest move, 1 / M): near 1 on a large
+  // map the lanes must stay closer, lower down they may spread, and the lowest lanes give way to
+  // the upper ones where there are not enough.
   const double range = double(plan.highest) - double(lowest_height);
   const double smallest_ratio =
       range > 0.0 ? std::clamp(double(plan.nearest) / range, 1.0 / 8192.0, double(lowest_ratio))
                   : double(lowest_ratio);
   const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28, certified = 0.77;
   const double worst_loss = 2.032 * double(std::max(width, height)) / height_scale;  // see the upper bounds
-  const double top_spacing = std::max(1.05, (scale - worst_loss) / certified);
-  const int top_lanes = int(std::ceil(std::log(highest_lane / knee) / std::log(top_spacing)));
+  // the spacing below lane r that still certifies `certified`, made `closer` times closer (in log)
+  auto spacing_below = [&](double r, double closer) {
+    return std::pow(std::max(1.05, (scale - worst_loss * r) / certified), 1.0 / closer);
+  };
+  auto lane_below_top = [&](int steps, double closer) {  // the lane `steps` below the highest
+    double r = highest_lane;
+    for (int k = 0; k < steps; ++k) r /= spacing_below(r, closer);
+    return r;
+  };
+  int top_lanes = 0;
+  while (top_lanes < lane_count - 1 && lane_below_top(top_lanes, 1.0) > knee) ++top_lanes;
   const int low_lanes = std::clamp(int(std::ceil(std::log(knee / smallest_ratio) / std::log(low_spacing))), 0,
                                    std::max(0, std::min(lane_count / 2, lane_count - 1 - top_lanes)));
-  const double lowest_lane = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes));
-  const double knee_lane = lowest_lane * std::pow(low_spacing, low_lanes);
-  double slope[lane_count];
-  plan.lane_ratio[0] = 0.0f;
-  for (int l = 0; l < lane_count; ++l) {
-    const double ratio = l <= low_lanes
-                             ? lowest_lane * std::pow(low_spacing, l)
-                             : knee_lane * std::pow(highest_lane / knee_lane,
-                                                    double(l - low_lanes) / (lane_count - 1 - low_lanes));
-    slope[l] = 1.0 / ratio;
-    // emitted a little below the lane, for the rounding of the exact baker's own division
-    plan.lane_ratio[l + 1] = float(std::min(1.0, ratio * (1.0 - 1e-5)));
-  }
-
-  for (int m = 0; m < lane_move_count; ++m)
-    for (int l = 0; l < lane_count; ++l) {
-      const double step = std::floor(scale * length[m] * slope[l] * height_scale);
-      plan.steps[m * lane_count + l] = std::uint16_t(std::min(step, height_scale));
+  top_lanes = lane_count - 1 - low_lanes;
+  // the upper lanes end on the knee lane (the top of the lower ones): the closeness that puts them
+  // there, by bisection (they only get closer than needed); if even 1 leaves them above it, the
+  // lower lanes go on from where they end
+  double closer = 1.0;
+  double knee_lane =
+      std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
+  if (lane_below_top(top_lanes, 1.0) < knee_lane) {
+    double below = 1.0, above = 64.0;
+    for (int k = 0; k < 60; ++k) {
+      const double middle = 0.5 * (below + above);
+      (lane_below_top(top_lanes, middle) < knee_lane ? below : above) = middle;
     }
-
-  lane_upper_bounds(plan, scale, length, slope);
+    closer = above;
+  }
+  knee_lane = lane_below_top(top_lanes, closer);
+  double ratios[lane_count];
+  for (int l = 0; l < lane_count; ++l)
+    ratios[l] = l <= low_lanes ? knee_lane / std::pow(low_spacing, low_lanes - l)
+                               : lane_below_top(lane_count - 1 - l, closer);
+  set_lane_ratios(plan, ratios);
 }
 
 LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
@@ -289,8 +352,9 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
                               const LaneSweepOptions& options) {
   const int level = options.level < 0 ? lane_sweep_best_level() : options.level;
   const bool octants = sectors == 8;
-  if (octants && plan.top_transposed.empty()) throw std::logic_error("lane plan without octants");
+  if (octants && plan.octant_split == 0) throw std::logic_error("lane plan without octants");
   const int jobs = octants ? 8 : 4;
+  const bool tall = plan.height > plan.width;
   long long works[8] = {};
   tbb::parallel_for(0, jobs, [&](int n) {
     struct Free {
@@ -298,32 +362,41 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
     };
     const int quadrant = octants ? n / 2 : n;
     // quadrant q holds the blockers of sector q: 0 = +u +v, 1 = -u +v, 2 = -u -v, 3 = +u -v
-    const bool flip_x = quadrant == 1 || quadrant == 2, flip_y = quadrant >= 2;
-    // an octant sweep: the half of the quadrant next to the v axis in place, the half next to the
-    // u axis on the transposed map (where u runs down the rows); sectors go round from +u
-    const bool transposed = octants && n % 2 == 0;
-    const int sector = !octants            ? quadrant
-                       : quadrant % 2 == 0 ? 2 * quadrant + (transposed ? 0 : 1)
-                                           : 2 * quadrant + (transposed ? 1 : 0);
     LaneSweepJob job;
-    job.width = transposed ? plan.height : plan.width;
-    job.height = transposed ? plan.width : plan.height;
+    job.flip_x = quadrant == 1 || quadrant == 2;
+    job.flip_y = quadrant >= 2;
+    job.carry = true;
+    job.row_first = 0;
+    job.row_count = plan.row_reach + 1;
+    job.column_first = 2;
+    job.column_count = plan.column_reach - 1;
+    // an octant: the moves from (1, 0) to the diagonal move without the carry (the half next to
+    // the v axis), or from the diagonal move to (0, 1) with it (the half next to the u axis)
+    const bool next_to_v = n % 2 == 1;
+    const int split = plan.octant_split;
+    if (octants && next_to_v) {
+      job.carry = false;
+      job.row_count = tall ? 1 : split + 1;
+      if (tall) job.column_first = split, job.column_count = plan.column_reach - split + 1;
+    } else if (octants) {
+      job.row_first = tall ? 1 : split;
+      job.row_count = plan.row_reach - job.row_first + 1;
+      job.column_count = tall ? split - 1 : 0;
+    }
+    // sectors go round from +u: in quadrant q the octant next to the u axis is 2q for even q
+    const int sector = !octants ? quadrant : 2 * quadrant + (next_to_v == (quadrant % 2 == 0) ? 1 : 0);
+    job.width = plan.width;
+    job.height = plan.height;
     std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
-        ::operator new[](lane_sweep_scratch(job.width) * sizeof(std::uint16_t), std::align_val_t(64))));
+        ::operator new[](lane_sweep_scratch(job) * sizeof(std::uint16_t), std::align_val_t(64))));
     std::vector<long long> row_sums(job.height / 2 + 2);
     job.wrap = plan.wrap;
-    job.knights = plan.knights;
-    job.octant = octants;
-    job.flip_x = transposed ? flip_y : flip_x;
-    job.flip_y = transposed ? flip_x : flip_y;
-    job.top = transposed ? plan.top_transposed.data() : plan.top.data();
-    job.bottom = transposed ? plan.bottom_transposed.data() : plan.bottom.data();
+    job.top = plan.top.data();
+    job.bottom = plan.bottom.data();
     job.steps = plan.steps;
     job.scratch = scratch.get();
     job.row_sums = row_sums.data();
     job.masks = masks[sector];
-    job.mask_row_stride = transposed ? 1 : std::size_t(plan.width);
-    job.mask_column_stride = transposed ? std::size_t(plan.width) : 1;
     job.stop_early = options.stop_early;
     switch (level) {
       case 0: lane_sweep_generic(job); break;
@@ -349,6 +422,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
         emit.out = out4;
         emit.lane_ratio = plan.lane_ratio;
         emit.pending_count = pending_count;
+        emit.floor_keep = options.floor_keep;
         const std::size_t first = blocks.begin() * 16, last = std::min(count, blocks.end() * 16);
         switch (level) {
           case 0: lane_emit_generic(emit, first, last); break;
@@ -381,11 +455,15 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     LaneSweepJob job;
     job.width = cells.width;
     job.height = cells.height;
-    const auto scratch = aligned(lane_sweep_scratch(job.width));
+    job.carry = true;
+    job.row_first = 0;
+    job.row_count = cells.row_reach + 1;
+    job.column_first = 2;
+    job.column_count = cells.column_reach - 1;
+    const auto scratch = aligned(lane_sweep_scratch(job));
     const auto bilinear_scratch = aligned(bilinear_sweep_scratch(job.width, width));
     std::vector<long long> row_sums(job.height / 2 + 2);
     job.wrap = cells.wrap;
-    job.knights = cells.knights;
     job.flip_x = quadrant == 1 || quadrant == 2;
     job.flip_y = quadrant >= 2;
     job.top = cells.top.data();
@@ -402,9 +480,9 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.cell_offset_y = cells.wrap && job.flip_y ? -1 : 0;
     job.texel_bottom = texel_bottom;
     job.bonus = bonus;
+    job.bilinear_scratch = bilinear_scratch.get();
     job.masks3 = masks3[quadrant];
     job.bonus3 = bonus3;
-    job.bilinear_scratch = bilinear_scratch.get();
     switch (level) {
       case 0: lane_sweep_generic(job); break;
       case 3: lane_sweep_avx2(job); break;

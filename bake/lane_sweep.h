@@ -8,31 +8,41 @@
 
 namespace displace::bake::detail {
 
-constexpr int lane_count = 32;      // ratio lanes tested per sweep
-constexpr int lane_move_count = 5;  // chamfer moves: along the row, across it, diagonal, two knight moves
+constexpr int lane_count = 32;  // ratio lanes tested per sweep
+// Chamfer moves (da, db) = (rows, columns): the carry (0, 1) along the row, the row moves (1, k)
+// for k = 0 .. lane_reach_limit and the column moves (k, 1) for k = 2 .. lane_reach_limit. steps
+// holds one row of lane_count values per move, in this order.
+constexpr int lane_reach_limit = 64;  // the longest row or column move, in texels
+constexpr int lane_move_carry = 0;
+constexpr int lane_move_row = 1;                                        // (1, k): lane_move_row + k
+constexpr int lane_move_column = lane_move_row + lane_reach_limit + 1;  // (k, 1): lane_move_column + k - 2
+constexpr int lane_move_limit = lane_move_column + lane_reach_limit - 1;
 constexpr double height_scale = 65535.0;  // heights and dilations are in units of 1 / 65535
 
-// One quadrant sweep. The map is seen from the quadrant: local (a, b) is physical row
-// flip_y ? H - 1 - a : a, column flip_x ? W - 1 - b : b, and the quadrant's blockers of local texel
-// (a, b) are the texels (a + da, b + db) with da, db >= 0.
+// One sweep. The map is seen from the sweep's quadrant: local (a, b) is physical row
+// flip_y ? H - 1 - a : a, column flip_x ? W - 1 - b : b, and the blockers of local texel (a, b) that
+// the sweep sees are the texels (a + da, b + db) that paths of its moves reach: (0, 1) with carry,
+// (1, k) for row_first <= k < row_first + row_count and (k, 1) for column_first <= k <
+// column_first + column_count (column_first >= 2).
 struct LaneSweepJob {
   int width = 0, height = 0;
   bool wrap = true;
   bool flip_x = false, flip_y = false;
-  bool knights = true;                    // moves 3 and 4 (else only 0 to 2, with their own steps)
-  bool octant = false;                    // only moves 1, 2 and 4: the octant 0 <= db <= da
+  bool carry = true;                       // move (0, 1): the dilation runs along the row
+  int row_first = 0, row_count = 3;        // row moves (1, k); at least one
+  int column_first = 2, column_count = 1;  // column moves (k, 1)
+  int depth = 2, padding = 2;             // row buffers kept, texels past a buffer's end (lane_sweep_scratch)
   const std::uint16_t* top = nullptr;     // ceil(h * 65535) or a little above, physical row-major
   const std::uint16_t* bottom = nullptr;  // floor(h * 65535) or a little below, physical row-major
-  // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down. Moves
-  // (da, db): 0 = (0, 1), 1 = (1, 0), 2 = (1, 1), 3 = (1, 2), 4 = (2, 1).
+  // steps[m * lane_count + l]: what the dilation loses over move m at lane l, rounded down (m as
+  // above: lane_move_carry, lane_move_row + k, lane_move_column + k - 2)
   const std::uint16_t* steps = nullptr;
-  std::uint16_t* scratch = nullptr;  // lane_sweep_scratch(width) values, 64-byte aligned
+  std::uint16_t* scratch = nullptr;  // lane_sweep_scratch(job) values, 64-byte aligned
   long long* row_sums = nullptr;     // height / 2 + 2 values
   // out: per physical texel, bit l set when lane l passes. Lanes pass from the lowest up, so the
   // count of set bits says which; the first lane that fails (if any) failed on a real blocker, so it
   // bounds the exact ratio from above.
   std::uint32_t* masks = nullptr;
-  std::size_t mask_row_stride = 0, mask_column_stride = 1;  // texel (row, column)'s mask index
   bool stop_early = true;  // the second lap stops where it meets the first (false: tests only)
   long long work = 0;      // out: texel updates performed (rows x columns, wrap fix-ups included)
 
@@ -42,8 +52,8 @@ struct LaneSweepJob {
   // texel (t, b) passes lane l when every cell in the quadrant of one of its five face cells - local
   // cells (t + 2, b + k) for k = 0, 1, 2 and (t + k, b + 2) for k = 0, 1, shifted by cell_offset_y
   // and cell_offset_x - other than that face cell lies below its cone: max of the five dilations less
-  // bonus[l] <= texel_bottom. Masks go per physical texel (row stride texel_width); `bottom` and
-  // the octant mode are unused.
+  // bonus[l] <= texel_bottom. Masks go per physical texel (row stride texel_width); `bottom` is
+  // unused, and the sweep is a quadrant's (the carry and the plan's row and column moves).
   bool bilinear = false;
   int texel_width = 0, texel_height = 0;
   int cell_offset_x = 0, cell_offset_y = 0;      // 0 or -1 (wrap with a flipped axis)
@@ -66,19 +76,24 @@ struct LanePlan;
 
 // The 4-sector output of the four quadrants' masks, for texels [first, last):
 // out[texel * 4 + quadrant] = lane_ratio[count], or below the lowest lane lane_floor's floor; adds
-// the ratios to ratio_sum and pending_count[count] to pending.
+// the ratios to ratio_sum and to pending pending_count[count], or below the lowest lane 1 where the
+// floor is below floor_keep times its certified bound (lane_upper[0] or the floor's upper).
 struct LaneEmitJob {
   const std::uint32_t* masks[4] = {};
   const LanePlan* plan = nullptr;
   const float* heights = nullptr;
   float* out = nullptr;
   const float* lane_ratio = nullptr;            // lane_count + 1 entries
-  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries
+  const std::uint8_t* pending_count = nullptr;  // lane_count + 1 entries ([0] unused)
+  float floor_keep = 1.0f;
   double ratio_sum = 0.0;
   long long pending = 0;
 };
 
-std::size_t lane_sweep_scratch(int width);
+// Sets the job's depth (the rows below that the moves read: the longest column move, at least 2)
+// and padding (the texels past a row's end that they read: the longest row move, at least 2), and
+// returns the scratch its row buffers need, in values.
+std::size_t lane_sweep_scratch(LaneSweepJob& job);
 
 // The same kernel compiled for three instruction sets (sweep_sectors picks the best the CPU runs).
 void lane_sweep_generic(LaneSweepJob& job);
@@ -90,22 +105,29 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last);
 // 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run.
 int lane_sweep_best_level();
 
-// Lane ratios, steps and 16-bit heights for a map; built once per frame, shared by the four sweeps.
+// Lane ratios, steps and 16-bit heights for a map; built once per frame, shared by the sweeps.
 struct LanePlan {
   int width = 0, height = 0;
   bool wrap = true;
-  bool knights = true;
+  // the moves (lane_sweep.cpp): row moves (1, 0 .. row_reach), column moves (2 .. column_reach, 1)
+  // (none when column_reach is 1), and the carry (0, 1)
+  int row_reach = 2, column_reach = 2;
+  // octants: 0 = none (only quadrants); else the move (1, n) (a map n times as wide as tall) or
+  // (n, 1) (n times as tall as wide), which runs along the uv diagonal between a quadrant's octants
+  int octant_split = 0;
+  double scale = 1.0;  // the chamfer scale
   std::vector<std::uint16_t> top, bottom;
-  std::vector<std::uint16_t> top_transposed, bottom_transposed;  // for octant sweeps (square maps)
-  float highest = 0.0f;                                          // the largest height
+  float highest = 0.0f;  // the largest height
   float nearest = 0.0f;  // uv distance between a texel and its nearest neighbour
-  alignas(64) std::uint16_t steps[lane_move_count * lane_count];
+  alignas(64) std::uint16_t steps[lane_move_limit * lane_count];
   float lane_ratio[lane_count + 1];  // [count]: the ratio that count passing lanes prove (0 for none)
   // [count]: when lane `count` failed on a real blocker, the exact ratio is below this (1 for all)
   float lane_upper[lane_count + 1];
 };
 // Geometric lanes to just above 1, from min(lowest_ratio, the smallest ratio the map can have).
-// With octants (square maps only) it also keeps the heights transposed.
+// knights: the moves fitted to the map's aspect (else only (0, 1), (1, 0), (1, 1)); octants: plan
+// octant sweeps where the map allows them (square maps; with knights, one side a multiple of the
+// other), see octant_split.
 void make_lane_plan(const float* heights, int width, int height, bool wrap, float lowest_ratio, bool knights,
                     bool octants, LanePlan& plan);
 
@@ -113,9 +135,10 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
 // make_lane_plan makes them.
 void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]);
 
-// Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over the texels
-// within two of it (the 5 x 5 neighbourhood) in the sector against (3 texels) / (highest - h) for
-// everything further, rounded down (floor); and the smallest pair ratio of a neighbour that blocks
+// Below the lowest lane, texel n's ratio in sector k of `sectors`: the exact ratio over a window in
+// the sector - two texels each way along the map's shorter side, as far in uv along the longer
+// (5 x 5 on a square map) - against (the nearest texel outside it) / (highest - h) for everything
+// further, rounded down (floor); and the smallest pair ratio of a texel of the window that blocks
 // (upper, 1 when none), a real upper bound of the exact ratio.
 struct LaneFloor {
   float floor = 1.0f, upper = 1.0f;
@@ -132,14 +155,16 @@ struct LaneSweepTotals {
   // the two halves of a parallel reduction, added (defined in lane_sweep.cpp)
   static LaneSweepTotals add(LaneSweepTotals a, const LaneSweepTotals& b);
 };
-// The sweeps of 4 sectors (quadrants) or, on a square map whose plan has octants, of 8 (octants: per
-// quadrant, the half next to the v axis swept in place and the half next to the u axis swept on
-// the transposed map), in parallel: sector k's lane masks go to masks[k]; with out4 (4 sectors)
-// the ratios go there too, and pending_count (lane_count + 1 entries) is summed. Tests pick the
-// instruction set (level: -1 the best, 0, 3 or 4) and can make the second lap whole.
+// The sweeps of 4 sectors (quadrants) or, where the plan has octants, of 8 (octants: per quadrant,
+// the half next to the v axis without the carry and the half next to the u axis with it), in
+// parallel: sector k's lane masks go to masks[k]; with out4 (4 sectors) the ratios go there too,
+// and the pending texel sectors are counted (LaneEmitJob: pending_count, lane_count + 1 entries, and
+// floor_keep below the lowest lane). Tests pick the instruction set (level: -1 the best, 0, 3 or 4)
+// and can make the second lap whole.
 struct LaneSweepOptions {
   int level = -1;
   bool stop_early = true;
+  float floor_keep = 1.0f;
 };
 LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int sectors,
                               std::uint32_t* const masks[], float* out4, const std::uint8_t* pending_count,

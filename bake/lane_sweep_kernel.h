@@ -26,36 +26,46 @@ namespace {
 
 constexpr int lane_stride = lane_count;  // u16 per texel in a row buffer
 
-// octant: only the moves that advance a row - (1, 0), (1, 1) and the knight (2, 1) - whose paths
-// reach exactly the octant 0 <= db <= da of the quadrant; no carry along the row, so no wrap fix-up.
-template <class Ops, bool knights, bool octant, bool bilinear>
+// carry: the move (0, 1) along the row (an octant next to the v axis has none, and so no wrap
+// fix-up); fixed_rows and fixed_columns: the number of row moves (1, k) and column moves (k, 1) when
+// known at compile time (their steps stay in registers), -1 for the job's; bilinear: the mode of
+// LaneSweepJob::bilinear.
+template <class Ops, bool carry_move, int fixed_rows, int fixed_columns, bool bilinear>
 void sweep_kernel(LaneSweepJob& job) {
   using V = typename Ops::V;
   const int W = job.width, H = job.height;
   const bool wrap = job.wrap;
   const bool flip_x = job.flip_x;
-  const std::size_t row_values = std::size_t(W + 2) * lane_stride;  // two padding texels past the end
-  // Two row buffers: local rows a + 1 and a + 2. Row a is written over row a + 2 as the sweep goes
-  // (each texel of row a + 2 is read once more, one texel later, so it is kept in a register), and
-  // the two then swap roles. Nothing lies below the first row swept.
-  std::uint16_t* below1 = job.scratch;
-  std::uint16_t* below2 = below1 + row_values;
-  for (std::size_t n = 0; n < 2 * row_values; ++n) job.scratch[n] = 0;
+  const int row_count = fixed_rows >= 0 ? fixed_rows : job.row_count;
+  const int column_count = fixed_columns >= 0 ? fixed_columns : job.column_count;
+  const int depth = job.depth, padding = job.padding;
+  const std::size_t row_values = std::size_t(W + padding) * lane_stride;
+  // Row buffers for local rows a + 1 .. a + depth. Row a is written over row a + depth as the sweep
+  // goes (each texel of row a + depth is read once more, one texel later, so it is kept in a
+  // register), and the buffers then move down a row. Nothing lies below the first row swept.
+  std::uint16_t* below[lane_reach_limit + 1];
+  for (int k = 1; k <= depth; ++k) below[k] = job.scratch + std::size_t(k - 1) * row_values;
+  for (std::size_t n = 0; n < std::size_t(depth) * row_values; ++n) job.scratch[n] = 0;
 
-  const V step_row = Ops::load(job.steps + 0 * lane_count);
-  const V step_up = Ops::load(job.steps + 1 * lane_count);
-  const V step_diagonal = Ops::load(job.steps + 2 * lane_count);
-  const V step_knight_row = Ops::load(job.steps + 3 * lane_count);
-  const V step_knight_up = Ops::load(job.steps + 4 * lane_count);
+  const V step_row = Ops::load(job.steps + lane_move_carry * lane_count);
+  const std::uint16_t* row_steps = job.steps + std::size_t(lane_move_row + job.row_first) * lane_count;
+  const std::uint16_t* column_steps =
+      job.steps + std::size_t(lane_move_column + job.column_first - 2) * lane_count;
+  V fixed_row_step[fixed_rows > 0 ? fixed_rows : 1], fixed_column_step[fixed_columns > 0 ? fixed_columns : 1];
+  for (int k = 0; k < fixed_rows; ++k) fixed_row_step[k] = Ops::load(row_steps + k * lane_count);
+  for (int k = 0; k < fixed_columns; ++k) fixed_column_step[k] = Ops::load(column_steps + k * lane_count);
+  // the longest column move reads the row being overwritten (depth is that move's rows); the others
+  // read their buffers
+  const int column_in_buffers = column_count > 0 ? column_count - 1 : 0;
   const V nothing = Ops::broadcast(0);
 
-  // With wrap, the first lap's rows miss the blockers past the seam; its last two rows miss none
-  // within uv distance 1, so a second lap from them sweeps the map again with everything. Dilations
-  // only grow from the first lap to the second, so a row of the second lap equals the first lap's
-  // exactly when their sums are equal; after two equal rows in a row, every later row is equal too
-  // (a row depends only on the two below it), and the first lap's masks there stand. The first
-  // lap's sums are kept for the rows the second lap may reach before that; past them it goes on to
-  // the end of the map.
+  // With wrap, the first lap's rows miss the blockers past the seam; its last `depth` rows miss
+  // none within uv distance 1, so a second lap from them sweeps the map again with everything.
+  // Dilations only grow from the first lap to the second, so a row of the second lap equals the
+  // first lap's exactly when their sums are equal; after `depth` equal rows in a row, every later
+  // row is equal too (a row depends only on the `depth` below it), and the first lap's masks there
+  // stand. The first lap's sums are kept for the rows the second lap may reach before that; past
+  // them it goes on to the end of the map.
   // Bilinear mode: the row's dilations over blockers e (with the wrap fix-up) are kept in
   // `dilations` (cell n at n + 1; one padding cell before and four after, wrapped or empty), and
   // three rows of texel accumulators take them: a texel row is begun by the cell row two past it
@@ -85,49 +95,69 @@ void sweep_kernel(LaneSweepJob& job) {
     const int physical_row = job.flip_y ? H - 1 - a : a;
     const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
     const std::uint16_t* bottom_row = bilinear ? nullptr : job.bottom + std::size_t(physical_row) * W;
-    // masks go where the caller wants them: a transposed sweep writes them back in the map's layout
-    std::uint32_t* mask_row = bilinear ? nullptr : job.masks + std::size_t(physical_row) * job.mask_row_stride;
-    const std::size_t mask_step = job.mask_column_stride;
+    std::uint32_t* mask_row = bilinear ? nullptr : job.masks + std::size_t(physical_row) * W;
     const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
 
     // The row from its last texel to its first. A texel's dilation over its blockers e comes from
-    // the two rows below and from the texel after it (carry); with the texel itself it is what the
-    // texels before it see. The texel passes lane l when nothing in the quadrant rises above its
-    // cone of ratio lane l (bit l of its mask); lanes pass from the smallest ratio up. Row a + 1's
-    // texels b + 1 and b + 2 and row a + 2's texel b + 1 come in registers from the texels before.
+    // the row below (row moves), the texel after it in the rows further below (column moves) and
+    // the texel after it in its own row (carry); with the texel itself it is what the texels before
+    // it see. The texel passes lane l when nothing in the quadrant rises above its cone of ratio
+    // lane l (bit l of its mask); lanes pass from the smallest ratio up.
     V carry = nothing;
-    V next1 = Ops::load(below1 + std::size_t(W) * lane_stride),
-      next2 = Ops::load(below1 + std::size_t(W + 1) * lane_stride);
-    V knight_source = knights ? Ops::load(below2 + std::size_t(W) * lane_stride) : nothing;
+    std::uint16_t* const written = below[depth];
+    V deepest_source = column_count > 0 ? Ops::load(written + std::size_t(W) * lane_stride) : nothing;
+    const std::uint16_t* row_source = below[1] + std::size_t(job.row_first) * lane_stride;
+    const std::uint16_t* column_source[lane_reach_limit];  // texel b + 1 of each column move's row
+    for (int k = 0; k < column_in_buffers; ++k) column_source[k] = below[job.column_first + k] + lane_stride;
+    // row moves with a fixed count: window[k] holds texel b + k of row_source, kept from texel to texel
+    V window[fixed_rows > 0 ? fixed_rows : 1];
+    for (int k = 1; k < fixed_rows; ++k)
+      window[k] = Ops::load(row_source + std::size_t(W - 1 + k) * lane_stride);
     for (int b = W - 1; b >= 0; --b) {
-      const V here = Ops::load(below1 + std::size_t(b) * lane_stride);
-      std::uint16_t* target = below2 + std::size_t(b) * lane_stride;
-      V e = Ops::max(Ops::subs(here, step_up), Ops::subs(next1, step_diagonal));
-      if (knights) {
-        if (!octant) e = Ops::max(e, Ops::subs(next2, step_knight_row));
-        e = Ops::max(e, Ops::subs(knight_source, step_knight_up));
-        knight_source = Ops::load(target);
+      std::uint16_t* target = written + std::size_t(b) * lane_stride;
+      const std::size_t here = std::size_t(b) * lane_stride;
+      // every sweep has a row move (row_count >= 1)
+      V e;
+      if (fixed_rows > 0) {
+        window[0] = Ops::load(row_source + here);
+        e = Ops::subs(window[0], fixed_row_step[0]);
+        for (int k = 1; k < fixed_rows; ++k) e = Ops::max(e, Ops::subs(window[k], fixed_row_step[k]));
+        for (int k = fixed_rows - 1; k > 0; --k) window[k] = window[k - 1];
+      } else {
+        e = Ops::subs(Ops::load(row_source + here), Ops::load(row_steps));
+        for (int k = 1; k < row_count; ++k)
+          e = Ops::max(e, Ops::subs(Ops::load(row_source + here + k * lane_stride),
+                                    Ops::load(row_steps + k * lane_count)));
       }
-      if (!octant) e = Ops::max(e, carry);
+      if (fixed_columns > 0) {
+        for (int k = 0; k + 1 < fixed_columns; ++k)
+          e = Ops::max(e, Ops::subs(Ops::load(column_source[k] + here), fixed_column_step[k]));
+        e = Ops::max(e, Ops::subs(deepest_source, fixed_column_step[fixed_columns - 1]));
+      } else if (fixed_columns < 0 && column_count > 0) {
+        for (int k = 0; k < column_in_buffers; ++k)
+          e = Ops::max(
+              e, Ops::subs(Ops::load(column_source[k] + here), Ops::load(column_steps + k * lane_count)));
+        e = Ops::max(e, Ops::subs(deepest_source, Ops::load(column_steps + column_in_buffers * lane_count)));
+      }
+      if (column_count > 0) deepest_source = Ops::load(target);
+      if (carry_move) e = Ops::max(e, carry);  // last: the carry is the chain from texel to texel
       const int column = first + stride * b;
       const V d = Ops::max(e, Ops::broadcast(top_row[column]));
       Ops::store(target, d);
       if (bilinear)
         Ops::store(dilations + std::size_t(b + 1) * lane_stride, e);
       else
-        Ops::store_mask_at_most(mask_row + column * mask_step, e, Ops::broadcast(bottom_row[column]));
-      if (!octant) carry = Ops::subs(d, step_row);
-      next2 = next1;
-      next1 = here;
+        Ops::store_mask_at_most(mask_row + column, e, Ops::broadcast(bottom_row[column]));
+      if (carry_move) carry = Ops::subs(d, step_row);
     }
     work += W;
-    if (wrap && !octant) {
+    if (wrap && carry_move) {
       // Blockers past the row's first texel come round from its last: at most one more lap. A
       // texel's dilation over blockers becomes max(old, carry), and so does its dilation with
       // itself; a lane passes now when it passed before and the carry passes it. Once the carry
       // does not raise a texel's dilation, nothing after it changes.
       for (int b = W - 1; b >= 0; --b) {
-        std::uint16_t* target = below2 + std::size_t(b) * lane_stride;
+        std::uint16_t* target = written + std::size_t(b) * lane_stride;
         const V old_d = Ops::load(target);
         const V d = Ops::max(old_d, carry);
         const int column = first + stride * b;
@@ -135,7 +165,7 @@ void sweep_kernel(LaneSweepJob& job) {
           std::uint16_t* kept = dilations + std::size_t(b + 1) * lane_stride;
           Ops::store(kept, Ops::max(Ops::load(kept), carry));
         } else {
-          mask_row[column * mask_step] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
+          mask_row[column] &= Ops::mask_at_most(carry, Ops::broadcast(bottom_row[column]));
         }
         ++work;
         if (Ops::same(d, old_d)) break;
@@ -143,14 +173,10 @@ void sweep_kernel(LaneSweepJob& job) {
         carry = Ops::subs(d, step_row);
       }
     }
-    if (wrap) {
-      for (int k = 0; k < 2; ++k)
-        Ops::store(below2 + std::size_t(W + k) * lane_stride,
-                   Ops::load(below2 + std::size_t(k % W) * lane_stride));
-    } else {
-      Ops::store(below2 + std::size_t(W) * lane_stride, nothing);
-      Ops::store(below2 + std::size_t(W + 1) * lane_stride, nothing);
-    }
+    // the padding: the row's start again (wrap) or nothing (clamp)
+    for (int k = 0; k < padding; ++k)
+      Ops::store(written + std::size_t(W + k) * lane_stride,
+                 wrap ? Ops::load(written + std::size_t(k % W) * lane_stride) : nothing);
 
     if (bilinear) {
       // padding: the cell before the first and the two after the last, wrapped or empty
@@ -246,29 +272,51 @@ void sweep_kernel(LaneSweepJob& job) {
 
     const int lap_row = step % H;  // rows into the lap
     if (lap_row < tracked) {
-      const long long row_sum = Ops::sum(below2, W);
+      const long long row_sum = Ops::sum(written, W);
       if (!second_lap) {
         row_sums[lap_row] = row_sum;
       } else {
         equal_rows = row_sum == row_sums[lap_row] ? equal_rows + 1 : 0;
-        if (equal_rows == 2 && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
+        if (equal_rows == depth && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
       }
     }
-    std::uint16_t* done = below2;  // now row a
-    below2 = below1;
-    below1 = done;
+    for (int k = depth; k > 1; --k) below[k] = below[k - 1];  // row a is now the one below
+    below[1] = written;
   }
   job.work = work;
+}
+
+// Compile-time counts for the move sets of maps up to twice as wide as tall (row moves) or as
+// tall as wide (column moves); longer ones loop.
+template <class Ops, bool carry_move, int fixed_columns, bool bilinear>
+void sweep_rows(LaneSweepJob& job) {
+  switch (job.row_count) {
+    case 1: sweep_kernel<Ops, carry_move, 1, fixed_columns, bilinear>(job); break;
+    case 2: sweep_kernel<Ops, carry_move, 2, fixed_columns, bilinear>(job); break;
+    case 3: sweep_kernel<Ops, carry_move, 3, fixed_columns, bilinear>(job); break;
+    case 4: sweep_kernel<Ops, carry_move, 4, fixed_columns, bilinear>(job); break;
+    case 5: sweep_kernel<Ops, carry_move, 5, fixed_columns, bilinear>(job); break;
+    default: sweep_kernel<Ops, carry_move, -1, fixed_columns, bilinear>(job); break;
+  }
+}
+
+template <class Ops, bool carry_move, bool bilinear>
+void sweep_columns(LaneSweepJob& job) {
+  switch (job.column_count) {
+    case 0: sweep_rows<Ops, carry_move, 0, bilinear>(job); break;
+    case 1: sweep_rows<Ops, carry_move, 1, bilinear>(job); break;
+    case 2: sweep_rows<Ops, carry_move, 2, bilinear>(job); break;
+    case 3: sweep_rows<Ops, carry_move, 3, bilinear>(job); break;
+    default: sweep_kernel<Ops, carry_move, -1, -1, bilinear>(job); break;
+  }
 }
 
 template <class Ops>
 void sweep_kernel(LaneSweepJob& job) {
   if (job.bilinear)
-    job.knights ? sweep_kernel<Ops, true, false, true>(job) : sweep_kernel<Ops, false, false, true>(job);
-  else if (job.octant)
-    job.knights ? sweep_kernel<Ops, true, true, false>(job) : sweep_kernel<Ops, false, true, false>(job);
+    sweep_columns<Ops, true, true>(job);
   else
-    job.knights ? sweep_kernel<Ops, true, false, false>(job) : sweep_kernel<Ops, false, false, false>(job);
+    job.carry ? sweep_columns<Ops, true, false>(job) : sweep_columns<Ops, false, false>(job);
 }
 
 // The 4-sector output, texels [first, last) one at a time (the AVX-512 translation unit has its own,
@@ -281,11 +329,17 @@ void emit_texels(LaneEmitJob& job, std::size_t first, std::size_t last) {
       const std::uint32_t mask = job.masks[q][t];
       // lanes pass from the lowest up, so the mask is 2^count - 1
       const int passed = mask == 0 ? 0 : 32 - __builtin_clz(mask);
-      const float ratio =
-          passed == 0 ? lane_floor(*job.plan, job.heights, t, q, 4).floor : job.lane_ratio[passed];
+      float ratio = job.lane_ratio[passed];
+      if (passed == 0) {  // the floor, pending unless within floor_keep of its certified bound
+        const LaneFloor floor = lane_floor(*job.plan, job.heights, t, q, 4);
+        const float upper = job.plan->lane_upper[0] < floor.upper ? job.plan->lane_upper[0] : floor.upper;
+        ratio = floor.floor;
+        pending += ratio / upper < job.floor_keep ? 1 : 0;
+      } else {
+        pending += job.pending_count[passed];
+      }
       job.out[t * 4 + q] = ratio;
       sums[q] += ratio;
-      pending += job.pending_count[passed];
     }
   }
   job.ratio_sum += double(sums[0] + sums[1]) + double(sums[2] + sums[3]);

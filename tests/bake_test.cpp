@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <limits>
@@ -376,13 +377,15 @@ LaneRun run_lanes(const Map& map, Address address, bool knights, const detail::L
                          false, run.plan);
   run.masks.assign(map.values.size() * 4, 0xdeadbeef);
   std::uint32_t* const planes[4] = {run.plane(0), run.plane(1), run.plane(2), run.plane(3)};
-  // flag the counts whose ratio is below half of their upper bound, to check the pending sum
+  // flag the counts whose ratio is below half of their upper bound (below the lowest lane, the
+  // floor's), to check the pending sum
   std::uint8_t pending[detail::lane_count + 1];
   for (int c = 0; c <= detail::lane_count; ++c)
     pending[c] = run.plan.lane_ratio[c] < 0.5f * run.plan.lane_upper[c];
+  detail::LaneSweepOptions half = options;
+  half.floor_keep = 0.5f;
   run.out.assign(map.values.size() * 4, -1.0f);
-  run.totals =
-      detail::sweep_sectors(run.plan, map.values.data(), 4, planes, run.out.data(), pending, options);
+  run.totals = detail::sweep_sectors(run.plan, map.values.data(), 4, planes, run.out.data(), pending, half);
   run.work = run.totals.work;
   return run;
 }
@@ -420,7 +423,8 @@ TEST(LaneSweep, BoundsTheExactQuadrantRatioFromBothSides) {
               ASSERT_LE(exact.at(i, j, q), run.plan.lane_upper[count]) << where << " count " << count;
               swept_sum += ratio;
               exact_sum += exact.at(i, j, q);
-              pending += run.plan.lane_ratio[count] < 0.5f * run.plan.lane_upper[count];
+              pending += count == 0 ? floor.floor / std::min(run.plan.lane_upper[0], floor.upper) < 0.5f
+                                    : run.plan.lane_ratio[count] < 0.5f * run.plan.lane_upper[count];
             }
         EXPECT_EQ(run.totals.pending, pending) << map.name;
         EXPECT_NEAR(run.totals.ratio_sum, swept_sum, 1e-5 * swept_sum) << map.name;
@@ -487,12 +491,19 @@ TEST(LaneSweep, OctantsBoundTheExactOctantRatioFromBothSides) {
 }
 
 // Many small random maps - noise, heights on the 16-bit grid, 0/1 spikes, gaps of one 16-bit step,
-// 1 x n strips - in every sector count and address mode: stage L never claims more than exact, and
-// its certified bounds hold.
+// 1 x n strips, and from seed 121 on one side a multiple (2 to 6) of the other, so that 8 sectors
+// get octant sweeps - in every sector count and address mode: stage L never claims more than exact,
+// and its certified bounds hold.
 TEST(LaneSweep, RandomMapsNeverOverclaim) {
-  int checked = 0;
-  for (std::uint64_t seed = 1; seed <= 120; ++seed) {
-    const int w = 1 + int(test::hash01(seed, 0, 1) * 24), h = 1 + int(test::hash01(seed, 0, 2) * 24);
+  int checked = 0, octant_maps = 0;
+  for (std::uint64_t seed = 1; seed <= 180; ++seed) {
+    int w = 1 + int(test::hash01(seed, 0, 1) * 24), h = 1 + int(test::hash01(seed, 0, 2) * 24);
+    if (seed > 120) {
+      const int side = 1 + int(test::hash01(seed, 0, 3) * 9),
+                multiple = 2 + int(test::hash01(seed, 0, 4) * 5);
+      w = seed % 3 == 0 ? side : side * multiple;
+      h = seed % 3 == 0 ? side * multiple : side;
+    }
     Map map{"random", w, h, std::vector<float>(std::size_t(w) * h)};
     const int kind = int(seed % 4);
     for (int i = 0; i < h; ++i)
@@ -504,14 +515,14 @@ TEST(LaneSweep, RandomMapsNeverOverclaim) {
         if (kind == 3) v = 0.5f + (u > 0.5f ? 1.0f : 0.0f) / 65535.0f;  // one 16-bit step
         map.at(i, j) = v;
       }
-    const bool square = w == h;
     for (Address address : {Address::wrap, Address::clamp})
       for (int sectors : {4, 8}) {
-        if (sectors == 8 && !square) continue;
-        const ConeMap exact = exact_of(map, sectors, address);
         detail::LanePlan plan;
         detail::make_lane_plan(map.values.data(), w, h, address == Address::wrap, 0.02f, seed % 2 == 0,
                                sectors == 8, plan);
+        if (sectors == 8 && plan.octant_split == 0) continue;  // the baker takes quadrants there
+        octant_maps += sectors == 8 && w != h;
+        const ConeMap exact = exact_of(map, sectors, address);
         const std::size_t count = map.values.size();
         std::vector<std::uint32_t> masks(count * sectors);
         std::uint32_t* planes[8];
@@ -541,6 +552,7 @@ TEST(LaneSweep, RandomMapsNeverOverclaim) {
       }
   }
   EXPECT_GT(checked, 100000);
+  EXPECT_GT(octant_maps, 40);
 }
 
 // The AVX2 and AVX-512 kernels (where this CPU has them) give the generic kernel's masks exactly.
@@ -587,6 +599,200 @@ TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
       EXPECT_LT(early.work, whole.work * 3 / 4) << "the second lap should stop early";
     }
   }
+}
+
+// Non-square maps. The chamfer of stage L (lane_sweep.cpp) for every aspect make_lane_plan sees:
+// the cheapest path of moves to every lattice point of the quadrant within uv distance 1 - each move
+// costing scale times its uv length - is no longer than the straight line; scale stays the square
+// map's (cos 13.3 deg) up to 32:1; and where there are octant sweeps (one side a multiple n <= 64 of
+// the other), the moves of each reach exactly the lattice points of its octant (the move sets as
+// sweep_sectors takes them).
+TEST(LaneSweep, ChamferPathsAreNeverLongerThanTheStraightLine) {
+  struct Move {
+    int da, db;
+  };
+  const std::pair<int, int> sizes[] = {{16, 16}, {32, 16},     {16, 32},     {24, 16}, {16, 24},
+                                       {70, 30}, {30, 70},     {64, 4},      {4, 64},  {5, 1},
+                                       {1, 5},   {1024, 1023}, {1023, 1024}, {256, 2}, {2, 256}};
+  for (const auto& [w, h] : sizes) {
+    const std::vector<float> flat(std::size_t(w) * h, 0.5f);
+    detail::LanePlan plan;
+    detail::make_lane_plan(flat.data(), w, h, true, 0.02f, true, true, plan);
+    const std::string where = std::to_string(w) + "x" + std::to_string(h);
+    if (std::max(w, h) <= 32 * std::min(w, h)) EXPECT_GT(plan.scale, 0.97) << where;
+    // octants where one side is a multiple n of the other and the move (1, n) or (n, 1) exists
+    const int multiple = w % h == 0 ? w / h : h % w == 0 ? h / w : 0;
+    EXPECT_EQ(plan.octant_split, multiple <= detail::lane_reach_limit ? multiple : 0) << where;
+    auto moves = [&](int row_first, int row_last, int column_first, int column_last, bool carry) {
+      std::vector<Move> set;
+      for (int k = row_first; k <= row_last; ++k) set.push_back({1, k});
+      for (int k = column_first; k <= column_last; ++k) set.push_back({k, 1});
+      if (carry) set.push_back({0, 1});
+      return set;
+    };
+    const int rows = plan.row_reach, columns = plan.column_reach, n = plan.octant_split;
+    const bool tall = h > w;
+    std::vector<std::vector<Move>> sets = {moves(0, rows, 2, columns, true)};
+    if (n > 0) {
+      sets.push_back(tall ? moves(0, 0, n, columns, false) : moves(0, n, 2, columns, false));  // next to v
+      sets.push_back(tall ? moves(1, rows, 2, n, true) : moves(n, rows, 2, 1, true));          // next to u
+    }
+    auto length = [&](int da, int db) { return std::hypot(double(db) / w, double(da) / h); };
+    const int last_a = std::min(h, 300), last_b = std::min(w, 300);  // uv distance 1 (or as far as that)
+    for (std::size_t set = 0; set < sets.size(); ++set) {
+      // cheapest paths over the lattice points (a rows, b columns) of the quadrant
+      std::vector<double> cost(std::size_t(last_a + 1) * (last_b + 1),
+                               std::numeric_limits<double>::infinity());
+      cost[0] = 0.0;
+      for (int a = 0; a <= last_a; ++a)
+        for (int b = 0; b <= last_b; ++b)
+          for (const Move& m : sets[set])
+            if (m.da <= a && m.db <= b)
+              cost[std::size_t(a) * (last_b + 1) + b] = std::min(
+                  cost[std::size_t(a) * (last_b + 1) + b],
+                  cost[std::size_t(a - m.da) * (last_b + 1) + (b - m.db)] + plan.scale * length(m.da, m.db));
+      for (int a = 0; a <= last_a; ++a)
+        for (int b = 0; b <= last_b; ++b) {
+          const double straight = length(a, b);
+          if ((a == 0 && b == 0) || !(straight < 1.0)) continue;
+          const double path = cost[std::size_t(a) * (last_b + 1) + b];
+          // in the octant next to v when its direction is at least 45 deg from u (both on the diagonal)
+          const bool next_to_v = std::int64_t(b) * h <= std::int64_t(a) * w;
+          const bool next_to_u = std::int64_t(a) * w <= std::int64_t(b) * h;
+          const bool in_set = set == 0 || (set == 1 ? next_to_v : next_to_u);
+          ASSERT_EQ(path < std::numeric_limits<double>::infinity(), in_set)
+              << where << " move set " << set << " point " << a << "," << b;
+          if (in_set)
+            ASSERT_LE(path, straight * (1.0 + 1e-12))
+                << where << " move set " << set << " point " << a << "," << b;
+        }
+    }
+  }
+}
+
+// Small non-square maps, wide and tall, one side a multiple of the other or not.
+std::vector<Map> aspect_maps() {
+  return {
+      test::make_fractal_cliff(48, 24),  test::make_bricks(64, 16),           test::make_spikes(20, 40, 5),
+      test::make_terraces(12, 36),       test::make_fractal_cliff(80, 5, 7),  test::make_spikes(6, 54, 9),
+      test::make_near_flat_step(40, 20), test::make_fractal_cliff(33, 20, 4), test::make_checkerboard(8, 24)};
+}
+
+// Stage L on non-square maps, 4 and 8 sectors: every ratio at or below the exact one bit for bit, the
+// first failing lane above it, and every instruction set the same masks (the longer move sets loop).
+TEST(LaneSweep, NonSquareSweepsBoundTheExactRatiosFromBothSides) {
+  for (const Map& map : aspect_maps())
+    for (Address address : {Address::wrap, Address::clamp})
+      for (int sectors : {4, 8}) {
+        detail::LanePlan plan;
+        detail::make_lane_plan(map.values.data(), map.width, map.height, address == Address::wrap, 0.02f,
+                               true, sectors == 8, plan);
+        const std::string where = map.name + " " + std::to_string(map.width) + "x" +
+                                  std::to_string(map.height) + " " + address_name(address) + " sectors " +
+                                  std::to_string(sectors);
+        EXPECT_GT(plan.scale, 0.97) << where;
+        if (sectors == 8 && plan.octant_split == 0) {
+          EXPECT_FALSE(map.width % map.height == 0 || map.height % map.width == 0) << where;
+          continue;
+        }
+        const ConeMap exact = exact_of(map, sectors, address);
+        const std::size_t count = map.values.size();
+        std::vector<std::uint32_t> masks(count * sectors, 0xdeadbeef);
+        std::uint32_t* planes[8];
+        for (int k = 0; k < sectors; ++k) planes[k] = masks.data() + k * count;
+        detail::sweep_sectors(plan, map.values.data(), sectors, planes, nullptr, nullptr);
+        double swept_sum = 0.0, exact_sum = 0.0;
+        for (int k = 0; k < sectors; ++k)
+          for (std::size_t t = 0; t < count; ++t) {
+            const int c = detail::lanes_passed(planes[k][t]);
+            ASSERT_EQ(planes[k][t], c == 32 ? 0xffffffffu : (1u << c) - 1u) << where;
+            const detail::LaneFloor floor = detail::lane_floor(plan, map.values.data(), t, k, sectors);
+            const float ratio = c == 0 ? floor.floor : plan.lane_ratio[c];
+            const float truth = exact.ratios[t * sectors + k];
+            ASSERT_GT(ratio, 0.0f) << where;
+            ASSERT_LE(ratio, truth) << where << " sector " << k << " texel " << t;
+            ASSERT_LE(truth, c == 0 ? std::min(plan.lane_upper[0], floor.upper) : plan.lane_upper[c])
+                << where << " sector " << k << " texel " << t << " count " << c;
+            swept_sum += ratio;
+            exact_sum += truth;
+          }
+        EXPECT_GT(swept_sum, 0.8 * exact_sum) << where;
+        for (int level : {0, 3}) {
+          if (level > detail::lane_sweep_best_level()) continue;
+          std::vector<std::uint32_t> other(count * sectors);
+          std::uint32_t* other_planes[8];
+          for (int k = 0; k < sectors; ++k) other_planes[k] = other.data() + k * count;
+          detail::sweep_sectors(plan, map.values.data(), sectors, other_planes, nullptr, nullptr,
+                                {level, true});
+          EXPECT_EQ(other, masks) << where << " level " << level;
+        }
+      }
+}
+
+// The whole baker on non-square maps, 1, 4 and 8 sectors: never above exact at any budget, within the
+// tolerance with no limit, and exact with tolerance 0.
+TEST(BudgetedBaker, NonSquareMapsConservativeAtEveryBudget) {
+  for (const Map& map : aspect_maps())
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const ConeMap exact = exact_of(map, sectors, address);
+        const std::string where = map.name + " " + std::to_string(map.width) + "x" +
+                                  std::to_string(map.height) + " " + address_name(address) + " sectors " +
+                                  std::to_string(sectors);
+        for (int budget_kind = 0; budget_kind < 4; ++budget_kind) {
+          Budget budget;
+          if (budget_kind == 0) budget.milliseconds = 0.0;
+          if (budget_kind == 1) budget.max_work = 50;
+          if (budget_kind == 3) budget.tolerance = 0.0f;
+          ConeMap cones = make_cone_map(map, sectors);
+          const BakeStats stats = bake_budgeted(view_of(map), address, budget, cones.view());
+          ASSERT_EQ(violations(cones, exact).count, 0) << where << " budget kind " << budget_kind;
+          for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << where;
+          if (budget_kind == 2) {
+            EXPECT_EQ(stats.texels_fallback, 0) << where;
+            for (std::size_t n = 0; n < cones.ratios.size(); ++n)
+              ASSERT_GE(cones.ratios[n], (1.0f - budget.tolerance) * exact.ratios[n] * (1.0f - 1e-6f))
+                  << where;
+          }
+          if (budget_kind == 3) ASSERT_EQ(cones.ratios, exact.ratios) << where;
+        }
+      }
+}
+
+// Non-square maps of 0.26 to 2.1 million texels, wide and tall up to 16:1, wrap and clamp, 4 and 8
+// sectors: stage L certifies every texel within the default tolerance, so an unlimited bake ends
+// after it (before the moves were fitted to the aspect, a 1024 x 512 brick map left 287,000 texels
+// to the refinement and 8 sectors all of them).
+TEST(BudgetedBaker, StageLCertifiesNonSquareMapsWithinTheDefaultTolerance) {
+  Map waves{"waves", 4096, 256, std::vector<float>(std::size_t(4096) * 256)};
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j)
+      waves.at(i, j) =
+          0.5f +
+          0.3f * std::sin(2.0f * std::numbers::pi_v<float> * (7.0f * j / 4096.0f + 3.0f * i / 256.0f)) +
+          0.15f * std::cos(2.0f * std::numbers::pi_v<float> * (11.0f * i / 256.0f - 5.0f * j / 4096.0f));
+  const Map maps[] = {test::make_ocean(2048, 1024),
+                      test::make_ocean(1024, 2048),
+                      test::make_bricks(1024, 512),
+                      test::make_bricks(512, 1024),
+                      waves,
+                      test::make_bricks(4096, 256),
+                      test::make_bricks(256, 4096)};
+  for (const Map& map : maps)
+    for (int sectors : {4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        BudgetedBaker baker(map.width, map.height, sectors, address);
+        ConeMap cones = make_cone_map(map, sectors);
+        Budget none;
+        none.milliseconds = 0.0;
+        const BakeStats stats = baker.bake(view_of(map), none, cones.view());
+        const std::string where = map.name + " " + std::to_string(map.width) + "x" +
+                                  std::to_string(map.height) + " " + address_name(address) + " sectors " +
+                                  std::to_string(sectors);
+        EXPECT_EQ(stats.texels_fallback, 0) << where;
+        EXPECT_EQ(baker.pending(none.tolerance), 0) << where;
+        EXPECT_EQ(stats.texels_refined, 0) << where;
+      }
 }
 
 TEST(BudgetedBaker, UnlimitedWithZeroToleranceIsExact) {
@@ -642,46 +848,48 @@ TEST(BudgetedBaker, FakeClockBudgetStopsRefinement) {
   EXPECT_EQ(violations(cones, exact_of(map, 4, Address::wrap)).count, 0);
 }
 
+// On a 40 x 32 map (8 sectors from quadrants) and a 48 x 24 one (octant sweeps).
 TEST(BudgetedBaker, IncrementalUpdatesStayConservativeAndConverge) {
   std::uint64_t seed = 99;
   using Policy = BudgetedBaker::UpdatePolicy;
-  for (Policy policy : {Policy::incremental, Policy::cheaper, Policy::rebake})
-    for (int sectors : {1, 4, 8})
-      for (Address address : {Address::wrap, Address::clamp}) {
-        Map map = test::make_fractal_cliff(40, 32, seed);
-        BudgetedBaker baker(map.width, map.height, sectors, address);
-        ConeMap cones = make_cone_map(map, sectors);
-        Budget unlimited;
-        unlimited.tolerance = 0.0f;
-        baker.bake(view_of(map), unlimited, cones.view());
-        for (int frame = 0; frame < 12; ++frame) {
-          // a random local raise or lowering
-          const int w = 1 + int(test::hash01(seed, frame, 1) * 6),
-                    h = 1 + int(test::hash01(seed, frame, 2) * 6);
-          const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
-          const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
-          const bool raise = frame % 3 != 1;
-          for (int i = y0; i < y0 + h; ++i)
-            for (int j = x0; j < x0 + w; ++j) {
-              float& value = map.at(i, j);
-              value = raise ? std::min(1.0f, value + 0.3f * test::hash01(seed, i, j + frame))
-                            : std::max(0.0f, value - 0.3f * test::hash01(seed, i, j + frame));
+  for (const auto& [width, height] : {std::pair{40, 32}, std::pair{48, 24}})
+    for (Policy policy : {Policy::incremental, Policy::cheaper, Policy::rebake})
+      for (int sectors : {1, 4, 8})
+        for (Address address : {Address::wrap, Address::clamp}) {
+          Map map = test::make_fractal_cliff(width, height, seed);
+          BudgetedBaker baker(map.width, map.height, sectors, address);
+          ConeMap cones = make_cone_map(map, sectors);
+          Budget unlimited;
+          unlimited.tolerance = 0.0f;
+          baker.bake(view_of(map), unlimited, cones.view());
+          for (int frame = 0; frame < 12; ++frame) {
+            // a random local raise or lowering
+            const int w = 1 + int(test::hash01(seed, frame, 1) * 6),
+                      h = 1 + int(test::hash01(seed, frame, 2) * 6);
+            const int x0 = int(test::hash01(seed, frame, 3) * (map.width - w));
+            const int y0 = int(test::hash01(seed, frame, 4) * (map.height - h));
+            const bool raise = frame % 3 != 1;
+            for (int i = y0; i < y0 + h; ++i)
+              for (int j = x0; j < x0 + w; ++j) {
+                float& value = map.at(i, j);
+                value = raise ? std::min(1.0f, value + 0.3f * test::hash01(seed, i, j + frame))
+                              : std::max(0.0f, value - 0.3f * test::hash01(seed, i, j + frame));
+              }
+            const Rect dirty{x0, y0, x0 + w, y0 + h};
+            Budget none;
+            none.milliseconds = 0.0;
+            baker.update(view_of(map), std::span<const Rect>(&dirty, 1), none, cones.view(), policy);
+            const ConeMap exact = exact_of(map, sectors, address);
+            ASSERT_EQ(violations(cones, exact).count, 0)
+                << "frame " << frame << (raise ? " raise" : " lower") << " sectors " << sectors << " "
+                << address_name(address) << " policy " << int(policy) << " " << width << "x" << height;
+            if (frame % 4 == 3) {  // later frames converge to the full rebake
+              baker.refine(unlimited, cones.view());
+              EXPECT_EQ(baker.pending(), 0);
+              ASSERT_EQ(cones.ratios, exact.ratios) << "frame " << frame;
             }
-          const Rect dirty{x0, y0, x0 + w, y0 + h};
-          Budget none;
-          none.milliseconds = 0.0;
-          baker.update(view_of(map), std::span<const Rect>(&dirty, 1), none, cones.view(), policy);
-          const ConeMap exact = exact_of(map, sectors, address);
-          ASSERT_EQ(violations(cones, exact).count, 0)
-              << "frame " << frame << (raise ? " raise" : " lower") << " sectors " << sectors << " "
-              << address_name(address) << " policy " << int(policy);
-          if (frame % 4 == 3) {  // later frames converge to the full rebake
-            baker.refine(unlimited, cones.view());
-            EXPECT_EQ(baker.pending(), 0);
-            ASSERT_EQ(cones.ratios, exact.ratios) << "frame " << frame;
           }
         }
-      }
 }
 
 // `cheaper` repairs a tiny change that reaches little incrementally (the changed group keeps the

@@ -1,10 +1,13 @@
 // tests/test_maps.h - hard height maps for the bakers' tests and benchmarks, made in code.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "sim/sim.h"
 
 namespace displace::test {
 
@@ -101,6 +104,24 @@ inline Map make_bricks(int w, int h) {
       value -= 0.05f * hash01(11, i, j);
       m.at(i, j) = std::max(0.0f, std::min(1.0f, value));
     }
+  return m;
+}
+
+// An FFT ocean frame (the default sim::Ocean at t = 0, mapped onto [0, 1]) of the longer side N,
+// sampled every N / w columns and N / h rows: the same periodic surface, coarser along the shorter
+// side of a non-square map. N must be a multiple of both sides.
+inline Map make_ocean(int w, int h) {
+  const int n = std::max(w, h);
+  sim::OceanParams params;
+  params.size = n;
+  sim::Ocean ocean(params);
+  sim::OceanFrame frame;
+  ocean.evaluate(0.0f, sim::ocean_heights, frame);
+  std::vector<float> square(std::size_t(n) * n);
+  sim::apply_mapping(ocean.mapping(), frame.height, square);
+  Map m{"ocean", w, h, std::vector<float>(std::size_t(w) * h)};
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) m.at(i, j) = square[std::size_t(i) * (n / h) * n + std::size_t(j) * (n / w)];
   return m;
 }
 

@@ -7,6 +7,11 @@
 // heights - so its tightness is only a comparison of means and it counts no violations. Maps have
 // 4 sectors; BM_Bake8 is the budgeted baker with 8 (octant sweeps). BM_Update times one update()
 // after a local change, with the repair the baker picks and with the incremental one forced.
+// BM_BakeNonSquare/<map>/<W>x<H> (4 sectors) and BM_BakeNonSquare8 (8): the budgeted baker, no
+// limit, on non-square maps next to the square map of about as many texels (2048x1024, 1024x2048
+// and 1448x1448; 1024x512, 512x1024 and 724x724; 4096x256, 256x4096 and 1024x1024); the ocean is
+// the FFT ocean of the longer side sampled along the shorter (test::make_ocean); refined_frac is
+// the share of texels the refinement stages took after stage L.
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
@@ -41,23 +46,18 @@ const char* kind_name(MapKind kind) {
   return "?";
 }
 
-std::vector<float> make_heights(MapKind kind, int size) {
-  std::vector<float> heights(std::size_t(size) * size);
+std::vector<float> make_heights(MapKind kind, int width, int height) {
+  std::vector<float> heights(std::size_t(width) * height);
   if (kind == MapKind::ocean) {
-    sim::OceanParams params;
-    params.size = size;
-    sim::Ocean ocean(params);
-    sim::OceanFrame frame;
-    ocean.evaluate(0.0f, sim::ocean_heights, frame);
-    sim::apply_mapping(ocean.mapping(), frame.height, heights);
+    heights = test::make_ocean(width, height).values;
   } else if (kind == MapKind::sinusoids) {
     sim::SinusoidParams params;
     const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(params);
     std::vector<float> raw(heights.size());
-    sim::sinusoid_heights(waves, params.patch_size, 0.0f, size, size, raw);
+    sim::sinusoid_heights(waves, params.patch_size, 0.0f, width, height, raw);
     sim::apply_mapping(sim::sinusoid_mapping(waves), raw, heights);
   } else {
-    heights = test::make_bricks(size, size).values;
+    heights = test::make_bricks(width, height).values;
   }
   return heights;
 }
@@ -69,19 +69,22 @@ struct Reference {
 };
 
 // Heights and exact cones, made once per map, size and sector count.
-const Reference& reference(MapKind kind, int size, int sector_count) {
+const Reference& reference(MapKind kind, int width, int height, int sector_count) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int>, Reference> cache;
+  static std::map<std::tuple<int, int, int, int>, Reference> cache;
   std::lock_guard<std::mutex> lock(mutex);
-  Reference& entry = cache[{int(kind), size, sector_count}];
+  Reference& entry = cache[{int(kind), width, height, sector_count}];
   if (entry.heights.empty()) {
-    entry.heights = make_heights(kind, size);
+    entry.heights = make_heights(kind, width, height);
     entry.exact.resize(entry.heights.size() * sector_count);
-    const bake::BakeStats stats = bake::bake_exact({entry.heights.data(), size, size}, bake::Address::wrap,
-                                                   {entry.exact.data(), size, size, sector_count});
+    const bake::BakeStats stats = bake::bake_exact({entry.heights.data(), width, height}, bake::Address::wrap,
+                                                   {entry.exact.data(), width, height, sector_count});
     entry.exact_mean = stats.mean_ratio;
   }
   return entry;
+}
+const Reference& reference(MapKind kind, int size, int sector_count) {
+  return reference(kind, size, size, sector_count);
 }
 
 enum class Baker {
@@ -97,15 +100,14 @@ enum class Baker {
 constexpr double frame_budget_ms = 16.0;  // one 60 Hz frame
 constexpr double long_budget_ms = 50.0;   // a 20 Hz update
 
-void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 4) {
-  const int size = int(state.range(0));
-  const Reference& ref = reference(kind, size, sector_count);
+void run_map(benchmark::State& state, MapKind kind, Baker baker, int width, int height, int sector_count) {
+  const Reference& ref = reference(kind, width, height, sector_count);
   std::vector<float> cones(ref.exact.size()), apex(ref.heights.size());
-  const bake::HeightView heights{ref.heights.data(), size, size};
-  const bake::ConeView out{cones.data(), size, size, sector_count};
+  const bake::HeightView heights{ref.heights.data(), width, height};
+  const bake::ConeView out{cones.data(), width, height, sector_count};
   bake::BakeStats stats;
   // a frame pipeline keeps its baker (and its buffers) from frame to frame
-  bake::BudgetedBaker budgeted(size, size, sector_count, bake::Address::wrap);
+  bake::BudgetedBaker budgeted(width, height, sector_count, bake::Address::wrap);
   for (auto _ : state) {
     switch (baker) {
       case Baker::exact: stats = bake::bake_exact(heights, bake::Address::wrap, out); break;
@@ -134,8 +136,15 @@ void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 
     for (std::size_t n = 0; n < cones.size(); ++n) violations += cones[n] > ref.exact[n];
     state.counters["violations"] = double(violations);
   }
-  state.counters["fallback_frac"] = double(stats.texels_fallback) / double(size * size);
-  state.counters["work_per_texel"] = double(stats.work) / double(size * size);
+  const double texels = double(width) * double(height);
+  state.counters["fallback_frac"] = double(stats.texels_fallback) / texels;
+  state.counters["refined_frac"] = double(stats.texels_refined) / texels;
+  state.counters["work_per_texel"] = double(stats.work) / texels;
+}
+
+void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 4) {
+  const int size = int(state.range(0));
+  run_map(state, kind, baker, size, size, sector_count);
 }
 
 // One frame of update() after a local change: a rect x rect patch raised and lowered in a
@@ -340,6 +349,22 @@ struct Registration {
           [kind](benchmark::State& state) { run(state, kind, Baker::budgeted, 8); });
       b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
     }
+    // non-square maps next to the square map of about as many texels, 4 and 8 sectors, no limit:
+    // BM_BakeNonSquare/<map>/<W>x<H>, BM_BakeNonSquare8/<map>/<W>x<H>
+    const std::pair<int, int> sizes[] = {{2048, 1024}, {1024, 2048}, {1448, 1448}, {1024, 512}, {512, 1024},
+                                         {724, 724},   {4096, 256},  {256, 4096},  {1024, 1024}};
+    for (int sectors : {4, 8})
+      for (MapKind kind : {MapKind::ocean, MapKind::bricks})
+        for (const auto& [width, height] : sizes) {
+          auto* b = benchmark::RegisterBenchmark(
+              (std::string(sectors == 8 ? "BM_BakeNonSquare8/" : "BM_BakeNonSquare/") + kind_name(kind) +
+               "/" + std::to_string(width) + "x" + std::to_string(height))
+                  .c_str(),
+              [kind, sectors, width = width, height = height](benchmark::State& state) {
+                run_map(state, kind, Baker::budgeted, width, height, sectors);
+              });
+          b->Unit(benchmark::kMillisecond)->UseRealTime();
+        }
   }
 } registration;
 
