@@ -286,8 +286,43 @@ void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std
   state.counters["searched_frac"] = double(stats.texels_refined) / double(size * size);
 }
 
+// Stage L of the bilinear baker (0 ms) on a non-square map, its baker kept and warmed up.
+void run_bilinear_map(benchmark::State& state, MapKind kind, int width, int height) {
+  static std::mutex mutex;
+  static std::map<std::tuple<int, int, int>, std::vector<float>> cache;
+  std::vector<float>* heights;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    heights = &cache[{int(kind), width, height}];
+    if (heights->empty()) *heights = make_heights(kind, width, height);
+  }
+  std::vector<float> cones(heights->size() * 4), apex(heights->size());
+  bake::BilinearBaker baker(width, height, 4, bake::Address::wrap);
+  bake::Budget budget;
+  budget.milliseconds = 0.0;
+  bake::BakeStats stats = baker.bake({heights->data(), width, height}, budget, {cones.data(), width, height, 4}, apex);
+  for (auto _ : state) {
+    stats = baker.bake({heights->data(), width, height}, budget, {cones.data(), width, height, 4}, apex);
+    benchmark::DoNotOptimize(cones.data());
+  }
+  state.counters["mean_ratio"] = stats.mean_ratio;
+}
+
 struct Registration {
   Registration() {
+    // BM_BakeBilinearNonSquare/<map>/<W>x<H>: stage L on non-square maps next to the square one
+    for (MapKind kind : {MapKind::ocean, MapKind::bricks})
+      for (const auto& [width, height] : {std::pair{2048, 1024}, std::pair{1024, 2048}, std::pair{1448, 1448},
+                                          std::pair{4096, 256}, std::pair{1024, 1024}}) {
+        auto* b = benchmark::RegisterBenchmark(
+            (std::string("BM_BakeBilinearNonSquare/") + kind_name(kind) + "/" + std::to_string(width) + "x" +
+             std::to_string(height))
+                .c_str(),
+            [kind, width = width, height = height](benchmark::State& state) {
+              run_bilinear_map(state, kind, width, height);
+            });
+        b->Unit(benchmark::kMillisecond)->UseRealTime();
+      }
     for (bool budgeted : {true, false})
       for (int size : {256, 512, 1024, 2048}) {
         if (!budgeted && size > 512) continue;  // the full bake: 7 s at 1024, minutes above
