@@ -311,39 +311,34 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
                   : double(lowest_ratio);
   const double highest_lane = 1.0001, knee = 0.05, low_spacing = 1.28, certified = 0.77;
   const double worst_loss = 2.032 * double(std::max(width, height)) / height_scale;  // see the upper bounds
-  // the spacing below lane r that still certifies `certified`, made `closer` times closer (in log)
-  auto spacing_below = [&](double r, double closer) {
-    return std::pow(std::max(1.05, (scale - worst_loss * r) / certified), 1.0 / closer);
-  };
-  auto lane_below_top = [&](int steps, double closer) {  // the lane `steps` below the highest
-    double r = highest_lane;
-    for (int k = 0; k < steps; ++k) r /= spacing_below(r, closer);
-    return r;
-  };
-  int top_lanes = 0;
-  while (top_lanes < lane_count - 1 && lane_below_top(top_lanes, 1.0) > knee) ++top_lanes;
+  // the spacing below lane r that still certifies `certified`
+  auto spacing_below = [&](double r) { return std::max(1.05, (scale - worst_loss * r) / certified); };
+  int top_lanes = 0;  // the upper lanes needed to reach the knee at that spacing
+  for (double r = highest_lane; r > knee && top_lanes < lane_count - 1; r /= spacing_below(r)) ++top_lanes;
   const int low_lanes = std::clamp(int(std::ceil(std::log(knee / smallest_ratio) / std::log(low_spacing))), 0,
                                    std::max(0, std::min(lane_count / 2, lane_count - 1 - top_lanes)));
   top_lanes = lane_count - 1 - low_lanes;
-  // the upper lanes end on the knee lane (the top of the lower ones): the closeness that puts them
-  // there, by bisection (they only get closer than needed); if even 1 leaves them above it, the
-  // lower lanes go on from where they end
-  double closer = 1.0;
-  double knee_lane =
-      std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
-  if (lane_below_top(top_lanes, 1.0) < knee_lane) {
-    double below = 1.0, above = 64.0;
-    for (int k = 0; k < 60; ++k) {
-      const double middle = 0.5 * (below + above);
-      (lane_below_top(top_lanes, middle) < knee_lane ? below : above) = middle;
+  // The upper lanes take the steps that spacing allows made `closer` times smaller (in log), as many
+  // as reach down to the knee lane, the top of the lower ones, when there are more lanes than
+  // needed (never wider than allowed: closer >= 1); the lower ones go on from where they end.
+  const double knee_target = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) *
+                             std::pow(low_spacing, low_lanes);
+  double steps_needed = 0.0;  // at spacing_below, with the fraction of the last
+  for (double r = highest_lane; steps_needed < lane_count;) {
+    const double spacing = spacing_below(r);
+    if (r / spacing <= knee_target) {
+      steps_needed += std::log(r / knee_target) / std::log(spacing);
+      break;
     }
-    closer = above;
+    r /= spacing;
+    steps_needed += 1.0;
   }
-  knee_lane = lane_below_top(top_lanes, closer);
+  const double closer = steps_needed > 0.0 ? std::max(1.0, top_lanes / steps_needed) : 1.0;
   double ratios[lane_count];
-  for (int l = 0; l < lane_count; ++l)
-    ratios[l] = l <= low_lanes ? knee_lane / std::pow(low_spacing, low_lanes - l)
-                               : lane_below_top(lane_count - 1 - l, closer);
+  ratios[lane_count - 1] = highest_lane;
+  for (int l = lane_count - 1; l > 0; --l)
+    ratios[l - 1] = l > low_lanes ? ratios[l] / std::pow(spacing_below(ratios[l]), 1.0 / closer)
+                                  : ratios[l] / low_spacing;
   set_lane_ratios(plan, ratios);
 }
 
