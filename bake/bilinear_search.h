@@ -8,9 +8,6 @@
 
 namespace displace::bake::detail {
 
-// H_c of texel (i, j): the maximum of the bilinear surface over its square, rounded up to float.
-float bilinear_apex(HeightView heights, Address address, int i, int j);
-
 // The search of bake_bilinear_cones for single texels. Made once per height map (cell maxima, slopes
 // and their max pyramid, O(N)); `heights` must outlive it. texel() is thread-safe.
 class BilinearSearch {

@@ -505,14 +505,6 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
 
 namespace detail {
 
-float bilinear_apex(HeightView heights, Address address, int i, int j) {
-  Context context{heights, Grid(heights.width, heights.height, 1, address), Axis(heights.width, address),
-                  Axis(heights.height, address), 0, {}, {}, {}};
-  double square[3][3];
-  square_values(context, i, j, square);
-  return apex_height(square);
-}
-
 struct BilinearSearch::Context {
   bake::Context context;
 };

@@ -48,6 +48,7 @@
 // cannot have changed: those of texels whose apex is unchanged, where heights only fell (a lower
 // surface keeps every claim) or where the raised texels' region is too far to lower them.
 #include "bake/bilinear_search.h"
+#include "bake/budget_clock.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -117,25 +118,7 @@ namespace {
 
 using State = BilinearBaker::State;
 
-struct Clock {
-  std::function<double()> source;
-  double start = 0.0;
-  double limit = std::numeric_limits<double>::infinity();
-  long long work_limit = -1;
-  long long work = 0;
-
-  explicit Clock(const Budget& budget) : source(budget.clock), limit(budget.milliseconds), work_limit(budget.max_work) {
-    if (!source) {
-      const auto origin = std::chrono::steady_clock::now();
-      source = [origin] {
-        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - origin).count();
-      };
-    }
-    start = source();
-  }
-  double elapsed() const { return source() - start; }
-  bool out() const { return (work_limit >= 0 && work >= work_limit) || !(elapsed() < limit); }
-};
+using Clock = detail::BudgetClock;
 
 void check_view(const State& state, HeightView heights, const ConeView& out, std::span<float> apex) {
   validate(heights, out);
@@ -509,7 +492,7 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
       if (progress) progress(1.0);
     }
   } finish_report{progress};
-  if (state.next >= state.queue.size() || clock.out()) return 0;
+  if (state.next >= state.queue.size() || clock.exhausted()) return 0;
   long long work = 0;
   if (!state.upper_ready) {  // certify with the upper bounds before searching: drop what they certify
     work += ensure_upper(state);
@@ -528,7 +511,7 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   const std::size_t batch = std::size_t(refine_chunk) * 2;
   const std::size_t first_queued = state.next;
   double next_report = 1.0 / max_progress_reports;
-  while (state.next < state.queue.size() && !clock.out()) {
+  while (state.next < state.queue.size() && !clock.exhausted()) {
     const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);
     const long long batch_work = tbb::parallel_reduce(
         tbb::blocked_range<std::size_t>(first, last, refine_chunk), 0ll,

@@ -35,6 +35,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "bake/budget_clock.h"
 #include "bake/lane_sweep.h"
 #include "bake/search.h"
 
@@ -183,29 +184,6 @@ struct BudgetedBaker::State {
 
 namespace {
 
-struct Clock {
-  std::function<double()> clock;
-  double start = 0.0;
-  double limit = 0.0;
-  long long max_work = -1;
-  std::atomic<long long> work{0};
-
-  explicit Clock(const Budget& budget)
-      : clock(budget.clock), limit(budget.milliseconds), max_work(budget.max_work) {
-    if (!clock) {
-      clock = [] {
-        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
-            .count();
-      };
-    }
-    start = clock();
-  }
-  double elapsed() const { return clock() - start; }
-  bool exhausted() const {
-    if (max_work >= 0 && work.load(std::memory_order_relaxed) >= max_work) return true;
-    return !(elapsed() < limit);
-  }
-};
 
 // Stage 0, the O(N) floor that every call completes whatever the budget: the eight neighbours
 // exactly, and for every level L one bound for all texels between the level-(L-1) and level-L
@@ -522,7 +500,7 @@ float keep_of(const Budget& budget) {
 
 // Advances groups in cursor order while the budget lasts: first stage A for every group that only
 // has the stage-0 floor, then stage B for groups with texels looser than the tolerance.
-void run_refinement(BudgetedBaker::State& state, Clock& clock, float keep, float* out, long long& refined) {
+void run_refinement(BudgetedBaker::State& state, detail::BudgetClock& clock, float keep, float* out, long long& refined) {
   const int groups = group_count(state.grid);
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<int> order;
@@ -596,7 +574,7 @@ float texel_slack(const BudgetedBaker::State& state, int planes, std::size_t t, 
   return std::min(1.0f, sectors == 1 ? smallest / lowest_upper : slack);
 }
 
-StageTotals run_stage_l(BudgetedBaker::State& state, float keep, Clock& clock, float* out) {
+StageTotals run_stage_l(BudgetedBaker::State& state, float keep, detail::BudgetClock& clock, float* out) {
   const Grid& grid = state.grid;
   const int width = grid.width, height = grid.height, sectors = grid.sector_count;
   const std::size_t count = state.heights.size();
@@ -691,7 +669,7 @@ void ensure_slack(BudgetedBaker::State& state) {
   state.slack_stale = false;
 }
 
-BakeStats finish(const BudgetedBaker::State& state, const Clock& clock, float keep, long long refined,
+BakeStats finish(const BudgetedBaker::State& state, const detail::BudgetClock& clock, float keep, long long refined,
                  float* out, const StageTotals* known = nullptr) {
   BakeStats stats;
   stats.mode = Mode::budgeted;
@@ -729,7 +707,7 @@ BakeStats BudgetedBaker::bake(HeightView heights, const Budget& budget, ConeView
   State& state = *state_;
   check_view(state, heights, out);
   const float keep = keep_of(budget);
-  Clock clock(budget);
+  detail::BudgetClock clock(budget);
   state.heights.assign(heights.data, heights.data + std::size_t(heights.width) * heights.height);
   state.search_ready = false;
   state.upper.clear();  // bounds from real blockers of the previous heights
@@ -751,7 +729,7 @@ BakeStats BudgetedBaker::refine(const Budget& budget, ConeView out) {
       out.sector_count != state.grid.sector_count)
     throw BakeError("cone map output does not match the baker");
   const float keep = keep_of(budget);
-  Clock clock(budget);
+  detail::BudgetClock clock(budget);
   ensure_slack(state);
   ensure_search_state(state);
   long long refined = 0;
@@ -766,7 +744,7 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
   check_view(state, heights, out);
   ensure_slack(state);  // from the previous frame's stage L, before its heights go
   const float keep = keep_of(budget);
-  Clock clock(budget);
+  detail::BudgetClock clock(budget);
   const Grid& grid = state.grid;
   const int sectors = grid.sector_count;
   const int width = grid.width, height = grid.height;
