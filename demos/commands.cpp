@@ -17,6 +17,7 @@
 #include <stdexcept>
 
 #include "demos/obj_io.h"
+#include "pipeline/maps.h"
 #include "demos/progress.h"
 
 namespace displace::app {
@@ -450,13 +451,15 @@ void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& fi
 void run_render(const RenderSettings& settings, std::ostream& out) {
   BakeInput input = prepare_bake_input(settings.input);
   render::Renderer renderer(settings.renderer);
+  pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
   bake::Budget cone_budget;
   cone_budget.milliseconds = settings.bake_budget_milliseconds;
-  renderer.set_height_field({input.width, input.height, std::move(input.heights)}, cone_budget);
+  maps.set_cone_budget(cone_budget);
+  maps.set_heights({input.width, input.height, std::move(input.heights)});
   if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
   if (!settings.mesh.empty()) renderer.set_mesh(read_obj(settings.mesh));
   const render::MethodInfo& info = render::method_info(settings.method.method);
-  const render::Frame frame = renderer.render(settings.view, settings.method);
+  const render::Frame frame = pipeline::render_with_maps(renderer, maps, settings.view, settings.method);
   Metadata metadata = input.metadata;
   metadata.push_back({"displace:method", std::string(info.name)});
   metadata.push_back({"displace:steps", settings.method.steps});
@@ -484,7 +487,8 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   for (const AovOutput& aov : settings.aovs) out << ", " << aov.file.string();
   out << '\n';
   if (settings.compare_reference) {
-    const render::Frame reference = renderer.render(settings.view, {render::Method::reference, 1, 0});
+    const render::Frame reference =
+        pipeline::render_with_maps(renderer, maps, settings.view, {render::Method::reference, 1, 0});
     const render::ImageError error = render::compare(frame, reference);
     out << format("  compare reference: rmse %.3f, max error %.0f, %.3f%% of %lld pixels off by more than 10 "
                   "(8-bit units)\n",
@@ -497,6 +501,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
 
 void run_sweep(const SweepSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
+  pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
   std::ofstream csv(settings.output);
   if (!csv) throw runtime_error("cannot write " + settings.output.string());
   csv << "scene,method,steps,refine,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,mean_iterations,"
@@ -505,14 +510,15 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
       << settings.repeat << " renders per row, median device time\n";
   for (const SceneSettings& scene : settings.scenes) {
     BakeInput input = prepare_bake_input(scene.input);
-    renderer.set_height_field({input.width, input.height, std::move(input.heights)});
+    maps.set_heights({input.width, input.height, std::move(input.heights)});
     if (!scene.mesh.empty()) renderer.set_mesh(read_obj(scene.mesh));
     if (scene.albedo.empty()) {
       renderer.clear_albedo();
     } else {
       set_albedo_from(renderer, scene.albedo);
     }
-    const render::Frame reference = renderer.render(scene.view, {render::Method::reference, 1, 0});
+    const render::Frame reference =
+        pipeline::render_with_maps(renderer, maps, scene.view, {render::Method::reference, 1, 0});
     out << format("scene %s: %d x %d map, %d x %d pixels\n", scene.name.c_str(), input.width, input.height,
                   scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
@@ -528,8 +534,9 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
       for (int steps : settings.steps) {
         std::vector<double> times;
         render::Frame frame;
+        renderer.set_maps(maps.maps_for(method, scene.view));
         for (int r = 0; r < settings.repeat; ++r) {
-          frame = renderer.render(scene.view, {method, steps, settings.refine});
+          renderer.render(scene.view, {method, steps, settings.refine}, frame);
           times.push_back(frame.gpu_milliseconds);
         }
         std::sort(times.begin(), times.end());
@@ -619,9 +626,11 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   render_settings.view = render::View{};  // the default camera of render.h
   render_settings.method = {render::Method::acm4, 32, 0};
   render::Renderer renderer(render_settings.renderer);
-  renderer.set_height_field({ocean.width, ocean.height, heights});
-  const render::Frame acm4 = renderer.render(render_settings.view, render_settings.method);
-  const render::Frame reference = renderer.render(render_settings.view, {render::Method::reference, 1, 0});
+  pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
+  maps.set_heights({ocean.width, ocean.height, heights});
+  const render::Frame acm4 = pipeline::render_with_maps(renderer, maps, render_settings.view, render_settings.method);
+  const render::Frame reference =
+      pipeline::render_with_maps(renderer, maps, render_settings.view, {render::Method::reference, 1, 0});
   const std::filesystem::path acm4_file = settings.output_directory / "ocean_acm4.png";
   const std::filesystem::path reference_file = settings.output_directory / "ocean_reference.png";
   const std::filesystem::path iterations_file = settings.output_directory / "ocean_acm4_iterations.png";
@@ -705,7 +714,9 @@ usage:
       --shadows traces from each hit towards the light with the same method (self-shadowing).
       --albedo shades with an image (1-4 channels, used as stored) instead of the procedural grid.
       --device picks a Vulkan device (default: the best GPU, else lavapipe); --validate turns on the
-      Khronos validation layer and fails on any message.
+      Khronos validation layer and fails on any message. --pipeline-cache DIR|off: where compiled
+      pipelines are kept between runs (default $DISPLACE_PIPELINE_CACHE, else
+      $XDG_CACHE_HOME/displace, else ~/.cache/displace).
 
   displace sweep [--scene bricks|ocean|cliff|FILE ...] [--methods all|NAME,NAME...]
                  [--steps 4,8,16,32,64] [--refine R] [--repeat N] [--size WxH] [--device D] [--validate]

@@ -579,10 +579,13 @@ SceneSettings finish_scene(const SceneDraft& draft, const std::string& name, con
   return scene;
 }
 
-// --device and --validate, for every command that renders.
+// --device, --validate and --pipeline-cache, for every command that renders.
 bool take_renderer_flag(std::string_view flag, FlagReader& reader, render::RendererOptions& options) {
   if (flag == "--device") {
     options.device = std::string(reader.value());
+  } else if (flag == "--pipeline-cache") {
+    options.pipeline_cache = std::string(reader.value());
+    if (options.pipeline_cache.empty()) throw usage_error("--pipeline-cache needs a directory or 'off'");
   } else if (flag == "--validate") {
     reader.no_value();
     options.validate = true;

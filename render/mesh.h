@@ -49,6 +49,31 @@ static_assert(sizeof(MeshVertex) == 16 * sizeof(float));
 // away from the normal (convex, like a sphere: 1 / 2R).
 std::vector<MeshVertex> mesh_vertices(const Mesh& mesh);
 
+// The true-displacement reference's geometry (render/reference_mesh.cpp), made on the CPU and drawn
+// by the renderer's `reference` method; the vertex shaders displace it with the height texture.
+
+// The plane's reference: a grid with a vertex at every texel centre of the `tile` x `tile` tiles of a
+// width x height map plus the patch border (u = 0 and u = tile, likewise v), so that its triangles
+// interpolate the same texel heights as the bilinear texture does. Vertices are (u, v) pairs.
+struct PlaneReference {
+  std::vector<float> uv;  // 2 per vertex
+  std::vector<std::uint32_t> indices;
+};
+PlaneReference plane_reference(int width, int height, int tile);
+
+// A mesh's reference: every triangle cut into n x n sub-triangles, n chosen so that a sub-edge spans
+// at most half a texel of the (tiled) width x height map (capped so that the result stays within
+// max_mesh_reference_vertices), the same n everywhere. A point on an edge is blended from the edge's
+// two vertices in one fixed order, so neighbouring triangles share it bit for bit: no cracks.
+inline constexpr long long max_mesh_reference_vertices = 4 << 20;
+struct MeshReference {
+  std::vector<MeshVertex> vertices;
+  std::vector<std::uint32_t> indices;
+  int subdivisions = 0;  // n
+};
+MeshReference mesh_reference(const std::vector<MeshVertex>& vertices, const std::vector<std::uint32_t>& triangles,
+                             int width, int height, int tile);
+
 }  // namespace displace::render
 
 #endif

@@ -44,6 +44,7 @@
 //   outer surface back to the hit; passing through the inner solid is a shadow too (the terminator).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -170,6 +171,8 @@ struct DeviceInfo {
   int index = 0;
   std::string name;
   std::string type;  // "discrete-gpu", "integrated-gpu", "virtual-gpu", "cpu", "other"
+  int max_image_dimension_3d = 0;            // texels a side of a 3D image (the distance map)
+  std::uint64_t max_storage_buffer_range = 0;  // bytes of one storage buffer (the max pyramid)
 };
 
 struct RendererOptions {
@@ -177,12 +180,19 @@ struct RendererOptions {
   // Otherwise a device index or a case-insensitive part of its name.
   std::string device;
   bool validate = false;  // Khronos validation layer; every message is printed and counted
+  // Where the VkPipelineCache is kept between runs: a directory; empty for the default
+  // (default_pipeline_cache_dir()); "off" for none.
+  std::string pipeline_cache;
 };
+
+// $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,
+// else $HOME/.cache/displace; "off" when none of them is set.
+std::string default_pipeline_cache_dir();
 
 // Devices the Vulkan loader sees. Throws RenderError (saying what to install) when there is none.
 std::vector<DeviceInfo> list_devices();
 
-// The baked maps a method needs, made from the heights with the foundation's bakers.
+// A height field on the CPU (the reference tracers' input and what map makers read).
 struct HeightField {
   int width = 0;
   int height = 0;
@@ -196,22 +206,98 @@ struct Albedo {
   std::vector<std::uint8_t> rgba;
 };
 
+// ---- Maps: made by the caller (bake/), handed to the renderer, which uploads them and never bakes.
+//
+// Every map is a view of memory the caller owns, valid for the call that hands it over (set_maps
+// copies what changed). Versions: a map's `version` changes whenever its content does, and names
+// that content for every map handed to this renderer (pipeline::MapMaker draws them from one
+// process-wide counter); `dirty` lists the texel rectangles ([x0, x1) x [y0, y1)) that changed since
+// version `dirty_since` (empty: all of it). The renderer copies only those rectangles when it holds
+// version `dirty_since` of that map at the same size, and the whole map otherwise; a map whose
+// version it already holds is not copied at all.
+
+// The bilinear-surface cone map of bake::BilinearBaker / bake_bilinear_cones (apex heights with
+// ratios for 1, 4 or 8 sectors), plus bake::bake_relaxed's 1-sector relaxed ratios for relaxed
+// cone stepping (1 sector only).
+struct ConeMapView {
+  int sector_count = 0;  // 0: not given
+  bake::Address address = bake::Address::wrap;
+  std::span<const float> ratios;   // W x H x sector_count, interleaved (bake::ConeView)
+  std::span<const float> apex;     // W x H
+  std::span<const float> relaxed;  // W x H, or empty
+  std::uint64_t version = 0;
+  std::uint64_t dirty_since = 0;
+  std::span<const bake::Rect> dirty;
+};
+
+// bake::build_dual_max_pyramid's pyramid of the heights (maxmip, qdm).
+struct MaxPyramidView {
+  const bake::DualMaxPyramid* pyramid = nullptr;  // nullptr: not given
+  bake::Address address = bake::Address::wrap;
+  std::uint64_t version = 0;
+};
+
+// bake::bake_distance_map's distance map (sphere tracing); its size need not be the height map's.
+struct DistanceMapView {
+  int width = 0, height = 0, depth = 0;  // 0: not given
+  bake::Address address = bake::Address::wrap;
+  std::span<const float> values;  // W x H x D, bake::DistanceView's layout
+  std::uint64_t version = 0;
+};
+
+struct MapSet {
+  int width = 0, height = 0;       // of the height map and of every cone map
+  std::span<const float> heights;  // W x H in [0, 1], bake conventions; every method reads them
+  std::uint64_t heights_version = 0;
+  std::uint64_t heights_dirty_since = 0;
+  std::span<const bake::Rect> heights_dirty;
+  std::array<ConeMapView, 3> cones;  // by cone_slot(sector_count): 1, 4 and 8 sectors
+  MaxPyramidView max_pyramid;
+  DistanceMapView distance;
+};
+int cone_slot(int sector_count);  // 0, 1, 2 for 1, 4, 8 sectors
+
+// What a method reads for a view, from the method table: the renderer refuses a frame whose maps
+// are missing (naming the map), and map makers (pipeline/maps.h) bake exactly this.
+struct MapNeeds {
+  int cone_sectors = 0;  // 0: no cone map
+  bool relaxed = false;  // the cone map's relaxed layer
+  bake::Address cone_address = bake::Address::wrap;  // wrap on quadrics (u closes around the axis)
+  bool max_pyramid = false;
+  bool distance = false;
+  bake::Address address = bake::Address::wrap;  // of the pyramid and the distance map: the view's
+};
+MapNeeds map_needs(Method method, const View& view);
+
+// Which per-pixel outputs a frame reads back (Frame's vectors; the others stay empty). None: the
+// frame is submitted and not waited for (at most frames_in_flight frames are in flight).
+enum Output : unsigned {
+  output_none = 0,
+  output_color = 1u << 0,
+  output_uv = 1u << 1,
+  output_depth = 1u << 2,
+  output_iterations = 1u << 3,
+  output_fetches = 1u << 4,
+  output_all = 31u,
+};
+inline constexpr int frames_in_flight = 2;
+
 class Renderer {
  public:
-  // Creates the instance, device, descriptor layouts and render targets' layouts once.
+  // Creates the instance, device, layouts, render pass and the per-frame resources once, and loads
+  // the pipeline cache (RendererOptions::pipeline_cache).
   explicit Renderer(const RendererOptions& options = {});
-  ~Renderer();
+  ~Renderer();  // waits for the frames in flight; saves the pipeline cache
   Renderer(Renderer&&) noexcept;
   Renderer& operator=(Renderer&&) noexcept;
 
   const DeviceInfo& device() const;
 
-  // Sets the heights (validated like the bakers do). Maps are baked the first time a method needs
-  // them - cone maps for the bilinear surface (bake::BilinearBaker within `cone_budget`; relaxed
-  // adds bake::bake_relaxed's 1-sector ratios to them), the dual max pyramid, bake_distance_map's
-  // distance map - and kept until the heights change. The cone maps are conservative at any
-  // budget, so a starved bake (0 ms) costs cone steps, never a wrong hit; unlimited by default.
-  void set_height_field(const HeightField& field, const bake::Budget& cone_budget = {});
+  // Hands over the maps (validated: sizes, finite heights in [0, 1]) and records the copies of what
+  // changed into the next frame (MapSet's versions and dirty rectangles). Device images and buffers
+  // are kept per map and made again only when a size changes; the staging memory is a ring, one
+  // part per frame in flight. Throws RenderError for a map it cannot take.
+  void set_maps(const MapSet& maps);
 
   // The albedo the hit is shaded with, sampled at the hit's texture coordinates (bilinear, the
   // view's address mode, repeated with the tile); its 8-bit values are used as they are (no sRGB
@@ -223,11 +309,22 @@ class Renderer {
   // here; throws RenderError when the mesh cannot carry a relief (see mesh_vertices).
   void set_mesh(const Mesh& mesh);
 
-  // Renders one frame; pipelines are made once per method and kept.
-  Frame render(const View& view, const MethodSettings& method);
+  // Renders one frame from the maps last set; a method whose maps were not given is refused with a
+  // RenderError naming the map. Pipelines are made once per method and surface (through the
+  // pipeline cache). `frame`'s vectors are reused (resized, not reallocated once large enough);
+  // only `outputs` are read back, and with output_none the frame is not waited for.
+  void render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs = output_all);
+  Frame render(const View& view, const MethodSettings& method, unsigned outputs = output_all);
+
+  // Waits until every submitted frame has finished.
+  void wait_idle();
 
   // Validation messages seen so far (only counted with options.validate).
   long long validation_messages() const;
+  // vkAllocateMemory calls so far: after warm-up frames of the same sizes, a frame allocates none.
+  long long memory_allocations() const;
+  // Graphics pipelines created so far (each method and surface once per renderer).
+  long long pipelines_created() const;
 
   struct Impl;
 

@@ -214,6 +214,8 @@ Context::Context(const RendererOptions& options) {
     vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &family_count, families.data());
     has_timestamps_ = properties.limits.timestampComputeAndGraphics && families[queue_family_].timestampValidBits > 0;
     timestamp_period_ns_ = properties.limits.timestampPeriod;
+    info_.max_image_dimension_3d = int(properties.limits.maxImageDimension3D);
+    info_.max_storage_buffer_range = properties.limits.maxStorageBufferRange;
 
     const float priority = 1.0f;
     VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -232,6 +234,7 @@ Context::Context(const RendererOptions& options) {
     DISPLACE_VK_CHECK(vkCreateCommandPool(device_, &pool_info, nullptr, &command_pool_));
     VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
     DISPLACE_VK_CHECK(vkCreateFence(device_, &fence_info, nullptr, &fence_));
+    one_time_commands_ = allocate_command_buffer();
   } catch (...) {
     destroy();
     throw;
@@ -269,13 +272,29 @@ std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlag
   throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
 }
 
-VkCommandBuffer Context::begin_commands() const {
+VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const {
+  VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  allocate.allocationSize = requirements.size;
+  allocate.memoryTypeIndex = memory_type(requirements.memoryTypeBits, properties);
+  VkDeviceMemory memory = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory));
+  memory_allocations_->fetch_add(1);
+  return memory;
+}
+
+VkCommandBuffer Context::allocate_command_buffer() const {
   VkCommandBufferAllocateInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
   info.commandPool = command_pool_;
   info.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
   info.commandBufferCount = 1;
   VkCommandBuffer commands = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkAllocateCommandBuffers(device_, &info, &commands));
+  return commands;
+}
+
+VkCommandBuffer Context::begin_commands() const {
+  VkCommandBuffer commands = one_time_commands_;
+  DISPLACE_VK_CHECK(vkResetCommandBuffer(commands, 0));
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   DISPLACE_VK_CHECK(vkBeginCommandBuffer(commands, &begin));
@@ -290,7 +309,6 @@ void Context::end_submit_wait(VkCommandBuffer commands) const {
   DISPLACE_VK_CHECK(vkResetFences(device_, 1, &fence_));
   DISPLACE_VK_CHECK(vkQueueSubmit(queue_, 1, &submit, fence_));
   DISPLACE_VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
-  vkFreeCommandBuffers(device_, command_pool_, 1, &commands);
 }
 
 Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags properties)
@@ -302,10 +320,7 @@ Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usa
   DISPLACE_VK_CHECK(vkCreateBuffer(device_, &info, nullptr, &buffer_));
   VkMemoryRequirements requirements;
   vkGetBufferMemoryRequirements(device_, buffer_, &requirements);
-  VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  allocate.allocationSize = requirements.size;
-  allocate.memoryTypeIndex = context.memory_type(requirements.memoryTypeBits, properties);
-  DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory_));
+  memory_ = context.allocate(requirements, properties);
   DISPLACE_VK_CHECK(vkBindBufferMemory(device_, buffer_, memory_, 0));
   if (properties & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
     DISPLACE_VK_CHECK(vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
@@ -336,10 +351,7 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
   DISPLACE_VK_CHECK(vkCreateImage(device_, &info, nullptr, &image_));
   VkMemoryRequirements requirements;
   vkGetImageMemoryRequirements(device_, image_, &requirements);
-  VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  allocate.allocationSize = requirements.size;
-  allocate.memoryTypeIndex = context.memory_type(requirements.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory_));
+  memory_ = context.allocate(requirements, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
   DISPLACE_VK_CHECK(vkBindImageMemory(device_, image_, memory_, 0));
   VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   view.image = image_;

@@ -37,8 +37,13 @@ class Context {
   long long validation_messages() const { return validation_messages_->load(); }
 
   std::uint32_t memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const;
+  // vkAllocateMemory, counted (memory_allocations()).
+  VkDeviceMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const;
+  long long memory_allocations() const { return memory_allocations_->load(); }
+  // A primary command buffer from the pool (resettable), owned by the caller until the pool goes.
+  VkCommandBuffer allocate_command_buffer() const;
 
-  // Records with `record`, submits and waits.
+  // Records with `record` into the one reusable command buffer, submits and waits (set-up uploads).
   template <typename Record>
   void submit_and_wait(Record&& record) const {
     VkCommandBuffer commands = begin_commands();
@@ -59,11 +64,13 @@ class Context {
   std::uint32_t queue_family_ = 0;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
+  VkCommandBuffer one_time_commands_ = VK_NULL_HANDLE;
   DeviceInfo info_;
   float timestamp_period_ns_ = 0.0f;
   bool has_timestamps_ = false;
   VkPhysicalDeviceMemoryProperties memory_properties_{};
   std::unique_ptr<std::atomic<long long>> validation_messages_ = std::make_unique<std::atomic<long long>>(0);
+  std::unique_ptr<std::atomic<long long>> memory_allocations_ = std::make_unique<std::atomic<long long>>(0);
 };
 
 // A buffer with its own memory; host-visible buffers stay mapped.

@@ -63,8 +63,8 @@ View looking_at(Surface surface, glm::vec3 eye, glm::vec3 target, int pixels, fl
 }
 
 Frame render_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
-  shared_renderer().set_height_field(field);
-  return shared_renderer().render(view, {method, steps, refine});
+  shared_maps().set_heights(field);
+  return draw(view, {method, steps, refine});
 }
 
 bool hit_at(const Frame& frame, std::size_t p) { return frame.uv[p * 3 + 2] > 0.5f; }
@@ -86,9 +86,9 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
                                        Method::acm8,      Method::acm4_interval};
   for (double c : {0.0, 0.45, 1.0}) {
     const double radius = view.radius - (1.0 - c) * view.depth_scale;
-    shared_renderer().set_height_field(constant_field(map_size, c));
+    shared_maps().set_heights(constant_field(map_size, c));
     for (Method method : methods) {
-      const Frame frame = shared_renderer().render(view, {method, 128, 8});
+      const Frame frame = draw(view, {method, 128, 8});
       // the reference's facets lie inside the sphere by at most the sagitta of a texel's diagonal
       const double half_diagonal =
           0.5 * std::hypot(2.0 * std::numbers::pi / map_size, std::numbers::pi / map_size);
@@ -369,10 +369,10 @@ TEST(Quadric, NoNanInfOrHolesThroughPolesAxesAndApex) {
   for (const auto& [view_name, view] : views) {
     const std::vector<std::size_t> inner = interior_hits(zero, view), outer = interior_hits(one, view);
     for (const auto& [field_name, field] : fields) {
-      shared_renderer().set_height_field(field);
+      shared_maps().set_heights(field);
       const std::vector<std::size_t>& must_hit = field_name == "all-one" ? outer : inner;
       for (Method method : quadric_methods()) {
-        const Frame frame = shared_renderer().render(view, {method, 16, 6});
+        const Frame frame = draw(view, {method, 16, 6});
         const std::string where = view_name + " / " + field_name + " / " + render::method_info(method).name;
         EXPECT_TRUE(all_finite(frame)) << where;
         long long holes = 0;
@@ -613,15 +613,15 @@ TEST(Quadric, ShadowsStayFiniteForHardLights) {
                                                                    {"waves", waves_field(16)}};
   for (const auto& [view_name, view] : views) {
     for (const auto& [field_name, field] : fields) {
-      shared_renderer().set_height_field(field);
+      shared_maps().set_heights(field);
       for (Method method : quadric_methods()) {
         for (const glm::vec3& light : lights) {
           View plain = view;
           plain.light_direction = light;
           View shadow_view = plain;
           shadow_view.shadows = true;
-          const Frame lit = shared_renderer().render(plain, {method, 16, 6});
-          const Frame shaded = shared_renderer().render(shadow_view, {method, 16, 6});
+          const Frame lit = draw(plain, {method, 16, 6});
+          const Frame shaded = draw(shadow_view, {method, 16, 6});
           char where[160];
           std::snprintf(where, sizeof where, "%s / %s / %s / light %g,%g,%g", view_name.c_str(),
                         field_name.c_str(), render::method_info(method).name, light.x, light.y, light.z);
@@ -671,10 +671,10 @@ TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
     shadow_view.shadows = true;
     const glm::dvec3 light = glm::normalize(glm::dvec3(test.light));
     for (double c : {0.0, 0.5, 1.0}) {
-      shared_renderer().set_height_field(constant_field(32, c));
+      shared_maps().set_heights(constant_field(32, c));
       for (Method method : quadric_methods()) {
-        const Frame lit = shared_renderer().render(view, {method, 64, 8});
-        const Frame shaded = shared_renderer().render(shadow_view, {method, 64, 8});
+        const Frame lit = draw(view, {method, 64, 8});
+        const Frame shaded = draw(shadow_view, {method, 64, 8});
         long long facing = 0, acne = 0;
         for (int py = 0; py < lit.height; ++py) {
           for (int px = 0; px < lit.width; ++px) {
@@ -699,12 +699,12 @@ TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
 }
 
 TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
-  shared_renderer().set_height_field(constant_field(8, 0.5));
+  shared_maps().set_heights(constant_field(8, 0.5));
   const View sphere = looking_at(Surface::sphere, {0.5f, -0.45f, 0.55f}, {0.5f, 0.5f, 0.0f}, 8, 30.0f);
   for (const render::MethodInfo& info : render::method_table()) {
     if (render::supports_surface(info.method, Surface::sphere)) continue;
     try {
-      shared_renderer().render(sphere, {info.method, 8, 4});
+      draw(sphere, {info.method, 8, 4});
       ADD_FAILURE() << info.name << " rendered a sphere";
     } catch (const render::RenderError& error) {
       EXPECT_NE(std::string(error.what()).find("does not support --surface sphere"), std::string::npos)
@@ -713,16 +713,16 @@ TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
   }
   View view = sphere;
   view.depth_scale = 0.2f;  // above R / 2
-  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::relief, 8, 4}), render::RenderError);
   view = sphere;
   view.radius = 0.0f;
-  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::relief, 8, 4}), render::RenderError);
   view = sphere;
   view.camera.eye = {0.5f, 0.5f, 0.2f};  // inside the sphere
-  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::relief, 8, 4}), render::RenderError);
   view = looking_at(Surface::cylinder, {0.5f, 0.6f, 0.1f}, {0.5f, 0.5f, -1.0f}, 8,
                     30.0f);  // inside the cylinder
-  EXPECT_THROW(shared_renderer().render(view, {Method::relief, 8, 4}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::relief, 8, 4}), render::RenderError);
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 

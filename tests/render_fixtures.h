@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "pipeline/maps.h"
 #include "render/render.h"
 #include "sim/sim.h"
 
@@ -18,8 +19,20 @@ namespace displace::testing {
 
 inline render::Renderer& shared_renderer() {
   static std::unique_ptr<render::Renderer> renderer =
-      std::make_unique<render::Renderer>(render::RendererOptions{"", true});
+      std::make_unique<render::Renderer>(render::RendererOptions{.device = "", .validate = true, .pipeline_cache = {}});
   return *renderer;
+}
+
+// The maps of the shared renderer's methods, baked on demand from the heights last set.
+inline pipeline::MapMaker& shared_maps() {
+  static pipeline::MapMaker maps(shared_renderer().device().max_image_dimension_3d);
+  return maps;
+}
+
+// Renders with the shared renderer, from the maps the method needs (baked on first use).
+inline render::Frame draw(const render::View& view, const render::MethodSettings& method,
+                          unsigned outputs = render::output_all) {
+  return pipeline::render_with_maps(shared_renderer(), shared_maps(), view, method, outputs);
 }
 
 inline render::HeightField field_of(int width, int height, auto&& height_at) {

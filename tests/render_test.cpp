@@ -42,9 +42,8 @@ View oblique_view(int pixels) {
 }
 
 Frame render_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
-  render::Renderer& renderer = shared_renderer();
-  renderer.set_height_field(field);
-  return renderer.render(view, {method, steps, refine});
+  shared_maps().set_heights(field);
+  return draw(view, {method, steps, refine});
 }
 
 struct HitError {
@@ -251,12 +250,12 @@ TEST(Renderer, SecantRefinedMethodsNeedFewerFetchesThanReliefForTheSameAccuracy)
     for (int py = 0; py < view.camera.height; ++py)
       for (int px = 0; px < view.camera.width; ++px)
         truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
-    shared_renderer().set_height_field(field);
+    shared_maps().set_heights(field);
     auto cheapest = [&](Method method) {
       Cheapest best;
       for (int steps : {1, 2, 4, 8, 16, 32}) {
         for (int refine : {0, 1, 2, 4, 6, 8, 12}) {
-          const Frame frame = shared_renderer().render(view, {method, steps, refine});
+          const Frame frame = draw(view, {method, steps, refine});
           double fetches = 0.0, max_texels = 0.0;
           long long hits = 0, mismatches = 0;
           for (std::size_t p = 0; p < truth.size(); ++p) {
@@ -327,10 +326,10 @@ TEST(Renderer, NoNanOrInfOnHardRaysAndFlatMaps) {
                                                                    {"step", step_field(16)}};
   const auto views = hard_views();
   for (const auto& [field_name, field] : fields) {
-    shared_renderer().set_height_field(field);
+    shared_maps().set_heights(field);
     for (const auto& [view_name, view] : views) {
       for (const MethodInfo& info : render::method_table()) {
-        const Frame frame = shared_renderer().render(view, {info.method, 16, 6});
+        const Frame frame = draw(view, {info.method, 16, 6});
         EXPECT_TRUE(all_finite(frame)) << field_name << " / " << view_name << " / " << info.name;
       }
     }
@@ -342,7 +341,7 @@ TEST(Renderer, NoNanOrInfOnHardRaysAndFlatMaps) {
       view.shadows = true;
       view.light_direction = light;
       for (const MethodInfo& info : render::method_table()) {
-        const Frame frame = shared_renderer().render(view, {info.method, 16, 6});
+        const Frame frame = draw(view, {info.method, 16, 6});
         EXPECT_TRUE(all_finite(frame)) << field_name << " / shadows / " << info.name;
       }
     }
@@ -351,21 +350,29 @@ TEST(Renderer, NoNanOrInfOnHardRaysAndFlatMaps) {
 }
 
 TEST(Renderer, RejectsBadViewsWithAClearError) {
-  shared_renderer().set_height_field(constant_field(4, 0.5f));
+  shared_maps().set_heights(constant_field(4, 0.5f));
   View view = oblique_view(8);
   view.camera.look_at = view.camera.eye;
-  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::pom, 8, 0}), render::RenderError);
   view = oblique_view(8);
   view.depth_scale = std::nanf("");
-  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::pom, 8, 0}), render::RenderError);
   view = oblique_view(8);
   view.tile = 2;
   view.address = bake::Address::clamp;
-  EXPECT_THROW(shared_renderer().render(view, {Method::pom, 8, 0}), render::RenderError);
-  EXPECT_THROW(shared_renderer().render(oblique_view(8), {Method::pom, 0, 0}), render::RenderError);
+  EXPECT_THROW(draw(view, {Method::pom, 8, 0}), render::RenderError);
+  EXPECT_THROW(draw(oblique_view(8), {Method::pom, 0, 0}), render::RenderError);
   HeightField bad = constant_field(4, 0.5f);
   bad.heights[3] = std::nanf("");
-  EXPECT_THROW(shared_renderer().set_height_field(bad), render::RenderError);
+  EXPECT_THROW(shared_maps().set_heights(bad), bake::BakeError);
+  // the renderer checks heights handed to it directly as well
+  render::MapSet maps;
+  maps.width = maps.height = 4;
+  maps.heights = bad.heights;
+  maps.heights_version = ~std::uint64_t(0);
+  EXPECT_THROW(shared_renderer().set_maps(maps), render::RenderError);
+  maps.width = 5;
+  EXPECT_THROW(shared_renderer().set_maps(maps), render::RenderError);
 }
 
 }  // namespace
@@ -477,12 +484,12 @@ TEST(Renderer, ExactClassMethodsConvergeToTheReference) {
   view.camera.width = 256;
   view.camera.height = 256;
   for (const auto& [name, field] : scenes) {
-    shared_renderer().set_height_field(field);
-    const Frame reference = shared_renderer().render(view, {Method::reference, 1, 0});
+    shared_maps().set_heights(field);
+    const Frame reference = draw(view, {Method::reference, 1, 0});
     for (const MethodInfo& info : render::method_table()) {
       if (!info.exact_class || info.family == render::MethodFamily::reference) continue;
       const int steps = info.family == render::MethodFamily::linear_search ? 4096 : 512;
-      const Frame frame = shared_renderer().render(view, {info.method, steps, 16});
+      const Frame frame = draw(view, {info.method, steps, 16});
       const render::ImageError error = render::compare(frame, reference);
       std::printf("%-7s %-14s %4d steps: rmse %.3f, %lld of %lld pixels off by more than 10\n", name.c_str(),
                   info.name, steps, error.rmse, (long long)(error.fraction_over_10 * error.pixels + 0.5), error.pixels);
@@ -501,14 +508,14 @@ TEST(Renderer, ErrorDoesNotGrowWithSteps) {
   view.camera.width = 96;
   view.camera.height = 96;
   for (const auto& [name, field] : scenes) {
-    shared_renderer().set_height_field(field);
-    const Frame reference = shared_renderer().render(view, {Method::reference, 1, 0});
+    shared_maps().set_heights(field);
+    const Frame reference = draw(view, {Method::reference, 1, 0});
     for (const MethodInfo& info : render::method_table()) {
       if (!info.exact_class || info.family == render::MethodFamily::reference) continue;
       std::string line;
       double previous = 1e30;
       for (int steps : {4, 8, 16, 32, 64}) {
-        const double rmse = render::compare(shared_renderer().render(view, {info.method, steps, 8}), reference).rmse;
+        const double rmse = render::compare(draw(view, {info.method, steps, 8}), reference).rmse;
         char entry[32];
         std::snprintf(entry, sizeof entry, " %d:%.3f", steps, rmse);
         line += entry;
@@ -613,7 +620,7 @@ TEST(Renderer, SphereTracingNeverStepsPastTheSurface) {
                         {"K3 D0.02 wrap", 3, 0.02f, bake::Address::wrap},
                         {"K1 D0.5 clamp", 1, 0.5f, bake::Address::clamp}};
   for (const auto& [field_name, field] : fields) {
-    shared_renderer().set_height_field(field);
+    shared_maps().set_heights(field);
     for (const Case& c : cases) {
       View view = oblique_view(48);
       view.tile = c.tile;
@@ -625,7 +632,7 @@ TEST(Renderer, SphereTracingNeverStepsPastTheSurface) {
           truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
       const double tolerance = world_tolerance / view.depth_scale;  // in height units
       for (int steps : {4, 16, 256}) {
-        const Frame frame = shared_renderer().render(view, {Method::sphere, steps, 0});
+        const Frame frame = draw(view, {Method::sphere, steps, 0});
         long long compared = 0, past = 0, below = 0, above = 0, mismatches = 0, over_half_texel = 0;
         double worst_past = 0.0, worst_below = 0.0;
         for (int py = 0; py < frame.height; ++py) {
@@ -678,12 +685,12 @@ TEST(Renderer, AlbedoImageShadesTheHit) {
   View view = top_down_view(32);
   view.light_direction = {1.0f, 0.0f, 1.0f};
   render::Renderer& renderer = shared_renderer();
-  renderer.set_height_field(flat);
+  shared_maps().set_heights(flat);
   renderer.set_albedo({2, 2, std::vector<std::uint8_t>(16, 0)});  // all black first: replaced below
   renderer.set_albedo({2, 2, {255, 0, 0, 255, 255, 0, 0, 255, 255, 0, 0, 255, 255, 0, 0, 255}});
-  const Frame red = renderer.render(view, {Method::relief, 32, 8});
+  const Frame red = draw(view, {Method::relief, 32, 8});
   renderer.clear_albedo();
-  const Frame grid = renderer.render(view, {Method::relief, 32, 8});
+  const Frame grid = draw(view, {Method::relief, 32, 8});
   const double lambert = 0.15 + 0.85 * std::sqrt(0.5);
   long long checked = 0, grid_differs = 0;
   for (std::size_t p = 0; p < std::size_t(32 * 32); ++p) {
@@ -800,14 +807,14 @@ TEST(Renderer, SphereTracingNeedsFewerFetchesThanReliefOnSmoothFields) {
     for (int py = 0; py < view.camera.height; ++py)
       for (int px = 0; px < view.camera.width; ++px)
         truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
-    shared_renderer().set_height_field(field);
+    shared_maps().set_heights(field);
     // mean reads per pixel hit of the cheapest setting that reaches the target, and that setting
     auto cheapest = [&](Method method, std::initializer_list<int> refines) {
       double best = 1e30;
       int best_steps = 0, best_refine = 0;
       for (int steps : {1, 2, 4, 8, 16, 32, 64}) {
         for (int refine : refines) {
-          const Frame frame = shared_renderer().render(view, {method, steps, refine});
+          const Frame frame = draw(view, {method, steps, refine});
           double fetches = 0.0, max_texels = 0.0;
           long long hits = 0, mismatches = 0;
           for (std::size_t p = 0; p < truth.size(); ++p) {
@@ -854,17 +861,17 @@ TEST(Mesh, APlaneMeshRendersLikeThePlane) {
   View mesh_view = view;
   mesh_view.surface = render::Surface::mesh;
   render::Renderer& renderer = shared_renderer();
-  renderer.set_height_field(bricks);
+  shared_maps().set_heights(bricks);
   renderer.set_mesh(plane);
   for (const MethodInfo& info : render::method_table()) {
     if (info.family == render::MethodFamily::reference) continue;
-    const Frame flat = renderer.render(view, {info.method, 32, 8});
-    const Frame meshed = renderer.render(mesh_view, {info.method, 32, 8});
+    const Frame flat = draw(view, {info.method, 32, 8});
+    const Frame meshed = draw(mesh_view, {info.method, 32, 8});
     EXPECT_EQ(render::compare(meshed, flat).max_error, 0.0) << info.name;
   }
   // the reference is the mesh's tessellation there, close to the exact bilinear reference
-  const Frame exact = renderer.render(view, {Method::reference, 1, 0});
-  const Frame tessellated = renderer.render(mesh_view, {Method::reference, 1, 0});
+  const Frame exact = draw(view, {Method::reference, 1, 0});
+  const Frame tessellated = draw(mesh_view, {Method::reference, 1, 0});
   EXPECT_LT(render::compare(tessellated, exact).rmse, 12.0);
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
@@ -881,7 +888,7 @@ TEST(Mesh, SphereSilhouetteWhereTheAnalyticRadiusPutsIt) {
   const float radius = 0.3f, c = 0.3f;
   const glm::vec3 centre(0.5f, 0.5f, 0.0f);
   render::Renderer& renderer = shared_renderer();
-  renderer.set_height_field(constant_field(32, c));
+  shared_maps().set_heights(constant_field(32, c));
   renderer.set_mesh(uv_sphere(centre, radius, 96, 48));
   View view;
   view.surface = render::Surface::mesh;
@@ -894,7 +901,7 @@ TEST(Mesh, SphereSilhouetteWhereTheAnalyticRadiusPutsIt) {
   const double footprint = 2.0 * 1.9 * std::tan(glm::radians(15.0)) / 128.0;  // at the sphere's distance
   for (const MethodInfo& info : render::method_table()) {
     if (!info.exact_class) continue;
-    const Frame frame = renderer.render(view, {info.method, 128, 16});
+    const Frame frame = draw(view, {info.method, 128, 16});
     long long wrong = 0, inside = 0;
     for (int py = 0; py < 128; ++py) {
       for (int px = 0; px < 128; ++px) {
@@ -940,12 +947,13 @@ void expect_no_ray_past_the_first_crossing(std::initializer_list<Method> methods
       for (int py = 0; py < view.camera.height; ++py)
         for (int px = 0; px < view.camera.width; ++px)
           truth.push_back(render::cpu_trace(field, view, px + 0.5, py + 0.5));
-      shared_renderer().set_height_field(field, cone_budget);
+      shared_maps().set_cone_budget(cone_budget);
+      shared_maps().set_heights(field);
       for (const Method method : methods) {
         long long compared = 0, beyond = 0;
         double worst = 0.0;
         for (int steps : {1, 2, 3, 5, 8, 16, 64}) {
-          const Frame frame = shared_renderer().render(view, {method, steps, 0});
+          const Frame frame = draw(view, {method, steps, 0});
           for (std::size_t p = 0; p < truth.size(); ++p) {
             if (!truth[p].hit || frame.uv[p * 3 + 2] < 0.5f) continue;
             ++compared;
@@ -962,6 +970,7 @@ void expect_no_ray_past_the_first_crossing(std::initializer_list<Method> methods
       }
     }
   }
+  shared_maps().set_cone_budget({});
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
@@ -1007,13 +1016,218 @@ TEST(Mesh, NoNanOrInfOnHardViewsOfASphereMesh) {
     views.push_back(view);
   }
   for (const HeightField& field : {constant_field(16, 0.0f), constant_field(16, 1.0f), step_field(16)}) {
-    renderer.set_height_field(field);
+    shared_maps().set_heights(field);
     for (const View& view : views) {
       for (const MethodInfo& info : render::method_table()) {
-        const Frame frame = renderer.render(view, {info.method, 16, 6});
+        const Frame frame = draw(view, {info.method, 16, 6});
         EXPECT_TRUE(all_finite(frame)) << info.name;
       }
     }
   }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// ---- Maps handed over from outside (pipeline::MapMaker bakes; the renderer uploads and never bakes)
+
+namespace {
+
+// Ocean heights at `size` for scene time t (the sweep's ocean, mapped into [0, 1]).
+HeightField ocean_at(sim::Ocean& ocean, float t) {
+  sim::OceanFrame frame;
+  ocean.evaluate(t, sim::ocean_heights, frame);
+  HeightField field{ocean.params().size, ocean.params().size, std::vector<float>(frame.height.size())};
+  sim::apply_mapping(ocean.mapping(), frame.height, field.heights);
+  return field;
+}
+
+sim::Ocean small_ocean(int size) {
+  sim::OceanParams params;
+  params.size = size;
+  return sim::Ocean(params);
+}
+
+// The methods that read each kind of map: heights only, 4-sector cones, relaxed cones, the max
+// pyramid, the distance map, and the tessellated reference.
+const Method kept_methods[] = {Method::relief, Method::acm4, Method::relaxed, Method::qdm, Method::sphere,
+                               Method::reference};
+
+// Versions of hand-made map sets, far from pipeline::MapMaker's counter.
+constexpr std::uint64_t hand_made = std::uint64_t(1) << 62;
+
+bool same_frame(const Frame& a, const Frame& b) {
+  return a.color == b.color && a.uv == b.uv && a.depth == b.depth && a.iterations == b.iterations &&
+         a.fetches == b.fetches;
+}
+
+}  // namespace
+
+// A renderer kept over 20 successive ocean frames (new heights and maps each frame, uploaded into
+// the images it already has, a method of every map kind drawn each frame) renders every frame bit
+// for bit like a fresh renderer given the same maps. The fresh renderer of frame n draws one of the
+// methods (n modulo their count: each is compared on 3 or 4 frames), as a fresh device compiles
+// every pipeline again (about 0.5 s each here).
+TEST(Maps, AKeptRendererMatchesAFreshOneOnEveryFrame) {
+  sim::Ocean ocean = small_ocean(32);
+  const View view = oblique_view(24);
+  render::Renderer& kept = shared_renderer();
+  pipeline::MapMaker maps(kept.device().max_image_dimension_3d);
+  Frame frame;
+  constexpr int method_count = int(std::size(kept_methods));
+  for (int n = 0; n < 20; ++n) {
+    maps.set_heights(ocean_at(ocean, float(n) / 30.0f));
+    for (int m = 0; m < method_count; ++m) {
+      const Method method = kept_methods[m];
+      kept.set_maps(maps.maps_for(method, view));
+      kept.render(view, {method, 24, 6}, frame);
+      if (m != n % method_count) continue;
+      render::Renderer fresh(render::RendererOptions{.device = "", .validate = false, .pipeline_cache = "off"});
+      fresh.set_maps(maps.maps_for(method, view));
+      const Frame expected = fresh.render(view, {method, 24, 6});
+      EXPECT_TRUE(same_frame(frame, expected)) << "frame " << n << " " << render::method_info(method).name;
+    }
+  }
+  EXPECT_EQ(kept.validation_messages(), 0);
+}
+
+// Heights and cones changed in a rectangle: the renderer that gets only the rectangles (dirty_since
+// its version) draws what the one that gets whole maps draws; and it does copy only the rectangles
+// (a rectangle too small leaves a different picture).
+TEST(Maps, DirtyRectangleUploadsMatchWholeUploads) {
+  const int size = 32;
+  HeightField before = waves_field(size);
+  HeightField after = before;
+  const bake::Rect changed{5, 9, 17, 20};
+  for (int i = changed.y0; i < changed.y1; ++i)
+    for (int j = changed.x0; j < changed.x1; ++j) after.heights[std::size_t(i) * size + j] = 0.95f;
+  auto bake_cones = [&](const HeightField& field, std::vector<float>& ratios, std::vector<float>& apex) {
+    ratios.resize(field.heights.size() * 4);
+    apex.resize(field.heights.size());
+    bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);
+    baker.bake({field.heights.data(), size, size}, {}, {ratios.data(), size, size, 4}, apex);
+  };
+  std::vector<float> ratios_before, apex_before, ratios_after, apex_after;
+  bake_cones(before, ratios_before, apex_before);
+  bake_cones(after, ratios_after, apex_after);
+  // the cone map changes further out than the heights: its rectangle is where any value changed
+  bake::Rect cone_rect{size, size, 0, 0};
+  for (int i = 0; i < size; ++i)
+    for (int j = 0; j < size; ++j) {
+      const std::size_t t = std::size_t(i) * size + j;
+      bool differs = apex_before[t] != apex_after[t];
+      for (int k = 0; k < 4; ++k) differs |= ratios_before[t * 4 + k] != ratios_after[t * 4 + k];
+      if (!differs) continue;
+      cone_rect = {std::min(cone_rect.x0, j), std::min(cone_rect.y0, i), std::max(cone_rect.x1, j + 1),
+                   std::max(cone_rect.y1, i + 1)};
+    }
+  ASSERT_LT(cone_rect.x0, cone_rect.x1);
+
+  auto map_set = [&](const HeightField& field, const std::vector<float>& ratios, const std::vector<float>& apex,
+                     std::uint64_t version) {
+    render::MapSet set;
+    set.width = set.height = size;
+    set.heights = field.heights;
+    set.heights_version = version;
+    set.cones[std::size_t(render::cone_slot(4))] = {4, bake::Address::wrap, ratios, apex, {}, version, 0, {}};
+    return set;
+  };
+  const View view = oblique_view(48);
+  const render::MethodSettings settings{Method::acm4, 32, 6};
+  render::Renderer& renderer = shared_renderer();
+  auto render_partial = [&](const bake::Rect& height_rect, const bake::Rect& cones_rect) {
+    renderer.set_maps(map_set(before, ratios_before, apex_before, hand_made + 1001));
+    renderer.render(view, settings);
+    render::MapSet set = map_set(after, ratios_after, apex_after, hand_made + 1002);
+    set.heights_dirty_since = hand_made + 1001;
+    set.heights_dirty = std::span<const bake::Rect>(&height_rect, 1);
+    set.cones[1].dirty_since = hand_made + 1001;
+    set.cones[1].dirty = std::span<const bake::Rect>(&cones_rect, 1);
+    renderer.set_maps(set);
+    return renderer.render(view, settings);
+  };
+  const Frame partial = render_partial(changed, cone_rect);
+  renderer.set_maps(map_set(after, ratios_after, apex_after, hand_made + 1003));  // whole maps
+  const Frame whole = renderer.render(view, settings);
+  EXPECT_TRUE(same_frame(partial, whole));
+  const bake::Rect too_small{changed.x0, changed.y0, changed.x0 + 2, changed.y0 + 2};
+  const Frame stale = render_partial(too_small, too_small);
+  EXPECT_FALSE(same_frame(stale, whole));
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// After two warm-up frames of the same sizes, a frame with new heights and new maps allocates no
+// Vulkan memory - with frames read back and frames left in flight - and validation stays silent.
+TEST(Maps, AWarmFrameAllocatesNothing) {
+  sim::Ocean ocean = small_ocean(64);
+  const View view = oblique_view(40);
+  render::Renderer& renderer = shared_renderer();
+  pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
+  Frame frame;
+  long long after_warm_up = 0;
+  for (int n = 0; n < 8; ++n) {
+    maps.set_heights(ocean_at(ocean, float(n) / 60.0f));
+    for (const Method method : {Method::acm4, Method::qdm}) {
+      renderer.set_maps(maps.maps_for(method, view));
+      renderer.render(view, {method, 16, 4}, frame, n % 2 == 0 ? render::output_all : render::output_none);
+    }
+    if (n == 1) after_warm_up = renderer.memory_allocations();
+  }
+  renderer.wait_idle();
+  EXPECT_GT(after_warm_up, 0);
+  EXPECT_EQ(renderer.memory_allocations(), after_warm_up);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// Only the outputs asked for are read back; the rest stay empty, and what is read is the same.
+TEST(Maps, ReadsBackOnlyWhatIsAskedFor) {
+  shared_maps().set_heights(waves_field(16));
+  const View view = oblique_view(16);
+  const Frame all = draw(view, {Method::relief, 16, 4});
+  const Frame color = draw(view, {Method::relief, 16, 4}, render::output_color | render::output_fetches);
+  EXPECT_EQ(color.color, all.color);
+  EXPECT_EQ(color.fetches, all.fetches);
+  EXPECT_TRUE(color.uv.empty() && color.depth.empty() && color.iterations.empty());
+  const Frame none = draw(view, {Method::relief, 16, 4}, render::output_none);
+  EXPECT_TRUE(none.color.empty() && none.uv.empty());
+  shared_renderer().wait_idle();
+}
+
+// A method whose maps were not given is refused with one error naming the map; the renderer never
+// bakes it.
+TEST(Maps, AMethodWithoutItsMapsIsRefusedNamingTheMap) {
+  const HeightField field = waves_field(16);
+  render::MapSet set;
+  set.width = set.height = 16;
+  set.heights = field.heights;
+  set.heights_version = hand_made + 2001;
+  render::Renderer& renderer = shared_renderer();
+  renderer.set_maps(set);
+  const View view = oblique_view(8);
+  auto error_of = [&](Method method, const View& v) {
+    try {
+      renderer.render(v, {method, 8, 2});
+    } catch (const render::RenderError& error) {
+      return std::string(error.what());
+    }
+    return std::string("(rendered)");
+  };
+  EXPECT_EQ(error_of(Method::relief, view), "(rendered)");  // heights are enough
+  EXPECT_NE(error_of(Method::acm4, view).find("4-sector cone map"), std::string::npos) << error_of(Method::acm4, view);
+  EXPECT_NE(error_of(Method::csm, view).find("1-sector cone map"), std::string::npos);
+  EXPECT_NE(error_of(Method::maxmip, view).find("max pyramid"), std::string::npos);
+  EXPECT_NE(error_of(Method::sphere, view).find("distance map"), std::string::npos);
+  // cones without the relaxed layer, and cones baked for the other address mode
+  std::vector<float> ratios(field.heights.size() * 4, 0.0f), apex(field.heights.size(), 1.0f);
+  set.cones[1] = {4, bake::Address::wrap, ratios, apex, {}, hand_made + 2002, 0, {}};
+  renderer.set_maps(set);
+  EXPECT_EQ(error_of(Method::acm4, view), "(rendered)");
+  EXPECT_NE(error_of(Method::relaxed, view).find("relaxed ratios"), std::string::npos);
+  View clamped = view;
+  clamped.address = bake::Address::clamp;
+  EXPECT_NE(error_of(Method::acm4, clamped).find("baked with address clamp"), std::string::npos)
+      << error_of(Method::acm4, clamped);
+  // a NaN ratio is refused when it is handed over
+  ratios[7] = std::nanf("");
+  set.cones[1].version = hand_made + 2003;
+  EXPECT_THROW(renderer.set_maps(set), render::RenderError);
   EXPECT_EQ(renderer.validation_messages(), 0);
 }

@@ -1,0 +1,322 @@
+// render/frame.cpp - one frame: validate the view -> check the method's maps were given -> the
+// pipeline (made once) and, for `reference`, the tessellation -> frame uniforms and the slot's
+// descriptor set -> record the draw and the copies of the outputs asked for -> submit (and wait only
+// when something is read back) -> read back into the caller's Frame.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+
+#include "render/quadric.h"
+#include "render/renderer_impl.h"
+#include "render/shaders/config.h"
+
+namespace displace::render {
+
+void Renderer::Impl::ensure_targets(int width, int height) {
+  if (targets.width == width && targets.height == height) return;
+  drain();  // frames in flight draw into the old targets
+  targets = Targets{};
+  const auto w = std::uint32_t(width), h = std::uint32_t(height);
+  const VkImageUsageFlags color_usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  targets.color = Image(context, color_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  targets.hit = Image(context, hit_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  targets.counters =
+      Image(context, counters_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  targets.depth = Image(context, depth_format, w, h, 1, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                        VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  const std::array<VkImageView, 4> views = {targets.color.view(), targets.hit.view(), targets.counters.view(),
+                                            targets.depth.view()};
+  VkFramebufferCreateInfo info{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  info.renderPass = render_pass.get();
+  info.attachmentCount = std::uint32_t(views.size());
+  info.pAttachments = views.data();
+  info.width = w;
+  info.height = h;
+  info.layers = 1;
+  VkFramebuffer framebuffer = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateFramebuffer(context.device(), &info, nullptr, &framebuffer));
+  targets.framebuffer = OwnedFramebuffer(context.device(), framebuffer);
+  targets.width = width;
+  targets.height = height;
+}
+
+void Renderer::Impl::ensure_reference(int tile) {
+  const std::array<int, 3> key{tile, map_width, map_height};
+  if (reference_key == key && reference_vertices.handle()) return;
+  drain();  // an earlier frame may draw the old tessellation
+  const PlaneReference reference = plane_reference(map_width, map_height, tile);
+  reference_vertices = host_buffer(reference.uv, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  reference_indices = host_buffer(reference.indices, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  reference_index_count = std::uint32_t(reference.indices.size());
+  reference_key = key;
+}
+
+void Renderer::Impl::ensure_mesh_reference(int tile) {
+  const std::array<int, 3> key{tile, map_width, map_height};
+  if (mesh_reference_key == key && mesh_reference_vertices.handle()) return;
+  drain();
+  const MeshReference reference = mesh_reference(mesh_cpu, mesh_triangles, map_width, map_height, tile);
+  mesh_reference_vertices = host_buffer(reference.vertices, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  mesh_reference_indices = host_buffer(reference.indices, VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  mesh_reference_index_count = std::uint32_t(reference.indices.size());
+  mesh_reference_key = key;
+}
+
+void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info) {
+  const bool wrap = view.address == bake::Address::wrap;
+  const bool quadric = is_quadric(view.surface);
+  const VkImageView cone_view =
+      info.cone_sectors > 0 ? cones[std::size_t(cone_slot(info.cone_sectors))].image.view() : dummy_cones.view();
+  const VkBuffer pyramid_buffer =
+      info.family == MethodFamily::pyramid ? max_pyramid.buffer.handle() : dummy_pyramid.handle();
+  const VkImageView distance_view =
+      info.family == MethodFamily::distance ? distance.image.view() : dummy_distance.view();
+  const VkDescriptorBufferInfo uniform_info{frame_slot.uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
+  const VkSampler linear = wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get());
+  const VkSampler nearest = wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
+  const VkDescriptorImageInfo height_info{linear, heights.image.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo cone_info{nearest, cone_view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo albedo_info{linear, has_albedo ? albedo_image.view() : dummy_albedo.view(),
+                                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
+  const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
+                                            VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
+                   const VkDescriptorBufferInfo* buffer) {
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = frame_slot.descriptor_set;
+    w.dstBinding = binding;
+    w.descriptorCount = 1;
+    w.descriptorType = type;
+    w.pImageInfo = image;
+    w.pBufferInfo = buffer;
+    return w;
+  };
+  constexpr VkDescriptorType sampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  const std::array<VkWriteDescriptorSet, 6> writes = {
+      write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, nullptr, &uniform_info),
+      write(BINDING_HEIGHT, sampled, &height_info, nullptr),
+      write(BINDING_CONES, sampled, &cone_info, nullptr),
+      write(BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &pyramid_info),
+      write(BINDING_ALBEDO, sampled, &albedo_info, nullptr),
+      write(BINDING_DISTANCE, sampled, &distance_info, nullptr)};
+  vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
+}
+
+void Renderer::Impl::render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs) {
+  // validate the view
+  if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
+  view.camera.validate();
+  if (view.tile < 1 || view.tile > max_tile) throw RenderError("--tile must be between 1 and " + std::to_string(max_tile));
+  if (view.tile > 1 && view.address != bake::Address::wrap) throw RenderError("--tile above 1 needs --address wrap");
+  if (!(view.depth_scale > 0.0f && view.depth_scale <= max_depth_scale)) {
+    throw RenderError("--depth-scale must be above 0 and at most 10");
+  }
+  if (!std::isfinite(view.light_direction.x) || !std::isfinite(view.light_direction.y) ||
+      !std::isfinite(view.light_direction.z) || glm::length(view.light_direction) < 1e-6f) {
+    throw RenderError("the light direction must be finite and non-zero");
+  }
+  if (method.steps < 1 || method.steps > max_steps) throw RenderError("--steps must be between 1 and 4096");
+  if (method.refine < 0 || method.refine > max_refine) throw RenderError("--refine must be between 0 and 64");
+  if (outputs > output_all) throw RenderError("render: unknown outputs requested");
+  const MethodInfo& info = method_info(method.method);
+  const Camera& camera = view.camera;
+  const bool quadric = is_quadric(view.surface);
+  const bool mesh = view.surface == Surface::mesh;
+  if (mesh && mesh_index_count == 0) throw RenderError("--surface mesh: no mesh was set");
+  if (!supports_surface(info.method, view.surface)) {
+    std::string supported;
+    for (const MethodInfo& other : method_table()) {
+      if (!supports_surface(other.method, view.surface)) continue;
+      supported += (supported.empty() ? "" : ", ") + std::string(other.name);
+    }
+    throw RenderError(std::string("--method ") + info.name + " does not support --surface " +
+                      surface_name(view.surface) + " (methods there: " + supported + ")");
+  }
+  if (quadric) quadric::validate(view);
+  require_maps(map_needs(method.method, view), info);
+
+  // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
+  const VkPipeline pipeline_handle = pipeline(info, view.surface);
+  const bool reference = info.family == MethodFamily::reference;
+  if (reference) {
+    if (mesh) {
+      ensure_mesh_reference(view.tile);
+    } else {
+      ensure_reference(view.tile);
+    }
+  }
+  ensure_targets(camera.width, camera.height);
+
+  // frame uniforms: near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
+  glm::dvec3 box_lo(0.0, 0.0, -double(view.depth_scale)), box_hi(1.0, 1.0, 0.0);
+  if (quadric) quadric::relief_box(quadric::shape_of(view), box_lo, box_hi);
+  if (mesh) {
+    box_lo = mesh_lo - glm::dvec3(view.depth_scale);
+    box_hi = mesh_hi + glm::dvec3(view.depth_scale);
+  }
+  double far_plane = 0.0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const glm::dvec3 p((corner & 1) ? box_hi.x : box_lo.x, (corner & 2) ? box_hi.y : box_lo.y,
+                       (corner & 4) ? box_lo.z : box_hi.z);
+    far_plane = std::max(far_plane, glm::length(p - glm::dvec3(camera.eye)));
+  }
+  far_plane = far_plane * 1.01 + 1e-3;
+  const double near_plane = far_plane * 1e-5;
+  gpu::FrameUniforms uniforms{};
+  uniforms.view_projection = camera.view_projection(float(near_plane), float(far_plane));
+  uniforms.eye = glm::vec4(camera.eye, 1.0f);
+  uniforms.light = glm::vec4(glm::normalize(view.light_direction), 0.0f);
+  uniforms.surface = glm::vec4(float(view.tile), view.depth_scale, 1.0f / float(view.tile), 0.0f);
+  uniforms.map_size =
+      glm::vec4(float(map_width), float(map_height), 1.0f / float(map_width), 1.0f / float(map_height));
+  const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
+                    (has_albedo ? FLAG_ALBEDO : 0);
+  uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
+  uniforms.background = glm::vec4(background[0], background[1], background[2], background[3]);
+  uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
+
+  FrameSlot& frame_slot = begin_slot();
+  const int slot_index = slot;
+  std::memcpy(frame_slot.uniforms.mapped(), &uniforms, sizeof uniforms);
+  write_descriptors(frame_slot, view, info);
+
+  // readback buffers of the outputs asked for (made per target size; the slot's frame has finished)
+  const auto width = std::uint32_t(camera.width), height = std::uint32_t(camera.height);
+  const VkDeviceSize pixels = VkDeviceSize(width) * height;
+  if (frame_slot.readback_width != camera.width || frame_slot.readback_height != camera.height) {
+    frame_slot.color_readback = Buffer{};
+    frame_slot.hit_readback = Buffer{};
+    frame_slot.counters_readback = Buffer{};
+    frame_slot.readback_width = camera.width;
+    frame_slot.readback_height = camera.height;
+  }
+  const bool read_color = outputs & output_color;
+  const bool read_hit = outputs & (output_uv | output_depth);
+  const bool read_counters = outputs & (output_iterations | output_fetches);
+  const VkMemoryPropertyFlags host =
+      VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  auto ensure_readback = [&](Buffer& buffer, VkDeviceSize bytes) {
+    if (!buffer.handle()) buffer = Buffer(context, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, host);
+  };
+  if (read_color) ensure_readback(frame_slot.color_readback, pixels * 4);
+  if (read_hit) ensure_readback(frame_slot.hit_readback, pixels * 16);
+  if (read_counters) ensure_readback(frame_slot.counters_readback, pixels * 8);
+
+  // record
+  const VkCommandBuffer commands = frame_slot.commands;
+  const VkQueryPool queries = timestamps.get();
+  const auto first_query = std::uint32_t(2 * slot_index);
+  if (queries) vkCmdResetQueryPool(commands, queries, first_query, 2);
+  std::array<VkClearValue, 4> clears{};
+  std::memcpy(clears[0].color.float32, background.data(), sizeof(float) * 4);
+  clears[3].depthStencil = {1.0f, 0};
+  VkRenderPassBeginInfo begin{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+  begin.renderPass = render_pass.get();
+  begin.framebuffer = targets.framebuffer.get();
+  begin.renderArea = {{0, 0}, {width, height}};
+  begin.clearValueCount = std::uint32_t(clears.size());
+  begin.pClearValues = clears.data();
+  if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, first_query);
+  vkCmdBeginRenderPass(commands, &begin, VK_SUBPASS_CONTENTS_INLINE);
+  vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_handle);
+  const VkViewport viewport{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};
+  const VkRect2D scissor{{0, 0}, {width, height}};
+  vkCmdSetViewport(commands, 0, 1, &viewport);
+  vkCmdSetScissor(commands, 0, 1, &scissor);
+  vkCmdBindDescriptorSets(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_layout.get(), 0, 1,
+                          &frame_slot.descriptor_set, 0, nullptr);
+  const VkDeviceSize offset = 0;
+  if (mesh) {
+    const VkBuffer vertex_buffer = reference ? mesh_reference_vertices.handle() : mesh_vertices.handle();
+    vkCmdBindVertexBuffers(commands, 0, 1, &vertex_buffer, &offset);
+    vkCmdBindIndexBuffer(commands, reference ? mesh_reference_indices.handle() : mesh_indices.handle(), 0,
+                         VK_INDEX_TYPE_UINT32);
+    vkCmdDrawIndexed(commands, reference ? mesh_reference_index_count : mesh_index_count, 1, 0, 0, 0);
+  } else if (reference) {
+    const VkBuffer vertex_buffer = reference_vertices.handle();
+    vkCmdBindVertexBuffers(commands, 0, 1, &vertex_buffer, &offset);
+    vkCmdBindIndexBuffer(commands, reference_indices.handle(), 0, VK_INDEX_TYPE_UINT32);
+    vkCmdDrawIndexed(commands, reference_index_count, 1, 0, 0, 0);
+  } else {
+    vkCmdDraw(commands, quadric ? 36 : 6, 1, 0, 0);  // the proxy box, or the plane's two triangles
+  }
+  vkCmdEndRenderPass(commands);
+  if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, first_query + 1);
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {width, height, 1};
+  if (read_color) {
+    vkCmdCopyImageToBuffer(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           frame_slot.color_readback.handle(), 1, &region);
+  }
+  if (read_hit) {
+    vkCmdCopyImageToBuffer(commands, targets.hit.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           frame_slot.hit_readback.handle(), 1, &region);
+  }
+  if (read_counters) {
+    vkCmdCopyImageToBuffer(commands, targets.counters.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           frame_slot.counters_readback.handle(), 1, &region);
+  }
+  if (outputs != output_none) {
+    VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
+                         nullptr, 0, nullptr);
+  }
+
+  // submit; wait only for a frame that is read back
+  submit_slot(outputs != output_none);
+
+  // read back (vectors keep their capacity)
+  frame.width = camera.width;
+  frame.height = camera.height;
+  frame.gpu_milliseconds = 0.0;
+  auto keep = [](auto& values, bool wanted, std::size_t size) {
+    if (wanted) {
+      values.resize(size);
+    } else {
+      values.clear();
+    }
+  };
+  keep(frame.color, outputs & output_color, std::size_t(pixels) * 4);
+  keep(frame.uv, outputs & output_uv, std::size_t(pixels) * 3);
+  keep(frame.depth, outputs & output_depth, std::size_t(pixels));
+  keep(frame.iterations, outputs & output_iterations, std::size_t(pixels));
+  keep(frame.fetches, outputs & output_fetches, std::size_t(pixels));
+  if (outputs == output_none) return;
+  if (read_color) std::memcpy(frame.color.data(), frame_slot.color_readback.mapped(), std::size_t(pixels) * 4);
+  if (read_hit) {
+    const auto* hit = static_cast<const float*>(frame_slot.hit_readback.mapped());
+    const bool uv = outputs & output_uv, depth = outputs & output_depth;
+    for (std::size_t p = 0; p < pixels; ++p) {
+      if (uv) {
+        frame.uv[p * 3 + 0] = hit[p * 4 + 0];
+        frame.uv[p * 3 + 1] = hit[p * 4 + 1];
+        frame.uv[p * 3 + 2] = hit[p * 4 + 2];
+      }
+      if (depth) frame.depth[p] = hit[p * 4 + 3];
+    }
+  }
+  if (read_counters) {
+    const auto* counters = static_cast<const float*>(frame_slot.counters_readback.mapped());
+    const bool iterations = outputs & output_iterations, fetches = outputs & output_fetches;
+    for (std::size_t p = 0; p < pixels; ++p) {
+      if (iterations) frame.iterations[p] = counters[p * 2 + 0];
+      if (fetches) frame.fetches[p] = counters[p * 2 + 1];
+    }
+  }
+  if (queries) {
+    std::array<std::uint64_t, 2> ticks{};
+    if (vkGetQueryPoolResults(context.device(), queries, first_query, 2, sizeof ticks, ticks.data(),
+                              sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
+      frame.gpu_milliseconds = double(ticks[1] - ticks[0]) * context.timestamp_period_ns() * 1e-6;
+    }
+  }
+}
+
+}  // namespace displace::render

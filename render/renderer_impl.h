@@ -1,0 +1,160 @@
+// render/renderer_impl.h - what the renderer's files share (internal to render/): the state behind
+// Renderer, split by job across
+//   renderer.cpp       the renderer object: device, per-frame slots, albedo, mesh, counters
+//   map_upload.cpp     maps handed over by the caller -> persistent device images through the staging ring
+//   pipelines.cpp      descriptor and pipeline layouts, render pass, samplers, pipelines, pipeline cache
+//   frame.cpp          one frame: validate, bind, record, submit, read back what was asked
+//   reference_mesh.cpp the reference's tessellation (CPU only, render/mesh.h)
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstring>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "render/mesh.h"
+#include "render/render.h"
+#include "render/vulkan_context.h"
+
+namespace displace::render {
+
+using OwnedFence = Owned<VkFence, vkDestroyFence>;
+using OwnedPipelineCache = Owned<VkPipelineCache, vkDestroyPipelineCache>;
+
+// limits on what a frame and a map may be
+inline constexpr int max_tile = 64;
+inline constexpr float max_depth_scale = 10.0f;  // world units
+inline constexpr int max_steps = 4096;
+inline constexpr int max_refine = 64;
+inline constexpr int max_map_side = 16384;
+
+inline constexpr VkFormat color_format = VK_FORMAT_R8G8B8A8_UNORM;
+inline constexpr VkFormat hit_format = VK_FORMAT_R32G32B32A32_SFLOAT;
+inline constexpr VkFormat counters_format = VK_FORMAT_R32G32_SFLOAT;
+inline constexpr VkFormat depth_format = VK_FORMAT_D32_SFLOAT;
+inline constexpr std::array<float, 4> background = {0.08f, 0.08f, 0.10f, 1.0f};
+
+// Layers of the cone image (BINDING_CONES, RG32F): layer k < n holds (r_k, H_c); with n > 1 sectors
+// layer n holds (min over k of r_k, H_c), the isotropic bound the quadric cone march needs near a
+// step's start; with relaxed ratios one more layer holds (relaxed ratio, H_c).
+inline int cone_layer_count(int sectors, bool relaxed) { return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0); }
+
+void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from, VkImageLayout to,
+                   VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags src_stage,
+                   VkPipelineStageFlags dst_stage);
+
+// A map kept on the device between frames: made again only when its shape changes.
+struct DeviceMap {
+  Image image;    // heights, cones, distance
+  Buffer buffer;  // the max pyramid
+  bool held = false;  // holds the caller's map of `version`
+  std::uint64_t version = 0;
+  int width = 0, height = 0, layers = 0;  // the shape it was made for
+  bake::Address address = bake::Address::wrap;
+  int sectors = 0;
+  bool relaxed = false;
+};
+
+// Per frame in flight: its command buffer, fence, descriptor set, uniforms, staging part of the
+// ring, and readback buffers. A slot is reused once its fence says the frame finished.
+struct FrameSlot {
+  VkCommandBuffer commands = VK_NULL_HANDLE;
+  OwnedFence fence;        // signalled: nothing of this slot is in flight
+  bool recording = false;  // commands begun (map copies or a frame), not yet submitted
+  VkDescriptorSet descriptor_set = VK_NULL_HANDLE;
+  Buffer uniforms;
+  Buffer staging;
+  VkDeviceSize staging_used = 0;
+  Buffer color_readback, hit_readback, counters_readback;  // made when first asked for, per target size
+  int readback_width = 0, readback_height = 0;
+};
+
+struct Targets {
+  int width = 0, height = 0;
+  Image color, hit, counters, depth;
+  OwnedFramebuffer framebuffer;
+};
+
+struct Renderer::Impl {
+  explicit Impl(const RendererOptions& options) : context(options) {}
+
+  Context context;
+
+  // pipelines.cpp
+  OwnedDescriptorSetLayout set_layout;
+  OwnedPipelineLayout pipeline_layout;
+  OwnedDescriptorPool descriptor_pool;
+  OwnedRenderPass render_pass;
+  OwnedShaderModule relief_vertex, reference_vertex, surface_fragment;
+  OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex, mesh_vertex;
+  OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
+  OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with --address clamp: u wraps, v clamps
+  std::map<int, OwnedPipeline> pipelines;      // by shader id * 8 + surface id
+  std::string pipeline_cache_file;             // empty: the cache is off
+  OwnedPipelineCache pipeline_cache;
+  long long pipelines_created = 0;
+  void create_layouts();
+  void create_render_pass();
+  void load_pipeline_cache(const std::string& directory);
+  void save_pipeline_cache() noexcept;
+  VkPipeline pipeline(const MethodInfo& info, Surface surface);
+
+  // renderer.cpp: per-frame slots and set-up resources
+  OwnedQueryPool timestamps;  // 2 per slot
+  std::array<FrameSlot, frames_in_flight> slots;
+  int slot = 0;  // the slot the next frame records into
+  Image dummy_cones, dummy_albedo, dummy_distance;
+  Buffer dummy_pyramid;
+  Image albedo_image;
+  bool has_albedo = false;
+  void create_frame_slots();
+  FrameSlot& begin_slot();     // the current slot, recording (waits for its previous frame)
+  void submit_slot(bool wait);  // ends, submits the current slot; moves on to the next slot
+  void drain();                 // submits what is recorded, waits for every slot
+  Image upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
+                         const void* data, std::size_t bytes);
+  template <typename T>
+  Buffer host_buffer(const std::vector<T>& data, VkBufferUsageFlags usage);
+
+  // map_upload.cpp
+  int map_width = 0, map_height = 0;
+  DeviceMap heights;
+  std::array<DeviceMap, 3> cones;  // by cone_slot
+  DeviceMap max_pyramid;
+  DeviceMap distance;
+  std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
+  void take_maps(const MapSet& maps);
+  void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
+
+  // frame.cpp: render targets and the reference geometry
+  Targets targets;
+  Buffer reference_vertices, reference_indices;
+  std::uint32_t reference_index_count = 0;
+  std::array<int, 3> reference_key{0, 0, 0};  // tile, map width, map height
+  std::vector<MeshVertex> mesh_cpu;
+  std::vector<std::uint32_t> mesh_triangles;
+  glm::dvec3 mesh_lo{0.0}, mesh_hi{0.0};
+  Buffer mesh_vertices, mesh_indices;
+  std::uint32_t mesh_index_count = 0;
+  Buffer mesh_reference_vertices, mesh_reference_indices;
+  std::uint32_t mesh_reference_index_count = 0;
+  std::array<int, 3> mesh_reference_key{0, 0, 0};  // tile, map width, map height
+  void ensure_targets(int width, int height);
+  void ensure_reference(int tile);
+  void ensure_mesh_reference(int tile);
+  void write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info);
+  void render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs);
+};
+
+template <typename T>
+Buffer Renderer::Impl::host_buffer(const std::vector<T>& data, VkBufferUsageFlags usage) {
+  const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  Buffer buffer(context, std::max<std::size_t>(data.size() * sizeof(T), 4), usage, host);
+  std::memcpy(buffer.mapped(), data.data(), data.size() * sizeof(T));
+  return buffer;
+}
+
+}  // namespace displace::render
