@@ -12,6 +12,9 @@
 #include <cstring>
 #include <string>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
 
@@ -19,6 +22,7 @@ namespace displace::render {
 namespace {
 
 constexpr VkDeviceSize staging_alignment = 16;  // bytes; a multiple of every texel size copied
+constexpr VkDeviceSize parallel_pack_texels = 1 << 16;  // cone rectangles at least this large pack on every core
 
 VkDeviceSize align_up(VkDeviceSize bytes) { return (bytes + staging_alignment - 1) / staging_alignment * staging_alignment; }
 
@@ -57,7 +61,9 @@ bool pack_heights(std::span<const float> heights, int width, const bake::Rect& r
   const int columns = rect.x1 - rect.x0;
   for (int y = rect.y0; y < rect.y1; ++y) {
     const float* row = heights.data() + std::size_t(y) * width + rect.x0;
-    for (int x = 0; x < columns; ++x) valid &= row[x] >= 0.0f && row[x] <= 1.0f;  // false for NaN
+    bool ok = true;
+    for (int x = 0; x < columns; ++x) ok &= (row[x] >= 0.0f) & (row[x] <= 1.0f);  // false for NaN
+    valid &= ok;
     std::memcpy(out, row, std::size_t(columns) * sizeof(float));
     out += columns;
   }
@@ -65,35 +71,61 @@ bool pack_heights(std::span<const float> heights, int width, const bake::Rect& r
 }
 
 // The cone image's layers of `rect` (cone_layer_count), layer after layer, row after row: (ratio,
-// apex) pairs. False when a ratio is negative or not finite, or an apex is outside [0, 1].
-bool pack_cones(const ConeMapView& cones, int width, const bake::Rect& rect, float* out) {
-  const int sectors = cones.sector_count;
+// apex) pairs, written in one pass over the texels (the sector count a template argument, so that
+// the loop unrolls). False when a ratio is negative or not finite, or an apex is outside [0, 1].
+template <int sectors>
+bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, float* out) {
   const bool relaxed = !cones.relaxed.empty();
-  const int layers = cone_layer_count(sectors, relaxed);
-  bool valid = true;
-  for (int layer = 0; layer < layers; ++layer) {
-    const bool relaxed_layer = relaxed && layer == layers - 1;
-    for (int y = rect.y0; y < rect.y1; ++y) {
-      for (int x = rect.x0; x < rect.x1; ++x) {
-        const std::size_t t = std::size_t(y) * width + x;
-        const float* ratios = cones.ratios.data() + t * std::size_t(sectors);
-        float ratio = 0.0f;
-        if (relaxed_layer) {
-          ratio = cones.relaxed[t];
-        } else if (layer < sectors) {
-          ratio = ratios[layer];
-        } else {
-          ratio = *std::min_element(ratios, ratios + sectors);
-        }
+  constexpr bool has_min_layer = sectors > 1;
+  const std::size_t layer_floats = std::size_t(rect_texels(rect)) * 2;
+  float* relaxed_out = out + layer_floats * std::size_t(sectors + (has_min_layer ? 1 : 0));
+  const int columns = rect.x1 - rect.x0;
+  auto pack_rows = [&](int first_row, int end_row) {
+    bool valid = true;
+    for (int y = first_row; y < end_row; ++y) {
+      const std::size_t row = std::size_t(y) * width;
+      std::size_t at = std::size_t(y - rect.y0) * std::size_t(columns) * 2;  // floats into each layer
+      for (int x = rect.x0; x < rect.x1; ++x, at += 2) {
+        const std::size_t t = row + std::size_t(x);
+        const float* ratios = cones.ratios.data() + t * sectors;
         const float apex = cones.apex[t];
-        valid &= ratio >= 0.0f && ratio <= 1e30f && apex >= 0.0f && apex <= 1.0f;
-        out[0] = ratio;
-        out[1] = apex;
-        out += 2;
+        float smallest = ratios[0];
+        bool ok = (apex >= 0.0f) & (apex <= 1.0f);
+        for (int k = 0; k < sectors; ++k) {
+          const float ratio = ratios[k];
+          ok &= (ratio >= 0.0f) & (ratio <= 1e30f);  // false for NaN
+          smallest = std::min(smallest, ratio);
+          out[layer_floats * std::size_t(k) + at] = ratio;
+          out[layer_floats * std::size_t(k) + at + 1] = apex;
+        }
+        if constexpr (has_min_layer) {
+          out[layer_floats * sectors + at] = smallest;
+          out[layer_floats * sectors + at + 1] = apex;
+        }
+        if (relaxed) {
+          const float ratio = cones.relaxed[t];
+          ok &= (ratio >= 0.0f) & (ratio <= 1e30f);
+          relaxed_out[at] = ratio;
+          relaxed_out[at + 1] = apex;
+        }
+        valid &= ok;
       }
     }
+    return valid;
+  };
+  if (rect_texels(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
+  return tbb::parallel_reduce(
+      tbb::blocked_range<int>(rect.y0, rect.y1), true,
+      [&](const tbb::blocked_range<int>& rows, bool valid) { return pack_rows(rows.begin(), rows.end()) && valid; },
+      [](bool a, bool b) { return a && b; });
+}
+
+bool pack_cones(const ConeMapView& cones, int width, const bake::Rect& rect, float* out) {
+  switch (cones.sector_count) {
+    case 1: return pack_cones_of<1>(cones, width, rect, out);
+    case 4: return pack_cones_of<4>(cones, width, rect, out);
+    default: return pack_cones_of<8>(cones, width, rect, out);
   }
-  return valid;
 }
 
 void to_transfer(VkCommandBuffer commands, const DeviceMap& map, std::uint32_t layers, bool fresh) {
