@@ -52,7 +52,7 @@ Metadata synthesis_metadata(const SourceSettings& source, const sim::HeightMappi
   Metadata metadata = {
       {"displace:units", std::string("metres")},
       {"displace:source", std::string(source_name(source.kind))},
-      {"displace:time", source.time},
+      {"displace:time", float(source.time)},
       {"displace:height_scale", mapping.scale},
       {"displace:height_bias", mapping.bias},
   };

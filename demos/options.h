@@ -27,7 +27,7 @@ enum class SourceKind { ocean, sinusoids, bricks, cliff };
 struct SourceSettings {
   SourceKind kind = SourceKind::ocean;
   int size = 0;                   // samples along u and along v
-  float time = 0.0f;              // seconds
+  double time = 0.0;              // seconds
   sim::OceanParams ocean;         // kind == ocean; ocean.size == size
   sim::SinusoidParams sinusoids;  // kind == sinusoids
   std::uint64_t seed = 1;         // kind == bricks or cliff

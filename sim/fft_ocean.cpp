@@ -180,6 +180,12 @@ inline SplitFloat split_float(float value) {
   const float high = std::bit_cast<float>(std::bit_cast<std::uint32_t>(value) & keep_high_bits);
   return {high, value - high};
 }
+// A double time the same way: the high part's 12 bits, then the rest of the double rounded to float
+// (about 36 significant bits in all, so that a frame time like 100 + 1/60 s keeps its fraction).
+inline SplitFloat split_time(double value) {
+  const SplitFloat high = split_float(static_cast<float>(value));
+  return {high.high, static_cast<float>(value - static_cast<double>(high.high))};
+}
 
 // sin and cos of w t for |w t| <= fast_phase_limit. The product is formed from split halves (its high part
 // exact), reduced by pi/2 in three Cody-Waite steps, and fed to Cephes' minimax polynomials (about 1 ulp on
@@ -228,14 +234,13 @@ struct RowCoefficients {
 #endif
 
 DISPLACE_SIMD_CLONES
-void build_row_fast(const RowCoefficients& row, float time, int count, float* __restrict out) {
+void build_row_fast(const RowCoefficients& row, SplitFloat split_time, int count, float* __restrict out) {
   const float* __restrict p = row.p;
   const float* __restrict q = row.q;
   const float* __restrict r = row.r;
   const float* __restrict u = row.u;
   const float* __restrict omega_high = row.omega_high;
   const float* __restrict omega_low = row.omega_low;
-  const SplitFloat split_time = split_float(time);
   for (int j = 0; j < count; ++j) {
     float s, c;
     phase_sincos(omega_high[j], omega_low[j], split_time, s, c);
@@ -244,7 +249,7 @@ void build_row_fast(const RowCoefficients& row, float time, int count, float* __
   }
 }
 
-void build_row_precise(const RowCoefficients& row, float time, int count, float* out) {
+void build_row_precise(const RowCoefficients& row, double time, int count, float* out) {
   for (int j = 0; j < count; ++j) {
     const double phase = std::fmod(static_cast<double>(row.omega[j]) * time, 2.0 * std::numbers::pi);
     const float s = static_cast<float>(std::sin(phase));
@@ -299,8 +304,8 @@ struct Ocean::Impl {
 
   void make_plans();
   void draw_spectrum();
-  void build_spectra(float time, unsigned grids);
-  void build_row(int i, float time, bool fast, unsigned grids);
+  void build_spectra(double time, unsigned grids);
+  void build_row(int i, double time, bool fast, unsigned grids);
   float* output_for(int grid, std::vector<float>* target);
 
   ~Impl() {
@@ -421,7 +426,7 @@ void Ocean::Impl::draw_spectrum() {
   }
 }
 
-void Ocean::Impl::build_spectra(float time, unsigned grids) {
+void Ocean::Impl::build_spectra(double time, unsigned grids) {
   for (int grid = 0; grid < grid_count; ++grid) {
     if ((grids & (1u << grid)) != 0 && !spectra[grid]) {
       spectra[grid] = make_aligned<fftwf_complex>(spectrum_size());
@@ -434,14 +439,14 @@ void Ocean::Impl::build_spectra(float time, unsigned grids) {
                     });
 }
 
-void Ocean::Impl::build_row(int i, float time, bool fast, unsigned grids) {
+void Ocean::Impl::build_row(int i, double time, bool fast, unsigned grids) {
   const std::size_t offset = static_cast<std::size_t>(i) * half;
   float* height = reinterpret_cast<float*>(spectra[grid_height].get() + offset);
   const RowCoefficients row{coef_p.data() + offset,   coef_q.data() + offset,     coef_r.data() + offset,
                             coef_u.data() + offset,   omega_half.data() + offset, omega_high.data() + offset,
                             omega_low.data() + offset};
   if (fast) {
-    build_row_fast(row, time, half, height);
+    build_row_fast(row, split_time(time), half, height);
   } else {
     build_row_precise(row, time, half, height);
   }
@@ -500,7 +505,7 @@ Ocean::~Ocean() = default;
 Ocean::Ocean(Ocean&&) noexcept = default;
 Ocean& Ocean::operator=(Ocean&&) noexcept = default;
 
-void Ocean::evaluate(float time, unsigned outputs, OceanFrame& frame) {
+void Ocean::evaluate(double time, unsigned outputs, OceanFrame& frame) {
   Impl& impl = *impl_;
   frame.size = impl.n;
   const std::size_t samples = impl.grid_size();
@@ -593,7 +598,7 @@ HeightMapping Ocean::mapping() const {
   return mapping;
 }
 
-std::vector<std::complex<float>> Ocean::height_spectrum(float time) const {
+std::vector<std::complex<float>> Ocean::height_spectrum(double time) const {
   const Impl& impl = *impl_;
   const int n = impl.n;
   std::vector<std::complex<float>> spectrum(impl.grid_size());

@@ -57,10 +57,10 @@ struct Wave {
 std::vector<Wave> make_sinusoid_waves(const SinusoidParams& params);
 
 // Closed-form height in metres at a point (x, y in metres) and time t (seconds).
-float sinusoid_height_at(std::span<const Wave> waves, float x, float y, float time);
+float sinusoid_height_at(std::span<const Wave> waves, float x, float y, double time);
 
 // Fills out (width * height) with raw heights at the texel centres of a patch `patch_size` wide.
-void sinusoid_heights(std::span<const Wave> waves, float patch_size, float time, int width, int height,
+void sinusoid_heights(std::span<const Wave> waves, float patch_size, double time, int width, int height,
                       std::span<float> out);
 
 // bias 0.5, scale 0.5 / sum(amplitudes): never clamps, fixed over time.
@@ -114,8 +114,9 @@ class Ocean {
   Ocean(const Ocean&) = delete;
   Ocean& operator=(const Ocean&) = delete;
 
-  // Computes the requested outputs at time t (seconds), independently of any other frame.
-  void evaluate(float time, unsigned outputs, OceanFrame& frame);
+  // Computes the requested outputs at time t (seconds, double: phases w t are formed in double, so
+  // frames 1/60 s apart stay distinct and correct at t = 1e9 s), independently of any other frame.
+  void evaluate(double time, unsigned outputs, OceanFrame& frame);
 
   int size() const;
   float patch_size() const;
@@ -131,7 +132,7 @@ class Ocean {
   // i' = i < N/2 ? i : i - N). height(x) = sum_k h~(k, t) exp(i k.x) with x in metres from the patch
   // corner, so output sample (i, j) is this sum at its texel centre x = ((j + 0.5) L / N, (i + 0.5) L / N).
   // The Nyquist row and column (i or j = N/2) and k = 0 are zero, so the sum is real.
-  std::vector<std::complex<float>> height_spectrum(float time) const;
+  std::vector<std::complex<float>> height_spectrum(double time) const;
   // Angular frequency w(k) = sqrt(g |k|) of the mode at index (i, j).
   float omega(int i, int j) const;
 

@@ -130,7 +130,7 @@ std::vector<Wave> make_sinusoid_waves(const SinusoidParams& params) {
   return waves;
 }
 
-float sinusoid_height_at(std::span<const Wave> waves, float x, float y, float time) {
+float sinusoid_height_at(std::span<const Wave> waves, float x, float y, double time) {
   double height = 0.0;
   for (const Wave& wave : waves) {
     const double phase = static_cast<double>(wave.kx) * x + static_cast<double>(wave.ky) * y -
@@ -140,7 +140,7 @@ float sinusoid_height_at(std::span<const Wave> waves, float x, float y, float ti
   return static_cast<float>(height);
 }
 
-void sinusoid_heights(std::span<const Wave> waves, float patch_size, float time, int width, int height,
+void sinusoid_heights(std::span<const Wave> waves, float patch_size, double time, int width, int height,
                       std::span<float> out) {
   if (width < 1 || height < 1) throw std::invalid_argument("sinusoid_heights: width and height must be >= 1");
   if (!positive_finite(patch_size)) {

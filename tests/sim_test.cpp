@@ -286,6 +286,36 @@ TEST(Ocean, DispersionRelationHoldsInTheOutputs) {
   }
 }
 
+// Time is double from the API to the phases: at t = 1e9 s (where a float step is 64 s), frames
+// 1/60 s apart still differ and obey the dispersion relation mode by mode.
+TEST(Ocean, DispersionHoldsBetweenFramesASixtiethApartAtABillionSeconds) {
+  Ocean ocean(small_ocean(Spectrum::phillips));
+  const int n = ocean.size();
+  const double time = 1e9, step = 1.0 / 60.0;
+  OceanFrame frame;
+  std::vector<std::vector<Complex>> spectra;
+  std::vector<std::vector<float>> heights;
+  for (double t : {time - step, time, time + step}) {
+    ocean.evaluate(t, ocean_heights, frame);
+    heights.push_back(frame.height);
+    spectra.push_back(texel_centre_dft(frame.height, n));
+  }
+  EXPECT_NE(heights[0], heights[1]);
+  EXPECT_NE(heights[1], heights[2]);
+  const double scale = max_magnitude(spectra[1]);
+  double largest_turn = 0.0;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const std::size_t k = static_cast<std::size_t>(i) * n + j;
+      const double cos_w_dt = std::cos(static_cast<double>(ocean.omega(i, j)) * step);
+      largest_turn = std::max(largest_turn, 1.0 - cos_w_dt);
+      const Complex residual = spectra[2][k] + spectra[0][k] - 2.0 * cos_w_dt * spectra[1][k];
+      EXPECT_LT(std::abs(residual), 5e-5 * scale) << "mode " << i << ", " << j;
+    }
+  }
+  EXPECT_GT(largest_turn, 1e-3);  // frames far enough apart that a wrong time would show
+}
+
 TEST(Ocean, OmegaIsDeepWaterDispersion) {
   const OceanParams params = small_ocean();
   const Ocean ocean(params);
