@@ -22,6 +22,8 @@ if(NOT OPENIMAGEIO_FOUND)
   message(FATAL_ERROR "OpenImageIO not found: install the Debian package 'libopenimageio-dev'")
 endif()
 find_package(Threads REQUIRED)
+# pipeline/: scene files in TOML
+displace_require_package(tomlplusplus libtomlplusplus-dev CONFIG)
 
 # render/: Vulkan (loader + headers), GLM, and glslang's compiler for the shaders at build time.
 # The CPU driver (mesa-vulkan-drivers: lavapipe) and the validation layers are runtime packages;

@@ -6,15 +6,10 @@
 #include <optional>
 
 namespace displace::pipeline {
-namespace {
-
-// Versions name a map's content for every renderer it is handed to, across map makers.
-std::uint64_t next_version() {
+std::uint64_t next_map_version() {
   static std::atomic<std::uint64_t> counter{0};
   return ++counter;
 }
-
-}  // namespace
 
 struct MapMaker::State {
   int max_3d_side = distance_max_side;
@@ -51,7 +46,7 @@ struct MapMaker::State {
 
   void heights_changed() {
     heights_dirty_since = heights_version;
-    heights_version = next_version();
+    heights_version = next_map_version();
     for (Cones& c : cones) {
       c.made = false;
       c.relaxed_made = false;
@@ -113,13 +108,13 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
       c.made = true;
       c.relaxed_made = false;
       c.address = needs.cone_address;
-      c.version = next_version();
+      c.version = next_map_version();
     }
     if (needs.relaxed && !c.relaxed_made) {
       c.relaxed.resize(texels);
       bake::bake_relaxed(s.view(), needs.cone_address, {c.relaxed.data(), width, height, 1});
       c.relaxed_made = true;
-      c.version = next_version();
+      c.version = next_map_version();
     }
   }
 
@@ -128,7 +123,7 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
     s.pyramid = bake::build_dual_max_pyramid(s.view(), needs.address);
     s.pyramid_address = needs.address;
     s.pyramid_made = true;
-    s.pyramid_version = next_version();
+    s.pyramid_version = next_map_version();
   }
 
   // the distance map
@@ -142,7 +137,7 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
                             {s.distance.data(), s.distance_width, s.distance_height, s.distance_depth});
     s.distance_address = needs.address;
     s.distance_made = true;
-    s.distance_version = next_version();
+    s.distance_version = next_map_version();
   }
 
   // the set: every map made for these heights

@@ -29,6 +29,10 @@ namespace displace::pipeline {
 inline constexpr int distance_slices = 64;     // voxels along h
 inline constexpr int distance_max_side = 512;  // voxels along u and v at most
 
+// A fresh map version: one process-wide counter, so that versions name content across map makers
+// and frame pipelines that share a renderer.
+std::uint64_t next_map_version();
+
 class MapMaker {
  public:
   // max_3d_side: the device's largest 3D image side (render::DeviceInfo::max_image_dimension_3d).

@@ -151,4 +151,16 @@ class Ocean {
 void brick_heights(int width, int height, std::uint64_t seed, std::span<float> out);
 void cliff_heights(int width, int height, std::uint64_t seed, std::span<float> out);
 
+// ---------------------------------------------------------------------------------------------
+// Choppy waves back onto the grid (sim/choppy.cpp). The choppy ocean moves the surface point of
+// grid position p to p + D(p) (D = OceanFrame::displacement, metres) at height h(p); a height field
+// needs the height above each grid position x instead: h(p) for the p with p + D(p) = x. Found per
+// texel centre by the fixed-point iteration p <- x - D(p) (D bilinear, periodic), which contracts
+// while the displacement's gradient stays below 1 (the Jacobian positive: no folded crest; where
+// it folds, the iteration's last p is used). `iterations` steps; the result stays periodic.
+// Returns the largest residual |p + D(p) - x| in metres after the last step.
+double resample_displaced(int size, float patch_size, std::span<const float> height,
+                          std::span<const float> displacement_x, std::span<const float> displacement_y,
+                          int iterations, std::span<float> out);
+
 }  // namespace displace::sim

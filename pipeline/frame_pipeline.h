@@ -1,0 +1,75 @@
+// pipeline/frame_pipeline.h - the per-frame service: scene -> only the effects it needs (sim) ->
+// budgeted rebake of the maps its method reads (bake) -> upload -> render. The one place that
+// knows sim, bake and render together; demos/ and the benchmarks are its clients.
+//
+// Stages, each a function a test can call alone: simulate(time) -> bake(budget) -> upload() ->
+// draw(view). run(index) chains them for frame `index` at scene time start + index / fps (double).
+// State made once and kept for the whole run: the source (sim::Ocean with its FFT plans, or the
+// waves), the height and map buffers, the budgeted bilinear baker, the renderer's device maps.
+//
+// Budget: the bake gets what the frame budget leaves after the other stages of the previous frame
+// (never below its always-completed first stage: the maps stay conservative, only looser), through
+// the scene's clock; a work budget (scene.bake_work) or none keeps every frame reproducible from
+// its index alone, so frames can be rendered in any order and on any machine. Only a wall-clock
+// budget on a static source carries refinement over from frame to frame (real-time use).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "bake/bake.h"
+#include "pipeline/scene.h"
+#include "render/render.h"
+
+namespace displace::pipeline {
+
+// The effects sim computes for a scene: only what something consumes.
+enum Effect : unsigned {
+  effect_heights = 1u << 0,  // always
+  effect_choppy = 1u << 1,   // the ocean's horizontal displacement, resampled onto the grid (choppiness > 0)
+};
+unsigned scene_effects(const Scene& scene);
+
+struct FrameRecord {
+  long long index = 0;
+  double time = 0.0;       // scene seconds
+  unsigned effects = 0;    // Effect bits that ran
+  long long ffts = 0;      // inverse FFTs the sim took
+  double sim_ms = 0.0, bake_ms = 0.0, upload_ms = 0.0, render_ms = 0.0, frame_ms = 0.0;  // the scene's clock
+  double bake_budget_ms = 0.0;  // the bake's share of the frame budget (infinity: unlimited)
+  bool overrun = false;         // the frame took longer than the scene's frame budget
+  bake::BakeStats cones;        // the cone bake (sector_count 0 when the method reads no cone map)
+  long long pending = 0;        // texels the cone baker would still refine
+  double choppy_residual = 0.0; // metres: the resampling's largest |p + D(p) - x|
+};
+
+class FramePipeline {
+ public:
+  // clock: milliseconds (any origin); by default std::chrono::steady_clock. Throws SceneError or
+  // render::RenderError for a scene that cannot run.
+  FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock = {});
+  ~FramePipeline();
+  FramePipeline(FramePipeline&&) noexcept;
+  FramePipeline& operator=(FramePipeline&&) noexcept;
+
+  // Frame `index`: every stage, the picture read back into `frame` (`outputs`, render::Output).
+  FrameRecord run(long long index, render::Frame& frame, unsigned outputs = render::output_color);
+
+  // The stages alone.
+  void simulate(double time, FrameRecord& record);
+  void bake(double budget_ms, FrameRecord& record);
+  void upload(FrameRecord& record);
+  void draw(const render::View& view, render::Frame& frame, unsigned outputs, FrameRecord& record);
+
+  const Scene& scene() const;
+  const render::HeightField& heights() const;  // [0, 1], the source's fixed mapping applied
+  const render::MapSet& maps() const;           // what upload() hands over
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace displace::pipeline

@@ -1,0 +1,408 @@
+// pipeline/scene.cpp - scenes: built-ins, TOML files (toml++), and the camera over time.
+#include "pipeline/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <initializer_list>
+#include <numbers>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+namespace displace::pipeline {
+namespace {
+
+// limits of the scene keys (shown in the errors)
+constexpr int min_map_size = 2, max_map_size = 8192;
+constexpr int max_image_side = 16384;
+constexpr double max_abs_time = 1e12;  // seconds
+constexpr double max_fps = 10000.0;
+
+const char* source_word(SourceKind kind) {
+  switch (kind) {
+    case SourceKind::ocean: return "ocean";
+    case SourceKind::sinusoids: return "sinusoids";
+    case SourceKind::bricks: return "bricks";
+    case SourceKind::cliff: return "cliff";
+  }
+  return "ocean";
+}
+
+std::string join(std::initializer_list<std::string_view> words) {
+  std::string out;
+  for (std::string_view word : words) out += (out.empty() ? "" : ", ") + std::string(word);
+  return out;
+}
+
+// Reads typed values out of one parsed file, naming file, line and key in every error.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const toml::node* node, const std::string& key, const std::string& what) const {
+    std::string where = file_;
+    if (node && node->source().begin.line > 0) where += ":" + std::to_string(node->source().begin.line);
+    throw SceneError(where + ": " + key + ": " + what);
+  }
+
+  void known_keys(const toml::table& table, const std::string& section,
+                  std::initializer_list<std::string_view> known) const {
+    for (auto&& [key, node] : table) {
+      if (std::find(known.begin(), known.end(), key.str()) == known.end()) {
+        fail(&node, qualified(section, key.str()),
+             "unknown key (known in " + (section.empty() ? std::string("the file") : "[" + section + "]") + ": " +
+                 join(known) + ")");
+      }
+    }
+  }
+
+  const toml::table* section(const toml::table& root, const std::string& name) const {
+    const toml::node* node = root.get(name);
+    if (!node) return nullptr;
+    if (!node->is_table()) fail(node, name, "must be a table ([" + name + "])");
+    return node->as_table();
+  }
+
+  double number(const toml::table* table, const std::string& section, const std::string& key, double value,
+                double lo, double hi) const {
+    const toml::node* node = table ? table->get(key) : nullptr;
+    if (!node) return value;
+    std::optional<double> read = node->value<double>();
+    if (!read || !(node->is_number())) fail(node, qualified(section, key), "must be a number");
+    if (!(*read >= lo && *read <= hi)) {
+      fail(node, qualified(section, key), "must be in [" + format_number(lo) + ", " + format_number(hi) + "]");
+    }
+    return *read;
+  }
+
+  long long integer(const toml::table* table, const std::string& section, const std::string& key, long long value,
+                    long long lo, long long hi) const {
+    const toml::node* node = table ? table->get(key) : nullptr;
+    if (!node) return value;
+    if (!node->is_integer()) fail(node, qualified(section, key), "must be an integer");
+    const long long read = node->as_integer()->get();
+    if (read < lo || read > hi) {
+      fail(node, qualified(section, key), "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    return read;
+  }
+
+  bool boolean(const toml::table* table, const std::string& section, const std::string& key, bool value) const {
+    const toml::node* node = table ? table->get(key) : nullptr;
+    if (!node) return value;
+    if (!node->is_boolean()) fail(node, qualified(section, key), "must be true or false");
+    return node->as_boolean()->get();
+  }
+
+  std::string word(const toml::table* table, const std::string& section, const std::string& key,
+                   const std::string& value, std::initializer_list<std::string_view> allowed) const {
+    const toml::node* node = table ? table->get(key) : nullptr;
+    if (!node) return value;
+    if (!node->is_string()) fail(node, qualified(section, key), "must be a string (one of " + join(allowed) + ")");
+    const std::string read = node->as_string()->get();
+    if (allowed.size() > 0 && std::find(allowed.begin(), allowed.end(), read) == allowed.end()) {
+      fail(node, qualified(section, key), "'" + read + "' is not one of " + join(allowed));
+    }
+    return read;
+  }
+
+  glm::vec3 vector3(const toml::node* node, const std::string& key, glm::vec3 value) const {
+    if (!node) return value;
+    const toml::array* array = node->as_array();
+    if (!array || array->size() != 3) fail(node, key, "must be an array of 3 numbers [x, y, z]");
+    glm::vec3 out;
+    for (int i = 0; i < 3; ++i) {
+      const std::optional<double> v = (*array)[std::size_t(i)].value<double>();
+      if (!v || !std::isfinite(*v) || std::abs(*v) > 1e6) fail(node, key, "must be an array of 3 finite numbers");
+      out[i] = float(*v);
+    }
+    return out;
+  }
+
+ private:
+  static std::string qualified(const std::string& section, std::string_view key) {
+    return section.empty() ? std::string(key) : section + "." + std::string(key);
+  }
+  static std::string format_number(double value) {
+    std::ostringstream out;
+    out << value;
+    return out.str();
+  }
+  std::string file_;
+};
+
+}  // namespace
+
+double frame_time(const Scene& scene, long long frame_index) {
+  return scene.start + double(frame_index) / scene.fps;
+}
+
+render::View scene_view(const Scene& scene, double time) {
+  render::View view;
+  view.camera = scene.camera;
+  view.surface = scene.surface;
+  view.shadows = scene.shadows;
+  view.depth_scale = scene.depth_scale;
+  view.tile = scene.tile;
+  const std::vector<CameraKey>& keys = scene.keyframes;
+  if (keys.empty()) return view;
+  if (time <= keys.front().time || keys.size() == 1) {
+    view.camera.eye = keys.front().eye;
+    view.camera.look_at = keys.front().look_at;
+    return view;
+  }
+  if (time >= keys.back().time) {
+    view.camera.eye = keys.back().eye;
+    view.camera.look_at = keys.back().look_at;
+    return view;
+  }
+  std::size_t i = 0;
+  while (keys[i + 1].time < time) ++i;
+  const CameraKey& a = keys[i];
+  const CameraKey& b = keys[i + 1];
+  const double span = b.time - a.time;
+  const double s = (time - a.time) / span;
+  // tangents (per unit of s) from the neighbours: one-sided at the ends
+  auto tangent = [&](std::size_t k, glm::dvec3 CameraKey::*, auto get) {
+    const std::size_t lo = k == 0 ? 0 : k - 1, hi = std::min(k + 1, keys.size() - 1);
+    return (get(keys[hi]) - get(keys[lo])) / (keys[hi].time - keys[lo].time) * span;
+  };
+  auto hermite = [&](auto get) {
+    const glm::dvec3 p0 = get(a), p1 = get(b);
+    const glm::dvec3 m0 = tangent(i, nullptr, get), m1 = tangent(i + 1, nullptr, get);
+    const double s2 = s * s, s3 = s2 * s;
+    return (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
+  };
+  view.camera.eye = glm::vec3(hermite([](const CameraKey& k) { return glm::dvec3(k.eye); }));
+  view.camera.look_at = glm::vec3(hermite([](const CameraKey& k) { return glm::dvec3(k.look_at); }));
+  return view;
+}
+
+std::vector<std::string> builtin_scene_names() { return {"calm", "choppy", "ripples", "bricks", "cliff"}; }
+
+Scene builtin_scene(std::string_view name) {
+  Scene scene;
+  scene.name = std::string(name);
+  scene.camera.width = scene.camera.height = 512;
+  if (name == "calm" || name == "choppy") {
+    scene.source = SourceKind::ocean;
+    scene.ocean.choppiness = name == "calm" ? 0.0f : 1.0f;
+    scene.camera.eye = {0.5f, -0.35f, 0.45f};
+    scene.camera.look_at = {0.5f, 0.5f, -0.05f};
+  } else if (name == "ripples") {
+    scene.source = SourceKind::sinusoids;
+  } else if (name == "bricks" || name == "cliff") {
+    scene.source = name == "bricks" ? SourceKind::bricks : SourceKind::cliff;
+  } else {
+    std::string names;
+    for (const std::string& known : builtin_scene_names()) names += (names.empty() ? "" : ", ") + known;
+    throw SceneError("unknown scene '" + std::string(name) + "' (built-in scenes: " + names + ")");
+  }
+  return scene;
+}
+
+Scene parse_scene(std::string_view text, const std::string& source_name) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source_name);
+  } catch (const toml::parse_error& error) {
+    throw SceneError(source_name + ":" + std::to_string(error.source().begin.line) + ": " +
+                     std::string(error.description()));
+  }
+  const Reader read(source_name);
+  read.known_keys(root, "", {"name", "source", "ocean", "sinusoids", "camera", "render", "time", "budget"});
+  Scene scene;
+  scene.name = read.word(&root, "", "name", "scene", {});
+
+  // [source]
+  const toml::table* source = read.section(root, "source");
+  if (source) read.known_keys(*source, "source", {"kind", "map_size", "seed"});
+  const std::string kind = read.word(source, "source", "kind", "ocean", {"ocean", "sinusoids", "bricks", "cliff"});
+  scene.source = kind == "ocean"       ? SourceKind::ocean
+                 : kind == "sinusoids" ? SourceKind::sinusoids
+                 : kind == "bricks"    ? SourceKind::bricks
+                                       : SourceKind::cliff;
+  scene.map_size = int(read.integer(source, "source", "map_size", scene.map_size, min_map_size, max_map_size));
+  if (scene.source == SourceKind::ocean && scene.map_size % 2 != 0) {
+    read.fail(source ? source->get("map_size") : nullptr, "source.map_size", "must be even for the ocean");
+  }
+  scene.seed = std::uint64_t(read.integer(source, "source", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+
+  // [ocean]
+  const toml::table* ocean = read.section(root, "ocean");
+  if (ocean) {
+    read.known_keys(*ocean, "ocean",
+                    {"patch_size", "spectrum", "wind_speed", "wind_direction", "choppiness", "seed"});
+  }
+  sim::OceanParams& params = scene.ocean;
+  params.patch_size = float(read.number(ocean, "ocean", "patch_size", params.patch_size, 1.0, 1e5));
+  params.spectrum = read.word(ocean, "ocean", "spectrum", "phillips", {"phillips", "jonswap"}) == "jonswap"
+                        ? sim::Spectrum::jonswap
+                        : sim::Spectrum::phillips;
+  params.wind_speed = float(read.number(ocean, "ocean", "wind_speed", params.wind_speed, 0.1, 100.0));
+  params.wind_direction = float(read.number(ocean, "ocean", "wind_direction",
+                                            double(params.wind_direction) * 180.0 / std::numbers::pi, -360.0, 360.0) *
+                                std::numbers::pi / 180.0);
+  params.choppiness = float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, 4.0));
+  params.seed = std::uint64_t(read.integer(ocean, "ocean", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+
+  // [sinusoids]
+  const toml::table* waves = read.section(root, "sinusoids");
+  if (waves) read.known_keys(*waves, "sinusoids", {"wave_count", "patch_size", "steepness", "seed"});
+  scene.sinusoids.wave_count = int(read.integer(waves, "sinusoids", "wave_count", scene.sinusoids.wave_count, 1, 1024));
+  scene.sinusoids.patch_size = float(read.number(waves, "sinusoids", "patch_size", scene.sinusoids.patch_size, 0.01, 1e5));
+  scene.sinusoids.steepness = float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
+  scene.sinusoids.seed = std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+
+  // [camera]
+  const toml::table* camera = read.section(root, "camera");
+  if (camera) read.known_keys(*camera, "camera", {"eye", "look_at", "up", "fov_y", "keyframes"});
+  scene.camera.eye = read.vector3(camera ? camera->get("eye") : nullptr, "camera.eye", scene.camera.eye);
+  scene.camera.look_at = read.vector3(camera ? camera->get("look_at") : nullptr, "camera.look_at", scene.camera.look_at);
+  scene.camera.up = read.vector3(camera ? camera->get("up") : nullptr, "camera.up", scene.camera.up);
+  scene.camera.fov_y_degrees = float(read.number(camera, "camera", "fov_y", scene.camera.fov_y_degrees, 1.0, 170.0));
+  if (const toml::node* keys = camera ? camera->get("keyframes") : nullptr) {
+    const toml::array* array = keys->as_array();
+    if (!array || !array->is_array_of_tables()) {
+      read.fail(keys, "camera.keyframes", "must be an array of tables {time, eye, look_at}");
+    }
+    for (const toml::node& key : *array) {
+      const toml::table& table = *key.as_table();
+      read.known_keys(table, "camera.keyframes", {"time", "eye", "look_at"});
+      if (!table.get("time") || !table.get("eye") || !table.get("look_at")) {
+        read.fail(&key, "camera.keyframes", "every keyframe needs time, eye and look_at");
+      }
+      CameraKey k;
+      k.time = read.number(&table, "camera.keyframes", "time", 0.0, -max_abs_time, max_abs_time);
+      k.eye = read.vector3(table.get("eye"), "camera.keyframes.eye", {});
+      k.look_at = read.vector3(table.get("look_at"), "camera.keyframes.look_at", {});
+      if (!scene.keyframes.empty() && !(k.time > scene.keyframes.back().time)) {
+        read.fail(&key, "camera.keyframes", "times must increase from one keyframe to the next");
+      }
+      scene.keyframes.push_back(k);
+    }
+  }
+
+  // [render]
+  const toml::table* render_table = read.section(root, "render");
+  if (render_table) {
+    read.known_keys(*render_table, "render",
+                    {"method", "steps", "refine", "size", "surface", "shadows", "depth_scale", "tile"});
+  }
+  if (const toml::node* method = render_table ? render_table->get("method") : nullptr) {
+    const std::optional<std::string> name = method->value<std::string>();
+    const render::MethodInfo* info = name ? render::find_method(*name) : nullptr;
+    if (!info) {
+      std::string names;
+      for (const render::MethodInfo& known : render::method_table()) names += (names.empty() ? "" : ", ") + std::string(known.name);
+      read.fail(method, "render.method", "must be one of " + names);
+    }
+    scene.method = info->method;
+  }
+  scene.steps = int(read.integer(render_table, "render", "steps", scene.steps, 1, 4096));
+  scene.refine = int(read.integer(render_table, "render", "refine", scene.refine, 0, 64));
+  if (const toml::node* size = render_table ? render_table->get("size") : nullptr) {
+    const toml::array* array = size->as_array();
+    if (!array || array->size() != 2 || !(*array)[0].is_integer() || !(*array)[1].is_integer()) {
+      read.fail(size, "render.size", "must be [width, height] in pixels");
+    }
+    const long long w = (*array)[0].as_integer()->get(), h = (*array)[1].as_integer()->get();
+    if (w < 1 || h < 1 || w > max_image_side || h > max_image_side) {
+      read.fail(size, "render.size", "must be between [1, 1] and [16384, 16384]");
+    }
+    scene.camera.width = int(w);
+    scene.camera.height = int(h);
+  }
+  const std::string surface =
+      read.word(render_table, "render", "surface", "plane", {"plane", "sphere", "cylinder", "cone"});
+  scene.surface = surface == "sphere"     ? render::Surface::sphere
+                  : surface == "cylinder" ? render::Surface::cylinder
+                  : surface == "cone"     ? render::Surface::cone
+                                          : render::Surface::plane;
+  scene.shadows = read.boolean(render_table, "render", "shadows", scene.shadows);
+  scene.depth_scale = float(read.number(render_table, "render", "depth_scale", scene.depth_scale, 1e-4, 10.0));
+  scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, 64));
+  if (!render::supports_surface(scene.method, scene.surface)) {
+    read.fail(render_table ? render_table->get("surface") : nullptr, "render.surface",
+              std::string("--method ") + render::method_info(scene.method).name + " does not render on " + surface);
+  }
+
+  // [time], [budget]
+  const toml::table* time = read.section(root, "time");
+  if (time) read.known_keys(*time, "time", {"start", "fps"});
+  scene.start = read.number(time, "time", "start", scene.start, -max_abs_time, max_abs_time);
+  scene.fps = read.number(time, "time", "fps", scene.fps, 1e-3, max_fps);
+  const toml::table* budget = read.section(root, "budget");
+  if (budget) read.known_keys(*budget, "budget", {"frame_ms", "bake_work", "tolerance"});
+  scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, 1e7);
+  scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, std::int64_t(1) << 40);
+  scene.tolerance = float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, 1.0));
+
+  try {
+    scene_view(scene, scene.start).camera.validate();
+  } catch (const render::RenderError& error) {
+    read.fail(camera, "camera", error.what());
+  }
+  return scene;
+}
+
+Scene read_scene_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneError(file.string() + ": cannot open the scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_scene(text.str(), file.string());
+}
+
+std::string scene_toml(const Scene& scene) {
+  auto vec = [](glm::vec3 v) { return toml::array{double(v.x), double(v.y), double(v.z)}; };
+  toml::table root;
+  root.insert("name", scene.name);
+  root.insert("source", toml::table{{"kind", source_word(scene.source)},
+                                    {"map_size", scene.map_size},
+                                    {"seed", std::int64_t(scene.seed)}});
+  root.insert("ocean", toml::table{{"patch_size", double(scene.ocean.patch_size)},
+                                   {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
+                                   {"wind_speed", double(scene.ocean.wind_speed)},
+                                   {"wind_direction", double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi},
+                                   {"choppiness", double(scene.ocean.choppiness)},
+                                   {"seed", std::int64_t(scene.ocean.seed)}});
+  root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
+                                       {"patch_size", double(scene.sinusoids.patch_size)},
+                                       {"steepness", double(scene.sinusoids.steepness)},
+                                       {"seed", std::int64_t(scene.sinusoids.seed)}});
+  toml::table camera{{"eye", vec(scene.camera.eye)},
+                     {"look_at", vec(scene.camera.look_at)},
+                     {"up", vec(scene.camera.up)},
+                     {"fov_y", double(scene.camera.fov_y_degrees)}};
+  if (!scene.keyframes.empty()) {
+    toml::array keys;
+    for (const CameraKey& key : scene.keyframes) {
+      keys.push_back(toml::table{{"time", key.time}, {"eye", vec(key.eye)}, {"look_at", vec(key.look_at)}});
+    }
+    camera.insert("keyframes", keys);
+  }
+  root.insert("camera", camera);
+  const char* surface = scene.surface == render::Surface::sphere     ? "sphere"
+                        : scene.surface == render::Surface::cylinder ? "cylinder"
+                        : scene.surface == render::Surface::cone     ? "cone"
+                                                                     : "plane";
+  root.insert("render", toml::table{{"method", render::method_info(scene.method).name},
+                                    {"steps", scene.steps},
+                                    {"refine", scene.refine},
+                                    {"size", toml::array{scene.camera.width, scene.camera.height}},
+                                    {"surface", surface},
+                                    {"shadows", scene.shadows},
+                                    {"depth_scale", double(scene.depth_scale)},
+                                    {"tile", scene.tile}});
+  root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});
+  toml::table budget{{"bake_work", std::int64_t(scene.bake_work)}, {"tolerance", double(scene.tolerance)}};
+  if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
+  root.insert("budget", budget);
+  std::ostringstream out;
+  out << "# displace scene (pipeline/scene.h documents every key)\n" << root << "\n";
+  return out.str();
+}
+
+}  // namespace displace::pipeline

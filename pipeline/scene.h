@@ -1,0 +1,87 @@
+// pipeline/scene.h - what a frame pipeline renders, as typed settings: the source of the heights,
+// the camera (with optional keyframes), the method, time and the frame budget. Scene files are TOML
+// (read with toml++); every key has a default, and unknown keys or bad values are refused with the
+// file, line and key. Parsing lives here; the pipeline only takes the typed Scene.
+#pragma once
+
+#include <filesystem>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "render/render.h"
+#include "sim/sim.h"
+
+namespace displace::pipeline {
+
+// A scene the user got wrong: a missing or malformed file, an unknown key, a bad value.
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+enum class SourceKind { ocean, sinusoids, bricks, cliff };
+
+// The camera at scene time `time` (seconds): eye and look-at point, world units.
+struct CameraKey {
+  double time = 0.0;
+  glm::vec3 eye{0.0f};
+  glm::vec3 look_at{0.0f};
+};
+
+struct Scene {
+  std::string name = "scene";
+
+  // [source]
+  SourceKind source = SourceKind::ocean;
+  int map_size = 256;           // height map texels a side
+  std::uint64_t seed = 1;       // bricks and cliff roughness
+  sim::OceanParams ocean;       // [ocean]; size is map_size
+  sim::SinusoidParams sinusoids;  // [sinusoids]
+
+  // [camera]: eye, look_at, up, fov_y; keyframes override eye and look_at over time
+  render::Camera camera;
+  std::vector<CameraKey> keyframes;  // sorted by time
+
+  // [render]
+  render::Method method = render::Method::acm4;
+  int steps = 32;
+  int refine = 8;
+  render::Surface surface = render::Surface::plane;
+  bool shadows = false;
+  float depth_scale = 0.1f;
+  int tile = 1;
+
+  // [time]: frame n is shown at start + n / fps
+  double start = 0.0;  // seconds
+  double fps = 60.0;
+
+  // [budget]: the frame budget the bake's share is taken from (milliseconds; infinity: unlimited),
+  // and a work budget for the bake (texels searched per frame; -1: none) that keeps frames
+  // reproducible where a wall-clock budget cannot.
+  double frame_ms = std::numeric_limits<double>::infinity();
+  long long bake_work = -1;
+  float tolerance = 0.25f;  // the bake's refinement tolerance
+};
+
+// Frame n's scene time, in double: start + n / fps.
+double frame_time(const Scene& scene, long long frame_index);
+// The view of frame time `time` (the keyframes interpolated with a cubic Hermite spline through
+// every key, tangents from the neighbouring keys; held before the first and after the last).
+render::View scene_view(const Scene& scene, double time);
+
+// Built-in scenes: "calm" (the ocean, choppiness 0), "choppy" (the ocean with choppy crests,
+// resampled onto the grid), "ripples" (sinusoids), "bricks", "cliff" (static maps).
+std::vector<std::string> builtin_scene_names();
+Scene builtin_scene(std::string_view name);  // throws SceneError naming the built-ins
+
+// Reads a scene file; throws SceneError "FILE:LINE: KEY: what is wrong".
+Scene read_scene_file(const std::filesystem::path& file);
+Scene parse_scene(std::string_view toml_text, const std::string& source_name);
+// The scene as a TOML file that read_scene_file reads back to the same Scene.
+std::string scene_toml(const Scene& scene);
+
+}  // namespace displace::pipeline

@@ -1,0 +1,262 @@
+// tests/pipeline_test.cpp - the per-frame service: scene files, effects on demand, the frame budget
+// through an injected clock, conservative maps when the bake is starved, and reproducible frames.
+#include "pipeline/frame_pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "pipeline/scene.h"
+#include "render/render.h"
+#include "tests/render_fixtures.h"
+
+namespace {
+
+using namespace displace;
+using displace::testing::shared_renderer;
+using pipeline::FramePipeline;
+using pipeline::FrameRecord;
+using pipeline::Scene;
+using pipeline::SceneError;
+
+// A small scene for tests: map_size texels, size x size pixels, an oblique camera.
+Scene small_scene(const char* builtin, int map_size, int pixels) {
+  Scene scene = pipeline::builtin_scene(builtin);
+  scene.map_size = map_size;
+  scene.camera.width = scene.camera.height = pixels;
+  scene.camera.eye = {0.5f, -0.3f, 0.6f};
+  scene.camera.look_at = {0.5f, 0.5f, -0.05f};
+  scene.camera.fov_y_degrees = 30.0f;
+  return scene;
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    pipeline::parse_scene(text, "scene.toml");
+  } catch (const SceneError& error) {
+    return error.what();
+  }
+  return "(accepted)";
+}
+
+// A clock that moves only when asked: each call advances it by `tick` milliseconds.
+struct FakeClock {
+  double now = 0.0, tick = 0.01;
+  double operator()() { return now += tick; }
+};
+
+}  // namespace
+
+TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
+  for (const std::string& name : pipeline::builtin_scene_names()) {
+    Scene scene = pipeline::builtin_scene(name);
+    scene.keyframes = {{0.0, {0.5f, -0.4f, 0.5f}, {0.5f, 0.5f, 0.0f}}, {2.0, {0.2f, -0.4f, 0.6f}, {0.5f, 0.4f, 0.0f}}};
+    scene.frame_ms = 16.0;
+    scene.bake_work = 5000;
+    const std::string text = pipeline::scene_toml(scene);
+    const Scene back = pipeline::parse_scene(text, name);
+    EXPECT_EQ(pipeline::scene_toml(back), text) << name;
+  }
+}
+
+TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
+  EXPECT_EQ(error_of("[render]\nsteps = 0\n"), "scene.toml:2: render.steps: must be in [1, 4096]");
+  EXPECT_EQ(error_of("[render]\nmethod = \"magic\"\n").rfind("scene.toml:2: render.method: must be one of bump", 0), 0u);
+  EXPECT_EQ(error_of("[ocean]\nwindspeed = 3\n").rfind("scene.toml:2: ocean.windspeed: unknown key", 0), 0u);
+  EXPECT_EQ(error_of("colour = 1\n").rfind("scene.toml:1: colour: unknown key", 0), 0u);
+  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"), "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff");
+  EXPECT_EQ(error_of("[source]\nmap_size = 255\n"), "scene.toml:2: source.map_size: must be even for the ocean");
+  EXPECT_EQ(error_of("[time]\nfps = \"fast\"\n"), "scene.toml:2: time.fps: must be a number");
+  EXPECT_EQ(error_of("[camera]\neye = [1, 2]\n"), "scene.toml:2: camera.eye: must be an array of 3 numbers [x, y, z]");
+  EXPECT_EQ(error_of("[render]\nsize = [0, 10]\n"), "scene.toml:2: render.size: must be between [1, 1] and [16384, 16384]");
+  EXPECT_EQ(error_of("[render]\nshadows = 1\n"), "scene.toml:2: render.shadows: must be true or false");
+  EXPECT_EQ(error_of("[render]\nmethod = \"relaxed\"\nsurface = \"sphere\"\n"),
+            "scene.toml:3: render.surface: --method relaxed does not render on sphere");
+  EXPECT_EQ(error_of("[camera]\nkeyframes = [{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}, "
+                     "{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}]\n")
+                .rfind("scene.toml:2: camera.keyframes: times must increase", 0),
+            0u);
+  EXPECT_EQ(error_of("[camera]\neye = [0.5, 0.5, 0.5]\nlook_at = [0.5, 0.5, 0.5]\n").rfind("scene.toml:1: camera:", 0), 0u);
+  EXPECT_EQ(error_of("[render\nsteps = 3\n").rfind("scene.toml:1: ", 0), 0u);  // malformed
+  EXPECT_EQ(error_of("render = 3\n"), "scene.toml:1: render: must be a table ([render])");
+  try {
+    pipeline::read_scene_file("/nonexistent/scene.toml");
+    ADD_FAILURE() << "a missing file was read";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(std::string(error.what()), "/nonexistent/scene.toml: cannot open the scene file");
+  }
+  EXPECT_THROW(pipeline::builtin_scene("lava"), SceneError);
+}
+
+TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
+  Scene scene = pipeline::builtin_scene("calm");
+  scene.keyframes = {{0.0, {0.0f, -1.0f, 1.0f}, {0.5f, 0.5f, 0.0f}},
+                     {1.0, {1.0f, -1.0f, 1.0f}, {0.5f, 0.5f, 0.0f}},
+                     {3.0, {1.0f, 0.0f, 2.0f}, {0.4f, 0.5f, 0.0f}}};
+  for (const pipeline::CameraKey& key : scene.keyframes) {
+    const render::View view = pipeline::scene_view(scene, key.time);
+    EXPECT_LT(glm::length(view.camera.eye - key.eye), 1e-6f);
+    EXPECT_LT(glm::length(view.camera.look_at - key.look_at), 1e-6f);
+  }
+  EXPECT_EQ(pipeline::scene_view(scene, -5.0).camera.eye, scene.keyframes.front().eye);
+  EXPECT_EQ(pipeline::scene_view(scene, 9.0).camera.eye, scene.keyframes.back().eye);
+  // smooth: no jump between two close times inside a segment
+  const glm::vec3 a = pipeline::scene_view(scene, 1.999).camera.eye, b = pipeline::scene_view(scene, 2.001).camera.eye;
+  EXPECT_LT(glm::length(a - b), 0.01f);
+}
+
+// Only what the scene consumes runs: the calm ocean costs exactly one FFT a frame (heights); the
+// choppy one adds the two displacement FFTs and resamples the displaced surface onto the grid.
+TEST(Pipeline, SimulatesOnlyTheEffectsTheSceneNeeds) {
+  Scene calm = small_scene("calm", 32, 16);
+  calm.method = render::Method::relief;
+  EXPECT_EQ(pipeline::scene_effects(calm), unsigned(pipeline::effect_heights));
+  FramePipeline calm_pipeline(calm, shared_renderer());
+  render::Frame frame;
+  for (int n = 0; n < 3; ++n) {
+    const FrameRecord record = calm_pipeline.run(n, frame);
+    EXPECT_EQ(record.ffts, 1);
+    EXPECT_EQ(record.effects, unsigned(pipeline::effect_heights));
+  }
+  Scene choppy = calm;
+  choppy.ocean.choppiness = 1.0f;
+  EXPECT_EQ(pipeline::scene_effects(choppy), unsigned(pipeline::effect_heights | pipeline::effect_choppy));
+  FramePipeline choppy_pipeline(choppy, shared_renderer());
+  const FrameRecord record = choppy_pipeline.run(0, frame);
+  EXPECT_EQ(record.ffts, 3);
+  EXPECT_LT(record.choppy_residual, 1e-3 * calm.ocean.patch_size / 32);  // a thousandth of a texel
+  // the choppy heights differ from the calm ones (crests move), and stay in [0, 1]
+  FrameRecord calm_record;
+  calm_pipeline.simulate(0.0, calm_record);
+  EXPECT_NE(choppy_pipeline.heights().heights, calm_pipeline.heights().heights);
+  for (float h : choppy_pipeline.heights().heights) EXPECT_TRUE(h >= 0.0f && h <= 1.0f);
+}
+
+// The bake gets what the frame budget leaves (measured on the scene's clock) and never runs past
+// it by more than a refinement chunk; a frame over its budget is reported as one, and the loop
+// goes on with conservative maps.
+TEST(Pipeline, TheBakeKeepsToItsShareOfTheFrameBudget) {
+  FakeClock clock;
+  Scene scene = small_scene("calm", 64, 16);
+  scene.method = render::Method::acm4;
+  scene.tolerance = 0.0f;  // refinement always has work
+  // the first stage alone, at budget 0
+  scene.frame_ms = 0.0;
+  FramePipeline starved(scene, shared_renderer(), std::ref(clock));
+  render::Frame frame;
+  FrameRecord record = starved.run(0, frame);
+  EXPECT_EQ(record.bake_budget_ms, 0.0);
+  EXPECT_TRUE(record.overrun);
+  const double first_stage_ms = record.bake_ms;
+  EXPECT_GT(record.pending, 0);
+  // a budget that leaves the bake room for refinement
+  scene.frame_ms = 50.0;
+  FramePipeline budgeted(scene, shared_renderer(), std::ref(clock));
+  for (int n = 0; n < 4; ++n) {
+    record = budgeted.run(n, frame);
+    const double share = record.bake_budget_ms;
+    EXPECT_LE(share, scene.frame_ms);
+    EXPECT_LE(record.bake_ms, std::max(share, first_stage_ms) + 2.0) << "frame " << n;  // ~a chunk of ticks
+    EXPECT_GT(record.cones.texels_refined, 0) << "frame " << n;
+  }
+}
+
+namespace {
+
+// Every cone ray of `pipeline`'s frames ends at or before its exact first crossing (render::cpu_trace
+// on the frame's heights).
+void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames) {
+  FramePipeline pipeline(scene, shared_renderer());
+  render::Frame frame;
+  long long compared = 0, beyond = 0;
+  for (int n = 0; n < frames; ++n) {
+    pipeline.run(n, frame, render::output_uv | render::output_depth);
+    const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, n));
+    for (int py = 0; py < frame.height; ++py) {
+      for (int px = 0; px < frame.width; ++px) {
+        const std::size_t p = std::size_t(py) * frame.width + px;
+        const render::CpuHit truth = render::cpu_trace(pipeline.heights(), view, px + 0.5, py + 0.5);
+        if (!truth.hit || frame.uv[p * 3 + 2] < 0.5f) continue;
+        ++compared;
+        beyond += frame.depth[p] - truth.distance > 1e-4;
+      }
+    }
+  }
+  EXPECT_GT(compared, frames * frame.width * frame.height / 4) << scene.name;
+  EXPECT_EQ(beyond, 0) << scene.name << " / " << render::method_info(scene.method).name;
+}
+
+}  // namespace
+
+// An animated sequence whose bake budget is 0 (every frame over budget, maps from the first stage
+// only): no ray of any cone method ends past its exact first crossing, on every frame, on the
+// cliff's spikes and ledges, the bricks, the ripples and the ocean.
+TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
+  for (const char* name : {"cliff", "bricks", "ripples", "calm"}) {
+    for (const render::Method method : {render::Method::csm, render::Method::acm4, render::Method::acm8}) {
+      Scene scene = small_scene(name, 32, 40);
+      scene.method = method;
+      scene.steps = 8;
+      scene.frame_ms = 0.0;
+      expect_no_ray_past_the_first_crossing(scene, 3);
+    }
+  }
+}
+
+// Frames depend on the scene and the frame index only (no wall-clock budget): two pipelines that
+// render the ocean's frames in different orders agree bit for bit, and a static scene renders the
+// same picture on every frame.
+TEST(Pipeline, FramesAreReproducibleFromTheirIndex) {
+  Scene scene = small_scene("choppy", 32, 24);
+  scene.method = render::Method::acm4;
+  scene.bake_work = 2000;
+  FramePipeline forward(scene, shared_renderer()), backward(scene, shared_renderer());
+  std::vector<render::Frame> ahead(4), behind(4);
+  for (int n = 0; n < 4; ++n) forward.run(n, ahead[std::size_t(n)], render::output_all);
+  for (int n = 3; n >= 0; --n) backward.run(n, behind[std::size_t(n)], render::output_all);
+  for (int n = 0; n < 4; ++n) {
+    EXPECT_EQ(ahead[std::size_t(n)].color, behind[std::size_t(n)].color) << n;
+    EXPECT_EQ(ahead[std::size_t(n)].depth, behind[std::size_t(n)].depth) << n;
+  }
+  EXPECT_NE(ahead[0].color, ahead[1].color);  // the ocean moves
+
+  Scene bricks = small_scene("bricks", 32, 24);
+  bricks.method = render::Method::relief;
+  FramePipeline still(bricks, shared_renderer());
+  render::Frame first, later;
+  still.run(0, first, render::output_all);
+  still.run(7, later, render::output_all);
+  EXPECT_EQ(first.color, later.color);
+  EXPECT_EQ(first.uv, later.uv);
+}
+
+// A static scene in real time (a wall-clock budget): refinement carries on from frame to frame and
+// the picture converges - with enough steps an exact-class method's pixels move by at most 1 (8-bit)
+// while the fallback ratios are refined.
+TEST(Pipeline, RefiningAStaticSceneMovesExactPixelsByAtMostOne) {
+  FakeClock clock;
+  clock.tick = 0.25;  // a refinement chunk costs a tick: a few chunks a frame
+  Scene scene = small_scene("cliff", 64, 32);
+  scene.method = render::Method::acm4;
+  scene.steps = 256;
+  scene.tolerance = 0.0f;
+  scene.frame_ms = 4.0;
+  FramePipeline pipeline(scene, shared_renderer(), std::ref(clock));
+  render::Frame previous, frame;
+  FrameRecord record = pipeline.run(0, previous, render::output_color);
+  const long long pending_at_start = record.pending;
+  ASSERT_GT(pending_at_start, 0);
+  for (int n = 1; n < 6; ++n) {
+    record = pipeline.run(n, frame, render::output_color);
+    int worst = 0;
+    for (std::size_t i = 0; i < frame.color.size(); ++i) worst = std::max(worst, std::abs(int(frame.color[i]) - int(previous.color[i])));
+    EXPECT_LE(worst, 1) << "frame " << n;
+    previous = frame;
+  }
+  EXPECT_LT(record.pending, pending_at_start);
+  EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
