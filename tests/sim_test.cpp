@@ -554,3 +554,41 @@ TEST(Ocean, MovesAndConcurrentConstruction) {
 
 }  // namespace
 }  // namespace displace::sim
+
+namespace displace::sim {
+
+// The choppy surface back on the grid: a uniform displacement c moves the surface rigidly, so the
+// height above x is h(x - c) (a whole-texel shift here, exact); on the choppy ocean the fixed point
+// p + D(p) = x is found to a thousandth of a texel and the result is periodic and bounded by h.
+TEST(Choppy, ResamplingInvertsTheDisplacement) {
+  const int n = 16;
+  const float patch = 8.0f;  // half a metre per texel
+  std::vector<float> height(n * n), dx(n * n, 1.0f), dy(n * n, -1.5f), out(n * n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) height[std::size_t(i) * n + j] = float(std::sin(0.7 * j) + 0.3 * i);
+  const double residual = resample_displaced(n, patch, height, dx, dy, 4, out);
+  EXPECT_LT(residual, 1e-5);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const int si = ((i + 3) % n + n) % n, sj = ((j - 2) % n + n) % n;  // x - c in texels: (j - 2, i + 3)
+      EXPECT_NEAR(out[std::size_t(i) * n + j], height[std::size_t(si) * n + sj], 1e-5) << i << ", " << j;
+    }
+
+  OceanParams params;
+  params.size = 64;
+  params.choppiness = 1.0f;
+  Ocean ocean(params);
+  OceanFrame frame;
+  ocean.evaluate(3.0, ocean_heights | ocean_displacement, frame);
+  std::vector<float> choppy(frame.height.size());
+  const double ocean_residual = resample_displaced(64, params.patch_size, frame.height, frame.displacement_x,
+                                                   frame.displacement_y, 6, choppy);
+  EXPECT_LT(ocean_residual, 1e-3 * params.patch_size / 64);
+  const auto [lo, hi] = std::minmax_element(frame.height.begin(), frame.height.end());
+  for (float h : choppy) EXPECT_TRUE(h >= *lo - 1e-4f && h <= *hi + 1e-4f);
+  EXPECT_THROW(resample_displaced(64, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 6,
+                                  std::span<float>(choppy.data(), 10)),
+               std::invalid_argument);
+}
+
+}  // namespace displace::sim
