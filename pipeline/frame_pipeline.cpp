@@ -24,6 +24,9 @@ double steady_milliseconds() {
 unsigned scene_effects(const Scene& scene) {
   unsigned effects = effect_heights;
   if (scene.source == SourceKind::ocean && scene.ocean.choppiness > 0.0f) effects |= effect_choppy;
+  if (scene.source == SourceKind::ocean && scene.foam && scene.material == render::Material::water) {
+    effects |= effect_foam;
+  }
   return effects;
 }
 
@@ -45,6 +48,8 @@ struct FramePipeline::State {
   std::vector<sim::Wave> waves;
   sim::HeightMapping mapping;
   std::vector<float> raw;
+  std::vector<float> jacobian, foam;  // the foam effect: the Jacobian on the grid, then coverage
+  std::uint64_t foam_version = 0;
   render::HeightField field;
   std::uint64_t heights_version = 0;
   bool heights_changed = false;
@@ -128,15 +133,28 @@ void FramePipeline::simulate(double time, FrameRecord& record) {
   if (s.ocean) {
     const long long ffts = s.ocean->fft_count();
     const bool choppy = (s.effects & effect_choppy) != 0;
-    s.ocean->evaluate(time, sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u), s.ocean_frame);
+    const bool foam = (s.effects & effect_foam) != 0;
+    s.ocean->evaluate(time,
+                      sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u) | (foam ? sim::ocean_foam : 0u),
+                      s.ocean_frame);
     record.ffts = s.ocean->fft_count() - ffts;
+    if (foam) s.jacobian.resize(s.field.heights.size());
     if (choppy) {
-      record.choppy_residual =
-          sim::resample_displaced(n, s.ocean->patch_size(), s.ocean_frame.height, s.ocean_frame.displacement_x,
-                                  s.ocean_frame.displacement_y, choppy_iterations, s.raw);
+      record.choppy_residual = sim::resample_displaced(
+          n, s.ocean->patch_size(), s.ocean_frame.height, s.ocean_frame.displacement_x, s.ocean_frame.displacement_y,
+          choppy_iterations, s.raw, foam ? std::span<const float>(s.ocean_frame.jacobian) : std::span<const float>{},
+          foam ? std::span<float>(s.jacobian) : std::span<float>{});
       sim::apply_mapping(s.mapping, s.raw, s.field.heights);
     } else {
+      if (foam) s.jacobian = s.ocean_frame.jacobian;
       sim::apply_mapping(s.mapping, s.ocean_frame.height, s.field.heights);
+    }
+    if (foam) {
+      s.foam.resize(s.jacobian.size());
+      for (std::size_t t = 0; t < s.foam.size(); ++t) {
+        s.foam[t] = std::clamp((foam_start - s.jacobian[t]) / (foam_start - foam_full), 0.0f, 1.0f);
+      }
+      s.foam_version = next_map_version();
     }
   } else {
     sim::sinusoid_heights(s.waves, s.scene.sinusoids.patch_size, time, n, n, s.raw);
@@ -212,6 +230,10 @@ void FramePipeline::upload(FrameRecord&) {
     cones.version = s.cones_version;
   }
   if (s.needs.max_pyramid) set.max_pyramid = {&s.pyramid, s.needs.address, s.pyramid_version};
+  if (!s.foam.empty()) {
+    set.foam = s.foam;
+    set.foam_version = s.foam_version;
+  }
   if (s.needs.distance) {
     set.distance = {s.distance_width, s.distance_height, s.distance_depth, s.needs.address, s.distance,
                     s.distance_version};

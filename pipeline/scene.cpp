@@ -141,8 +141,10 @@ double frame_time(const Scene& scene, long long frame_index) {
 render::View scene_view(const Scene& scene, double time) {
   render::View view;
   view.camera = scene.camera;
+  view.material = scene.material;
   view.surface = scene.surface;
   view.shadows = scene.shadows;
+  view.light_direction = scene.light;
   view.depth_scale = scene.depth_scale;
   view.tile = scene.tile;
   const std::vector<CameraKey>& keys = scene.keyframes;
@@ -179,19 +181,25 @@ render::View scene_view(const Scene& scene, double time) {
   return view;
 }
 
-std::vector<std::string> builtin_scene_names() { return {"calm", "choppy", "ripples", "bricks", "cliff"}; }
+std::vector<std::string> builtin_scene_names() { return {"water", "calm", "ripples", "bricks", "cliff"}; }
 
 Scene builtin_scene(std::string_view name) {
   Scene scene;
   scene.name = std::string(name);
   scene.camera.width = scene.camera.height = 512;
-  if (name == "calm" || name == "choppy") {
+  if (name == "water" || name == "calm") {
     scene.source = SourceKind::ocean;
-    scene.ocean.choppiness = name == "calm" ? 0.0f : 1.0f;
-    scene.camera.eye = {0.5f, -0.35f, 0.45f};
-    scene.camera.look_at = {0.5f, 0.5f, -0.05f};
+    scene.ocean.choppiness = name == "calm" ? 0.0f : 1.5f;
+    scene.material = render::Material::water;
+    scene.foam = name == "water";
+    scene.depth_scale = 0.04f;             // 8 m of relief over the 200 m patch
+    scene.light = {0.0f, 1.0f, 0.3f};      // a low sun ahead: its glint path runs towards the eye
+    scene.camera.eye = {0.5f, -0.25f, 0.22f};
+    scene.camera.look_at = {0.5f, 0.6f, -0.02f};
   } else if (name == "ripples") {
     scene.source = SourceKind::sinusoids;
+    scene.material = render::Material::water;
+    scene.light = {0.0f, 1.0f, 0.3f};
   } else if (name == "bricks" || name == "cliff") {
     scene.source = name == "bricks" ? SourceKind::bricks : SourceKind::cliff;
   } else {
@@ -211,7 +219,7 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                      std::string(error.description()));
   }
   const Reader read(source_name);
-  read.known_keys(root, "", {"name", "source", "ocean", "sinusoids", "camera", "render", "time", "budget"});
+  read.known_keys(root, "", {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
   Scene scene;
   scene.name = read.word(&root, "", "name", "scene", {});
 
@@ -255,6 +263,17 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   scene.sinusoids.steepness = float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
   scene.sinusoids.seed = std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
 
+  // [material]
+  const toml::table* material = read.section(root, "material");
+  if (material) read.known_keys(*material, "material", {"kind", "foam"});
+  scene.material = read.word(material, "material", "kind", "grid", {"grid", "water"}) == "water"
+                       ? render::Material::water
+                       : render::Material::grid;
+  scene.foam = read.boolean(material, "material", "foam", false);
+  if (scene.foam && (scene.material != render::Material::water || scene.source != SourceKind::ocean)) {
+    read.fail(material->get("foam"), "material.foam", "foam needs kind = \"water\" and the ocean source");
+  }
+
   // [camera]
   const toml::table* camera = read.section(root, "camera");
   if (camera) read.known_keys(*camera, "camera", {"eye", "look_at", "up", "fov_y", "keyframes"});
@@ -288,7 +307,7 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   const toml::table* render_table = read.section(root, "render");
   if (render_table) {
     read.known_keys(*render_table, "render",
-                    {"method", "steps", "refine", "size", "surface", "shadows", "depth_scale", "tile"});
+                    {"method", "steps", "refine", "size", "surface", "shadows", "light", "depth_scale", "tile"});
   }
   if (const toml::node* method = render_table ? render_table->get("method") : nullptr) {
     const std::optional<std::string> name = method->value<std::string>();
@@ -321,6 +340,8 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                   : surface == "cone"     ? render::Surface::cone
                                           : render::Surface::plane;
   scene.shadows = read.boolean(render_table, "render", "shadows", scene.shadows);
+  scene.light = read.vector3(render_table ? render_table->get("light") : nullptr, "render.light", scene.light);
+  if (glm::length(scene.light) < 1e-6f) read.fail(render_table->get("light"), "render.light", "must not be zero");
   scene.depth_scale = float(read.number(render_table, "render", "depth_scale", scene.depth_scale, 1e-4, 10.0));
   scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, 64));
   if (!render::supports_surface(scene.method, scene.surface)) {
@@ -372,6 +393,8 @@ std::string scene_toml(const Scene& scene) {
                                        {"patch_size", double(scene.sinusoids.patch_size)},
                                        {"steepness", double(scene.sinusoids.steepness)},
                                        {"seed", std::int64_t(scene.sinusoids.seed)}});
+  root.insert("material", toml::table{{"kind", scene.material == render::Material::water ? "water" : "grid"},
+                                      {"foam", scene.foam}});
   toml::table camera{{"eye", vec(scene.camera.eye)},
                      {"look_at", vec(scene.camera.look_at)},
                      {"up", vec(scene.camera.up)},
@@ -394,6 +417,7 @@ std::string scene_toml(const Scene& scene) {
                                     {"size", toml::array{scene.camera.width, scene.camera.height}},
                                     {"surface", surface},
                                     {"shadows", scene.shadows},
+                                    {"light", vec(scene.light)},
                                     {"depth_scale", double(scene.depth_scale)},
                                     {"tile", scene.tile}});
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});

@@ -46,12 +46,17 @@ struct Scene {
   render::Camera camera;
   std::vector<CameraKey> keyframes;  // sorted by time
 
+  // [material]: kind = "grid" | "water"; foam (water only) shows where the choppy surface folds
+  render::Material material = render::Material::grid;
+  bool foam = false;
+
   // [render]
   render::Method method = render::Method::acm4;
   int steps = 32;
   int refine = 8;
   render::Surface surface = render::Surface::plane;
   bool shadows = false;
+  glm::vec3 light{0.35f, 0.25f, 1.0f};  // towards the light (the sun); normalized when used
   float depth_scale = 0.1f;
   int tile = 1;
 
@@ -73,8 +78,9 @@ double frame_time(const Scene& scene, long long frame_index);
 // every key, tangents from the neighbouring keys; held before the first and after the last).
 render::View scene_view(const Scene& scene, double time);
 
-// Built-in scenes: "calm" (the ocean, choppiness 0), "choppy" (the ocean with choppy crests,
-// resampled onto the grid), "ripples" (sinusoids), "bricks", "cliff" (static maps).
+// Built-in scenes: "water" (the ocean with choppy crests resampled onto the grid, foam, the water
+// material), "calm" (the ocean with choppiness 0 and no foam, water material), "ripples" (sinusoids,
+// water material), "bricks", "cliff" (static maps, the grid).
 std::vector<std::string> builtin_scene_names();
 Scene builtin_scene(std::string_view name);  // throws SceneError naming the built-ins
 

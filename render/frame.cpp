@@ -84,6 +84,8 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo foam_info{linear, foam.held ? foam.image.view() : dummy_foam.view(),
+                                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -96,13 +98,14 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
     return w;
   };
   constexpr VkDescriptorType sampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  const std::array<VkWriteDescriptorSet, 6> writes = {
+  const std::array<VkWriteDescriptorSet, 7> writes = {
       write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, nullptr, &uniform_info),
       write(BINDING_HEIGHT, sampled, &height_info, nullptr),
       write(BINDING_CONES, sampled, &cone_info, nullptr),
       write(BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &pyramid_info),
       write(BINDING_ALBEDO, sampled, &albedo_info, nullptr),
-      write(BINDING_DISTANCE, sampled, &distance_info, nullptr)};
+      write(BINDING_DISTANCE, sampled, &distance_info, nullptr),
+      write(BINDING_FOAM, sampled, &foam_info, nullptr)};
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
@@ -173,10 +176,13 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   uniforms.surface = glm::vec4(float(view.tile), view.depth_scale, 1.0f / float(view.tile), 0.0f);
   uniforms.map_size =
       glm::vec4(float(map_width), float(map_height), 1.0f / float(map_width), 1.0f / float(map_height));
+  const bool water = view.material == Material::water;
   const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
-                    (has_albedo ? FLAG_ALBEDO : 0);
+                    (has_albedo ? FLAG_ALBEDO : 0) | (water ? FLAG_WATER : 0) | (water && foam.held ? FLAG_FOAM : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
-  uniforms.background = glm::vec4(background[0], background[1], background[2], background[3]);
+  const std::array<float, 4> clear_colour =
+      water ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f} : background;
+  uniforms.background = glm::vec4(clear_colour[0], clear_colour[1], clear_colour[2], clear_colour[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
 
   FrameSlot& frame_slot = begin_slot();
@@ -212,7 +218,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   const auto first_query = std::uint32_t(2 * slot_index);
   if (queries) vkCmdResetQueryPool(commands, queries, first_query, 2);
   std::array<VkClearValue, 4> clears{};
-  std::memcpy(clears[0].color.float32, background.data(), sizeof(float) * 4);
+  std::memcpy(clears[0].color.float32, clear_colour.data(), sizeof(float) * 4);
   clears[3].depthStencil = {1.0f, 0};
   VkRenderPassBeginInfo begin{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
   begin.renderPass = render_pass.get();

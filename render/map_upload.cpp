@@ -176,6 +176,9 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
                       size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
   }
   check_rects(maps.heights_dirty, width, height, "heights");
+  if (!maps.foam.empty() && maps.foam.size() != std::size_t(width) * std::size_t(height)) {
+    throw RenderError("maps: foam coverage must hold one value per texel of the " + size_text(width, height) + " heights");
+  }
   const std::size_t texels = std::size_t(width) * std::size_t(height);
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& given = maps.cones[index];
@@ -242,6 +245,17 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     heights.image = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(width), std::uint32_t(height), 1,
                           VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
                           VK_IMAGE_VIEW_TYPE_2D);
+  }
+  Copy foam_copy = Copy::none;
+  if (!maps.foam.empty()) {
+    foam_copy = copy_kind(foam, foam.width == width && foam.height == height, maps.foam_version, 0, 0);
+    if (reshape(foam, width, height, 1)) {
+      foam.image = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(width), std::uint32_t(height), 1,
+                         VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+                         VK_IMAGE_VIEW_TYPE_2D);
+    }
+  } else {
+    foam.held = false;
   }
   std::array<Copy, 3> cone_copies{Copy::none, Copy::none, Copy::none};
   for (std::size_t index = 0; index < cones.size(); ++index) {
@@ -313,6 +327,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   // staging bytes, then room in the current slot's part of the ring
   VkDeviceSize bytes = 0;
   for (const bake::Rect& rect : rects_of(heights_copy, maps.heights_dirty)) bytes += align_up(rect_texels(rect) * 4);
+  if (foam_copy != Copy::none) bytes += align_up(texels * 4);
   for (std::size_t index = 0; index < cones.size(); ++index) {
     for (const bake::Rect& rect : rects_of(cone_copies[index], maps.cones[index].dirty)) {
       bytes += align_up(rect_texels(rect) * 8 * VkDeviceSize(cones[index].layers));
@@ -339,16 +354,18 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   };
   std::vector<VkBufferImageCopy>& regions = copy_regions;
 
-  // heights
-  if (heights_copy != Copy::none) {
-    const bool fresh = !heights.held;
-    heights.held = false;
+  // heights and foam: one R32F value per texel in [0, 1]
+  auto upload_values = [&](DeviceMap& map, Copy copy, std::span<const float> values,
+                           std::span<const bake::Rect> dirty, std::uint64_t version, const char* what) {
+    if (copy == Copy::none) return;
+    const bool fresh = !map.held;
+    map.held = false;
     regions.clear();
-    for (const bake::Rect& rect : rects_of(heights_copy, maps.heights_dirty)) {
+    for (const bake::Rect& rect : rects_of(copy, dirty)) {
       if (rect_texels(rect) == 0) continue;
       const VkDeviceSize offset = reserve(rect_texels(rect) * 4);
-      if (!pack_heights(maps.heights, width, rect, reinterpret_cast<float*>(staging + offset))) {
-        throw RenderError("maps: heights must be finite and in [0, 1]");
+      if (!pack_heights(values, width, rect, reinterpret_cast<float*>(staging + offset))) {
+        throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
       }
       VkBufferImageCopy region{};
       region.bufferOffset = offset;
@@ -359,15 +376,17 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
       region.imageExtent = {std::uint32_t(rect.x1 - rect.x0), std::uint32_t(rect.y1 - rect.y0), 1};
       regions.push_back(region);
     }
-    to_transfer(commands, heights, 1, fresh);
+    to_transfer(commands, map, 1, fresh);
     if (!regions.empty()) {
-      vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), heights.image.handle(),
+      vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
                              VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()), regions.data());
     }
-    to_shader(commands, heights, 1);
-    heights.held = true;
-    heights.version = maps.heights_version;
-  }
+    to_shader(commands, map, 1);
+    map.held = true;
+    map.version = version;
+  };
+  upload_values(heights, heights_copy, maps.heights, maps.heights_dirty, maps.heights_version, "heights");
+  upload_values(foam, foam_copy, maps.foam, {}, maps.foam_version, "foam coverage");
 
   // cone maps: every layer of a rectangle in one region (layer after layer in the staging)
   for (std::size_t index = 0; index < cones.size(); ++index) {

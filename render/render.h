@@ -138,8 +138,14 @@ struct Camera {
   Ray pixel_ray(double px, double py) const;
 };
 
+// How a hit is shaded: the procedural grid (or the albedo image, Renderer::set_albedo), or water:
+// the sky reflected with Fresnel's law, sun glint, light scattered from the water body (darker over
+// deeper water) and foam where MapSet::foam says so.
+enum class Material { grid, water };
+
 struct View {
   Camera camera;
+  Material material = Material::grid;
   int tile = 1;                  // texture repeats over the plane; > 1 needs Address::wrap
   float depth_scale = 0.1f;      // world units between height 1 and height 0
   bake::Address address = bake::Address::wrap;
@@ -254,6 +260,9 @@ struct MapSet {
   std::array<ConeMapView, 3> cones;  // by cone_slot(sector_count): 1, 4 and 8 sectors
   MaxPyramidView max_pyramid;
   DistanceMapView distance;
+  // foam coverage in [0, 1] per texel, for the water material (empty: none), with its version
+  std::span<const float> foam;
+  std::uint64_t foam_version = 0;
 };
 int cone_slot(int sector_count);  // 0, 1, 2 for 1, 4, 8 sectors
 

@@ -72,6 +72,7 @@ void Renderer::Impl::create_frame_slots() {
   dummy_albedo = upload_image_now(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
   const float zero = 0.0f;
   dummy_distance = upload_image_now(VK_FORMAT_R32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_3D, &zero, sizeof zero);
+  dummy_foam = upload_image_now(VK_FORMAT_R32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, &zero, sizeof zero);
   // a pyramid of 0 levels: the header, then one value
   dummy_pyramid = Buffer(context, sizeof(gpu::MaxPyramidHeader) + sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                          VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);

@@ -106,7 +106,7 @@ struct Renderer::Impl {
   OwnedQueryPool timestamps;  // 2 per slot
   std::array<FrameSlot, frames_in_flight> slots;
   int slot = 0;  // the slot the next frame records into
-  Image dummy_cones, dummy_albedo, dummy_distance;
+  Image dummy_cones, dummy_albedo, dummy_distance, dummy_foam;
   Buffer dummy_pyramid;
   Image albedo_image;
   bool has_albedo = false;
@@ -125,6 +125,7 @@ struct Renderer::Impl {
   std::array<DeviceMap, 3> cones;  // by cone_slot
   DeviceMap max_pyramid;
   DeviceMap distance;
+  DeviceMap foam;
   std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;

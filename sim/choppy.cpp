@@ -29,10 +29,12 @@ float periodic_bilinear(std::span<const float> grid, int size, double x, double 
 
 double resample_displaced(int size, float patch_size, std::span<const float> height,
                           std::span<const float> displacement_x, std::span<const float> displacement_y,
-                          int iterations, std::span<float> out) {
+                          int iterations, std::span<float> out, std::span<const float> extra,
+                          std::span<float> extra_out) {
   const std::size_t texels = std::size_t(size) * std::size_t(size);
   if (size < 2 || !(patch_size > 0.0f) || height.size() != texels || displacement_x.size() != texels ||
-      displacement_y.size() != texels || out.size() != texels || iterations < 0) {
+      displacement_y.size() != texels || out.size() != texels || iterations < 0 || extra.size() != extra_out.size() ||
+      !(extra.empty() || extra.size() == texels)) {
     throw std::invalid_argument("resample_displaced: size x size heights, displacements and output, patch_size > 0");
   }
   const double texels_per_metre = double(size) / patch_size;
@@ -51,6 +53,7 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
             const double ry = py + periodic_bilinear(displacement_y, size, px, py) * texels_per_metre - i;
             worst = std::max(worst, std::hypot(rx, ry) / texels_per_metre);
             out[std::size_t(i) * size + j] = periodic_bilinear(height, size, px, py);
+            if (!extra.empty()) extra_out[std::size_t(i) * size + j] = periodic_bilinear(extra, size, px, py);
           }
         }
         return worst;

@@ -158,9 +158,11 @@ void cliff_heights(int width, int height, std::uint64_t seed, std::span<float> o
 // texel centre by the fixed-point iteration p <- x - D(p) (D bilinear, periodic), which contracts
 // while the displacement's gradient stays below 1 (the Jacobian positive: no folded crest; where
 // it folds, the iteration's last p is used). `iterations` steps; the result stays periodic.
-// Returns the largest residual |p + D(p) - x| in metres after the last step.
+// Returns the largest residual |p + D(p) - x| in metres after the last step. `extra` (optional, e.g.
+// the Jacobian for foam) is resampled through the same p into `extra_out`.
 double resample_displaced(int size, float patch_size, std::span<const float> height,
                           std::span<const float> displacement_x, std::span<const float> displacement_y,
-                          int iterations, std::span<float> out);
+                          int iterations, std::span<float> out, std::span<const float> extra = {},
+                          std::span<float> extra_out = {});
 
 }  // namespace displace::sim

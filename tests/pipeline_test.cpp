@@ -109,8 +109,10 @@ TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
   EXPECT_LT(glm::length(a - b), 0.01f);
 }
 
-// Only what the scene consumes runs: the calm ocean costs exactly one FFT a frame (heights); the
-// choppy one adds the two displacement FFTs and resamples the displaced surface onto the grid.
+// Only what the scene consumes runs: the calm ocean costs exactly one FFT a frame (heights); choppy
+// crests add the two displacement FFTs and resample the displaced surface onto the grid; foam (the
+// water material) adds the three Jacobian FFTs, and nothing asks for spectral slopes (normals come
+// from the heights).
 TEST(Pipeline, SimulatesOnlyTheEffectsTheSceneNeeds) {
   Scene calm = small_scene("calm", 32, 16);
   calm.method = render::Method::relief;
@@ -121,12 +123,13 @@ TEST(Pipeline, SimulatesOnlyTheEffectsTheSceneNeeds) {
     const FrameRecord record = calm_pipeline.run(n, frame);
     EXPECT_EQ(record.ffts, 1);
     EXPECT_EQ(record.effects, unsigned(pipeline::effect_heights));
+    EXPECT_TRUE(calm_pipeline.maps().foam.empty());
   }
   Scene choppy = calm;
   choppy.ocean.choppiness = 1.0f;
   EXPECT_EQ(pipeline::scene_effects(choppy), unsigned(pipeline::effect_heights | pipeline::effect_choppy));
   FramePipeline choppy_pipeline(choppy, shared_renderer());
-  const FrameRecord record = choppy_pipeline.run(0, frame);
+  FrameRecord record = choppy_pipeline.run(0, frame);
   EXPECT_EQ(record.ffts, 3);
   EXPECT_LT(record.choppy_residual, 1e-3 * calm.ocean.patch_size / 32);  // a thousandth of a texel
   // the choppy heights differ from the calm ones (crests move), and stay in [0, 1]
@@ -134,6 +137,71 @@ TEST(Pipeline, SimulatesOnlyTheEffectsTheSceneNeeds) {
   calm_pipeline.simulate(0.0, calm_record);
   EXPECT_NE(choppy_pipeline.heights().heights, calm_pipeline.heights().heights);
   for (float h : choppy_pipeline.heights().heights) EXPECT_TRUE(h >= 0.0f && h <= 1.0f);
+
+  Scene water = small_scene("water", 32, 16);
+  water.method = render::Method::relief;
+  water.ocean.choppiness = 2.5f;  // folds somewhere: foam to show
+  EXPECT_EQ(pipeline::scene_effects(water),
+            unsigned(pipeline::effect_heights | pipeline::effect_choppy | pipeline::effect_foam));
+  FramePipeline water_pipeline(water, shared_renderer());
+  record = water_pipeline.run(0, frame);
+  EXPECT_EQ(record.ffts, 6);
+  const std::span<const float> foam = water_pipeline.maps().foam;
+  ASSERT_EQ(foam.size(), std::size_t(32 * 32));
+  EXPECT_GT(*std::max_element(foam.begin(), foam.end()), 0.5f);
+  EXPECT_EQ(*std::min_element(foam.begin(), foam.end()), 0.0f);
+  water.foam = false;
+  EXPECT_EQ(pipeline::scene_effects(water), unsigned(pipeline::effect_heights | pipeline::effect_choppy));
+}
+
+// The water material on a flat sea: looking straight down shows the dark water body (2% sky);
+// at a grazing angle Fresnel's law turns it into a mirror of the bright horizon; foam is white.
+TEST(Pipeline, WaterReflectsTheSkyByFresnelAndFoamIsWhite) {
+  const int size = 16;
+  const std::vector<float> flat(std::size_t(size) * size, 0.5f);
+  render::MapSet maps;
+  maps.width = maps.height = size;
+  maps.heights = flat;
+  maps.heights_version = std::uint64_t(1) << 61;
+  render::Renderer& renderer = shared_renderer();
+  renderer.set_maps(maps);
+  auto mean_colour = [&](glm::vec3 eye, bool with_foam) {
+    render::View view;
+    view.material = render::Material::water;
+    view.camera.eye = eye;
+    view.camera.look_at = {0.5f, 0.5f, 0.0f};
+    view.camera.up = std::abs(eye.z) > 1.0f ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
+    view.camera.width = view.camera.height = 64;
+    view.camera.fov_y_degrees = 5.0f;
+    std::vector<float> coverage(flat.size(), 1.0f);
+    if (with_foam) {
+      maps.foam = coverage;
+      maps.foam_version = (std::uint64_t(1) << 61) + 1;
+    } else {
+      maps.foam = {};
+    }
+    renderer.set_maps(maps);
+    const render::Frame frame = renderer.render(view, {render::Method::relief, 8, 2});
+    glm::dvec3 sum(0.0);
+    long long hit = 0;
+    for (std::size_t p = 0; p < frame.uv.size() / 3; ++p) {
+      if (frame.uv[p * 3 + 2] < 0.5f) continue;
+      sum += glm::dvec3(frame.color[p * 4], frame.color[p * 4 + 1], frame.color[p * 4 + 2]);
+      ++hit;
+    }
+    EXPECT_GT(hit, 100);
+    return glm::vec3(sum / double(std::max<long long>(hit, 1)));
+  };
+  const glm::vec3 down = mean_colour({0.5f, 0.5f, 3.0f}, false);
+  const glm::vec3 grazing = mean_colour({0.5f, -2.0f, 0.2f}, false);  // 4.6 degrees above the sea
+  const glm::vec3 foam = mean_colour({0.5f, 0.5f, 3.0f}, true);
+  EXPECT_LT(down.r + down.g + down.b, 3 * 40.0f) << down.r << " " << down.g << " " << down.b;
+  // at 4.6 degrees Fresnel reflects about 2/3 of the near-horizon sky: measured (96, 120, 143)
+  EXPECT_GT(grazing.r + grazing.g + grazing.b, 3 * 100.0f) << grazing.r << " " << grazing.g << " " << grazing.b;
+  EXPECT_GT(grazing.r + grazing.g + grazing.b, 3.0f * (down.r + down.g + down.b));
+  EXPECT_GT(grazing.b, grazing.r);  // the sky is blue
+  EXPECT_GT(foam.r + foam.g + foam.b, 3 * 180.0f);
+  EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
 // The bake gets what the frame budget leaves (measured on the scene's clock) and never runs past
@@ -211,7 +279,7 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
 // render the ocean's frames in different orders agree bit for bit, and a static scene renders the
 // same picture on every frame.
 TEST(Pipeline, FramesAreReproducibleFromTheirIndex) {
-  Scene scene = small_scene("choppy", 32, 24);
+  Scene scene = small_scene("water", 32, 24);
   scene.method = render::Method::acm4;
   scene.bake_work = 2000;
   FramePipeline forward(scene, shared_renderer()), backward(scene, shared_renderer());

@@ -49,11 +49,19 @@ using mat4 = glm::mat4;
 #define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
 #define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
+#define BINDING_FOAM 6     // sampler2D, R32F foam coverage in [0, 1] (the water material), linear, the address mode
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
 #define FLAG_SHADOWS 2  // self-shadowing: trace from the hit towards the light with the same method
 #define FLAG_ALBEDO 4   // shade with the albedo image instead of the procedural grid
+#define FLAG_WATER 8    // the water material (shading.inc.glsl) instead of the grid or albedo
+#define FLAG_FOAM 16    // the water material reads foam coverage at BINDING_FOAM
+
+// the water material's sky at the horizon (shading.inc.glsl), also the background of water frames
+#define SKY_HORIZON_R 0.72
+#define SKY_HORIZON_G 0.80
+#define SKY_HORIZON_B 0.88
 
 // color attachments
 #define ATTACHMENT_COLOR 0     // RGBA8: the shaded picture

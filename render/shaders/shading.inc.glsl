@@ -1,6 +1,6 @@
 // render/shaders/shading.inc.glsl - the shading every method shares, so that pictures differ only by
-// their hit points: an albedo image or a procedural grid, Lambert + Blinn-Phong, one directional light, the normal
-// from the height field at the hit. Reads that shading makes are not counted as method fetches.
+// their hit points: an albedo image or a procedural grid with Lambert + Blinn-Phong, or the water
+// material; one directional light, the normal from the height field at the hit. Reads that shading makes are not counted as method fetches.
 
 const float albedo_cells = 8.0;       // checker cells per texture tile
 const float grid_line_width = 0.06;   // fraction of a cell
@@ -34,9 +34,44 @@ vec3 albedo(vec2 uv) {
   return grid_albedo(uv);
 }
 
+// ---- the water material (FLAG_WATER): what the eye sees of water is mostly the sky it reflects,
+// weighted by Fresnel's law, plus light scattered back from the water body, darker where the water is
+// deeper, a glint where the sun's reflection meets the eye, and foam where the surface folds.
+const float water_f0 = 0.02;                      // Fresnel reflectance at normal incidence (n = 1.33)
+const vec3 sky_zenith = vec3(0.18, 0.36, 0.66);
+const vec3 sky_horizon = vec3(SKY_HORIZON_R, SKY_HORIZON_G, SKY_HORIZON_B);
+const vec3 water_deep = vec3(0.004, 0.030, 0.060);    // scattered colour over the troughs (height 0)
+const vec3 water_shallow = vec3(0.030, 0.170, 0.190); // over the crests (height 1): less water below
+const float sun_glint_exponent = 300.0;
+const float sun_glint_strength = 3.0;
+const vec3 foam_colour = vec3(0.92, 0.95, 0.96);
+
+vec3 sky(vec3 direction) {
+  float up = clamp(direction.z, 0.0, 1.0);
+  return mix(sky_horizon, sky_zenith, pow(up, 0.6));
+}
+
+vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
+  vec3 to_eye = -view_direction;
+  float cosine = clamp(dot(n, to_eye), 0.0, 1.0);
+  float fresnel = water_f0 + (1.0 - water_f0) * pow(1.0 - cosine, 5.0);
+  vec3 reflected = reflect(view_direction, n);
+  vec3 reflection = sky(reflected);
+  float glint = lit * sun_glint_strength * pow(max(dot(reflected, l), 0.0), sun_glint_exponent);
+  float h = shading_height(uv);
+  vec3 body = mix(water_deep, water_shallow, h) * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
+  vec3 colour = mix(body, reflection, fresnel) + glint;
+  if ((frame.counts.z & FLAG_FOAM) != 0) {
+    float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
+    colour = mix(colour, foam_colour * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)), foam);
+  }
+  return min(colour, vec3(1.0));
+}
+
 // lit: 1 where the light reaches the hit, 0 in shadow (then only the ambient term is left)
 vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction, float lit) {
   vec3 n = surface_normal(uv, tangent_frame);
+  if ((frame.counts.z & FLAG_WATER) != 0) return shade_water(uv, n, view_direction, normalize(frame.light.xyz), lit);
   vec3 l = normalize(frame.light.xyz);
   vec3 half_vector = normalize(l - view_direction);
   float diffuse = lit * max(dot(n, l), 0.0);

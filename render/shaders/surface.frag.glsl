@@ -13,6 +13,7 @@ layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 layout(binding = BINDING_CONES) uniform sampler2DArray cone_map;
 layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
 layout(binding = BINDING_DISTANCE) uniform sampler3D distance_map;
+layout(binding = BINDING_FOAM) uniform sampler2D foam_map;
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec2 in_uv;

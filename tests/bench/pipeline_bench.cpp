@@ -57,7 +57,7 @@ void run_frames(benchmark::State& state, const char* scene_name, int map_size, d
 }
 
 void register_frames() {
-  for (const char* scene : {"calm", "choppy", "ripples"}) {
+  for (const char* scene : {"calm", "water", "ripples"}) {
     for (int size : {256, 512}) {
       for (double budget : {16.0, 100.0}) {
         const std::string name = std::string("BM_Frame/") + scene + "/" + std::to_string(size) + "/" +
