@@ -2,6 +2,8 @@
 #include "pipeline/scene.h"
 
 #include <algorithm>
+#include <charconv>
+#include <cstdlib>
 #include <cmath>
 #include <fstream>
 #include <initializer_list>
@@ -376,29 +378,40 @@ Scene read_scene_file(const std::filesystem::path& file) {
   return parse_scene(text.str(), file.string());
 }
 
+namespace {
+
+// A float as the double with the shortest decimal that reads back to it (0.22f prints as 0.22).
+double tidy(float value) {
+  char text[32];
+  const auto end = std::to_chars(text, text + sizeof text, value).ptr;
+  return std::strtod(std::string(text, end).c_str(), nullptr);
+}
+
+}  // namespace
+
 std::string scene_toml(const Scene& scene) {
-  auto vec = [](glm::vec3 v) { return toml::array{double(v.x), double(v.y), double(v.z)}; };
+  auto vec = [](glm::vec3 v) { return toml::array{tidy(v.x), tidy(v.y), tidy(v.z)}; };
   toml::table root;
   root.insert("name", scene.name);
   root.insert("source", toml::table{{"kind", source_word(scene.source)},
                                     {"map_size", scene.map_size},
                                     {"seed", std::int64_t(scene.seed)}});
-  root.insert("ocean", toml::table{{"patch_size", double(scene.ocean.patch_size)},
+  root.insert("ocean", toml::table{{"patch_size", tidy(scene.ocean.patch_size)},
                                    {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
-                                   {"wind_speed", double(scene.ocean.wind_speed)},
-                                   {"wind_direction", double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi},
-                                   {"choppiness", double(scene.ocean.choppiness)},
+                                   {"wind_speed", tidy(scene.ocean.wind_speed)},
+                                   {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
+                                   {"choppiness", tidy(scene.ocean.choppiness)},
                                    {"seed", std::int64_t(scene.ocean.seed)}});
   root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
-                                       {"patch_size", double(scene.sinusoids.patch_size)},
-                                       {"steepness", double(scene.sinusoids.steepness)},
+                                       {"patch_size", tidy(scene.sinusoids.patch_size)},
+                                       {"steepness", tidy(scene.sinusoids.steepness)},
                                        {"seed", std::int64_t(scene.sinusoids.seed)}});
   root.insert("material", toml::table{{"kind", scene.material == render::Material::water ? "water" : "grid"},
                                       {"foam", scene.foam}});
   toml::table camera{{"eye", vec(scene.camera.eye)},
                      {"look_at", vec(scene.camera.look_at)},
                      {"up", vec(scene.camera.up)},
-                     {"fov_y", double(scene.camera.fov_y_degrees)}};
+                     {"fov_y", tidy(scene.camera.fov_y_degrees)}};
   if (!scene.keyframes.empty()) {
     toml::array keys;
     for (const CameraKey& key : scene.keyframes) {
@@ -418,10 +431,10 @@ std::string scene_toml(const Scene& scene) {
                                     {"surface", surface},
                                     {"shadows", scene.shadows},
                                     {"light", vec(scene.light)},
-                                    {"depth_scale", double(scene.depth_scale)},
+                                    {"depth_scale", tidy(scene.depth_scale)},
                                     {"tile", scene.tile}});
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});
-  toml::table budget{{"bake_work", std::int64_t(scene.bake_work)}, {"tolerance", double(scene.tolerance)}};
+  toml::table budget{{"bake_work", std::int64_t(scene.bake_work)}, {"tolerance", tidy(scene.tolerance)}};
   if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
   root.insert("budget", budget);
   std::ostringstream out;
