@@ -2,6 +2,8 @@
 #include "pipeline/frame_pipeline.h"
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -9,6 +11,8 @@
 #include <vector>
 
 #include "pipeline/maps.h"
+
+#include <tbb/parallel_pipeline.h>
 
 namespace displace::pipeline {
 namespace {
@@ -30,6 +34,29 @@ unsigned scene_effects(const Scene& scene) {
   return effects;
 }
 
+// What one frame in flight owns: its heights and maps, and what the renderer is handed.
+struct FrameBuffers {
+  sim::OceanFrame ocean_frame;
+  std::vector<float> raw;
+  std::vector<float> jacobian, foam;  // the foam effect: the Jacobian on the grid, then coverage
+  std::uint64_t foam_version = 0;
+  render::HeightField field;
+  std::uint64_t heights_version = 0;
+  bool heights_changed = false;
+  bool maps_made = false;  // for the current heights
+  std::vector<float> ratios, apex, relaxed;
+  std::uint64_t cones_version = 0;
+  bake::DualMaxPyramid pyramid;
+  std::uint64_t pyramid_version = 0;
+  std::vector<float> distance;
+  int distance_width = 0, distance_height = 0, distance_depth = 0;
+  std::uint64_t distance_version = 0;
+  bake::BakeStats cone_stats;
+  render::MapSet set;
+
+  bake::HeightView heights_view() const { return {field.heights.data(), field.width, field.height}; }
+};
+
 struct FramePipeline::State {
   State(const Scene& s, render::Renderer& r, std::function<double()> c)
       : scene(s), renderer(r), clock(c ? std::move(c) : std::function<double()>(steady_milliseconds)) {}
@@ -42,34 +69,19 @@ struct FramePipeline::State {
   bool deterministic = true;  // a work budget or none: a frame depends on its index only
   bool static_source = false;
 
-  // sim
+  // kept for the whole run
   std::optional<sim::Ocean> ocean;
-  sim::OceanFrame ocean_frame;
   std::vector<sim::Wave> waves;
   sim::HeightMapping mapping;
-  std::vector<float> raw;
-  std::vector<float> jacobian, foam;  // the foam effect: the Jacobian on the grid, then coverage
-  std::uint64_t foam_version = 0;
-  render::HeightField field;
-  std::uint64_t heights_version = 0;
-  bool heights_changed = false;
-  bool maps_made = false;  // for the current heights
-
-  // bake
   std::optional<bake::BilinearBaker> baker;
-  std::vector<float> ratios, apex, relaxed;
-  std::uint64_t cones_version = 0;
-  bake::DualMaxPyramid pyramid;
-  std::uint64_t pyramid_version = 0;
-  std::vector<float> distance;
-  int distance_width = 0, distance_height = 0, distance_depth = 0;
-  std::uint64_t distance_version = 0;
-  bake::BakeStats cone_stats;
 
-  render::MapSet set;
-  double last_other_ms = 0.0;  // sim + upload + render of the last frame
+  // frames in flight (run_frames overlaps two; run uses the first)
+  std::array<FrameBuffers, 2> buffers;
+  int current = 0;        // the buffers the stage functions work on
+  int last_baked = -1;    // the buffers the baker emitted into last (refine continues from them)
+  std::atomic<double> last_other_ms{0.0};  // sim + upload + render of the last frame
 
-  bake::HeightView heights_view() const { return {field.heights.data(), field.width, field.height}; }
+  FrameBuffers& frame() { return buffers[std::size_t(current)]; }
 };
 
 FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock)
@@ -81,8 +93,10 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   s.effects = scene_effects(scene);
   s.needs = render::map_needs(scene.method, scene_view(scene, scene.start));
   s.deterministic = !std::isfinite(scene.frame_ms);
-  s.field = {n, n, std::vector<float>(std::size_t(n) * n)};
-  s.raw.resize(s.field.heights.size());
+  for (FrameBuffers& b : s.buffers) {
+    b.field = {n, n, std::vector<float>(std::size_t(n) * n)};
+    b.raw.resize(b.field.heights.size());
+  }
   try {
     switch (scene.source) {
       case SourceKind::ocean: {
@@ -99,7 +113,9 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
       case SourceKind::bricks:
       case SourceKind::cliff:
         s.static_source = true;
-        (scene.source == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(n, n, scene.seed, s.raw);
+        for (FrameBuffers& b : s.buffers) {
+          (scene.source == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(n, n, scene.seed, b.raw);
+        }
         s.mapping = sim::HeightMapping{1.0f, 0.0f};
         break;
     }
@@ -114,19 +130,20 @@ FramePipeline::FramePipeline(FramePipeline&&) noexcept = default;
 FramePipeline& FramePipeline::operator=(FramePipeline&&) noexcept = default;
 
 const Scene& FramePipeline::scene() const { return state_->scene; }
-const render::HeightField& FramePipeline::heights() const { return state_->field; }
-const render::MapSet& FramePipeline::maps() const { return state_->set; }
+const render::HeightField& FramePipeline::heights() const { return state_->frame().field; }
+const render::MapSet& FramePipeline::maps() const { return state_->frame().set; }
 
-void FramePipeline::simulate(double time, FrameRecord& record) {
-  State& s = *state_;
+namespace {
+
+void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameRecord& record) {
   record.time = time;
   record.effects = s.effects;
-  const int n = s.field.width;
+  const int n = b.field.width;
   if (s.static_source) {
-    s.heights_changed = s.heights_version == 0;
-    if (s.heights_changed) {
-      sim::apply_mapping(s.mapping, s.raw, s.field.heights);
-      s.heights_version = next_map_version();
+    b.heights_changed = b.heights_version == 0;
+    if (b.heights_changed) {
+      sim::apply_mapping(s.mapping, b.raw, b.field.heights);
+      b.heights_version = next_map_version();
     }
     return;
   }
@@ -136,110 +153,143 @@ void FramePipeline::simulate(double time, FrameRecord& record) {
     const bool foam = (s.effects & effect_foam) != 0;
     s.ocean->evaluate(time,
                       sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u) | (foam ? sim::ocean_foam : 0u),
-                      s.ocean_frame);
+                      b.ocean_frame);
     record.ffts = s.ocean->fft_count() - ffts;
-    if (foam) s.jacobian.resize(s.field.heights.size());
+    if (foam) b.jacobian.resize(b.field.heights.size());
     if (choppy) {
       record.choppy_residual = sim::resample_displaced(
-          n, s.ocean->patch_size(), s.ocean_frame.height, s.ocean_frame.displacement_x, s.ocean_frame.displacement_y,
-          choppy_iterations, s.raw, foam ? std::span<const float>(s.ocean_frame.jacobian) : std::span<const float>{},
-          foam ? std::span<float>(s.jacobian) : std::span<float>{});
-      sim::apply_mapping(s.mapping, s.raw, s.field.heights);
+          n, s.ocean->patch_size(), b.ocean_frame.height, b.ocean_frame.displacement_x, b.ocean_frame.displacement_y,
+          choppy_iterations, b.raw, foam ? std::span<const float>(b.ocean_frame.jacobian) : std::span<const float>{},
+          foam ? std::span<float>(b.jacobian) : std::span<float>{});
+      sim::apply_mapping(s.mapping, b.raw, b.field.heights);
     } else {
-      if (foam) s.jacobian = s.ocean_frame.jacobian;
-      sim::apply_mapping(s.mapping, s.ocean_frame.height, s.field.heights);
+      if (foam) b.jacobian = b.ocean_frame.jacobian;
+      sim::apply_mapping(s.mapping, b.ocean_frame.height, b.field.heights);
     }
     if (foam) {
-      s.foam.resize(s.jacobian.size());
-      for (std::size_t t = 0; t < s.foam.size(); ++t) {
-        s.foam[t] = std::clamp((foam_start - s.jacobian[t]) / (foam_start - foam_full), 0.0f, 1.0f);
+      b.foam.resize(b.jacobian.size());
+      for (std::size_t t = 0; t < b.foam.size(); ++t) {
+        b.foam[t] = std::clamp((foam_start - b.jacobian[t]) / (foam_start - foam_full), 0.0f, 1.0f);
       }
-      s.foam_version = next_map_version();
+      b.foam_version = next_map_version();
     }
   } else {
-    sim::sinusoid_heights(s.waves, s.scene.sinusoids.patch_size, time, n, n, s.raw);
-    sim::apply_mapping(s.mapping, s.raw, s.field.heights);
+    sim::sinusoid_heights(s.waves, s.scene.sinusoids.patch_size, time, n, n, b.raw);
+    sim::apply_mapping(s.mapping, b.raw, b.field.heights);
   }
-  s.heights_changed = true;
-  s.heights_version = next_map_version();
+  b.heights_changed = true;
+  b.heights_version = next_map_version();
 }
 
-void FramePipeline::bake(double budget_ms, FrameRecord& record) {
-  State& s = *state_;
+void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, FrameRecord& record) {
   record.bake_budget_ms = budget_ms;
-  const bool remake = s.heights_changed || !s.maps_made;
-  const int n = s.field.width;
-  const std::size_t texels = s.field.heights.size();
+  bool remake = b.heights_changed || !b.maps_made;
+  FrameBuffers& last = s.buffers[std::size_t(std::max(s.last_baked, 0))];
+  if (remake && s.static_source && s.last_baked >= 0 && &last != &b && last.maps_made) {
+    // the same heights in the other frame's buffers: take their maps (and the baker's progress)
+    b.ratios = last.ratios;
+    b.apex = last.apex;
+    b.relaxed = last.relaxed;
+    b.cones_version = last.cones_version;
+    b.pyramid = last.pyramid;
+    b.pyramid_version = last.pyramid_version;
+    b.distance = last.distance;
+    b.distance_width = last.distance_width;
+    b.distance_height = last.distance_height;
+    b.distance_depth = last.distance_depth;
+    b.distance_version = last.distance_version;
+    b.cone_stats = last.cone_stats;
+    b.maps_made = true;
+    b.heights_changed = false;
+    remake = false;
+  }
+  const int n = b.field.width;
+  const std::size_t texels = b.field.heights.size();
   if (s.needs.cone_sectors > 0) {
     bake::Budget budget;
     budget.milliseconds = budget_ms;
     budget.clock = s.clock;
     budget.max_work = s.scene.bake_work;
     budget.tolerance = s.scene.tolerance;
-    s.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
-    s.apex.resize(texels);
-    const bake::ConeView cones{s.ratios.data(), n, n, s.needs.cone_sectors};
+    b.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
+    b.apex.resize(texels);
+    const bake::ConeView cones{b.ratios.data(), n, n, s.needs.cone_sectors};
     if (remake) {
-      s.cone_stats = s.baker->bake(s.heights_view(), budget, cones, s.apex);
-      s.cones_version = next_map_version();
+      b.cone_stats = s.baker->bake(b.heights_view(), budget, cones, b.apex);
+      b.cones_version = next_map_version();
     } else if (!s.deterministic && s.baker->pending() > 0) {
-      // a static source in real time: refinement goes on where the last frame stopped
-      s.cone_stats = s.baker->refine(budget, cones, s.apex);
-      s.cones_version = next_map_version();
+      // a static source in real time: refinement goes on where the last frame stopped, from the
+      // ratios the baker emitted last
+      if (&last != &b) {
+        std::copy(last.ratios.begin(), last.ratios.end(), b.ratios.begin());
+        std::copy(last.apex.begin(), last.apex.end(), b.apex.begin());
+      }
+      b.cone_stats = s.baker->refine(budget, cones, b.apex);
+      b.cones_version = next_map_version();
     }
+    s.last_baked = int(&b - s.buffers.data());
     if (s.needs.relaxed && remake) {
-      s.relaxed.resize(texels);
-      bake::bake_relaxed(s.heights_view(), s.needs.cone_address, {s.relaxed.data(), n, n, 1});
+      b.relaxed.resize(texels);
+      bake::bake_relaxed(b.heights_view(), s.needs.cone_address, {b.relaxed.data(), n, n, 1});
     }
-    record.cones = s.cone_stats;
+    record.cones = b.cone_stats;
     record.pending = s.baker->pending();
   }
   if (s.needs.max_pyramid && remake) {
-    s.pyramid = bake::build_dual_max_pyramid(s.heights_view(), s.needs.address);
-    s.pyramid_version = next_map_version();
+    b.pyramid = bake::build_dual_max_pyramid(b.heights_view(), s.needs.address);
+    b.pyramid_version = next_map_version();
   }
   if (s.needs.distance && remake) {
     const int side = std::min(distance_max_side, s.renderer.device().max_image_dimension_3d);
-    s.distance_width = std::min(n, side);
-    s.distance_height = std::min(n, side);
-    s.distance_depth = std::min(distance_slices, s.renderer.device().max_image_dimension_3d);
-    s.distance.resize(std::size_t(s.distance_width) * s.distance_height * s.distance_depth);
-    bake::bake_distance_map(s.heights_view(), s.needs.address,
-                            {s.distance.data(), s.distance_width, s.distance_height, s.distance_depth});
-    s.distance_version = next_map_version();
+    b.distance_width = std::min(n, side);
+    b.distance_height = std::min(n, side);
+    b.distance_depth = std::min(distance_slices, s.renderer.device().max_image_dimension_3d);
+    b.distance.resize(std::size_t(b.distance_width) * b.distance_height * b.distance_depth);
+    bake::bake_distance_map(b.heights_view(), s.needs.address,
+                            {b.distance.data(), b.distance_width, b.distance_height, b.distance_depth});
+    b.distance_version = next_map_version();
   }
-  s.maps_made = true;
-  s.heights_changed = false;
+  b.maps_made = true;
+  b.heights_changed = false;
 }
 
-void FramePipeline::upload(FrameRecord&) {
-  State& s = *state_;
-  render::MapSet& set = s.set;
+void upload_from(FramePipeline::State& s, FrameBuffers& b) {
+  render::MapSet& set = b.set;
   set = render::MapSet{};
-  set.width = s.field.width;
-  set.height = s.field.height;
-  set.heights = s.field.heights;
-  set.heights_version = s.heights_version;
+  set.width = b.field.width;
+  set.height = b.field.height;
+  set.heights = b.field.heights;
+  set.heights_version = b.heights_version;
   if (s.needs.cone_sectors > 0) {
     render::ConeMapView& cones = set.cones[std::size_t(render::cone_slot(s.needs.cone_sectors))];
     cones.sector_count = s.needs.cone_sectors;
     cones.address = s.needs.cone_address;
-    cones.ratios = s.ratios;
-    cones.apex = s.apex;
-    if (s.needs.relaxed) cones.relaxed = s.relaxed;
-    cones.version = s.cones_version;
+    cones.ratios = b.ratios;
+    cones.apex = b.apex;
+    if (s.needs.relaxed) cones.relaxed = b.relaxed;
+    cones.version = b.cones_version;
   }
-  if (s.needs.max_pyramid) set.max_pyramid = {&s.pyramid, s.needs.address, s.pyramid_version};
-  if (!s.foam.empty()) {
-    set.foam = s.foam;
-    set.foam_version = s.foam_version;
+  if (s.needs.max_pyramid) set.max_pyramid = {&b.pyramid, s.needs.address, b.pyramid_version};
+  if (!b.foam.empty()) {
+    set.foam = b.foam;
+    set.foam_version = b.foam_version;
   }
   if (s.needs.distance) {
-    set.distance = {s.distance_width, s.distance_height, s.distance_depth, s.needs.address, s.distance,
-                    s.distance_version};
+    set.distance = {b.distance_width, b.distance_height, b.distance_depth, s.needs.address, b.distance,
+                    b.distance_version};
   }
   s.renderer.set_maps(set);
 }
+
+}  // namespace
+
+void FramePipeline::simulate(double time, FrameRecord& record) {
+  simulate_into(*state_, state_->frame(), time, record);
+}
+void FramePipeline::bake(double budget_ms, FrameRecord& record) {
+  bake_into(*state_, state_->frame(), budget_ms, record);
+}
+void FramePipeline::upload(FrameRecord&) { upload_from(*state_, state_->frame()); }
 
 void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigned outputs, FrameRecord&) {
   const Scene& scene = state_->scene;
@@ -270,6 +320,64 @@ FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned o
   record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
   s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
   return record;
+}
+
+void FramePipeline::run_frames(long long first, long long count, unsigned outputs,
+                               const std::function<void(const FrameRecord&, const render::Frame&)>& consume) {
+  State& s = *state_;
+  struct Token {
+    FrameRecord record;
+    FrameBuffers* buffers = nullptr;
+    double start = 0.0;
+  };
+  std::array<Token, 2> tokens;
+  render::Frame frame;
+  long long next = 0;
+  auto budget_now = [&] {
+    return std::isfinite(s.scene.frame_ms) ? std::max(0.0, s.scene.frame_ms - s.last_other_ms.load())
+                                           : std::numeric_limits<double>::infinity();
+  };
+  tbb::parallel_pipeline(
+      tokens.size(),
+      tbb::make_filter<void, Token*>(tbb::filter_mode::serial_in_order,
+                                     [&](tbb::flow_control& control) -> Token* {
+                                       if (next >= count) {
+                                         control.stop();
+                                         return nullptr;
+                                       }
+                                       const long long index = first + next;
+                                       Token& token = tokens[std::size_t(next % 2)];
+                                       token.buffers = &s.buffers[std::size_t(next % 2)];
+                                       ++next;
+                                       token.record = FrameRecord{};
+                                       token.record.index = index;
+                                       token.start = s.clock();
+                                       simulate_into(s, *token.buffers, frame_time(s.scene, index), token.record);
+                                       token.record.sim_ms = s.clock() - token.start;
+                                       return &token;
+                                     }) &
+          tbb::make_filter<Token*, Token*>(tbb::filter_mode::serial_in_order,
+                                           [&](Token* token) {
+                                             const double start = s.clock();
+                                             bake_into(s, *token->buffers, budget_now(), token->record);
+                                             token->record.bake_ms = s.clock() - start;
+                                             return token;
+                                           }) &
+          tbb::make_filter<Token*, void>(tbb::filter_mode::serial_in_order, [&](Token* token) {
+            FrameRecord& record = token->record;
+            const double start = s.clock();
+            upload_from(s, *token->buffers);
+            const double uploaded = s.clock();
+            const render::View view = scene_view(s.scene, record.time);
+            s.renderer.render(view, {s.scene.method, s.scene.steps, s.scene.refine}, frame, outputs);
+            const double drawn = s.clock();
+            record.upload_ms = uploaded - start;
+            record.render_ms = drawn - uploaded;
+            record.frame_ms = drawn - token->start;
+            record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
+            s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
+            consume(record, frame);
+          }));
 }
 
 }  // namespace displace::pipeline

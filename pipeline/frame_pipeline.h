@@ -63,6 +63,13 @@ class FramePipeline {
   // Frame `index`: every stage, the picture read back into `frame` (`outputs`, render::Output).
   FrameRecord run(long long index, render::Frame& frame, unsigned outputs = render::output_color);
 
+  // Frames first .. first + count - 1 with the stages overlapped (tbb::parallel_pipeline, two frames
+  // in flight): frame n + 1's sim and bake run while frame n uploads and renders. `consume` gets
+  // every frame, in order, with its record (the frame is reused: copy what is kept). The pictures
+  // are the same as run()'s, frame by frame.
+  void run_frames(long long first, long long count, unsigned outputs,
+                  const std::function<void(const FrameRecord&, const render::Frame&)>& consume);
+
   // The stages alone.
   void simulate(double time, FrameRecord& record);
   void bake(double budget_ms, FrameRecord& record);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -43,10 +44,12 @@ std::string error_of(const std::string& text) {
   return "(accepted)";
 }
 
-// A clock that moves only when asked: each call advances it by `tick` milliseconds.
+// A clock that moves only when asked: each call advances it by `tick` milliseconds (atomic: the
+// overlapped stages read it from two threads).
 struct FakeClock {
-  double now = 0.0, tick = 0.01;
-  double operator()() { return now += tick; }
+  std::atomic<double> now{0.0};
+  double tick = 0.01;
+  double operator()() { return now.fetch_add(tick) + tick; }
 };
 
 }  // namespace
@@ -370,4 +373,37 @@ TEST(Pipeline, AnimatedOceanFlickersNoMoreThanTheReference) {
                 value, reference, value / reference);
     EXPECT_LE(value, 1.1 * reference + 0.25) << render::method_info(method).name;
   }
+}
+
+// Overlapped frames (the next frame's sim and bake while this one renders) are the frames run()
+// makes, in order; a static scene in real time keeps refining across the two frame buffers.
+TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
+  Scene scene = small_scene("water", 32, 24);
+  scene.method = render::Method::acm4;
+  scene.bake_work = 1500;
+  FramePipeline sequential(scene, shared_renderer()), overlapped(scene, shared_renderer());
+  std::vector<render::Frame> expected(5);
+  for (int n = 0; n < 5; ++n) sequential.run(10 + n, expected[std::size_t(n)], render::output_all);
+  long long seen = 0;
+  overlapped.run_frames(10, 5, render::output_all, [&](const FrameRecord& record, const render::Frame& frame) {
+    EXPECT_EQ(record.index, 10 + seen);
+    EXPECT_EQ(frame.color, expected[std::size_t(seen)].color) << record.index;
+    EXPECT_EQ(frame.depth, expected[std::size_t(seen)].depth) << record.index;
+    ++seen;
+  });
+  EXPECT_EQ(seen, 5);
+
+  FakeClock clock;
+  clock.tick = 0.25;
+  Scene cliff = small_scene("cliff", 64, 16);
+  cliff.method = render::Method::acm4;
+  cliff.tolerance = 0.0f;
+  cliff.frame_ms = 4.0;
+  FramePipeline real_time(cliff, shared_renderer(), std::ref(clock));
+  std::vector<long long> pending;
+  real_time.run_frames(0, 6, render::output_color,
+                       [&](const FrameRecord& record, const render::Frame&) { pending.push_back(record.pending); });
+  ASSERT_EQ(pending.size(), 6u);
+  for (std::size_t n = 1; n < pending.size(); ++n) EXPECT_LE(pending[n], pending[n - 1]) << n;
+  EXPECT_LT(pending.back(), pending.front());
 }
