@@ -101,7 +101,10 @@ class Reader {
                    const std::string& value, std::initializer_list<std::string_view> allowed) const {
     const toml::node* node = table ? table->get(key) : nullptr;
     if (!node) return value;
-    if (!node->is_string()) fail(node, qualified(section, key), "must be a string (one of " + join(allowed) + ")");
+    if (!node->is_string()) {
+      fail(node, qualified(section, key),
+           allowed.size() == 0 ? std::string("must be a string") : "must be a string (one of " + join(allowed) + ")");
+    }
     const std::string read = node->as_string()->get();
     if (allowed.size() > 0 && std::find(allowed.begin(), allowed.end(), read) == allowed.end()) {
       fail(node, qualified(section, key), "'" + read + "' is not one of " + join(allowed));

@@ -95,6 +95,41 @@ TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
   EXPECT_THROW(pipeline::builtin_scene("lava"), SceneError);
 }
 
+// Every key, with a value of the wrong type and one out of range: one error naming that key.
+TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
+  const std::pair<const char*, std::vector<const char*>> keys[] = {
+      {"source.kind", {"3", "\"lava\""}},         {"source.map_size", {"\"big\"", "1", "9000"}},
+      {"source.seed", {"-1", "1.5"}},               {"ocean.patch_size", {"\"a\"", "0"}},
+      {"ocean.spectrum", {"1", "\"pink\""}},        {"ocean.wind_speed", {"false", "1000"}},
+      {"ocean.wind_direction", {"\"n\"", "400"}},   {"ocean.choppiness", {"[1]", "-1"}},
+      {"ocean.seed", {"\"x\""}},                   {"sinusoids.wave_count", {"1.5", "0"}},
+      {"sinusoids.patch_size", {"true", "0"}},      {"sinusoids.steepness", {"\"s\"", "2"}},
+      {"sinusoids.seed", {"\"x\""}},               {"material.kind", {"1", "\"glass\""}},
+      {"material.foam", {"1"}},                     {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
+      {"camera.look_at", {"[1, 2, 3, 4]"}},         {"camera.up", {"\"up\""}},
+      {"camera.fov_y", {"\"wide\"", "180"}},        {"camera.keyframes", {"3", "[1, 2]"}},
+      {"render.method", {"1", "\"magic\""}},        {"render.steps", {"\"many\"", "0", "5000"}},
+      {"render.refine", {"-1", "65"}},              {"render.size", {"1", "[0, 10]", "[10]"}},
+      {"render.surface", {"\"torus\""}},            {"render.shadows", {"\"yes\""}},
+      {"render.light", {"[0, 0, 0]", "2"}},         {"render.depth_scale", {"0", "11"}},
+      {"render.tile", {"0", "65"}},                 {"time.start", {"\"now\"", "1e13"}},
+      {"time.fps", {"0", "1e5"}},                   {"budget.frame_ms", {"-1", "\"fast\""}},
+      {"budget.bake_work", {"-2", "0.5"}},          {"budget.tolerance", {"2", "\"loose\""}},
+      {"name", {"1"}}};
+  for (const auto& [key, values] : keys) {
+    const std::string path = key;
+    const std::size_t dot = path.find('.');
+    for (const char* value : values) {
+      const std::string text = dot == std::string::npos
+                                   ? path + " = " + value + "\n"
+                                   : "[" + path.substr(0, dot) + "]\n" + path.substr(dot + 1) + " = " + value + "\n";
+      const std::string error = error_of(text);
+      EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
+      EXPECT_EQ(error.rfind("scene.toml:", 0), 0u) << text << " -> " << error;
+    }
+  }
+}
+
 TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
   Scene scene = pipeline::builtin_scene("calm");
   scene.keyframes = {{0.0, {0.0f, -1.0f, 1.0f}, {0.5f, 0.5f, 0.0f}},
