@@ -58,12 +58,16 @@ struct FrameBuffers {
 };
 
 struct FramePipeline::State {
-  State(const Scene& s, render::Renderer& r, std::function<double()> c)
-      : scene(s), renderer(r), clock(c ? std::move(c) : std::function<double()>(steady_milliseconds)) {}
+  State(const Scene& s, render::Renderer& r, std::function<double()> c, HeightLoader l)
+      : scene(s),
+        renderer(r),
+        clock(c ? std::move(c) : std::function<double()>(steady_milliseconds)),
+        loader(std::move(l)) {}
 
   Scene scene;
   render::Renderer& renderer;
   std::function<double()> clock;
+  HeightLoader loader;
   unsigned effects = effect_heights;
   render::MapNeeds needs;
   bool deterministic = true;  // a work budget or none: a frame depends on its index only
@@ -74,6 +78,7 @@ struct FramePipeline::State {
   std::vector<sim::Wave> waves;
   sim::HeightMapping mapping;
   std::optional<bake::BilinearBaker> baker;
+  int baker_width = 0, baker_height = 0;
 
   // frames in flight (run_frames overlaps two; run uses the first)
   std::array<FrameBuffers, 2> buffers;
@@ -84,11 +89,14 @@ struct FramePipeline::State {
   FrameBuffers& frame() { return buffers[std::size_t(current)]; }
 };
 
-FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock)
-    : state_(std::make_unique<State>(scene, renderer, std::move(clock))) {
+FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock,
+                             HeightLoader loader)
+    : state_(std::make_unique<State>(scene, renderer, std::move(clock), std::move(loader))) {
   State& s = *state_;
-  const int n = scene.map_size;
-  if (n < 2 || n > 8192) throw SceneError("source.map_size must be between 2 and 8192");
+  const int n = scene.source == SourceKind::image ? 0 : scene.map_size;
+  if (scene.source != SourceKind::image && (n < 2 || n > 8192)) {
+    throw SceneError("source.map_size must be between 2 and 8192");
+  }
   if (!(scene.fps > 0.0)) throw SceneError("time.fps must be above 0");
   s.effects = scene_effects(scene);
   s.needs = render::map_needs(scene.method, scene_view(scene, scene.start));
@@ -118,11 +126,19 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
         }
         s.mapping = sim::HeightMapping{1.0f, 0.0f};
         break;
+      case SourceKind::image:
+        if (!s.loader) throw SceneError("an image scene needs a height loader (the application's image reader)");
+        s.static_source = !is_image_sequence(scene.image);
+        s.mapping = sim::HeightMapping{1.0f, 0.0f};
+        break;
     }
   } catch (const std::invalid_argument& error) {
     throw SceneError(std::string("the scene's source: ") + error.what());
   }
-  if (s.needs.cone_sectors > 0) s.baker.emplace(n, n, s.needs.cone_sectors, s.needs.cone_address);
+  if (s.needs.cone_sectors > 0 && scene.source != SourceKind::image) {
+    s.baker.emplace(n, n, s.needs.cone_sectors, s.needs.cone_address);
+    s.baker_width = s.baker_height = n;
+  }
 }
 
 FramePipeline::~FramePipeline() = default;
@@ -138,6 +154,26 @@ namespace {
 void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameRecord& record) {
   record.time = time;
   record.effects = s.effects;
+  if (s.scene.source == SourceKind::image) {
+    if (s.static_source && b.heights_version != 0) {
+      b.heights_changed = false;
+      return;
+    }
+    render::HeightField loaded = s.loader(s.static_source ? s.scene.image : image_for_frame(s.scene.image, record.index));
+    if (loaded.width != b.field.width || loaded.height != b.field.height) {
+      b.maps_made = false;
+      if (s.needs.cone_sectors > 0 && (!s.baker || s.baker_width != loaded.width || s.baker_height != loaded.height)) {
+        s.baker.emplace(loaded.width, loaded.height, s.needs.cone_sectors, s.needs.cone_address);
+        s.baker_width = loaded.width;
+        s.baker_height = loaded.height;
+        s.last_baked = -1;
+      }
+    }
+    b.field = std::move(loaded);
+    b.heights_changed = true;
+    b.heights_version = next_map_version();
+    return;
+  }
   const int n = b.field.width;
   if (s.static_source) {
     b.heights_changed = b.heights_version == 0;
@@ -203,7 +239,7 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     b.heights_changed = false;
     remake = false;
   }
-  const int n = b.field.width;
+  const int width = b.field.width, height = b.field.height;
   const std::size_t texels = b.field.heights.size();
   if (s.needs.cone_sectors > 0) {
     bake::Budget budget;
@@ -213,7 +249,7 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     budget.tolerance = s.scene.tolerance;
     b.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
     b.apex.resize(texels);
-    const bake::ConeView cones{b.ratios.data(), n, n, s.needs.cone_sectors};
+    const bake::ConeView cones{b.ratios.data(), width, height, s.needs.cone_sectors};
     if (remake) {
       b.cone_stats = s.baker->bake(b.heights_view(), budget, cones, b.apex);
       b.cones_version = next_map_version();
@@ -230,7 +266,7 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     s.last_baked = int(&b - s.buffers.data());
     if (s.needs.relaxed && remake) {
       b.relaxed.resize(texels);
-      bake::bake_relaxed(b.heights_view(), s.needs.cone_address, {b.relaxed.data(), n, n, 1});
+      bake::bake_relaxed(b.heights_view(), s.needs.cone_address, {b.relaxed.data(), width, height, 1});
     }
     record.cones = b.cone_stats;
     record.pending = s.baker->pending();
@@ -241,8 +277,8 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
   }
   if (s.needs.distance && remake) {
     const int side = std::min(distance_max_side, s.renderer.device().max_image_dimension_3d);
-    b.distance_width = std::min(n, side);
-    b.distance_height = std::min(n, side);
+    b.distance_width = std::min(width, side);
+    b.distance_height = std::min(height, side);
     b.distance_depth = std::min(distance_slices, s.renderer.device().max_image_dimension_3d);
     b.distance.resize(std::size_t(b.distance_width) * b.distance_height * b.distance_depth);
     bake::bake_distance_map(b.heights_view(), s.needs.address,

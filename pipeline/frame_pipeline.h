@@ -51,11 +51,16 @@ struct FrameRecord {
   double choppy_residual = 0.0; // metres: the resampling's largest |p + D(p) - x|
 };
 
+// Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
+// (demos/ uses OpenImageIO); it throws for a file it cannot read.
+using HeightLoader = std::function<render::HeightField(const std::filesystem::path& file)>;
+
 class FramePipeline {
  public:
-  // clock: milliseconds (any origin); by default std::chrono::steady_clock. Throws SceneError or
-  // render::RenderError for a scene that cannot run.
-  FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock = {});
+  // clock: milliseconds (any origin); by default std::chrono::steady_clock. loader: needed by image
+  // scenes. Throws SceneError or render::RenderError for a scene that cannot run.
+  FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock = {},
+                HeightLoader loader = {});
   ~FramePipeline();
   FramePipeline(FramePipeline&&) noexcept;
   FramePipeline& operator=(FramePipeline&&) noexcept;

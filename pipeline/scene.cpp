@@ -27,6 +27,7 @@ const char* source_word(SourceKind kind) {
     case SourceKind::sinusoids: return "sinusoids";
     case SourceKind::bricks: return "bricks";
     case SourceKind::cliff: return "cliff";
+    case SourceKind::image: return "image";
   }
   return "ocean";
 }
@@ -139,6 +140,28 @@ class Reader {
 
 }  // namespace
 
+bool is_image_sequence(const std::filesystem::path& pattern) {
+  return pattern.filename().string().find('#') != std::string::npos;
+}
+
+std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index) {
+  std::string name = pattern.filename().string();
+  std::string out;
+  for (std::size_t i = 0; i < name.size();) {
+    if (name[i] != '#') {
+      out += name[i++];
+      continue;
+    }
+    std::size_t run = 0;
+    while (i + run < name.size() && name[i + run] == '#') ++run;
+    std::string digits = std::to_string(frame_index);
+    if (digits.size() < run) digits.insert(0, run - digits.size(), '0');
+    out += digits;
+    i += run;
+  }
+  return pattern.parent_path() / out;
+}
+
 double frame_time(const Scene& scene, long long frame_index) {
   return scene.start + double(frame_index) / scene.fps;
 }
@@ -230,12 +253,25 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
 
   // [source]
   const toml::table* source = read.section(root, "source");
-  if (source) read.known_keys(*source, "source", {"kind", "map_size", "seed"});
-  const std::string kind = read.word(source, "source", "kind", "ocean", {"ocean", "sinusoids", "bricks", "cliff"});
+  if (source) read.known_keys(*source, "source", {"kind", "map_size", "seed", "path"});
+  const std::string kind =
+      read.word(source, "source", "kind", "ocean", {"ocean", "sinusoids", "bricks", "cliff", "image"});
   scene.source = kind == "ocean"       ? SourceKind::ocean
                  : kind == "sinusoids" ? SourceKind::sinusoids
                  : kind == "bricks"    ? SourceKind::bricks
-                                       : SourceKind::cliff;
+                 : kind == "cliff"     ? SourceKind::cliff
+                                       : SourceKind::image;
+  const std::string path = read.word(source, "source", "path", "", {});
+  if (scene.source == SourceKind::image) {
+    if (path.empty()) read.fail(source ? source->get("kind") : nullptr, "source.path", "kind = \"image\" needs a path");
+    std::filesystem::path image(path);
+    if (image.is_relative() && source_name.find('/') != std::string::npos) {
+      image = std::filesystem::path(source_name).parent_path() / image;
+    }
+    scene.image = image;
+  } else if (!path.empty()) {
+    read.fail(source->get("path"), "source.path", "only kind = \"image\" reads a file");
+  }
   scene.map_size = int(read.integer(source, "source", "map_size", scene.map_size, min_map_size, max_map_size));
   if (scene.source == SourceKind::ocean && scene.map_size % 2 != 0) {
     read.fail(source ? source->get("map_size") : nullptr, "source.map_size", "must be even for the ocean");
@@ -396,9 +432,9 @@ std::string scene_toml(const Scene& scene) {
   auto vec = [](glm::vec3 v) { return toml::array{tidy(v.x), tidy(v.y), tidy(v.z)}; };
   toml::table root;
   root.insert("name", scene.name);
-  root.insert("source", toml::table{{"kind", source_word(scene.source)},
-                                    {"map_size", scene.map_size},
-                                    {"seed", std::int64_t(scene.seed)}});
+  toml::table source{{"kind", source_word(scene.source)}, {"map_size", scene.map_size}, {"seed", std::int64_t(scene.seed)}};
+  if (scene.source == SourceKind::image) source.insert("path", scene.image.string());
+  root.insert("source", source);
   root.insert("ocean", toml::table{{"patch_size", tidy(scene.ocean.patch_size)},
                                    {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
                                    {"wind_speed", tidy(scene.ocean.wind_speed)},

@@ -23,7 +23,7 @@ struct SceneError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class SourceKind { ocean, sinusoids, bricks, cliff };
+enum class SourceKind { ocean, sinusoids, bricks, cliff, image };
 
 // The camera at scene time `time` (seconds): eye and look-at point, world units.
 struct CameraKey {
@@ -39,6 +39,10 @@ struct Scene {
   SourceKind source = SourceKind::ocean;
   int map_size = 256;           // height map texels a side
   std::uint64_t seed = 1;       // bricks and cliff roughness
+  // kind = "image": a height image, or a numbered sequence where each run of '#' in the file name
+  // is frame n zero-padded to that many digits (heights_####.exr: frame 7 reads heights_0007.exr);
+  // relative to the scene file. The map size is the image's. Read by the application's loader.
+  std::filesystem::path image;
   sim::OceanParams ocean;       // [ocean]; size is map_size
   sim::SinusoidParams sinusoids;  // [sinusoids]
 
@@ -71,6 +75,10 @@ struct Scene {
   long long bake_work = -1;
   float tolerance = 0.25f;  // the bake's refinement tolerance
 };
+
+// The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.
+std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);
+bool is_image_sequence(const std::filesystem::path& pattern);
 
 // Frame n's scene time, in double: start + n / fps.
 double frame_time(const Scene& scene, long long frame_index);

@@ -71,7 +71,7 @@ TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
   EXPECT_EQ(error_of("[render]\nmethod = \"magic\"\n").rfind("scene.toml:2: render.method: must be one of bump", 0), 0u);
   EXPECT_EQ(error_of("[ocean]\nwindspeed = 3\n").rfind("scene.toml:2: ocean.windspeed: unknown key", 0), 0u);
   EXPECT_EQ(error_of("colour = 1\n").rfind("scene.toml:1: colour: unknown key", 0), 0u);
-  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"), "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff");
+  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"), "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff, image");
   EXPECT_EQ(error_of("[source]\nmap_size = 255\n"), "scene.toml:2: source.map_size: must be even for the ocean");
   EXPECT_EQ(error_of("[time]\nfps = \"fast\"\n"), "scene.toml:2: time.fps: must be a number");
   EXPECT_EQ(error_of("[camera]\neye = [1, 2]\n"), "scene.toml:2: camera.eye: must be an array of 3 numbers [x, y, z]");
@@ -441,4 +441,39 @@ TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
   ASSERT_EQ(pending.size(), 6u);
   for (std::size_t n = 1; n < pending.size(); ++n) EXPECT_LE(pending[n], pending[n - 1]) << n;
   EXPECT_LT(pending.back(), pending.front());
+}
+
+// An image scene reads frame n's file of a numbered sequence through the application's loader
+// (here one that makes the heights from the name), its map size the image's; a single file is
+// read once.
+TEST(Pipeline, ImageSequencesReadTheFileOfEachFrame) {
+  EXPECT_EQ(pipeline::image_for_frame("maps/h_####.exr", 7), std::filesystem::path("maps/h_0007.exr"));
+  EXPECT_EQ(pipeline::image_for_frame("h_#_#.png", 12), std::filesystem::path("h_12_12.png"));
+  EXPECT_FALSE(pipeline::is_image_sequence("maps/h.exr"));
+  const Scene parsed = pipeline::parse_scene("[source]\nkind = \"image\"\npath = \"h_##.png\"\n", "dir/scene.toml");
+  EXPECT_EQ(parsed.image, std::filesystem::path("dir/h_##.png"));
+  EXPECT_NE(error_of("[source]\nkind = \"image\"\n").find("source.path"), std::string::npos);
+  EXPECT_NE(error_of("[source]\npath = \"a.png\"\n").find("source.path"), std::string::npos);
+
+  std::vector<std::string> read;
+  pipeline::HeightLoader loader = [&](const std::filesystem::path& file) {
+    read.push_back(file.string());
+    const int frame = std::stoi(file.stem().string().substr(2));
+    return displace::testing::field_of(24, 16, [&](int i, int j) { return 0.5 + 0.4 * std::sin(0.3 * (i + j + frame)); });
+  };
+  Scene scene = small_scene("bricks", 32, 16);
+  scene.source = pipeline::SourceKind::image;
+  scene.image = "h_##.png";
+  scene.method = render::Method::acm4;
+  FramePipeline frames(scene, shared_renderer(), {}, loader);
+  render::Frame frame;
+  for (int n : {3, 4}) frames.run(n, frame);
+  EXPECT_EQ(read, (std::vector<std::string>{"h_03.png", "h_04.png"}));
+  EXPECT_EQ(frames.heights().width, 24);
+  EXPECT_EQ(frames.heights().height, 16);
+  scene.image = "h_05.png";
+  FramePipeline still(scene, shared_renderer(), {}, loader);
+  for (int n : {0, 1, 2}) still.run(n, frame);
+  EXPECT_EQ(read.size(), 3u);  // one more read for all three frames
+  EXPECT_THROW(FramePipeline(scene, shared_renderer()), SceneError);  // no loader
 }
