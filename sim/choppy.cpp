@@ -14,15 +14,21 @@ namespace displace::sim {
 namespace {
 
 // Bilinear sample of a periodic size x size grid at (x, y) in texels (texel centres at integers).
-float periodic_bilinear(std::span<const float> grid, int size, double x, double y) {
-  const double fx = std::floor(x), fy = std::floor(y);
-  const double tx = x - fx, ty = y - fy;
-  auto wrap = [size](long long i) { return int(((i % size) + size) % size); };
-  const int x0 = wrap((long long)fx), x1 = wrap((long long)fx + 1);
-  const int y0 = wrap((long long)fy), y1 = wrap((long long)fy + 1);
-  const double a = grid[std::size_t(y0) * size + x0], b = grid[std::size_t(y0) * size + x1];
-  const double c = grid[std::size_t(y1) * size + x0], d = grid[std::size_t(y1) * size + x1];
-  return float((a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty);
+inline float periodic_bilinear(const float* grid, int size, float x, float y) {
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float tx = x - fx, ty = y - fy;
+  auto wrap = [size](int i) {
+    if (unsigned(i) < unsigned(size)) return i;  // the common case: no division
+    i %= size;
+    return i < 0 ? i + size : i;
+  };
+  const int x0 = wrap(int(fx)), x1 = wrap(int(fx) + 1);
+  const int y0 = wrap(int(fy)), y1 = wrap(int(fy) + 1);
+  const float* row0 = grid + std::size_t(y0) * size;
+  const float* row1 = grid + std::size_t(y1) * size;
+  const float top = row0[x0] + (row0[x1] - row0[x0]) * tx;
+  const float bottom = row1[x0] + (row1[x1] - row1[x0]) * tx;
+  return top + (bottom - top) * ty;
 }
 
 }  // namespace
@@ -37,23 +43,27 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
       !(extra.empty() || extra.size() == texels)) {
     throw std::invalid_argument("resample_displaced: size x size heights, displacements and output, patch_size > 0");
   }
-  const double texels_per_metre = double(size) / patch_size;
+  const float texels_per_metre = float(size) / patch_size;
+  const float* dx = displacement_x.data();
+  const float* dy = displacement_y.data();
   return tbb::parallel_reduce(
       tbb::blocked_range<int>(0, size), 0.0,
       [&](const tbb::blocked_range<int>& rows, double worst) {
         for (int i = rows.begin(); i != rows.end(); ++i) {
           for (int j = 0; j < size; ++j) {
-            // p <- x - D(p), in texels
-            double px = j, py = i;
+            // p <- x - D(p), in texels, from p = x
+            float px = float(j), py = float(i);
             for (int step = 0; step < iterations; ++step) {
-              px = j - periodic_bilinear(displacement_x, size, px, py) * texels_per_metre;
-              py = i - periodic_bilinear(displacement_y, size, px, py) * texels_per_metre;
+              const float next_x = float(j) - periodic_bilinear(dx, size, px, py) * texels_per_metre;
+              const float next_y = float(i) - periodic_bilinear(dy, size, px, py) * texels_per_metre;
+              px = next_x;
+              py = next_y;
             }
-            const double rx = px + periodic_bilinear(displacement_x, size, px, py) * texels_per_metre - j;
-            const double ry = py + periodic_bilinear(displacement_y, size, px, py) * texels_per_metre - i;
-            worst = std::max(worst, std::hypot(rx, ry) / texels_per_metre);
-            out[std::size_t(i) * size + j] = periodic_bilinear(height, size, px, py);
-            if (!extra.empty()) extra_out[std::size_t(i) * size + j] = periodic_bilinear(extra, size, px, py);
+            const float rx = px + periodic_bilinear(dx, size, px, py) * texels_per_metre - float(j);
+            const float ry = py + periodic_bilinear(dy, size, px, py) * texels_per_metre - float(i);
+            worst = std::max(worst, double(std::hypot(rx, ry)) / texels_per_metre);
+            out[std::size_t(i) * size + j] = periodic_bilinear(height.data(), size, px, py);
+            if (!extra.empty()) extra_out[std::size_t(i) * size + j] = periodic_bilinear(extra.data(), size, px, py);
           }
         }
         return worst;
