@@ -5,18 +5,18 @@
 // it stores, so its cones are conservative for what an engine reads back (see cone_export.h).
 #include "demos/commands.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
-
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include "demos/obj_io.h"
 #include "demos/progress.h"
@@ -106,7 +106,7 @@ Metadata source_attributes_for_cones(const Metadata& metadata) {
 
 std::string mapping_phrase(const sim::HeightMapping& mapping) {
   return fmt::format("raw * {:.6g} {} {:.6g}", double(mapping.scale), mapping.bias < 0.0f ? '-' : '+',
-                std::abs(double(mapping.bias)));
+                     std::abs(double(mapping.bias)));
 }
 
 std::string clamped_phrase(std::size_t clamped) {
@@ -114,12 +114,13 @@ std::string clamped_phrase(std::size_t clamped) {
 }
 
 std::string budget_phrase(double milliseconds) {
-  return std::isinf(milliseconds) ? std::string("unlimited budget") : fmt::format("{:.6g} ms budget", milliseconds);
+  return std::isinf(milliseconds) ? std::string("unlimited budget")
+                                  : fmt::format("{:.6g} ms budget", milliseconds);
 }
 
 std::string stats_phrase(const bake::BakeStats& stats) {
   return fmt::format("{:.1f} ms, mean ratio {:.4f}, {} texels refined, {} fallback", stats.milliseconds,
-                stats.mean_ratio, stats.texels_refined, stats.texels_fallback);
+                     stats.mean_ratio, stats.texels_refined, stats.texels_fallback);
 }
 
 void make_output_directory(const std::filesystem::path& directory) {
@@ -311,7 +312,8 @@ void run_sim(const SimSettings& settings, std::ostream& out) {
   write_height_exr(settings.output, heights);
   out << "displace: synthesized " << source_name(settings.source.kind) << " heights " << heights.width
       << " x " << heights.height
-      << fmt::format(" at t = {:g} s in {:.1f} ms (h01 = ", double(settings.source.time), heights.milliseconds)
+      << fmt::format(" at t = {:g} s in {:.1f} ms (h01 = ", double(settings.source.time),
+                     heights.milliseconds)
       << mapping_phrase(heights.mapping) << "); wrote raw metres to '" << settings.output.string() << "'\n";
 }
 
@@ -478,11 +480,12 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   write_frame_image(settings.output, frame, metadata);
   for (const AovOutput& aov : settings.aovs) write_aov(aov, frame, metadata);
   const FrameSummary summary = summarize(frame);
-  out << fmt::format("displace render: {}, {} steps, {} refine, on {} ({}): {} x {}, {} pixels hit, "
-                     "{:.2f} ms on the device; per pixel: {:.1f} iterations, {:.1f} fetches (p99 {:.0f})\n",
-                     info.name, settings.method.steps, settings.method.refine, renderer.device().name,
-                     renderer.device().type, frame.width, frame.height, summary.hit_pixels,
-                frame.gpu_milliseconds, summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
+  out << fmt::format(
+      "displace render: {}, {} steps, {} refine, on {} ({}): {} x {}, {} pixels hit, "
+      "{:.2f} ms on the device; per pixel: {:.1f} iterations, {:.1f} fetches (p99 {:.0f})\n",
+      info.name, settings.method.steps, settings.method.refine, renderer.device().name,
+      renderer.device().type, frame.width, frame.height, summary.hit_pixels, frame.gpu_milliseconds,
+      summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
   if (budgeted_cones) {
     out << "  cone maps baked by the budgeted bilinear baker within a "
         << budget_phrase(settings.bake_budget_milliseconds) << " (conservative at any budget)\n";
@@ -494,9 +497,10 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, settings.view, {render::Method::reference, 1, 0});
     const render::ImageError error = render::compare(frame, reference);
-    out << fmt::format("  compare reference: rmse {:.3f}, max error {:.0f}, {:.3f}% of {} pixels off by more than 10 "
-                  "(8-bit units)\n",
-                  error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
+    out << fmt::format(
+        "  compare reference: rmse {:.3f}, max error {:.0f}, {:.3f}% of {} pixels off by more than 10 "
+        "(8-bit units)\n",
+        error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
   }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
     throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
@@ -524,12 +528,13 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, scene.view, {render::Method::reference, 1, 0});
     out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, input.width, input.height,
-                  scene.view.camera.width, scene.view.camera.height);
+                       scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
     for (render::Method method : settings.methods) {
       const render::MethodInfo& info = render::method_info(method);
       if (!render::supports_surface(method, scene.view.surface)) {
-        out << fmt::format("  {:<17} skipped: no {} support\n", info.name, render::surface_name(scene.view.surface));
+        out << fmt::format("  {:<17} skipped: no {} support\n", info.name,
+                           render::surface_name(scene.view.surface));
         continue;
       }
       double best_fetches = -1.0;
@@ -547,9 +552,10 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
         const double median_ms = times[times.size() / 2];
         const render::ImageError error = render::compare(frame, reference);
         const FrameSummary summary = summarize(frame);
-        csv << fmt::format("{},{},{},{},{:.4f},{:.0f},{:.6f},{:.3f},{:.0f},{:.3f},{:.4f},\"{}\"\n", scene.name, info.name, steps,
-                      settings.refine, error.rmse, error.max_error, error.fraction_over_10, summary.mean_fetches,
-                      summary.p99_fetches, summary.mean_iterations, median_ms, renderer.device().name);
+        csv << fmt::format("{},{},{},{},{:.4f},{:.0f},{:.6f},{:.3f},{:.0f},{:.3f},{:.4f},\"{}\"\n",
+                           scene.name, info.name, steps, settings.refine, error.rmse, error.max_error,
+                           error.fraction_over_10, summary.mean_fetches, summary.p99_fetches,
+                           summary.mean_iterations, median_ms, renderer.device().name);
         if (error.rmse <= 3.0 && (best_fetches < 0.0 || summary.mean_fetches < best_fetches)) {
           best_fetches = summary.mean_fetches;
           best_steps = steps;

@@ -8,6 +8,10 @@
 // given once; a flag that does not apply to the chosen source or mode is an error, not ignored.
 #include "demos/options.h"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -18,10 +22,6 @@
 #include <sstream>
 #include <string>
 #include <utility>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
-#include <fmt/ranges.h>
 
 #include "pipeline/scene.h"
 
@@ -40,11 +40,11 @@ struct Range {
   double low, high;
   const char* unit;
 };
-constexpr Range time_range{-1e6, 1e6, "s"};            // beyond, float phases w t lose the wave shape
-constexpr Range patch_size_range{1e-2, 1e5, "m"};      // a centimetre to a hundred kilometres
-constexpr Range wind_speed_range{0.1, 100.0, "m/s"};   // calm air to beyond a hurricane
+constexpr Range time_range{-1e6, 1e6, "s"};           // beyond, float phases w t lose the wave shape
+constexpr Range patch_size_range{1e-2, 1e5, "m"};     // a centimetre to a hundred kilometres
+constexpr Range wind_speed_range{0.1, 100.0, "m/s"};  // calm air to beyond a hurricane
 constexpr Range fetch_range{0.1, 1e5, "km"};
-constexpr Range spreading_range{0.0, 100.0, ""};       // exponent s of cos^(2s)
+constexpr Range spreading_range{0.0, 100.0, ""};  // exponent s of cos^(2s)
 constexpr Range choppiness_range{0.0, 10.0, ""};
 constexpr Range depth_scale_range{1e-4, 10.0, "world units"};
 constexpr Range fov_range{0.01, 179.0, "degrees"};
@@ -75,8 +75,9 @@ std::optional<std::pair<int, int>> read_image_size(std::string_view text) {
   const auto x = text.find('x');
   if (x == std::string_view::npos) return std::nullopt;
   int width = 0, height = 0;
-  if (read_number(text.substr(0, x), width) != std::errc{} || read_number(text.substr(x + 1), height) != std::errc{} ||
-      width < 1 || height < 1 || width > max_image_side || height > max_image_side) {
+  if (read_number(text.substr(0, x), width) != std::errc{} ||
+      read_number(text.substr(x + 1), height) != std::errc{} || width < 1 || height < 1 ||
+      width > max_image_side || height > max_image_side) {
     return std::nullopt;
   }
   return std::pair{width, height};
@@ -101,7 +102,8 @@ std::optional<glm::vec3> read_vector(std::string_view text) {
 std::optional<HeightRange> read_height_range(std::string_view text) {
   const auto comma = text.find(',');
   if (comma == std::string_view::npos) return std::nullopt;
-  const std::optional<float> low = read_float(text.substr(0, comma)), high = read_float(text.substr(comma + 1));
+  const std::optional<float> low = read_float(text.substr(0, comma)),
+                             high = read_float(text.substr(comma + 1));
   if (!low || !high || !(*high > *low) || !std::isfinite(*high - *low)) return std::nullopt;
   return HeightRange{*low, *high};
 }
@@ -115,8 +117,10 @@ CLI::Validator integer_in(long long minimum, long long maximum) {
       [=](std::string& text) -> std::string {
         long long value = 0;
         const std::errc error = read_number(text, value);
-        if (error == std::errc::result_out_of_range || (error == std::errc{} && (value < minimum || value > maximum))) {
-          return fmt::format("must be an integer between {} and {}, got {}", minimum, maximum, in_quotes(text));
+        if (error == std::errc::result_out_of_range ||
+            (error == std::errc{} && (value < minimum || value > maximum))) {
+          return fmt::format("must be an integer between {} and {}, got {}", minimum, maximum,
+                             in_quotes(text));
         }
         if (error != std::errc{}) return "expects an integer, got " + in_quotes(text);
         text = std::to_string(value);
@@ -129,7 +133,8 @@ CLI::Validator seed_value() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
         std::uint64_t value = 0;
-        if (read_number(text, value) != std::errc{}) return "expects a non-negative integer, got " + in_quotes(text);
+        if (read_number(text, value) != std::errc{})
+          return "expects a non-negative integer, got " + in_quotes(text);
         text = std::to_string(value);
         return {};
       },
@@ -137,14 +142,16 @@ CLI::Validator seed_value() {
 }
 
 CLI::Validator number_in(const Range& range) {
-  const std::string bounds = fmt::format("{:g} and {:g}{}{}", range.low, range.high, range.unit[0] ? " " : "", range.unit);
+  const std::string bounds =
+      fmt::format("{:g} and {:g}{}{}", range.low, range.high, range.unit[0] ? " " : "", range.unit);
   return CLI::Validator(
       [=](std::string& text) -> std::string {
         double value = 0.0;
         if (read_number(text, value) != std::errc{} || !std::isfinite(value)) {
           return "expects a finite number, got " + in_quotes(text);
         }
-        if (!(value >= range.low && value <= range.high)) return "must be between " + bounds + ", got " + in_quotes(text);
+        if (!(value >= range.low && value <= range.high))
+          return "must be between " + bounds + ", got " + in_quotes(text);
         text = fmt::format("{}", value);
         return {};
       },
@@ -189,18 +196,21 @@ CLI::Validator word_in(const Words<Enum>& words) {
 }
 
 // A check of a text value that stays text: `problem` returns what is wrong, empty when nothing is.
-CLI::Validator text_check(std::function<std::string(const std::string&)> problem, std::string description = "") {
+CLI::Validator text_check(std::function<std::string(const std::string&)> problem,
+                          std::string description = "") {
   return CLI::Validator([problem](std::string& text) { return problem(text); }, std::move(description));
 }
 
 CLI::Validator not_empty() {
-  return text_check([](const std::string& text) { return text.empty() ? std::string("needs a value") : std::string(); });
+  return text_check(
+      [](const std::string& text) { return text.empty() ? std::string("needs a value") : std::string(); });
 }
 
 CLI::Validator output_file(std::vector<std::string> extensions) {
   return text_check([extensions](const std::string& text) -> std::string {
     const std::string extension = lower_extension(std::filesystem::path(text));
-    if (!text.empty() && std::find(extensions.begin(), extensions.end(), extension) != extensions.end()) return {};
+    if (!text.empty() && std::find(extensions.begin(), extensions.end(), extension) != extensions.end())
+      return {};
     return fmt::format("must name a {} file, got {}", fmt::join(extensions, " or "), in_quotes(text));
   });
 }
@@ -209,7 +219,8 @@ const Words<SourceKind> source_words = {{"ocean", SourceKind::ocean},
                                         {"sinusoids", SourceKind::sinusoids},
                                         {"bricks", SourceKind::bricks},
                                         {"cliff", SourceKind::cliff}};
-const Words<sim::Spectrum> spectrum_words = {{"phillips", sim::Spectrum::phillips}, {"jonswap", sim::Spectrum::jonswap}};
+const Words<sim::Spectrum> spectrum_words = {{"phillips", sim::Spectrum::phillips},
+                                             {"jonswap", sim::Spectrum::jonswap}};
 const Words<Baker> mode_words = {{"exact", Baker::exact},
                                  {"original", Baker::original},
                                  {"paper-adaptive", Baker::paper_adaptive},
@@ -294,7 +305,8 @@ void reject_extras(const CLI::App& app) {
   const std::vector<std::string> extras = app.remaining();
   if (extras.empty()) return;
   const std::string& extra = extras.front();
-  if (!extra.starts_with("--")) throw usage_error("unexpected argument " + in_quotes(extra) + " (flags start with --)");
+  if (!extra.starts_with("--") || extra == "--")
+    throw usage_error("unexpected argument " + in_quotes(extra) + " (flags start with --)");
   const std::string flag = extra.substr(0, extra.find('='));
   const bool map_size = flag == "--size" && app.get_option_no_throw("--map-size");
   throw usage_error(fmt::format("unknown flag {} for '{}'{}", in_quotes(flag), app.get_name(),
@@ -324,36 +336,63 @@ struct SourceDraft {
 };
 
 // The flags that only a --source takes, in the order they are declared.
-const std::vector<std::string> source_only_flags = {"--map-size", "--time",      "--seed",       "--patch-size",
-                                                    "--wind-direction", "--wind-speed", "--spectrum", "--fetch",
-                                                    "--spreading", "--choppiness", "--waves"};
+const std::vector<std::string> source_only_flags = {
+    "--map-size", "--time",  "--seed",      "--patch-size", "--wind-direction", "--wind-speed",
+    "--spectrum", "--fetch", "--spreading", "--choppiness", "--waves"};
 
 void add_source_flags(CLI::App& app, SourceDraft& draft) {
   const char* group = "Heights from a source";
   app.add_option("--source", draft.kind, "what to synthesize")
-      ->type_name(word_list(source_words))->transform(word_in(source_words))->group(group);
+      ->type_name(word_list(source_words))
+      ->transform(word_in(source_words))
+      ->group(group);
   // a single texel (or a single row) has no relief to displace: at least 2 x 2
   app.add_option("--map-size", draft.map_size, "height map samples along u and v")
-      ->type_name("INT")->transform(integer_in(2, max_image_side))->group(group);
+      ->type_name("INT")
+      ->transform(integer_in(2, max_image_side))
+      ->group(group);
   app.add_option("--time", draft.time, "seconds (ocean, sinusoids)")
-      ->type_name("T")->transform(number_in(time_range))->group(group);
-  app.add_option("--seed", draft.seed, "random seed")->type_name("INT")->transform(seed_value())->group(group);
+      ->type_name("T")
+      ->transform(number_in(time_range))
+      ->group(group);
+  app.add_option("--seed", draft.seed, "random seed")
+      ->type_name("INT")
+      ->transform(seed_value())
+      ->group(group);
   app.add_option("--patch-size", draft.patch_size, "metres covered by the map (ocean 200, sinusoids 4)")
-      ->type_name("M")->transform(number_in(patch_size_range))->group(group);
-  app.add_option("--wind-direction", draft.wind_direction_degrees, "azimuth of the wind / mean wave direction")
-      ->type_name("DEG")->transform(finite_number())->group(group);
+      ->type_name("M")
+      ->transform(number_in(patch_size_range))
+      ->group(group);
+  app.add_option("--wind-direction", draft.wind_direction_degrees,
+                 "azimuth of the wind / mean wave direction")
+      ->type_name("DEG")
+      ->transform(finite_number())
+      ->group(group);
   app.add_option("--wind-speed", draft.wind_speed, "ocean: m/s at 10 m (default 12)")
-      ->type_name("V")->transform(number_in(wind_speed_range))->group(group);
+      ->type_name("V")
+      ->transform(number_in(wind_speed_range))
+      ->group(group);
   app.add_option("--spectrum", draft.spectrum, "ocean (default phillips)")
-      ->type_name(word_list(spectrum_words))->transform(word_in(spectrum_words))->group(group);
+      ->type_name(word_list(spectrum_words))
+      ->transform(word_in(spectrum_words))
+      ->group(group);
   app.add_option("--fetch", draft.fetch, "ocean, jonswap only: fetch in km (default 200)")
-      ->type_name("KM")->transform(number_in(fetch_range))->group(group);
+      ->type_name("KM")
+      ->transform(number_in(fetch_range))
+      ->group(group);
   app.add_option("--spreading", draft.spreading, "ocean: directional spreading exponent (default 2)")
-      ->type_name("S")->transform(number_in(spreading_range))->group(group);
-  app.add_option("--choppiness", draft.choppiness, "ocean: horizontal displacement scale, recorded only (default 1)")
-      ->type_name("L")->transform(number_in(choppiness_range))->group(group);
+      ->type_name("S")
+      ->transform(number_in(spreading_range))
+      ->group(group);
+  app.add_option("--choppiness", draft.choppiness,
+                 "ocean: horizontal displacement scale, recorded only (default 1)")
+      ->type_name("L")
+      ->transform(number_in(choppiness_range))
+      ->group(group);
   app.add_option("--waves", draft.wave_count, "sinusoids: number of waves (default 12)")
-      ->type_name("INT")->transform(integer_in(1, max_wave_count))->group(group);
+      ->type_name("INT")
+      ->transform(integer_in(1, max_wave_count))
+      ->group(group);
 }
 
 SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
@@ -366,7 +405,8 @@ SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
     for (const char* flag : {"--patch-size", "--wind-speed", "--wind-direction", "--fetch", "--spectrum",
                              "--spreading", "--choppiness", "--waves"}) {
       if (given(app, flag)) {
-        throw usage_error("--source bricks and --source cliff take only --map-size, --seed and --time (static)");
+        throw usage_error(
+            "--source bricks and --source cliff take only --map-size, --seed and --time (static)");
       }
     }
     if (given(app, "--seed")) source.seed = draft.seed;
@@ -383,10 +423,12 @@ SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
     if (given(app, "--seed")) ocean.seed = draft.seed;
     if (given(app, "--patch-size")) ocean.patch_size = draft.patch_size;
     if (given(app, "--wind-speed")) ocean.wind_speed = draft.wind_speed;
-    if (given(app, "--wind-direction")) ocean.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
+    if (given(app, "--wind-direction"))
+      ocean.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
     if (given(app, "--spectrum")) ocean.spectrum = draft.spectrum;
     if (given(app, "--fetch")) {
-      if (ocean.spectrum != sim::Spectrum::jonswap) throw usage_error("--fetch applies to --spectrum jonswap only");
+      if (ocean.spectrum != sim::Spectrum::jonswap)
+        throw usage_error("--fetch applies to --spectrum jonswap only");
       ocean.fetch = draft.fetch;
     }
     if (given(app, "--spreading")) ocean.spreading = draft.spreading;
@@ -398,7 +440,8 @@ SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
     sim::SinusoidParams& sinusoids = source.sinusoids;
     if (given(app, "--seed")) sinusoids.seed = draft.seed;
     if (given(app, "--patch-size")) sinusoids.patch_size = draft.patch_size;
-    if (given(app, "--wind-direction")) sinusoids.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
+    if (given(app, "--wind-direction"))
+      sinusoids.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
     if (given(app, "--waves")) sinusoids.wave_count = draft.wave_count;
   }
   return source;
@@ -418,9 +461,13 @@ struct InputDraft {
 
 void add_input_flags(CLI::App& app, InputDraft& draft) {
   const char* group = "Heights from a file";
-  app.add_option("--input", draft.file, "a height image (8/16-bit: value / maximum; float: min..max or as `sim` wrote it)")
-      ->type_name("FILE")->check(not_empty())->group(group);
-  app.add_option("--channel", draft.channel, "the channel: a name or an index (default `height`, or the only grey one)")
+  app.add_option("--input", draft.file,
+                 "a height image (8/16-bit: value / maximum; float: min..max or as `sim` wrote it)")
+      ->type_name("FILE")
+      ->check(not_empty())
+      ->group(group);
+  app.add_option("--channel", draft.channel,
+                 "the channel: a name or an index (default `height`, or the only grey one)")
       ->type_name("NAME|INDEX")
       ->check(text_check([](const std::string& text) -> std::string {
         if (text.empty()) return "needs a value";
@@ -429,7 +476,10 @@ void add_input_flags(CLI::App& app, InputDraft& draft) {
         return integer_in(0, max_channel_index)(index);
       }))
       ->group(group);
-  app.add_flag("--invert", draft.invert, "the image stores depth (1 = deepest)")->disable_flag_override()->multi_option_policy(CLI::MultiOptionPolicy::Throw)->group(group);
+  app.add_flag("--invert", draft.invert, "the image stores depth (1 = deepest)")
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
+      ->group(group);
   app.add_option("--height-range", draft.height_range, "float images: the raw values that map to 0 and 1")
       ->type_name("LOW,HIGH")
       ->check(text_check([](const std::string& text) -> std::string {
@@ -453,7 +503,8 @@ std::variant<FileInput, SourceSettings> finish_input(const CLI::App& app, const 
     }
     FileInput input{std::filesystem::path(draft.file), {}};
     if (given(app, "--channel")) {
-      if (std::all_of(draft.channel.begin(), draft.channel.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      if (std::all_of(draft.channel.begin(), draft.channel.end(),
+                      [](char c) { return c >= '0' && c <= '9'; })) {
         input.load.channel.index = std::stoi(draft.channel);
       } else {
         input.load.channel.name = draft.channel;
@@ -469,7 +520,8 @@ std::variant<FileInput, SourceSettings> finish_input(const CLI::App& app, const 
     }
     return finish_source(app, draft.source);
   }
-  throw usage_error(fmt::format("'{}' needs --input FILE or --source {}", app.get_name(), word_list(source_words)));
+  throw usage_error(
+      fmt::format("'{}' needs --input FILE or --source {}", app.get_name(), word_list(source_words)));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -497,34 +549,58 @@ void add_scene_flags(CLI::App& app, SceneDraft& draft) {
       ->check(text_check(
           [](const std::string& text) -> std::string {
             if (text.find('x') == std::string::npos) {
-              return "expects WxH (pixels), got " + in_quotes(text) + "; a --source's samples are --map-size N";
+              return "expects WxH (pixels), got " + in_quotes(text) +
+                     "; a --source's samples are --map-size N";
             }
             if (!read_image_size(text)) {
-              return fmt::format("expects WxH with each side an integer between 1 and {}, got {}", max_image_side,
-                                 in_quotes(text));
+              return fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                 max_image_side, in_quotes(text));
             }
             return {};
           },
           fmt::format("[1, {}] each", max_image_side)))
       ->group(group);
   app.add_option("--address", view.address, "how the map continues past its edges (default wrap)")
-      ->type_name(word_list(address_words))->transform(word_in(address_words))->group(group);
+      ->type_name(word_list(address_words))
+      ->transform(word_in(address_words))
+      ->group(group);
   app.add_option("--tile", view.tile, "texture repeats over the plane (above 1 needs --address wrap)")
-      ->type_name("INT")->transform(integer_in(1, max_tile))->group(group);
+      ->type_name("INT")
+      ->transform(integer_in(1, max_tile))
+      ->group(group);
   app.add_option("--depth-scale", view.depth_scale, "world units between height 1 and height 0 (default 0.1)")
-      ->type_name("D")->transform(number_in(depth_scale_range))->group(group);
-  app.add_option("--eye", draft.eye, "camera position")->type_name("X,Y,Z")->check(vector_value())->group(group);
+      ->type_name("D")
+      ->transform(number_in(depth_scale_range))
+      ->group(group);
+  app.add_option("--eye", draft.eye, "camera position")
+      ->type_name("X,Y,Z")
+      ->check(vector_value())
+      ->group(group);
   app.add_option("--look-at", draft.look_at, "point the camera looks at")
-      ->type_name("X,Y,Z")->check(vector_value())->group(group);
-  app.add_option("--up", draft.up, "camera up (default 0,0,1)")->type_name("X,Y,Z")->check(vector_value())->group(group);
+      ->type_name("X,Y,Z")
+      ->check(vector_value())
+      ->group(group);
+  app.add_option("--up", draft.up, "camera up (default 0,0,1)")
+      ->type_name("X,Y,Z")
+      ->check(vector_value())
+      ->group(group);
   app.add_option("--fov-y", view.camera.fov_y_degrees, "full vertical angle (default 45)")
-      ->type_name("DEG")->transform(number_in(fov_range))->group(group);
+      ->type_name("DEG")
+      ->transform(number_in(fov_range))
+      ->group(group);
   app.add_option("--light", draft.light, "direction towards the light")
-      ->type_name("X,Y,Z")->check(vector_value())->group(group);
+      ->type_name("X,Y,Z")
+      ->check(vector_value())
+      ->group(group);
   app.add_flag("--shadows", view.shadows, "self-shadowing, traced towards the light with the same method")
-      ->disable_flag_override()->multi_option_policy(CLI::MultiOptionPolicy::Throw)->group(group);
-  app.add_option("--albedo", draft.albedo, "shade with an image (1-4 channels) instead of the procedural grid")
-      ->type_name("IMAGE")->check(not_empty())->group(group);
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
+      ->group(group);
+  app.add_option("--albedo", draft.albedo,
+                 "shade with an image (1-4 channels) instead of the procedural grid")
+      ->type_name("IMAGE")
+      ->check(not_empty())
+      ->group(group);
   app.add_option("--surface", draft.surface, "what the relief lies on (default plane)")
       ->type_name(word_list(surface_words) + "|mesh:FILE.obj")
       ->check(text_check([](const std::string& text) -> std::string {
@@ -535,11 +611,14 @@ void add_scene_flags(CLI::App& app, SceneDraft& draft) {
       }))
       ->group(group);
   app.add_option("--radius", view.radius, "the quadric's outer radius (default 0.25)")
-      ->type_name("R")->transform(number_in(radius_range))->group(group);
+      ->type_name("R")
+      ->transform(number_in(radius_range))
+      ->group(group);
 }
 
 SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const std::string& name) {
-  SceneSettings scene{name, finish_input(app, draft.input), draft.view, std::filesystem::path(draft.albedo), {}};
+  SceneSettings scene{
+      name, finish_input(app, draft.input), draft.view, std::filesystem::path(draft.albedo), {}};
   render::View& view = scene.view;
   if (given(app, "--size")) std::tie(view.camera.width, view.camera.height) = *read_image_size(draft.size);
   if (given(app, "--eye")) view.camera.eye = *read_vector(draft.eye);
@@ -554,7 +633,8 @@ SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const s
       view.surface = word_value(surface_words, draft.surface);
     }
   }
-  if (view.tile > 1 && view.address != bake::Address::wrap) throw usage_error("--tile above 1 needs --address wrap");
+  if (view.tile > 1 && view.address != bake::Address::wrap)
+    throw usage_error("--tile above 1 needs --address wrap");
   try {
     view.camera.validate();
   } catch (const render::RenderError& error) {
@@ -566,12 +646,18 @@ SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const s
 // --device, --validate and --pipeline-cache, for every command that renders.
 void add_renderer_flags(CLI::App& app, render::RendererOptions& options) {
   const char* group = "Vulkan";
-  app.add_option("--device", options.device, "a device index or part of its name (default: the best GPU, else lavapipe)")
-      ->type_name("N|NAME")->check(not_empty())->group(group);
+  app.add_option("--device", options.device,
+                 "a device index or part of its name (default: the best GPU, else lavapipe)")
+      ->type_name("N|NAME")
+      ->check(not_empty())
+      ->group(group);
   app.add_flag("--validate", options.validate, "Khronos validation layer; any message fails the command")
-      ->disable_flag_override()->multi_option_policy(CLI::MultiOptionPolicy::Throw)->group(group);
-  app.add_option("--pipeline-cache", options.pipeline_cache,
-                 "where compiled pipelines are kept (default $DISPLACE_PIPELINE_CACHE, else ~/.cache/displace)")
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
+      ->group(group);
+  app.add_option(
+         "--pipeline-cache", options.pipeline_cache,
+         "where compiled pipelines are kept (default $DISPLACE_PIPELINE_CACHE, else ~/.cache/displace)")
       ->type_name("DIR|off")
       ->check(text_check([](const std::string& text) {
         return text.empty() ? std::string("needs a directory or 'off'") : std::string();
@@ -579,7 +665,8 @@ void add_renderer_flags(CLI::App& app, render::RendererOptions& options) {
       ->group(group);
 }
 
-CLI::Option* add_budget_flag(CLI::App& app, const std::string& flag, double& milliseconds, const std::string& what) {
+CLI::Option* add_budget_flag(CLI::App& app, const std::string& flag, double& milliseconds,
+                             const std::string& what) {
   return app.add_option(flag, milliseconds, what)->type_name("MS")->transform(number_in(budget_range));
 }
 
@@ -587,14 +674,19 @@ CLI::Option* add_budget_flag(CLI::App& app, const std::string& flag, double& mil
 // the commands
 
 CommandSettings parse_sim(std::span<const std::string_view> args) {
-  CLI::App app("Synthesize heights and write raw metres to channel `height`, with the source "
-                                 "parameters and the [0, 1] mapping as EXR attributes.", "displace sim");
+  CLI::App app(
+      "Synthesize heights and write raw metres to channel `height`, with the source "
+      "parameters and the [0, 1] mapping as EXR attributes.",
+      "displace sim");
   set_up(app);
   SourceDraft source;
   std::string output;
   add_source_flags(app, source);
   app.get_option("--source")->required();
-  app.add_option("--output", output, "the heights")->type_name("FILE.exr")->check(output_file({".exr"}))->required();
+  app.add_option("--output", output, "the heights")
+      ->type_name("FILE.exr")
+      ->check(output_file({".exr"}))
+      ->required();
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   return SimSettings{finish_source(app, source), std::filesystem::path(output)};
@@ -622,15 +714,25 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
             return {};
           },
           ""))
-      ->required()->group(group);
+      ->required()
+      ->group(group);
   app.add_option("--mode", mode, "the baker (bilinear cones: budgeted or full)")
-      ->type_name(word_list(mode_words))->transform(word_in(mode_words))->group(group);
+      ->type_name(word_list(mode_words))
+      ->transform(word_in(mode_words))
+      ->group(group);
   app.add_flag("--relaxed", relaxed, "relaxed cones (sectors 1 or 4), its own baker")
-      ->disable_flag_override()->multi_option_policy(CLI::MultiOptionPolicy::Throw)->group(group);
-  app.add_option("--cones", settings.cones, "between texel centres, or the renderer's bilinear cones with apex heights")
-      ->type_name(word_list(cone_kind_words))->transform(word_in(cone_kind_words))->group(group);
-  add_budget_flag(app, "--budget-ms", budget, "budgeted: refinement time (default unlimited; 0 allowed)")->group(group);
-  app.add_option("--tolerance", tolerance, "budgeted: refine while a ratio may be more than T below exact (default 0.25)")
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
+      ->group(group);
+  app.add_option("--cones", settings.cones,
+                 "between texel centres, or the renderer's bilinear cones with apex heights")
+      ->type_name(word_list(cone_kind_words))
+      ->transform(word_in(cone_kind_words))
+      ->group(group);
+  add_budget_flag(app, "--budget-ms", budget, "budgeted: refinement time (default unlimited; 0 allowed)")
+      ->group(group);
+  app.add_option("--tolerance", tolerance,
+                 "budgeted: refine while a ratio may be more than T below exact (default 0.25)")
       ->type_name("T")
       ->transform(CLI::Validator(
           [](std::string& text) -> std::string {
@@ -645,19 +747,27 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
           "[0, 1)"))
       ->group(group);
   app.add_option("--address", settings.address, "how the map continues past its edges (default wrap)")
-      ->type_name(word_list(address_words))->transform(word_in(address_words))->group(group);
+      ->type_name(word_list(address_words))
+      ->transform(word_in(address_words))
+      ->group(group);
   app.add_option("--output", output, "the cone map (.png: heights quantized to 8 bits before baking)")
-      ->type_name("FILE.exr|FILE.png")->check(output_file({".exr", ".png"}))->required();
-  app.add_flag("--stats", settings.stats, "print one JSON line instead of the human line")->disable_flag_override()->multi_option_policy(CLI::MultiOptionPolicy::Throw);
+      ->type_name("FILE.exr|FILE.png")
+      ->check(output_file({".exr", ".png"}))
+      ->required();
+  app.add_flag("--stats", settings.stats, "print one JSON line instead of the human line")
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw);
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
 
   settings.input = finish_input(app, input);
   if (settings.cones == ConeKind::bilinear) {
     if (relaxed) throw usage_error("--cones bilinear bakes with --mode budgeted|full, not --relaxed");
-    if (!given(app, "--mode")) throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
+    if (!given(app, "--mode"))
+      throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
     if (mode != Baker::budgeted && mode != Baker::full) {
-      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") + baker_name(mode));
+      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") +
+                        baker_name(mode));
     }
     settings.baker = mode;
   } else if (relaxed) {
@@ -687,7 +797,8 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
 }
 
 CommandSettings parse_render(std::span<const std::string_view> args) {
-  CLI::App app("Render the height field with one per-pixel method, baking the maps it needs.", "displace render");
+  CLI::App app("Render the height field with one per-pixel method, baking the maps it needs.",
+               "displace render");
   set_up(app);
   RenderSettings settings;
   SceneDraft scene;
@@ -699,17 +810,27 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   const Words<render::Method> methods = method_words();
   const char* group = "Method";
   app.add_option("--method", settings.method.method, "the per-pixel method")
-      ->type_name(word_list(methods))->transform(word_in(methods))->required()->group(group);
+      ->type_name(word_list(methods))
+      ->transform(word_in(methods))
+      ->required()
+      ->group(group);
   app.add_option("--steps", settings.method.steps, "linear-search steps or maximum cone steps (default 32)")
-      ->type_name("INT")->transform(integer_in(1, max_steps))->group(group);
+      ->type_name("INT")
+      ->transform(integer_in(1, max_steps))
+      ->group(group);
   app.add_option("--refine", settings.method.refine, "binary or secant steps (default 8)")
-      ->type_name("INT")->transform(integer_in(0, max_refine))->group(group);
+      ->type_name("INT")
+      ->transform(integer_in(0, max_refine))
+      ->group(group);
   add_budget_flag(app, "--bake-budget-ms", bake_budget,
                   "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)")
       ->group(group);
   app.add_option("--output", output, "the picture")
-      ->type_name("FILE.png|FILE.exr")->check(output_file({".png", ".exr"}))->required();
-  app.add_option("--aov", aovs, "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png")
+      ->type_name("FILE.png|FILE.exr")
+      ->check(output_file({".png", ".exr"}))
+      ->required();
+  app.add_option("--aov", aovs,
+                 "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png")
       ->type_name("NAME=FILE")
       ->check(text_check([](const std::string& text) -> std::string {
         const auto equals = text.find('=');
@@ -749,14 +870,16 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
       for (const render::MethodInfo& known : render::method_table()) {
         if (known.cone_sectors != 0) cone_methods.emplace_back(known.name);
       }
-      throw usage_error(fmt::format("--bake-budget-ms applies to the methods that read cone maps ({}), not --method {}",
-                                    fmt::join(cone_methods, ", "), info.name));
+      throw usage_error(
+          fmt::format("--bake-budget-ms applies to the methods that read cone maps ({}), not --method {}",
+                      fmt::join(cone_methods, ", "), info.name));
     }
     settings.bake_budget_milliseconds = bake_budget;
   }
   for (const std::string& aov : aovs) {
     const auto equals = aov.find('=');
-    settings.aovs.push_back({word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
+    settings.aovs.push_back(
+        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
   }
   settings.compare_reference = given(app, "--compare");
   settings.output = output;
@@ -768,13 +891,14 @@ SceneSettings scene_from_args(const std::string& name, std::span<const std::stri
                               const std::string& where) {
   try {
     CLI::App app("", "displace sweep");
-  set_up(app);
+    set_up(app);
     app.set_help_flag();
     SceneDraft scene;
     add_scene_flags(app, scene);
     parse_flags(app, args);
     if (const std::vector<std::string> extras = app.remaining(); !extras.empty()) {
-      throw usage_error(in_quotes(extras.front()) + " does not describe a scene (only heights and view flags do)");
+      throw usage_error(in_quotes(extras.front()) +
+                        " does not describe a scene (only heights and view flags do)");
     }
     return finish_scene(app, scene, name);
   } catch (const AppError& error) {
@@ -785,13 +909,16 @@ SceneSettings scene_from_args(const std::string& name, std::span<const std::stri
 const std::vector<std::string> sweep_scene_names = {"bricks", "ocean", "cliff"};
 
 CommandSettings parse_sweep(std::span<const std::string_view> args) {
-  CLI::App app("What accuracy costs: every method at every step count on each scene, against "
-                                   "the reference. One CSV row per scene, method and steps.", "displace sweep");
+  CLI::App app(
+      "What accuracy costs: every method at every step count on each scene, against "
+      "the reference. One CSV row per scene, method and steps.",
+      "displace sweep");
   set_up(app);
   SweepSettings settings;
   std::vector<std::string> scenes;
   std::string methods, steps, size, output;
-  app.add_option("--scene", scenes, "a built-in scene or a file of render flags, one per line (default: all three)")
+  app.add_option("--scene", scenes,
+                 "a built-in scene or a file of render flags, one per line (default: all three)")
       ->type_name(fmt::format("{}|FILE", fmt::join(sweep_scene_names, "|")))
       ->check(not_empty())
       ->allow_extra_args(false)
@@ -804,7 +931,10 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
         while (true) {
           const auto comma = rest.find(',');
           const std::string_view word = rest.substr(0, comma);
-          if (!render::find_method(word)) return "unknown method " + in_quotes(word);
+          if (!render::find_method(word)) {
+            return fmt::format("names an unknown method {} (methods: {})", in_quotes(word),
+                               word_list(method_words(), ", "));
+          }
           if (comma == std::string_view::npos) return {};
           rest = rest.substr(comma + 1);
         }
@@ -824,22 +954,28 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
           },
           fmt::format("[1, {}] each", max_steps)));
   app.add_option("--refine", settings.refine, "binary or secant steps (default 8)")
-      ->type_name("INT")->transform(integer_in(0, max_refine));
-  app.add_option("--repeat", settings.repeat, "renders per row; the row reports the median device time (default 3)")
-      ->type_name("INT")->transform(integer_in(1, max_repeat));
+      ->type_name("INT")
+      ->transform(integer_in(0, max_refine));
+  app.add_option("--repeat", settings.repeat,
+                 "renders per row; the row reports the median device time (default 3)")
+      ->type_name("INT")
+      ->transform(integer_in(1, max_repeat));
   app.add_option("--size", size, "the image in pixels of every scene (default 512x512)")
       ->type_name("WxH")
       ->check(text_check(
           [](const std::string& text) {
-            return read_image_size(text) ? std::string()
-                                         : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
-                                                       max_image_side, in_quotes(text));
+            return read_image_size(text)
+                       ? std::string()
+                       : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                     max_image_side, in_quotes(text));
           },
           fmt::format("[1, {}] each", max_image_side)));
   app.add_option("--output", output, "the table")
       ->type_name("FILE.csv")
       ->check(text_check([](const std::string& text) {
-        return lower_extension(std::filesystem::path(text)) == ".csv" ? std::string() : std::string("of 'displace sweep' must end in .csv");
+        return lower_extension(std::filesystem::path(text)) == ".csv"
+                   ? std::string()
+                   : std::string("of 'displace sweep' must end in .csv");
       }))
       ->required();
   add_renderer_flags(app, settings.renderer);
@@ -847,7 +983,8 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
   reject_extras(app);
 
   for (const std::string& scene : scenes) {
-    const bool builtin = std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end();
+    const bool builtin =
+        std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end();
     settings.scenes.push_back(builtin ? builtin_scene(scene) : read_scene_file(std::filesystem::path(scene)));
   }
   if (settings.scenes.empty()) {
@@ -880,13 +1017,17 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
 }
 
 CommandSettings parse_demo(std::span<const std::string_view> args) {
-  CLI::App app("The default ocean end to end: synthesize, bake, export, render and compare.", "displace demo");
+  CLI::App app("The default ocean end to end: synthesize, bake, export, render and compare.",
+               "displace demo");
   set_up(app);
   DemoSettings settings;
   std::string directory = settings.output_directory.string();
   app.add_option("--map-size", settings.map_size, "ocean samples along u and v (default 512)")
-      ->type_name("INT")->transform(integer_in(2, max_image_side));
-  app.add_option("--output-dir", directory, "where the files go (default out)")->type_name("DIR")->check(not_empty());
+      ->type_name("INT")
+      ->transform(integer_in(2, max_image_side));
+  app.add_option("--output-dir", directory, "where the files go (default out)")
+      ->type_name("DIR")
+      ->check(not_empty());
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   settings.output_directory = directory;
@@ -902,7 +1043,8 @@ CommandSettings parse_scene(std::span<const std::string_view> args) {
       ->type_name(fmt::format("{}", fmt::join(names, "|")))
       ->check(text_check([names](const std::string& text) -> std::string {
         if (std::find(names.begin(), names.end(), text) != names.end()) return {};
-        return fmt::format("must name a built-in scene ({}), got {}", fmt::join(names, ", "), in_quotes(text));
+        return fmt::format("must name a built-in scene ({}), got {}", fmt::join(names, ", "),
+                           in_quotes(text));
       }))
       ->required();
   if (auto help = parse_flags(app, args)) return *help;
@@ -920,7 +1062,8 @@ std::string lower_extension(const std::filesystem::path& path) {
 }
 
 bool is_command(std::string_view word) {
-  return word == "sim" || word == "bake" || word == "render" || word == "sweep" || word == "demo" || word == "scene";
+  return word == "sim" || word == "bake" || word == "render" || word == "sweep" || word == "demo" ||
+         word == "scene";
 }
 
 CommandSettings parse_command_line(std::span<const std::string_view> args) {
@@ -934,12 +1077,14 @@ CommandSettings parse_command_line(std::span<const std::string_view> args) {
   if (command == "sweep") return parse_sweep(rest);
   if (command == "demo") return parse_demo(rest);
   if (command == "scene") return parse_scene(rest);
-  throw usage_error("unknown command " + in_quotes(command) + " (commands: sim, bake, render, sweep, demo, scene, help)");
+  throw usage_error("unknown command " + in_quotes(command) +
+                    " (commands: sim, bake, render, sweep, demo, scene, help)");
 }
 
 SceneSettings builtin_scene(std::string_view name) {
   if (std::find(sweep_scene_names.begin(), sweep_scene_names.end(), name) == sweep_scene_names.end()) {
-    throw usage_error(fmt::format("unknown built-in scene {} ({})", in_quotes(name), fmt::join(sweep_scene_names, ", ")));
+    throw usage_error(
+        fmt::format("unknown built-in scene {} ({})", in_quotes(name), fmt::join(sweep_scene_names, ", ")));
   }
   const std::vector<std::string_view> args = {"--source", name, "--map-size", "256", "--time", "0"};
   return scene_from_args(std::string(name), args, "scene " + std::string(name));
@@ -959,14 +1104,14 @@ SceneSettings read_scene_file(const std::filesystem::path& file) {
     std::string flag, value, extra;
     if (!(tokens >> flag)) continue;
     if (!flag.starts_with("--")) {
-      throw usage_error(fmt::format("scene file {} line {}: expected a --flag, got {}", in_quotes(file.string()), number,
-                                    in_quotes(flag)));
+      throw usage_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
+                                    in_quotes(file.string()), number, in_quotes(flag)));
     }
     words.push_back(flag);
     if (tokens >> value) words.push_back(value);
     if (tokens >> extra) {
-      throw usage_error(
-          fmt::format("scene file {} line {}: one flag and at most one value per line", in_quotes(file.string()), number));
+      throw usage_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
+                                    in_quotes(file.string()), number));
     }
   }
   const std::vector<std::string_view> args(words.begin(), words.end());

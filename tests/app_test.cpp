@@ -567,15 +567,15 @@ TEST(Options, RejectsWhatDoesNotApply) {
     return false;
   };
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact"}));  // no output
-  EXPECT_TRUE(usage(
-      {"bake", "--input", "h.exr", "--map-size", "4", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
-  EXPECT_TRUE(usage({"bake", "--source", "ocean", "--map-size", "8", "--time", "0", "--invert", "--sectors", "4",
-                     "--mode", "exact", "--output", "c.exr"}));
-  EXPECT_TRUE(usage({"sim", "--source", "sinusoids", "--map-size", "8", "--time", "0", "--spectrum", "jonswap",
-                     "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--map-size", "4", "--sectors", "4", "--mode", "exact",
+                     "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"bake", "--source", "ocean", "--map-size", "8", "--time", "0", "--invert", "--sectors",
+                     "4", "--mode", "exact", "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "sinusoids", "--map-size", "8", "--time", "0", "--spectrum",
+                     "jonswap", "--output", "h.exr"}));
   EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "8", "--time", "inf", "--output", "h.exr"}));
-  EXPECT_TRUE(
-      usage({"sim", "--source", "ocean", "--map-size", "8", "--time", "0", "--seed", "-3", "--output", "h.exr"}));
+  EXPECT_TRUE(usage(
+      {"sim", "--source", "ocean", "--map-size", "8", "--time", "0", "--seed", "-3", "--output", "h.exr"}));
   EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "20000", "--time", "0", "--output", "h.exr"}));
   EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "8", "--time", "0", "--output", "h.png"}));
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--budget-ms", "3",
@@ -706,8 +706,8 @@ TEST(Cli, EveryCommandExitsTwoOnUsageErrorsAndOneOnMissingFiles) {
   TempDir dir;
   write_bytes(dir / "file.txt", "not a directory");
   const std::string missing = "'" + (dir / "missing.png").string() + "'";
-  const std::string render = "render --source ocean --map-size 16 --time 0 --method pom --output '" +
-                             (dir / "f.png").string() + "'";
+  const std::string render =
+      "render --source ocean --map-size 16 --time 0 --method pom --output '" + (dir / "f.png").string() + "'";
   const struct {
     std::string command, usage, missing_file;
   } cases[] = {
@@ -744,9 +744,9 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   const struct {
     std::string command, limit;
   } cases[] = {
-      {"sim", "--map-size INT:[2, 16384]"},      {"bake", "--tolerance T:[0, 1)"},
-      {"render", "--steps INT:[1, 4096]"},       {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"},     {"scene", "--print calm|choppy|ripples|bricks|cliff"},
+      {"sim", "--map-size INT:[2, 16384]"},  {"bake", "--tolerance T:[0, 1)"},
+      {"render", "--steps INT:[1, 4096]"},   {"sweep", "--repeat INT:[1, 100]"},
+      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print calm|choppy|ripples|bricks|cliff"},
   };
   for (const auto& test : cases) {
     const RunResult help = run_displace(dir, test.command + " --help");
@@ -800,7 +800,9 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
       {"sim --source ocean --map-size 16 --time nan --output h.exr", 2},
       {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode exact", 2},
       {"unknown-command", 2},
-      {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output c.exr", 2},
+      {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output "
+       "c.exr",
+       2},
       {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode exact --tolerance 0 --output c.exr", 2},
       {"bake --source sinusoids --map-size 1 --time 0 --sectors 4 --mode budgeted --output c.exr", 2},
       {"sim --source ocean --map-size 16 --time 1e30 --output h.exr", 2},
