@@ -169,7 +169,7 @@ CLI::Validator finite_number() {
       "");
 }
 
-// The words of an enum, rewritten to the enum's value.
+// The words of an enum's values (the --mode, --cones, ... vocabulary).
 template <typename Enum>
 using Words = std::vector<std::pair<std::string, Enum>>;
 
@@ -180,6 +180,7 @@ std::string word_list(const Words<Enum>& words, std::string_view separator = "|"
   return list;
 }
 
+// One of `words`, rewritten to its enum value's number (which CLI11 converts to the enum).
 template <typename Enum>
 CLI::Validator word_in(const Words<Enum>& words) {
   return CLI::Validator(
@@ -321,6 +322,21 @@ void set_up(CLI::App& app) {
   app.get_formatter()->column_width(36);
 }
 
+// A flag with a value: `type` names the value in --help, `validator` checks it (and rewrites it in
+// the form CLI11 converts); the validator's description, if any, shows the limits next to `type`.
+template <typename Value>
+CLI::Option* add_value(CLI::App& app, const std::string& flag, Value& value, const std::string& description,
+                       const std::string& type, CLI::Validator validator) {
+  return app.add_option(flag, value, description)->type_name(type)->transform(std::move(validator));
+}
+
+// A flag without a value, given at most once.
+CLI::Option* add_switch(CLI::App& app, const std::string& flag, bool& value, const std::string& description) {
+  return app.add_flag(flag, value, description)
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw);
+}
+
 // ---------------------------------------------------------------------------------------------
 // the synthesis flags shared by `sim` and every --source
 
@@ -341,58 +357,31 @@ const std::vector<std::string> source_only_flags = {
     "--spectrum", "--fetch", "--spreading", "--choppiness", "--waves"};
 
 void add_source_flags(CLI::App& app, SourceDraft& draft) {
-  const char* group = "Heights from a source";
-  app.add_option("--source", draft.kind, "what to synthesize")
-      ->type_name(word_list(source_words))
-      ->transform(word_in(source_words))
-      ->group(group);
+  app.option_defaults()->group("Heights from a source");
+  add_value(app, "--source", draft.kind, "what to synthesize", word_list(source_words),
+            word_in(source_words));
   // a single texel (or a single row) has no relief to displace: at least 2 x 2
-  app.add_option("--map-size", draft.map_size, "height map samples along u and v")
-      ->type_name("INT")
-      ->transform(integer_in(2, max_image_side))
-      ->group(group);
-  app.add_option("--time", draft.time, "seconds (ocean, sinusoids)")
-      ->type_name("T")
-      ->transform(number_in(time_range))
-      ->group(group);
-  app.add_option("--seed", draft.seed, "random seed")
-      ->type_name("INT")
-      ->transform(seed_value())
-      ->group(group);
-  app.add_option("--patch-size", draft.patch_size, "metres covered by the map (ocean 200, sinusoids 4)")
-      ->type_name("M")
-      ->transform(number_in(patch_size_range))
-      ->group(group);
-  app.add_option("--wind-direction", draft.wind_direction_degrees,
-                 "azimuth of the wind / mean wave direction")
-      ->type_name("DEG")
-      ->transform(finite_number())
-      ->group(group);
-  app.add_option("--wind-speed", draft.wind_speed, "ocean: m/s at 10 m (default 12)")
-      ->type_name("V")
-      ->transform(number_in(wind_speed_range))
-      ->group(group);
-  app.add_option("--spectrum", draft.spectrum, "ocean (default phillips)")
-      ->type_name(word_list(spectrum_words))
-      ->transform(word_in(spectrum_words))
-      ->group(group);
-  app.add_option("--fetch", draft.fetch, "ocean, jonswap only: fetch in km (default 200)")
-      ->type_name("KM")
-      ->transform(number_in(fetch_range))
-      ->group(group);
-  app.add_option("--spreading", draft.spreading, "ocean: directional spreading exponent (default 2)")
-      ->type_name("S")
-      ->transform(number_in(spreading_range))
-      ->group(group);
-  app.add_option("--choppiness", draft.choppiness,
-                 "ocean: horizontal displacement scale, recorded only (default 1)")
-      ->type_name("L")
-      ->transform(number_in(choppiness_range))
-      ->group(group);
-  app.add_option("--waves", draft.wave_count, "sinusoids: number of waves (default 12)")
-      ->type_name("INT")
-      ->transform(integer_in(1, max_wave_count))
-      ->group(group);
+  add_value(app, "--map-size", draft.map_size, "height map samples along u and v", "INT",
+            integer_in(2, max_image_side));
+  add_value(app, "--time", draft.time, "seconds (ocean, sinusoids)", "T", number_in(time_range));
+  add_value(app, "--seed", draft.seed, "random seed", "INT", seed_value());
+  add_value(app, "--patch-size", draft.patch_size, "metres covered by the map (ocean 200, sinusoids 4)", "M",
+            number_in(patch_size_range));
+  add_value(app, "--wind-direction", draft.wind_direction_degrees,
+            "azimuth of the wind / mean wave direction", "DEG", finite_number());
+  add_value(app, "--wind-speed", draft.wind_speed, "ocean: m/s at 10 m (default 12)", "V",
+            number_in(wind_speed_range));
+  add_value(app, "--spectrum", draft.spectrum, "ocean (default phillips)", word_list(spectrum_words),
+            word_in(spectrum_words));
+  add_value(app, "--fetch", draft.fetch, "ocean, jonswap only: fetch in km (default 200)", "KM",
+            number_in(fetch_range));
+  add_value(app, "--spreading", draft.spreading, "ocean: directional spreading exponent (default 2)", "S",
+            number_in(spreading_range));
+  add_value(app, "--choppiness", draft.choppiness,
+            "ocean: horizontal displacement scale, recorded only (default 1)", "L",
+            number_in(choppiness_range));
+  add_value(app, "--waves", draft.wave_count, "sinusoids: number of waves (default 12)", "INT",
+            integer_in(1, max_wave_count));
 }
 
 SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
@@ -460,12 +449,11 @@ struct InputDraft {
 };
 
 void add_input_flags(CLI::App& app, InputDraft& draft) {
-  const char* group = "Heights from a file";
+  app.option_defaults()->group("Heights from a file");
   app.add_option("--input", draft.file,
                  "a height image (8/16-bit: value / maximum; float: min..max or as `sim` wrote it)")
       ->type_name("FILE")
-      ->check(not_empty())
-      ->group(group);
+      ->check(not_empty());
   app.add_option("--channel", draft.channel,
                  "the channel: a name or an index (default `height`, or the only grey one)")
       ->type_name("NAME|INDEX")
@@ -474,20 +462,15 @@ void add_input_flags(CLI::App& app, InputDraft& draft) {
         if (!std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) return {};
         std::string index = text;
         return integer_in(0, max_channel_index)(index);
-      }))
-      ->group(group);
-  app.add_flag("--invert", draft.invert, "the image stores depth (1 = deepest)")
-      ->disable_flag_override()
-      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
-      ->group(group);
+      }));
+  add_switch(app, "--invert", draft.invert, "the image stores depth (1 = deepest)");
   app.add_option("--height-range", draft.height_range, "float images: the raw values that map to 0 and 1")
       ->type_name("LOW,HIGH")
       ->check(text_check([](const std::string& text) -> std::string {
         if (text.find(',') == std::string::npos) return "expects LOW,HIGH, got " + in_quotes(text);
         if (!read_height_range(text)) return "needs finite LOW < HIGH, got " + in_quotes(text);
         return {};
-      }))
-      ->group(group);
+      }));
   add_source_flags(app, draft.source);
 }
 
@@ -542,7 +525,7 @@ CLI::Validator vector_value() {
 
 void add_scene_flags(CLI::App& app, SceneDraft& draft) {
   add_input_flags(app, draft.input);
-  const char* group = "View";
+  app.option_defaults()->group("View");
   render::View& view = draft.view;
   app.add_option("--size", draft.size, "the image in pixels (default 512x512)")
       ->type_name("WxH")
@@ -558,49 +541,22 @@ void add_scene_flags(CLI::App& app, SceneDraft& draft) {
             }
             return {};
           },
-          fmt::format("[1, {}] each", max_image_side)))
-      ->group(group);
-  app.add_option("--address", view.address, "how the map continues past its edges (default wrap)")
-      ->type_name(word_list(address_words))
-      ->transform(word_in(address_words))
-      ->group(group);
-  app.add_option("--tile", view.tile, "texture repeats over the plane (above 1 needs --address wrap)")
-      ->type_name("INT")
-      ->transform(integer_in(1, max_tile))
-      ->group(group);
-  app.add_option("--depth-scale", view.depth_scale, "world units between height 1 and height 0 (default 0.1)")
-      ->type_name("D")
-      ->transform(number_in(depth_scale_range))
-      ->group(group);
-  app.add_option("--eye", draft.eye, "camera position")
-      ->type_name("X,Y,Z")
-      ->check(vector_value())
-      ->group(group);
-  app.add_option("--look-at", draft.look_at, "point the camera looks at")
-      ->type_name("X,Y,Z")
-      ->check(vector_value())
-      ->group(group);
-  app.add_option("--up", draft.up, "camera up (default 0,0,1)")
-      ->type_name("X,Y,Z")
-      ->check(vector_value())
-      ->group(group);
-  app.add_option("--fov-y", view.camera.fov_y_degrees, "full vertical angle (default 45)")
-      ->type_name("DEG")
-      ->transform(number_in(fov_range))
-      ->group(group);
-  app.add_option("--light", draft.light, "direction towards the light")
-      ->type_name("X,Y,Z")
-      ->check(vector_value())
-      ->group(group);
-  app.add_flag("--shadows", view.shadows, "self-shadowing, traced towards the light with the same method")
-      ->disable_flag_override()
-      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
-      ->group(group);
-  app.add_option("--albedo", draft.albedo,
-                 "shade with an image (1-4 channels) instead of the procedural grid")
-      ->type_name("IMAGE")
-      ->check(not_empty())
-      ->group(group);
+          fmt::format("[1, {}] each", max_image_side)));
+  add_value(app, "--address", view.address, "how the map continues past its edges (default wrap)",
+            word_list(address_words), word_in(address_words));
+  add_value(app, "--tile", view.tile, "texture repeats over the plane (above 1 needs --address wrap)", "INT",
+            integer_in(1, max_tile));
+  add_value(app, "--depth-scale", view.depth_scale, "world units between height 1 and height 0 (default 0.1)",
+            "D", number_in(depth_scale_range));
+  add_value(app, "--eye", draft.eye, "camera position", "X,Y,Z", vector_value());
+  add_value(app, "--look-at", draft.look_at, "point the camera looks at", "X,Y,Z", vector_value());
+  add_value(app, "--up", draft.up, "camera up (default 0,0,1)", "X,Y,Z", vector_value());
+  add_value(app, "--fov-y", view.camera.fov_y_degrees, "full vertical angle (default 45)", "DEG",
+            number_in(fov_range));
+  add_value(app, "--light", draft.light, "direction towards the light", "X,Y,Z", vector_value());
+  add_switch(app, "--shadows", view.shadows, "self-shadowing, traced towards the light with the same method");
+  add_value(app, "--albedo", draft.albedo,
+            "shade with an image (1-4 channels) instead of the procedural grid", "IMAGE", not_empty());
   app.add_option("--surface", draft.surface, "what the relief lies on (default plane)")
       ->type_name(word_list(surface_words) + "|mesh:FILE.obj")
       ->check(text_check([](const std::string& text) -> std::string {
@@ -608,12 +564,9 @@ void add_scene_flags(CLI::App& app, SceneDraft& draft) {
         if (text.starts_with("mesh:")) return {};
         std::string word = text;
         return word_in(surface_words)(word);
-      }))
-      ->group(group);
-  app.add_option("--radius", view.radius, "the quadric's outer radius (default 0.25)")
-      ->type_name("R")
-      ->transform(number_in(radius_range))
-      ->group(group);
+      }));
+  add_value(app, "--radius", view.radius, "the quadric's outer radius (default 0.25)", "R",
+            number_in(radius_range));
 }
 
 SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const std::string& name) {
@@ -645,29 +598,18 @@ SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const s
 
 // --device, --validate and --pipeline-cache, for every command that renders.
 void add_renderer_flags(CLI::App& app, render::RendererOptions& options) {
-  const char* group = "Vulkan";
-  app.add_option("--device", options.device,
-                 "a device index or part of its name (default: the best GPU, else lavapipe)")
-      ->type_name("N|NAME")
-      ->check(not_empty())
-      ->group(group);
-  app.add_flag("--validate", options.validate, "Khronos validation layer; any message fails the command")
-      ->disable_flag_override()
-      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
-      ->group(group);
+  app.option_defaults()->group("Vulkan");
+  add_value(app, "--device", options.device,
+            "a device index or part of its name (default: the best GPU, else lavapipe)", "N|NAME",
+            not_empty());
+  add_switch(app, "--validate", options.validate, "Khronos validation layer; any message fails the command");
   app.add_option(
          "--pipeline-cache", options.pipeline_cache,
          "where compiled pipelines are kept (default $DISPLACE_PIPELINE_CACHE, else ~/.cache/displace)")
       ->type_name("DIR|off")
       ->check(text_check([](const std::string& text) {
         return text.empty() ? std::string("needs a directory or 'off'") : std::string();
-      }))
-      ->group(group);
-}
-
-CLI::Option* add_budget_flag(CLI::App& app, const std::string& flag, double& milliseconds,
-                             const std::string& what) {
-  return app.add_option(flag, milliseconds, what)->type_name("MS")->transform(number_in(budget_range));
+      }));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -683,10 +625,8 @@ CommandSettings parse_sim(std::span<const std::string_view> args) {
   std::string output;
   add_source_flags(app, source);
   app.get_option("--source")->required();
-  app.add_option("--output", output, "the heights")
-      ->type_name("FILE.exr")
-      ->check(output_file({".exr"}))
-      ->required();
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the heights", "FILE.exr", output_file({".exr"}))->required();
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   return SimSettings{finish_source(app, source), std::filesystem::path(output)};
@@ -702,7 +642,7 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
   double budget = 0.0, tolerance = 0.0;
   bool relaxed = false;
   add_input_flags(app, input);
-  const char* group = "Cones";
+  app.option_defaults()->group("Cones");
   app.add_option("--sectors", settings.sector_count, "cone sectors per texel")
       ->type_name("1|4|8")
       ->transform(CLI::Validator(
@@ -714,23 +654,15 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
             return {};
           },
           ""))
-      ->required()
-      ->group(group);
-  app.add_option("--mode", mode, "the baker (bilinear cones: budgeted or full)")
-      ->type_name(word_list(mode_words))
-      ->transform(word_in(mode_words))
-      ->group(group);
-  app.add_flag("--relaxed", relaxed, "relaxed cones (sectors 1 or 4), its own baker")
-      ->disable_flag_override()
-      ->multi_option_policy(CLI::MultiOptionPolicy::Throw)
-      ->group(group);
-  app.add_option("--cones", settings.cones,
-                 "between texel centres, or the renderer's bilinear cones with apex heights")
-      ->type_name(word_list(cone_kind_words))
-      ->transform(word_in(cone_kind_words))
-      ->group(group);
-  add_budget_flag(app, "--budget-ms", budget, "budgeted: refinement time (default unlimited; 0 allowed)")
-      ->group(group);
+      ->required();
+  add_value(app, "--mode", mode, "the baker (bilinear cones: budgeted or full)", word_list(mode_words),
+            word_in(mode_words));
+  add_switch(app, "--relaxed", relaxed, "relaxed cones (sectors 1 or 4), its own baker");
+  add_value(app, "--cones", settings.cones,
+            "between texel centres, or the renderer's bilinear cones with apex heights",
+            word_list(cone_kind_words), word_in(cone_kind_words));
+  add_value(app, "--budget-ms", budget, "budgeted: refinement time (default unlimited; 0 allowed)", "MS",
+            number_in(budget_range));
   app.add_option("--tolerance", tolerance,
                  "budgeted: refine while a ratio may be more than T below exact (default 0.25)")
       ->type_name("T")
@@ -744,19 +676,14 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
             text = fmt::format("{}", value);
             return {};
           },
-          "[0, 1)"))
-      ->group(group);
-  app.add_option("--address", settings.address, "how the map continues past its edges (default wrap)")
-      ->type_name(word_list(address_words))
-      ->transform(word_in(address_words))
-      ->group(group);
-  app.add_option("--output", output, "the cone map (.png: heights quantized to 8 bits before baking)")
-      ->type_name("FILE.exr|FILE.png")
-      ->check(output_file({".exr", ".png"}))
+          "[0, 1)"));
+  add_value(app, "--address", settings.address, "how the map continues past its edges (default wrap)",
+            word_list(address_words), word_in(address_words));
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the cone map (.png: heights quantized to 8 bits before baking)",
+            "FILE.exr|FILE.png", output_file({".exr", ".png"}))
       ->required();
-  app.add_flag("--stats", settings.stats, "print one JSON line instead of the human line")
-      ->disable_flag_override()
-      ->multi_option_policy(CLI::MultiOptionPolicy::Throw);
+  add_switch(app, "--stats", settings.stats, "print one JSON line instead of the human line");
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
 
@@ -808,26 +735,19 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   add_scene_flags(app, scene);
   add_renderer_flags(app, settings.renderer);
   const Words<render::Method> methods = method_words();
-  const char* group = "Method";
-  app.add_option("--method", settings.method.method, "the per-pixel method")
-      ->type_name(word_list(methods))
-      ->transform(word_in(methods))
-      ->required()
-      ->group(group);
-  app.add_option("--steps", settings.method.steps, "linear-search steps or maximum cone steps (default 32)")
-      ->type_name("INT")
-      ->transform(integer_in(1, max_steps))
-      ->group(group);
-  app.add_option("--refine", settings.method.refine, "binary or secant steps (default 8)")
-      ->type_name("INT")
-      ->transform(integer_in(0, max_refine))
-      ->group(group);
-  add_budget_flag(app, "--bake-budget-ms", bake_budget,
-                  "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)")
-      ->group(group);
-  app.add_option("--output", output, "the picture")
-      ->type_name("FILE.png|FILE.exr")
-      ->check(output_file({".png", ".exr"}))
+  app.option_defaults()->group("Method");
+  add_value(app, "--method", settings.method.method, "the per-pixel method", word_list(methods),
+            word_in(methods))
+      ->required();
+  add_value(app, "--steps", settings.method.steps, "linear-search steps or maximum cone steps (default 32)",
+            "INT", integer_in(1, max_steps));
+  add_value(app, "--refine", settings.method.refine, "binary or secant steps (default 8)", "INT",
+            integer_in(0, max_refine));
+  add_value(app, "--bake-budget-ms", bake_budget,
+            "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
+            number_in(budget_range));
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
       ->required();
   app.add_option("--aov", aovs,
                  "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png")
@@ -953,9 +873,8 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
             }
           },
           fmt::format("[1, {}] each", max_steps)));
-  app.add_option("--refine", settings.refine, "binary or secant steps (default 8)")
-      ->type_name("INT")
-      ->transform(integer_in(0, max_refine));
+  add_value(app, "--refine", settings.refine, "binary or secant steps (default 8)", "INT",
+            integer_in(0, max_refine));
   app.add_option("--repeat", settings.repeat,
                  "renders per row; the row reports the median device time (default 3)")
       ->type_name("INT")
@@ -1022,12 +941,9 @@ CommandSettings parse_demo(std::span<const std::string_view> args) {
   set_up(app);
   DemoSettings settings;
   std::string directory = settings.output_directory.string();
-  app.add_option("--map-size", settings.map_size, "ocean samples along u and v (default 512)")
-      ->type_name("INT")
-      ->transform(integer_in(2, max_image_side));
-  app.add_option("--output-dir", directory, "where the files go (default out)")
-      ->type_name("DIR")
-      ->check(not_empty());
+  add_value(app, "--map-size", settings.map_size, "ocean samples along u and v (default 512)", "INT",
+            integer_in(2, max_image_side));
+  add_value(app, "--output-dir", directory, "where the files go (default out)", "DIR", not_empty());
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   settings.output_directory = directory;
