@@ -296,6 +296,9 @@ std::optional<HelpSettings> parse_flags(CLI::App& app, std::span<const std::stri
   } catch (const CLI::CallForHelp&) {
     return HelpSettings{app.help()};
   } catch (const CLI::ParseError& error) {
+    // CLI11 checks values before it looks at --help: asking for help wins over a bad value
+    if (const CLI::Option* help = app.get_help_ptr(); help && help->count() > 0)
+      return HelpSettings{app.help()};
     throw usage_error(translate(app, error));
   }
   return std::nullopt;

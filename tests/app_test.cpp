@@ -608,6 +608,29 @@ TEST(Options, ParsesBilinearCones) {
   EXPECT_EQ(center.cones, ConeKind::center);
 }
 
+// Numbers are decimal whatever CLI11 would make of them; sweep scenes and render AOVs may repeat;
+// --help is the command's own help.
+TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
+  const RenderSettings render = std::get<RenderSettings>(
+      parse({"render", "--source", "bricks", "--map-size", "016", "--method", "pom", "--steps", "010",
+             "--aov", "uv=a.exr", "--aov=depth=b.exr", "--size=64x48", "--output", "f.png"}));
+  EXPECT_EQ(std::get<SourceSettings>(render.input).size, 16);
+  EXPECT_EQ(render.method.steps, 10);
+  ASSERT_EQ(render.aovs.size(), 2u);
+  EXPECT_EQ(render.aovs[1].aov, Aov::depth);
+  EXPECT_EQ(render.aovs[1].file, "b.exr");
+  EXPECT_EQ(render.view.camera.width, 64);
+  EXPECT_EQ(render.view.camera.height, 48);
+  const SweepSettings sweep = std::get<SweepSettings>(
+      parse({"sweep", "--scene", "bricks", "--scene", "cliff", "--steps", "4,08", "--output", "s.csv"}));
+  ASSERT_EQ(sweep.scenes.size(), 2u);
+  EXPECT_EQ(sweep.scenes[1].name, "cliff");
+  EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
+  const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
+  EXPECT_NE(help.text.find("--steps INT:[1, 4096]"), std::string::npos) << help.text;
+  EXPECT_TRUE(std::get<HelpSettings>(parse({"help"})).text.empty());  // the overview
+}
+
 TEST(Options, ParsesTheRenderBakeBudget) {
   const RenderSettings budget =
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
