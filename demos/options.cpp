@@ -971,6 +971,13 @@ CommandSettings parse_scene(std::span<const std::string_view> args) {
   return settings;
 }
 
+struct Command {
+  std::string_view name;
+  CommandSettings (*parse)(std::span<const std::string_view> args);  // the arguments after the name
+};
+constexpr Command commands[] = {{"sim", parse_sim},     {"bake", parse_bake}, {"render", parse_render},
+                                {"sweep", parse_sweep}, {"demo", parse_demo}, {"scene", parse_scene}};
+
 }  // namespace
 
 std::string lower_extension(const std::filesystem::path& path) {
@@ -981,23 +988,21 @@ std::string lower_extension(const std::filesystem::path& path) {
 }
 
 bool is_command(std::string_view word) {
-  return word == "sim" || word == "bake" || word == "render" || word == "sweep" || word == "demo" ||
-         word == "scene";
+  return std::any_of(std::begin(commands), std::end(commands),
+                     [&](const Command& c) { return c.name == word; });
 }
 
 CommandSettings parse_command_line(std::span<const std::string_view> args) {
   if (args.empty()) throw usage_error("no command given");
-  const std::string_view command = args.front();
-  const auto rest = args.subspan(1);
-  if (command == "help" || command == "--help" || command == "-h") return HelpSettings{};
-  if (command == "sim") return parse_sim(rest);
-  if (command == "bake") return parse_bake(rest);
-  if (command == "render") return parse_render(rest);
-  if (command == "sweep") return parse_sweep(rest);
-  if (command == "demo") return parse_demo(rest);
-  if (command == "scene") return parse_scene(rest);
-  throw usage_error("unknown command " + in_quotes(command) +
-                    " (commands: sim, bake, render, sweep, demo, scene, help)");
+  const std::string_view word = args.front();
+  if (word == "help" || word == "--help" || word == "-h") return HelpSettings{};
+  for (const Command& command : commands) {
+    if (command.name == word) return command.parse(args.subspan(1));
+  }
+  std::vector<std::string_view> names;
+  for (const Command& command : commands) names.push_back(command.name);
+  throw usage_error(
+      fmt::format("unknown command {} (commands: {}, help)", in_quotes(word), fmt::join(names, ", ")));
 }
 
 SceneSettings builtin_scene(std::string_view name) {
