@@ -24,6 +24,10 @@ endif()
 find_package(Threads REQUIRED)
 # pipeline/: scene files in TOML
 displace_require_package(tomlplusplus libtomlplusplus-dev CONFIG)
+# demos/: the command line (CLI11), text formatting (fmt) and the JSON of `bake --stats` (nlohmann-json)
+displace_require_package(CLI11 libcli11-dev CONFIG)
+displace_require_package(fmt libfmt-dev CONFIG)
+displace_require_package(nlohmann_json nlohmann-json3-dev CONFIG)
 
 # render/: Vulkan (loader + headers), GLM, and glslang's compiler for the shaders at build time.
 # The CPU driver (mesa-vulkan-drivers: lavapipe) and the validation layers are runtime packages;

@@ -5,20 +5,23 @@
 // it stores, so its cones are conservative for what an engine reads back (see cone_export.h).
 #include "demos/commands.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
 
 #include "demos/obj_io.h"
-#include "pipeline/maps.h"
 #include "demos/progress.h"
+#include "pipeline/maps.h"
+#include "pipeline/scene.h"
 
 namespace displace::app {
 namespace {
@@ -27,12 +30,6 @@ using Clock = std::chrono::steady_clock;
 
 double milliseconds_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-std::string format(const char* pattern, auto... values) {
-  char buffer[512];
-  std::snprintf(buffer, sizeof buffer, pattern, values...);
-  return buffer;
 }
 
 const char* source_name(SourceKind kind) {
@@ -108,21 +105,22 @@ Metadata source_attributes_for_cones(const Metadata& metadata) {
 }
 
 std::string mapping_phrase(const sim::HeightMapping& mapping) {
-  return format("raw * %.6g %c %.6g", double(mapping.scale), mapping.bias < 0.0f ? '-' : '+',
-                std::abs(double(mapping.bias)));
+  return fmt::format("raw * {:.6g} {} {:.6g}", double(mapping.scale), mapping.bias < 0.0f ? '-' : '+',
+                     std::abs(double(mapping.bias)));
 }
 
 std::string clamped_phrase(std::size_t clamped) {
-  return clamped ? format(", %zu clamped", clamped) : std::string();
+  return clamped ? fmt::format(", {} clamped", clamped) : std::string();
 }
 
 std::string budget_phrase(double milliseconds) {
-  return std::isinf(milliseconds) ? std::string("unlimited budget") : format("%.6g ms budget", milliseconds);
+  return std::isinf(milliseconds) ? std::string("unlimited budget")
+                                  : fmt::format("{:.6g} ms budget", milliseconds);
 }
 
 std::string stats_phrase(const bake::BakeStats& stats) {
-  return format("%.1f ms, mean ratio %.4f, %lld texels refined, %lld fallback", stats.milliseconds,
-                stats.mean_ratio, stats.texels_refined, stats.texels_fallback);
+  return fmt::format("{:.1f} ms, mean ratio {:.4f}, {} texels refined, {} fallback", stats.milliseconds,
+                     stats.mean_ratio, stats.texels_refined, stats.texels_fallback);
 }
 
 void make_output_directory(const std::filesystem::path& directory) {
@@ -218,7 +216,7 @@ BakeInput prepare_bake_input(const std::variant<FileInput, SourceSettings>& inpu
     prepared.heights.resize(synthesized.raw.size());
     const std::size_t clamped = sim::apply_mapping(synthesized.mapping, synthesized.raw, prepared.heights);
     prepared.description = std::string(source_name(source.kind)) +
-                           format(" at t = %g s (h = ", double(source.time)) +
+                           fmt::format(" at t = {:g} s (h = ", double(source.time)) +
                            mapping_phrase(synthesized.mapping) + clamped_phrase(clamped) + ")";
     prepared.metadata = source_attributes_for_cones(synthesized.metadata);
   }
@@ -293,13 +291,20 @@ BakedCones bake_bilinear(std::span<const float> heights, int width, int height, 
 
 std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address, ConeKind kind) {
   const auto finite = [](double value) { return std::isfinite(value) ? value : 0.0; };
-  return format(
-      "{\"mode\":\"%s\",\"cones\":\"%s\",\"width\":%d,\"height\":%d,\"sectors\":%d,\"address\":\"%s\","
-      "\"milliseconds\":%.6f,\"texels_refined\":%lld,\"texels_fallback\":%lld,\"work\":%lld,\"mean_ratio\":%."
-      "9g}",
-      baker_name(baker), cone_kind_name(kind), stats.width, stats.height, stats.sector_count,
-      address_name(address), finite(stats.milliseconds), stats.texels_refined, stats.texels_fallback,
-      stats.work, finite(stats.mean_ratio));
+  const nlohmann::ordered_json line = {
+      {"mode", baker_name(baker)},
+      {"cones", cone_kind_name(kind)},
+      {"width", stats.width},
+      {"height", stats.height},
+      {"sectors", stats.sector_count},
+      {"address", address_name(address)},
+      {"milliseconds", finite(stats.milliseconds)},
+      {"texels_refined", stats.texels_refined},
+      {"texels_fallback", stats.texels_fallback},
+      {"work", stats.work},
+      {"mean_ratio", finite(stats.mean_ratio)},
+  };
+  return line.dump();
 }
 
 void run_sim(const SimSettings& settings, std::ostream& out) {
@@ -307,7 +312,8 @@ void run_sim(const SimSettings& settings, std::ostream& out) {
   write_height_exr(settings.output, heights);
   out << "displace: synthesized " << source_name(settings.source.kind) << " heights " << heights.width
       << " x " << heights.height
-      << format(" at t = %g s in %.1f ms (h01 = ", double(settings.source.time), heights.milliseconds)
+      << fmt::format(" at t = {:g} s in {:.1f} ms (h01 = ", double(settings.source.time),
+                     heights.milliseconds)
       << mapping_phrase(heights.mapping) << "); wrote raw metres to '" << settings.output.string() << "'\n";
 }
 
@@ -474,11 +480,12 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   write_frame_image(settings.output, frame, metadata);
   for (const AovOutput& aov : settings.aovs) write_aov(aov, frame, metadata);
   const FrameSummary summary = summarize(frame);
-  out << format("displace render: %s, %d steps, %d refine, on %s (%s): %d x %d, %lld pixels hit, "
-                "%.2f ms on the device; per pixel: %.1f iterations, %.1f fetches (p99 %.0f)\n",
-                info.name, settings.method.steps, settings.method.refine, renderer.device().name.c_str(),
-                renderer.device().type.c_str(), frame.width, frame.height, summary.hit_pixels,
-                frame.gpu_milliseconds, summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
+  out << fmt::format(
+      "displace render: {}, {} steps, {} refine, on {} ({}): {} x {}, {} pixels hit, "
+      "{:.2f} ms on the device; per pixel: {:.1f} iterations, {:.1f} fetches (p99 {:.0f})\n",
+      info.name, settings.method.steps, settings.method.refine, renderer.device().name,
+      renderer.device().type, frame.width, frame.height, summary.hit_pixels, frame.gpu_milliseconds,
+      summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
   if (budgeted_cones) {
     out << "  cone maps baked by the budgeted bilinear baker within a "
         << budget_phrase(settings.bake_budget_milliseconds) << " (conservative at any budget)\n";
@@ -490,9 +497,10 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, settings.view, {render::Method::reference, 1, 0});
     const render::ImageError error = render::compare(frame, reference);
-    out << format("  compare reference: rmse %.3f, max error %.0f, %.3f%% of %lld pixels off by more than 10 "
-                  "(8-bit units)\n",
-                  error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
+    out << fmt::format(
+        "  compare reference: rmse {:.3f}, max error {:.0f}, {:.3f}% of {} pixels off by more than 10 "
+        "(8-bit units)\n",
+        error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
   }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
     throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
@@ -519,13 +527,14 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     }
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, scene.view, {render::Method::reference, 1, 0});
-    out << format("scene %s: %d x %d map, %d x %d pixels\n", scene.name.c_str(), input.width, input.height,
-                  scene.view.camera.width, scene.view.camera.height);
+    out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, input.width, input.height,
+                       scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
     for (render::Method method : settings.methods) {
       const render::MethodInfo& info = render::method_info(method);
       if (!render::supports_surface(method, scene.view.surface)) {
-        out << format("  %-17s skipped: no %s support\n", info.name, render::surface_name(scene.view.surface));
+        out << fmt::format("  {:<17} skipped: no {} support\n", info.name,
+                           render::surface_name(scene.view.surface));
         continue;
       }
       double best_fetches = -1.0;
@@ -543,9 +552,10 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
         const double median_ms = times[times.size() / 2];
         const render::ImageError error = render::compare(frame, reference);
         const FrameSummary summary = summarize(frame);
-        csv << format("%s,%s,%d,%d,%.4f,%.0f,%.6f,%.3f,%.0f,%.3f,%.4f,\"%s\"\n", scene.name.c_str(), info.name, steps,
-                      settings.refine, error.rmse, error.max_error, error.fraction_over_10, summary.mean_fetches,
-                      summary.p99_fetches, summary.mean_iterations, median_ms, renderer.device().name.c_str());
+        csv << fmt::format("{},{},{},{},{:.4f},{:.0f},{:.6f},{:.3f},{:.0f},{:.3f},{:.4f},\"{}\"\n",
+                           scene.name, info.name, steps, settings.refine, error.rmse, error.max_error,
+                           error.fraction_over_10, summary.mean_fetches, summary.p99_fetches,
+                           summary.mean_iterations, median_ms, renderer.device().name);
         if (error.rmse <= 3.0 && (best_fetches < 0.0 || summary.mean_fetches < best_fetches)) {
           best_fetches = summary.mean_fetches;
           best_steps = steps;
@@ -553,10 +563,10 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
         last_rmse = error.rmse;
       }
       if (best_fetches >= 0.0) {
-        out << format("  %-17s %8.1f (%d)%*s %.2f\n", info.name, best_fetches, best_steps,
-                      best_steps >= 10 ? 24 : 25, "", last_rmse);
+        out << fmt::format("  {:<17} {:8.1f} ({}){:{}} {:.2f}\n", info.name, best_fetches, best_steps, "",
+                           best_steps >= 10 ? 24 : 25, last_rmse);
       } else {
-        out << format("  %-17s %8s%*s %.2f\n", info.name, "not reached", 25, "", last_rmse);
+        out << fmt::format("  {:<17} {:>8}{:25} {:.2f}\n", info.name, "not reached", "", last_rmse);
       }
     }
   }
@@ -577,14 +587,14 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   // synthesize the default ocean frame
   SourceSettings source;
   source.kind = SourceKind::ocean;
-  source.size = settings.size;
+  source.size = settings.map_size;
   source.time = 0.0f;
-  source.ocean.size = settings.size;
+  source.ocean.size = settings.map_size;
   const SynthesizedHeights ocean = synthesize(source);
   write_height_exr(height_file, ocean);
-  out << format(
-      "displace demo: FFT ocean %d x %d (%g m patch, %s spectrum, wind %g m/s), t = 0 s, "
-      "synthesized in %.1f ms\n",
+  out << fmt::format(
+      "displace demo: FFT ocean {} x {} ({:g} m patch, {} spectrum, wind {:g} m/s), t = 0 s, "
+      "synthesized in {:.1f} ms\n",
       ocean.width, ocean.height, double(source.ocean.patch_size), spectrum_name(source.ocean.spectrum),
       double(source.ocean.wind_speed), ocean.milliseconds);
   out << "  wrote " << height_file.string() << " (raw metres, channel height)\n";
@@ -639,14 +649,18 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   write_aov({Aov::iterations, iterations_file}, acm4, metadata);
   const FrameSummary summary = summarize(acm4);
   const render::ImageError error = render::compare(acm4, reference);
-  out << format(
-      "  rendered %d x %d on %s: acm4 (32 steps, on the renderer's own cone map for the bilinear surface) "
-      "%.1f ms, %.1f fetches per pixel; reference (tessellated) %.1f ms; acm4 against it: rmse %.2f, "
-      "%.3f%% of pixels off by more than 10\n",
-      acm4.width, acm4.height, renderer.device().name.c_str(), acm4.gpu_milliseconds, summary.mean_fetches,
+  out << fmt::format(
+      "  rendered {} x {} on {}: acm4 (32 steps, on the renderer's own cone map for the bilinear surface) "
+      "{:.1f} ms, {:.1f} fetches per pixel; reference (tessellated) {:.1f} ms; acm4 against it: rmse {:.2f}, "
+      "{:.3f}% of pixels off by more than 10\n",
+      acm4.width, acm4.height, renderer.device().name, acm4.gpu_milliseconds, summary.mean_fetches,
       reference.gpu_milliseconds, error.rmse, 100.0 * error.fraction_over_10);
   out << "  wrote " << acm4_file.string() << ", " << reference_file.string() << ", " << iterations_file.string()
       << " (iterations heatmap)\n";
+}
+
+void run_print_scene(const PrintSceneSettings& settings, std::ostream& out) {
+  out << pipeline::scene_toml(pipeline::builtin_scene(settings.name));
 }
 
 std::string usage_text() {
@@ -658,12 +672,12 @@ std::string usage_text() {
   std::string text = R"(displace - height fields, cone maps and their export
 
 usage:
-  displace sim --source ocean|sinusoids --size N --time T [synthesis options] --output F.exr
+  displace sim --source ocean|sinusoids|bricks|cliff --map-size N --time T [synthesis options] --output F.exr
       Synthesize heights and write raw metres to channel `height`, with the source parameters and
       the [0, 1] mapping (displace:height_scale, displace:height_bias) as EXR attributes.
 
   displace bake (--input H.png|H.exr [--channel C] [--invert] [--height-range LO,HI]
-                | --source ocean|sinusoids --size N --time T [synthesis options])
+                | --source ocean|sinusoids|bricks|cliff --map-size N --time T [synthesis options])
                 --sectors 1|4|8 (--mode exact|original|paper-adaptive|budgeted [--budget-ms X] [--tolerance T]
                                  | --relaxed
                                  | --cones bilinear --mode budgeted|full [--budget-ms X] [--tolerance T])
@@ -685,7 +699,7 @@ usage:
       up (ratios are rounded down), so the decoded maps stay conservative.
       On a terminal, a bake that runs for more than a second shows its progress on stderr.
 
-  displace render (--input H.png|H.exr [load options] | --source ocean|sinusoids --map-size N --time T [...])
+  displace render (--input H.png|H.exr [load options] | --source NAME --map-size N --time T [...])
                   --method NAME [--steps S] [--refine R] [--address wrap|clamp] [--tile K]
                   [--depth-scale D] [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov-y DEG]
                   [--light X,Y,Z] [--shadows] [--albedo IMAGE] [--size WxH] [--bake-budget-ms B]
@@ -730,16 +744,23 @@ usage:
       --tile, --depth-scale, --address, --light, --shadows, --albedo, --surface, --radius); '#' starts a
       comment.
 
-  displace demo [--size N] [--output-dir DIR]
+  displace demo [--map-size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
       out/ocean_cone4.png, baked with the budgeted baker and an unlimited budget; then renders it
       with acm4 and with the tessellated reference (out/ocean_acm4.png, out/ocean_reference.png,
       out/ocean_acm4_iterations.png) and compares them.
 
+  displace scene --print NAME
+      Write a built-in scene of the frame pipeline (NAMES) as a TOML scene file to stdout.
+
   displace help | --help
+      This overview. `displace COMMAND --help` lists the flags of one command with their limits.
+
+--map-size is always the height map's samples a side, --size always the image's pixels (WxH).
 
 synthesis options:
-  --seed S               random seed (non-negative integer)
+  --seed S               random seed (non-negative integer); bricks and cliff take only --seed
+  --time T               seconds (ocean, sinusoids)
   --patch-size M         metres covered by the map (ocean 200, sinusoids 4)
   --wind-direction DEG   azimuth of the wind / mean wave direction, degrees
   --wind-speed V         ocean: m/s at 10 m (default 12)
@@ -752,12 +773,17 @@ synthesis options:
 exit status: 0 success, 1 runtime error (files, images, baking, no Vulkan device), 2 usage error.
 )";
   text.replace(text.find("METHODS"), 7, methods);
+  std::string names;
+  for (const std::string& name : pipeline::builtin_scene_names()) names += (names.empty() ? "" : ", ") + name;
+  text.replace(text.find("NAMES"), 5, names);
   return text;
 }
 
 int run_command(const CommandSettings& settings, std::ostream& out) {
-  if (std::holds_alternative<HelpSettings>(settings)) {
-    out << usage_text();
+  if (const auto* help = std::get_if<HelpSettings>(&settings)) {
+    out << (help->text.empty() ? usage_text() : help->text);
+  } else if (const auto* print = std::get_if<PrintSceneSettings>(&settings)) {
+    run_print_scene(*print, out);
   } else if (const auto* sim_settings = std::get_if<SimSettings>(&settings)) {
     run_sim(*sim_settings, out);
   } else if (const auto* bake_settings = std::get_if<BakeSettings>(&settings)) {

@@ -69,7 +69,10 @@ void run_bake(const BakeSettings& settings, std::ostream& out);
 void run_render(const RenderSettings& settings, std::ostream& out);
 void run_sweep(const SweepSettings& settings, std::ostream& out);
 void run_demo(const DemoSettings& settings, std::ostream& out);
+// Writes the built-in scene as a TOML scene file (pipeline::scene_toml).
+void run_print_scene(const PrintSceneSettings& settings, std::ostream& out);
 
+// The overview `displace --help` prints; `displace COMMAND --help` lists one command's flags.
 std::string usage_text();
 
 // Runs one parsed command; returns the exit status.

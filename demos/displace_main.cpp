@@ -20,9 +20,12 @@ namespace {
 constexpr int exit_runtime_error = 1;
 constexpr int exit_usage_error = 2;
 
-int report(std::string_view message, int status) {
+// `command`: the command the user ran, for the help hint of a usage error; empty when none.
+int report(std::string_view message, int status, std::string_view command = {}) {
   std::cerr << "displace: error: " << message << '\n';
-  if (status == exit_usage_error) std::cerr << "run 'displace --help' for usage\n";
+  if (status == exit_usage_error) {
+    std::cerr << "run 'displace " << command << (command.empty() ? "" : " ") << "--help' for usage\n";
+  }
   return status;
 }
 
@@ -39,7 +42,9 @@ int main(int argc, char** argv) {
     const app::CommandSettings settings = app::parse_command_line(args);
     return app::run_command(settings, std::cout);
   } catch (const app::AppError& error) {
-    return report(error.what(), error.kind == app::ErrorKind::usage ? exit_usage_error : exit_runtime_error);
+    const std::string_view command = app::is_command(args.front()) ? args.front() : std::string_view{};
+    return report(error.what(), error.kind == app::ErrorKind::usage ? exit_usage_error : exit_runtime_error,
+                  command);
   } catch (const bake::BakeError& error) {
     return report(std::string("bake: ") + error.what(), exit_runtime_error);
   } catch (const std::invalid_argument& error) {

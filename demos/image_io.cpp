@@ -6,10 +6,10 @@
 #include "demos/image_io.h"
 
 #include <OpenImageIO/imageio.h>
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <memory>
 
@@ -170,9 +170,7 @@ Metadata as_text(const Metadata& metadata) {
   Metadata text;
   for (const Attribute& attribute : metadata) {
     if (const auto* real = std::get_if<float>(&attribute.value)) {
-      char buffer[32];
-      std::snprintf(buffer, sizeof buffer, "%.9g", double(*real));
-      text.push_back({attribute.name, std::string(buffer)});
+      text.push_back({attribute.name, fmt::format("{:.9g}", double(*real))});
     } else if (const auto* number = std::get_if<int>(&attribute.value)) {
       text.push_back({attribute.name, std::to_string(*number)});
     } else {

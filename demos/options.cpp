@@ -1,20 +1,29 @@
-// demos/options.cpp - parses `displace` argv into the typed settings of options.h.
+// demos/options.cpp - parses `displace` argv into the typed settings of options.h with CLI11.
 //
-// Flags take their value as the next argument or after '=' (--size 512, --size=512). Each flag may
-// be given once; a flag that does not apply to the chosen source or mode is an error, not ignored.
+// The one fact to know: each flag is declared once with a validator that both words the error the
+// project's way ("--steps must be an integer between 1 and 4096, got '0'") and shows the flag's
+// limits in `--help` ("--steps INT:[1, 4096]"); CLI11's own errors are translated into the same
+// words (translate()). Numbers are checked and rewritten in canonical form by these validators before
+// CLI11 converts them, so "010" is ten and "0x10" is refused. Each flag but --aov and --scene may be
+// given once; a flag that does not apply to the chosen source or mode is an error, not ignored.
 #include "demos/options.h"
 
-#include <cstdio>
-#include <fstream>
-#include <sstream>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <fstream>
+#include <functional>
 #include <numbers>
 #include <optional>
-#include <tuple>
-#include <set>
+#include <sstream>
 #include <string>
+#include <utility>
+
+#include "pipeline/scene.h"
 
 namespace displace::app {
 namespace {
@@ -22,586 +31,215 @@ namespace {
 // Bounds on numbers a user may reasonably mean (anything outside is a typo or an attack).
 constexpr int max_wave_count = 4096;             // sinusoid waves
 constexpr double max_budget_milliseconds = 1e9;  // about 11 days
+constexpr int max_steps = 4096;                  // search steps per pixel
+constexpr int max_refine = 64;                   // refinement steps per pixel
+constexpr int max_tile = 64;                     // texture repeats over the plane
+constexpr int max_repeat = 100;                  // sweep renders per row
+constexpr int max_channel_index = 1 << 16;       // image channels
 struct Range {
   double low, high;
   const char* unit;
 };
-constexpr Range time_range{-1e6, 1e6, "s"};          // beyond, float phases w t lose the wave shape
-constexpr Range patch_size_range{1e-2, 1e5, "m"};    // a centimetre to a hundred kilometres
+constexpr Range time_range{-1e6, 1e6, "s"};           // beyond, float phases w t lose the wave shape
+constexpr Range patch_size_range{1e-2, 1e5, "m"};     // a centimetre to a hundred kilometres
 constexpr Range wind_speed_range{0.1, 100.0, "m/s"};  // calm air to beyond a hurricane
 constexpr Range fetch_range{0.1, 1e5, "km"};
-constexpr Range spreading_range{0.0, 100.0, ""};      // exponent s of cos^(2s)
+constexpr Range spreading_range{0.0, 100.0, ""};  // exponent s of cos^(2s)
 constexpr Range choppiness_range{0.0, 10.0, ""};
+constexpr Range depth_scale_range{1e-4, 10.0, "world units"};
+constexpr Range fov_range{0.01, 179.0, "degrees"};
+constexpr Range radius_range{0.01, 10.0, "world units"};
+constexpr Range budget_range{0.0, max_budget_milliseconds, "ms"};
 
-std::string quoted(std::string_view text) {
-  std::string result(1, '\'');
-  result.append(text);
-  result.push_back('\'');
-  return result;
-}
+std::string in_quotes(std::string_view text) { return fmt::format("'{}'", text); }
 
-
-// Walks argv one flag at a time.
-class FlagReader {
- public:
-  explicit FlagReader(std::span<const std::string_view> args) : args_(args) {}
-
-  bool done() const { return position_ >= args_.size(); }
-
-  // The next flag's name; throws unless it looks like --name. Rejects repeated flags.
-  std::string_view next_flag() {
-    std::string_view argument = args_[position_++];
-    inline_value_.reset();
-    if (argument.size() < 3 || argument.substr(0, 2) != "--") {
-      throw usage_error("unexpected argument " + quoted(argument) + " (flags start with --)");
-    }
-    if (const auto equals = argument.find('='); equals != std::string_view::npos) {
-      inline_value_ = argument.substr(equals + 1);
-      argument = argument.substr(0, equals);
-    }
-    flag_ = argument;
-    if (flag_ != "--aov" && !seen_.insert(std::string(flag_)).second) {  // --aov may repeat
-      throw usage_error(std::string(flag_) + " is given twice");
-    }
-    return flag_;
-  }
-
-  // The current flag's value.
-  std::string_view value() {
-    if (inline_value_) {
-      if (inline_value_->empty()) throw usage_error(std::string(flag_) + " needs a value");
-      return *inline_value_;
-    }
-    if (done() || args_[position_].starts_with("--"))
-      throw usage_error(std::string(flag_) + " needs a value");
-    return args_[position_++];
-  }
-
-  // The current flag is a switch and must not carry a value.
-  void no_value() const {
-    if (inline_value_) throw usage_error(std::string(flag_) + " takes no value");
-  }
-
- private:
-  std::span<const std::string_view> args_;
-  std::size_t position_ = 0;
-  std::string_view flag_;
-  std::optional<std::string_view> inline_value_;
-  std::set<std::string> seen_;
-};
-
-// numbers
-template <typename Integer>
-Integer parse_integer(std::string_view flag, std::string_view text, Integer minimum, Integer maximum,
-                      const char* what) {
-  Integer value{};
+template <typename Number>
+std::errc read_number(std::string_view text, Number& value) {
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (error == std::errc::result_out_of_range ||
-      (error == std::errc{} && end == text.data() + text.size() && (value < minimum || value > maximum))) {
-    throw usage_error(std::string(flag) + " must be " + what + " between " + std::to_string(minimum) +
-                      " and " + std::to_string(maximum) + ", got " + quoted(text));
-  }
-  if (error != std::errc{} || end != text.data() + text.size()) {
-    throw usage_error(std::string(flag) + " expects " + what + ", got " + quoted(text));
-  }
-  return value;
+  if (error == std::errc{} && end != text.data() + text.size()) return std::errc::invalid_argument;
+  return error;
 }
 
-int parse_int(std::string_view flag, std::string_view text, int minimum, int maximum) {
-  return parse_integer<int>(flag, text, minimum, maximum, "an integer");
-}
-
-// "WxH" in pixels
-std::pair<int, int> parse_image_size(std::string_view flag, std::string_view text, int maximum) {
-  const auto x = text.find('x');
-  if (x == std::string_view::npos) {
-    throw usage_error(std::string(flag) + " expects WxH (pixels), got " + quoted(text) +
-                      "; a --source's samples are --map-size N");
-  }
-  return {parse_integer<int>(flag, text.substr(0, x), 1, maximum, "an integer"),
-          parse_integer<int>(flag, text.substr(x + 1), 1, maximum, "an integer")};
-}
-
-std::uint64_t parse_seed(std::string_view flag, std::string_view text) {
-  return parse_integer<std::uint64_t>(flag, text, 0, std::numeric_limits<std::uint64_t>::max(),
-                                      "a non-negative integer");
-}
-
-double parse_number(std::string_view flag, std::string_view text) {
+// A finite number that fits a float; nothing otherwise.
+std::optional<float> read_float(std::string_view text) {
   double value = 0.0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (error != std::errc{} || end != text.data() + text.size() || !std::isfinite(value)) {
-    throw usage_error(std::string(flag) + " expects a finite number, got " + quoted(text));
-  }
-  return value;
-}
-
-float parse_float(std::string_view flag, std::string_view text) {
-  const double value = parse_number(flag, text);
-  if (std::abs(value) > double(std::numeric_limits<float>::max())) {
-    throw usage_error(std::string(flag) + " is out of range, got " + quoted(text));
+  if (read_number(text, value) != std::errc{} || !std::isfinite(value) ||
+      std::abs(value) > double(std::numeric_limits<float>::max())) {
+    return std::nullopt;
   }
   return float(value);
 }
 
-float parse_float_in(std::string_view flag, std::string_view text, const Range& range) {
-  const double value = parse_number(flag, text);
-  if (!(value >= range.low && value <= range.high)) {
-    char bounds[96];
-    std::snprintf(bounds, sizeof bounds, "%g and %g%s%s", range.low, range.high, range.unit[0] ? " " : "", range.unit);
-    throw usage_error(std::string(flag) + " must be between " + bounds + ", got " + quoted(text));
+// "WxH", each side in [1, max_image_side]
+std::optional<std::pair<int, int>> read_image_size(std::string_view text) {
+  const auto x = text.find('x');
+  if (x == std::string_view::npos) return std::nullopt;
+  int width = 0, height = 0;
+  if (read_number(text.substr(0, x), width) != std::errc{} ||
+      read_number(text.substr(x + 1), height) != std::errc{} || width < 1 || height < 1 ||
+      width > max_image_side || height > max_image_side) {
+    return std::nullopt;
   }
-  return float(value);
+  return std::pair{width, height};
 }
 
-// words
-template <typename Enum, std::size_t count>
-Enum parse_word(std::string_view flag, std::string_view text,
-                const std::pair<std::string_view, Enum> (&table)[count]) {
-  std::string choices;
-  for (const auto& [word, value] : table) {
-    if (word == text) return value;
-    if (!choices.empty()) choices += '|';
-    choices += word;
-  }
-  throw usage_error(std::string(flag) + " must be one of " + choices + ", got " + quoted(text));
-}
-
-constexpr std::pair<std::string_view, SourceKind> source_words[] = {{"ocean", SourceKind::ocean},
-                                                                    {"sinusoids", SourceKind::sinusoids},
-                                                                    {"bricks", SourceKind::bricks},
-                                                                    {"cliff", SourceKind::cliff}};
-constexpr std::pair<std::string_view, sim::Spectrum> spectrum_words[] = {
-    {"phillips", sim::Spectrum::phillips}, {"jonswap", sim::Spectrum::jonswap}};
-constexpr std::pair<std::string_view, Baker> mode_words[] = {{"exact", Baker::exact},
-                                                             {"original", Baker::original},
-                                                             {"paper-adaptive", Baker::paper_adaptive},
-                                                             {"budgeted", Baker::budgeted},
-                                                             {"full", Baker::full}};
-constexpr std::pair<std::string_view, ConeKind> cone_kind_words[] = {{"center", ConeKind::center},
-                                                                     {"bilinear", ConeKind::bilinear}};
-constexpr std::pair<std::string_view, bake::Address> address_words[] = {{"wrap", bake::Address::wrap},
-                                                                        {"clamp", bake::Address::clamp}};
-
-}  // namespace
-
-std::string lower_extension(const std::filesystem::path& path) {
-  std::string extension = path.extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return extension;
-}
-
-namespace {
-
-std::filesystem::path parse_output(std::string_view flag, std::string_view text, ImageFormat& format,
-                                   bool png_allowed) {
-  std::filesystem::path path{std::string(text)};
-  const std::string extension = lower_extension(path);
-  if (extension == ".exr") {
-    format = ImageFormat::exr;
-  } else if (extension == ".png" && png_allowed) {
-    format = ImageFormat::png;
-  } else {
-    throw usage_error(std::string(flag) + " must name a " + (png_allowed ? ".exr or .png" : ".exr") +
-                      " file, got " + quoted(text));
-  }
-  return path;
-}
-
-// The synthesis flags shared by `sim` and `bake --source`, collected before they are checked
-// against the source they apply to.
-struct SourceDraft {
-  std::optional<SourceKind> kind;
-  std::optional<int> size;
-  std::optional<float> time;
-  std::optional<std::uint64_t> seed;
-  std::optional<float> patch_size, wind_speed, wind_direction_degrees, fetch, spreading, choppiness;
-  std::optional<sim::Spectrum> spectrum;
-  std::optional<int> wave_count;
-  std::string first_flag;  // the first synthesis flag given, for error messages
-
-  bool any_besides_kind() const {
-    return size || time || seed || patch_size || wind_speed || wind_direction_degrees || fetch || spreading ||
-           choppiness || spectrum || wave_count;
-  }
-};
-
-// Takes `flag` if it is a synthesis flag; false otherwise.
-bool take_source_flag(std::string_view flag, FlagReader& reader, SourceDraft& draft) {
-  const bool was_empty = !draft.any_besides_kind();
-  if (flag == "--source") {
-    draft.kind = parse_word(flag, reader.value(), source_words);
-    return true;
-  } else if (flag == "--size" || flag == "--map-size") {
-    // a single texel (or a single row) has no relief to displace: at least 2 x 2
-    draft.size = parse_int(flag, reader.value(), 2, max_image_side);
-  } else if (flag == "--time") {
-    draft.time = parse_float_in(flag, reader.value(), time_range);
-  } else if (flag == "--seed") {
-    draft.seed = parse_seed(flag, reader.value());
-  } else if (flag == "--patch-size") {
-    draft.patch_size = parse_float_in(flag, reader.value(), patch_size_range);
-  } else if (flag == "--wind-speed") {
-    draft.wind_speed = parse_float_in(flag, reader.value(), wind_speed_range);
-  } else if (flag == "--wind-direction") {
-    draft.wind_direction_degrees = parse_float(flag, reader.value());
-  } else if (flag == "--fetch") {
-    draft.fetch = parse_float_in(flag, reader.value(), fetch_range);
-  } else if (flag == "--spectrum") {
-    draft.spectrum = parse_word(flag, reader.value(), spectrum_words);
-  } else if (flag == "--spreading") {
-    draft.spreading = parse_float_in(flag, reader.value(), spreading_range);
-  } else if (flag == "--choppiness") {
-    draft.choppiness = parse_float_in(flag, reader.value(), choppiness_range);
-  } else if (flag == "--waves") {
-    draft.wave_count = parse_int(flag, reader.value(), 1, max_wave_count);
-  } else {
-    return false;
-  }
-  if (was_empty) draft.first_flag = std::string(flag);
-  return true;
-}
-
-SourceSettings finish_source(const SourceDraft& draft) {
-  SourceSettings source;
-  source.kind = *draft.kind;
-  if (!draft.size) throw usage_error("--source needs --size N (samples along u and v)");
-  source.size = *draft.size;
-  if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
-    // static procedural reliefs: only a seed
-    if (draft.patch_size || draft.wind_speed || draft.wind_direction_degrees || draft.fetch ||
-        draft.spectrum || draft.spreading || draft.choppiness || draft.wave_count) {
-      throw usage_error("--source bricks and --source cliff take only --size, --seed and --time (static)");
-    }
-    if (draft.seed) source.seed = *draft.seed;
-    return source;
-  }
-  if (!draft.time) throw usage_error("--source needs --time T (seconds)");
-  source.time = *draft.time;
-  const float degrees_to_radians = std::numbers::pi_v<float> / 180.0f;
-
-  if (source.kind == SourceKind::ocean) {
-    if (draft.wave_count) throw usage_error("--waves applies to --source sinusoids only");
-    if (source.size < 2) throw usage_error("--source ocean needs --size of at least 2");
-    sim::OceanParams& ocean = source.ocean;
-    ocean.size = source.size;
-    if (draft.seed) ocean.seed = *draft.seed;
-    if (draft.patch_size) ocean.patch_size = *draft.patch_size;
-    if (draft.wind_speed) ocean.wind_speed = *draft.wind_speed;
-    if (draft.wind_direction_degrees)
-      ocean.wind_direction = *draft.wind_direction_degrees * degrees_to_radians;
-    if (draft.spectrum) ocean.spectrum = *draft.spectrum;
-    if (draft.fetch) {
-      if (ocean.spectrum != sim::Spectrum::jonswap)
-        throw usage_error("--fetch applies to --spectrum jonswap only");
-      ocean.fetch = *draft.fetch;
-    }
-    if (draft.spreading) ocean.spreading = *draft.spreading;
-    if (draft.choppiness) ocean.choppiness = *draft.choppiness;
-  } else {
-    for (const auto& [given, name] :
-         {std::pair{bool(draft.wind_speed), "--wind-speed"}, std::pair{bool(draft.fetch), "--fetch"},
-          std::pair{bool(draft.spectrum), "--spectrum"}, std::pair{bool(draft.spreading), "--spreading"},
-          std::pair{bool(draft.choppiness), "--choppiness"}}) {
-      if (given) throw usage_error(std::string(name) + " applies to --source ocean only");
-    }
-    sim::SinusoidParams& sinusoids = source.sinusoids;
-    if (draft.seed) sinusoids.seed = *draft.seed;
-    if (draft.patch_size) sinusoids.patch_size = *draft.patch_size;
-    if (draft.wind_direction_degrees)
-      sinusoids.wind_direction = *draft.wind_direction_degrees * degrees_to_radians;
-    if (draft.wave_count) sinusoids.wave_count = *draft.wave_count;
-  }
-  return source;
-}
-
-bool is_help_flag(std::string_view argument) {
-  return argument == "--help" || argument == "-h" || argument == "help";
-}
-
-SimSettings parse_sim(std::span<const std::string_view> args) {
-  FlagReader reader(args);
-  SourceDraft draft;
-  std::optional<std::filesystem::path> output;
-  while (!reader.done()) {
-    const std::string_view flag = reader.next_flag();
-    if (take_source_flag(flag, reader, draft)) continue;
-    if (flag == "--output") {
-      ImageFormat format{};
-      output = parse_output(flag, reader.value(), format, false);
-    } else {
-      throw usage_error("unknown flag " + quoted(flag) + " for 'displace sim'");
-    }
-  }
-  if (!draft.kind) throw usage_error("'displace sim' needs --source ocean|sinusoids");
-  if (!output) throw usage_error("'displace sim' needs --output FILE.exr");
-  return {finish_source(draft), *output};
-}
-
-// The height input every command that bakes reads: --input FILE with its load flags, or --source with
-// the sim flags (never both).
-struct InputDraft {
-  SourceDraft source;
-  std::optional<std::filesystem::path> file;
-  HeightLoadSettings load;
-  bool load_flag_given = false;
-};
-
-bool take_input_flag(std::string_view flag, FlagReader& reader, InputDraft& draft) {
-  if (take_source_flag(flag, reader, draft.source)) return true;
-  if (flag == "--input") {
-    draft.file = std::filesystem::path(std::string(reader.value()));
-  } else if (flag == "--channel") {
-    const std::string_view text = reader.value();
-    if (std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-      draft.load.channel.index = parse_int(flag, text, 0, 1 << 16);
-    } else {
-      draft.load.channel.name = std::string(text);
-    }
-    draft.load_flag_given = true;
-  } else if (flag == "--invert") {
-    reader.no_value();
-    draft.load.invert = true;
-    draft.load_flag_given = true;
-  } else if (flag == "--height-range") {
-    const std::string_view text = reader.value();
-    const auto comma = text.find(',');
-    if (comma == std::string_view::npos) throw usage_error("--height-range expects LOW,HIGH, got " + quoted(text));
-    const float low = parse_float(flag, text.substr(0, comma));
-    const float high = parse_float(flag, text.substr(comma + 1));
-    if (!(high > low) || !std::isfinite(high - low)) {
-      throw usage_error("--height-range needs LOW < HIGH, got " + quoted(text));
-    }
-    draft.load.range = HeightRange{low, high};
-    draft.load_flag_given = true;
-  } else {
-    return false;
-  }
-  return true;
-}
-
-std::variant<FileInput, SourceSettings> finish_input(const InputDraft& draft, const std::string& command) {
-  if (draft.file && draft.source.kind) throw usage_error("give either --input or --source, not both");
-  if (draft.file) {
-    if (draft.source.any_besides_kind())
-      throw usage_error(draft.source.first_flag + " applies to --source only, not --input");
-    return FileInput{*draft.file, draft.load};
-  }
-  if (draft.source.kind) {
-    if (draft.load_flag_given) throw usage_error("--channel, --invert and --height-range apply to --input only");
-    return finish_source(draft.source);
-  }
-  throw usage_error("'displace " + command + "' needs --input FILE or --source ocean|sinusoids");
-}
-
-// --budget-ms and --bake-budget-ms: milliseconds, 0 allowed
-double parse_budget(std::string_view flag, std::string_view text) {
-  const double value = parse_number(flag, text);
-  if (value < 0.0 || value > max_budget_milliseconds) {
-    throw usage_error(std::string(flag) + " must be between 0 and " +
-                      std::to_string(max_budget_milliseconds) + ", got " + std::to_string(value));
-  }
-  return value;
-}
-
-BakeSettings parse_bake(std::span<const std::string_view> args) {
-  FlagReader reader(args);
-  BakeSettings settings;
-  InputDraft input;
-  std::optional<std::filesystem::path> output;
-  std::optional<int> sectors;
-  std::optional<Baker> mode;
-  std::optional<double> budget;
-  std::optional<double> tolerance;
-  bool relaxed = false;
-
-  while (!reader.done()) {
-    const std::string_view flag = reader.next_flag();
-    if (take_input_flag(flag, reader, input)) continue;
-    if (flag == "--sectors") {
-      const int value =
-          parse_int(flag, reader.value(), std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
-      if (!bake::is_valid_sector_count(value)) {
-        throw usage_error("--sectors must be 1, 4 or 8, got " + std::to_string(value));
-      }
-      sectors = value;
-    } else if (flag == "--mode") {
-      mode = parse_word(flag, reader.value(), mode_words);
-    } else if (flag == "--cones") {
-      settings.cones = parse_word(flag, reader.value(), cone_kind_words);
-    } else if (flag == "--budget-ms") {
-      budget = parse_budget(flag, reader.value());
-    } else if (flag == "--tolerance") {
-      const double value = parse_number(flag, reader.value());
-      if (!(value >= 0.0 && value < 1.0)) {
-        throw usage_error("--tolerance must be in [0, 1), got " + std::to_string(value));
-      }
-      tolerance = value;
-    } else if (flag == "--address") {
-      settings.address = parse_word(flag, reader.value(), address_words);
-    } else if (flag == "--relaxed") {
-      reader.no_value();
-      relaxed = true;
-    } else if (flag == "--output") {
-      output = parse_output(flag, reader.value(), settings.output_format, true);
-    } else if (flag == "--stats") {
-      reader.no_value();
-      settings.stats = true;
-    } else {
-      throw usage_error("unknown flag " + quoted(flag) + " for 'displace bake'");
-    }
-  }
-
-  settings.input = finish_input(input, "bake");
-
-  // the baker
-  if (!sectors) throw usage_error("'displace bake' needs --sectors 1|4|8");
-  settings.sector_count = *sectors;
-  if (settings.cones == ConeKind::bilinear) {
-    if (relaxed) throw usage_error("--cones bilinear bakes with --mode budgeted|full, not --relaxed");
-    if (!mode) throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
-    if (*mode != Baker::budgeted && *mode != Baker::full) {
-      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") +
-                        baker_name(*mode));
-    }
-    settings.baker = *mode;
-  } else if (relaxed) {
-    if (settings.sector_count != 1 && settings.sector_count != 4) {
-      throw usage_error("--relaxed supports --sectors 1 or 4, got " + std::to_string(settings.sector_count));
-    }
-    if (mode) throw usage_error("--relaxed is its own baker; drop --mode");
-    settings.baker = Baker::relaxed;
-  } else {
-    if (!mode)
-      throw usage_error("'displace bake' needs --mode exact|original|paper-adaptive|budgeted (or --relaxed)");
-    if (*mode == Baker::full)
-      throw usage_error("--mode full bakes bilinear cones only: add --cones bilinear");
-    settings.baker = *mode;
-  }
-  if (budget) {
-    if (settings.baker != Baker::budgeted) throw usage_error("--budget-ms applies to --mode budgeted only");
-    settings.budget_milliseconds = *budget;
-  }
-  if (tolerance) {
-    if (settings.baker != Baker::budgeted) throw usage_error("--tolerance applies to --mode budgeted only");
-    settings.tolerance = float(*tolerance);
-  }
-  if (!output) throw usage_error("'displace bake' needs --output FILE.exr|FILE.png");
-  settings.output = *output;
-  return settings;
-}
-
-// "x,y,z"
-glm::vec3 parse_vector(std::string_view flag, std::string_view text) {
+// "X,Y,Z"
+std::optional<glm::vec3> read_vector(std::string_view text) {
   glm::vec3 value;
   std::string_view rest = text;
   for (int c = 0; c < 3; ++c) {
     const auto comma = rest.find(',');
-    if ((c < 2) == (comma == std::string_view::npos)) throw usage_error(std::string(flag) + " expects X,Y,Z, got " + quoted(text));
-    value[c] = parse_float(flag, rest.substr(0, comma));
+    if ((c < 2) == (comma == std::string_view::npos)) return std::nullopt;
+    const std::optional<float> component = read_float(rest.substr(0, comma));
+    if (!component) return std::nullopt;
+    value[c] = *component;
     rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
   }
   return value;
 }
 
-constexpr std::pair<std::string_view, render::Surface> surface_words[] = {
-    {"plane", render::Surface::plane},
-    {"sphere", render::Surface::sphere},
-    {"cylinder", render::Surface::cylinder},
-    {"cone", render::Surface::cone}};
+// "LOW,HIGH" with LOW < HIGH
+std::optional<HeightRange> read_height_range(std::string_view text) {
+  const auto comma = text.find(',');
+  if (comma == std::string_view::npos) return std::nullopt;
+  const std::optional<float> low = read_float(text.substr(0, comma)),
+                             high = read_float(text.substr(comma + 1));
+  if (!low || !high || !(*high > *low) || !std::isfinite(*high - *low)) return std::nullopt;
+  return HeightRange{*low, *high};
+}
 
-constexpr std::pair<std::string_view, Aov> aov_words[] = {
+// ---------------------------------------------------------------------------------------------
+// validators: each returns what follows the flag's name in the error ("must be ..., got '0'") and
+// rewrites a good value in the form CLI11 then converts
+
+CLI::Validator integer_in(long long minimum, long long maximum) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        long long value = 0;
+        const std::errc error = read_number(text, value);
+        if (error == std::errc::result_out_of_range ||
+            (error == std::errc{} && (value < minimum || value > maximum))) {
+          return fmt::format("must be an integer between {} and {}, got {}", minimum, maximum,
+                             in_quotes(text));
+        }
+        if (error != std::errc{}) return "expects an integer, got " + in_quotes(text);
+        text = std::to_string(value);
+        return {};
+      },
+      fmt::format("[{}, {}]", minimum, maximum));
+}
+
+CLI::Validator seed_value() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        std::uint64_t value = 0;
+        if (read_number(text, value) != std::errc{})
+          return "expects a non-negative integer, got " + in_quotes(text);
+        text = std::to_string(value);
+        return {};
+      },
+      "[0, 2^64)");
+}
+
+CLI::Validator number_in(const Range& range) {
+  const std::string bounds =
+      fmt::format("{:g} and {:g}{}{}", range.low, range.high, range.unit[0] ? " " : "", range.unit);
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        double value = 0.0;
+        if (read_number(text, value) != std::errc{} || !std::isfinite(value)) {
+          return "expects a finite number, got " + in_quotes(text);
+        }
+        if (!(value >= range.low && value <= range.high))
+          return "must be between " + bounds + ", got " + in_quotes(text);
+        text = fmt::format("{}", value);
+        return {};
+      },
+      fmt::format("[{:g}, {:g}]{}{}", range.low, range.high, range.unit[0] ? " " : "", range.unit));
+}
+
+CLI::Validator finite_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const std::optional<float> value = read_float(text);
+        if (!value) return "expects a finite number, got " + in_quotes(text);
+        text = fmt::format("{}", *value);
+        return {};
+      },
+      "");
+}
+
+// The words of an enum's values (the --mode, --cones, ... vocabulary).
+template <typename Enum>
+using Words = std::vector<std::pair<std::string, Enum>>;
+
+template <typename Enum>
+std::string word_list(const Words<Enum>& words, std::string_view separator = "|") {
+  std::string list;
+  for (const auto& [word, value] : words) list += (list.empty() ? "" : std::string(separator)) + word;
+  return list;
+}
+
+// One of `words`, rewritten to its enum value's number (which CLI11 converts to the enum).
+template <typename Enum>
+CLI::Validator word_in(const Words<Enum>& words) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        for (const auto& [word, value] : words) {
+          if (word == text) {
+            text = std::to_string(static_cast<std::underlying_type_t<Enum>>(value));
+            return {};
+          }
+        }
+        return "must be one of " + word_list(words) + ", got " + in_quotes(text);
+      },
+      "");
+}
+
+// A check of a text value that stays text: `problem` returns what is wrong, empty when nothing is.
+CLI::Validator text_check(std::function<std::string(const std::string&)> problem,
+                          std::string description = "") {
+  return CLI::Validator([problem](std::string& text) { return problem(text); }, std::move(description));
+}
+
+CLI::Validator not_empty() {
+  return text_check(
+      [](const std::string& text) { return text.empty() ? std::string("needs a value") : std::string(); });
+}
+
+CLI::Validator output_file(std::vector<std::string> extensions) {
+  return text_check([extensions](const std::string& text) -> std::string {
+    const std::string extension = lower_extension(std::filesystem::path(text));
+    if (!text.empty() && std::find(extensions.begin(), extensions.end(), extension) != extensions.end())
+      return {};
+    return fmt::format("must name a {} file, got {}", fmt::join(extensions, " or "), in_quotes(text));
+  });
+}
+
+const Words<SourceKind> source_words = {{"ocean", SourceKind::ocean},
+                                        {"sinusoids", SourceKind::sinusoids},
+                                        {"bricks", SourceKind::bricks},
+                                        {"cliff", SourceKind::cliff}};
+const Words<sim::Spectrum> spectrum_words = {{"phillips", sim::Spectrum::phillips},
+                                             {"jonswap", sim::Spectrum::jonswap}};
+const Words<Baker> mode_words = {{"exact", Baker::exact},
+                                 {"original", Baker::original},
+                                 {"paper-adaptive", Baker::paper_adaptive},
+                                 {"budgeted", Baker::budgeted},
+                                 {"full", Baker::full}};
+const Words<ConeKind> cone_kind_words = {{"center", ConeKind::center}, {"bilinear", ConeKind::bilinear}};
+const Words<bake::Address> address_words = {{"wrap", bake::Address::wrap}, {"clamp", bake::Address::clamp}};
+const Words<render::Surface> surface_words = {{"plane", render::Surface::plane},
+                                              {"sphere", render::Surface::sphere},
+                                              {"cylinder", render::Surface::cylinder},
+                                              {"cone", render::Surface::cone}};
+const Words<Aov> aov_words = {
     {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
 
-// The flags that describe a scene: the heights (file or source) and the view. Shared by
-// `displace render` and the scene files of `displace sweep`.
-struct SceneDraft {
-  InputDraft input;
-  render::View view;
-  std::filesystem::path albedo;
-  std::filesystem::path mesh;
-};
-
-bool take_scene_flag(std::string_view flag, FlagReader& reader, SceneDraft& draft) {
-  render::Camera& camera = draft.view.camera;
-  if (flag == "--size") {  // the image; the map of a --source takes --map-size
-    std::tie(camera.width, camera.height) = parse_image_size(flag, reader.value(), max_image_side);
-  } else if (take_input_flag(flag, reader, draft.input)) {
-  } else if (flag == "--address") {
-    draft.view.address = parse_word(flag, reader.value(), address_words);
-  } else if (flag == "--tile") {
-    draft.view.tile = parse_int(flag, reader.value(), 1, 64);
-  } else if (flag == "--depth-scale") {
-    draft.view.depth_scale = parse_float_in(flag, reader.value(), Range{1e-4, 10.0, "world units"});
-  } else if (flag == "--eye") {
-    camera.eye = parse_vector(flag, reader.value());
-  } else if (flag == "--look-at") {
-    camera.look_at = parse_vector(flag, reader.value());
-  } else if (flag == "--up") {
-    camera.up = parse_vector(flag, reader.value());
-  } else if (flag == "--light") {
-    draft.view.light_direction = parse_vector(flag, reader.value());
-  } else if (flag == "--fov-y") {
-    camera.fov_y_degrees = parse_float_in(flag, reader.value(), Range{0.01, 179.0, "degrees"});
-  } else if (flag == "--shadows") {
-    reader.no_value();
-    draft.view.shadows = true;
-  } else if (flag == "--albedo") {
-    draft.albedo = std::filesystem::path(reader.value());
-  } else if (flag == "--surface") {
-    const std::string_view text = reader.value();
-    if (text.rfind("mesh:", 0) == 0) {
-      if (text.size() == 5) throw usage_error("--surface mesh:FILE.obj needs a file name after 'mesh:'");
-      draft.view.surface = render::Surface::mesh;
-      draft.mesh = std::filesystem::path(text.substr(5));
-    } else {
-      draft.view.surface = parse_word(flag, text, surface_words);
-    }
-  } else if (flag == "--radius") {
-    draft.view.radius = parse_float_in(flag, reader.value(), Range{0.01, 10.0, "world units"});
-  } else {
-    return false;
-  }
-  return true;
-}
-
-SceneSettings finish_scene(const SceneDraft& draft, const std::string& name, const std::string& command) {
-  SceneSettings scene{name, finish_input(draft.input, command), draft.view, draft.albedo, draft.mesh};
-  if (scene.view.tile > 1 && scene.view.address != bake::Address::wrap) {
-    throw usage_error("--tile above 1 needs --address wrap");
-  }
-  try {
-    scene.view.camera.validate();
-  } catch (const render::RenderError& error) {
-    throw usage_error(error.what());
-  }
-  return scene;
-}
-
-// --device, --validate and --pipeline-cache, for every command that renders.
-bool take_renderer_flag(std::string_view flag, FlagReader& reader, render::RendererOptions& options) {
-  if (flag == "--device") {
-    options.device = std::string(reader.value());
-  } else if (flag == "--pipeline-cache") {
-    options.pipeline_cache = std::string(reader.value());
-    if (options.pipeline_cache.empty()) throw usage_error("--pipeline-cache needs a directory or 'off'");
-  } else if (flag == "--validate") {
-    reader.no_value();
-    options.validate = true;
-  } else {
-    return false;
-  }
-  return true;
-}
-
-std::string method_names(const char* separator) {
-  std::string names;
-  for (const render::MethodInfo& known : render::method_table()) {
-    if (!names.empty()) names += separator;
-    names += known.name;
-  }
-  return names;
+Words<render::Method> method_words() {
+  Words<render::Method> words;
+  for (const render::MethodInfo& info : render::method_table()) words.emplace_back(info.name, info.method);
+  return words;
 }
 
 std::vector<render::Method> all_methods_but_reference() {
@@ -612,212 +250,773 @@ std::vector<render::Method> all_methods_but_reference() {
   return methods;
 }
 
-RenderSettings parse_render(std::span<const std::string_view> args) {
-  FlagReader reader(args);
-  RenderSettings settings;
-  SceneDraft scene;
-  std::optional<std::filesystem::path> output;
-  std::optional<render::Method> method;
-  std::optional<double> bake_budget;
-  while (!reader.done()) {
-    const std::string_view flag = reader.next_flag();
-    if (take_scene_flag(flag, reader, scene) || take_renderer_flag(flag, reader, settings.renderer)) continue;
-    if (flag == "--method") {
-      const std::string_view text = reader.value();
-      const render::MethodInfo* info = render::find_method(text);
-      if (!info) throw usage_error("--method must be one of " + method_names("|") + ", got " + quoted(text));
-      method = info->method;
-    } else if (flag == "--steps") {
-      settings.method.steps = parse_int(flag, reader.value(), 1, 4096);
-    } else if (flag == "--refine") {
-      settings.method.refine = parse_int(flag, reader.value(), 0, 64);
-    } else if (flag == "--output") {
-      ImageFormat format{};
-      output = parse_output(flag, reader.value(), format, true);
-    } else if (flag == "--aov") {
-      const std::string_view text = reader.value();
-      const auto equals = text.find('=');
-      if (equals == std::string_view::npos || equals + 1 == text.size()) {
-        throw usage_error("--aov expects NAME=FILE (uv, depth, iterations, fetches), got " + quoted(text));
+template <typename Enum>
+Enum word_value(const Words<Enum>& words, std::string_view text) {
+  for (const auto& [word, value] : words) {
+    if (word == text) return value;
+  }
+  throw std::logic_error("unknown word " + in_quotes(text) + " passed its flag's validator");
+}
+
+// ---------------------------------------------------------------------------------------------
+// running CLI11
+
+bool given(const CLI::App& app, const std::string& flag) {
+  const CLI::Option* option = app.get_option_no_throw(flag);
+  return option && option->count() > 0;
+}
+
+// CLI11's error in the project's words.
+std::string translate(const CLI::App& app, const CLI::ParseError& error) {
+  const std::string text = error.what();
+  std::string name = text.substr(0, text.find_first_of(": "));
+  if (!name.starts_with("-")) name = "--" + name;  // CLI11 names a flag without its dashes
+  if (dynamic_cast<const CLI::ValidationError*>(&error)) {
+    const auto colon = text.find(": ");
+    return colon == std::string::npos ? text : text.substr(0, colon) + " " + text.substr(colon + 2);
+  }
+  if (dynamic_cast<const CLI::ArgumentMismatch*>(&error)) {
+    if (text.find("At Most") != std::string::npos) return name + " is given twice";
+    if (text.find("flag override") != std::string::npos) return name + " takes no value";
+    return name + " needs a value";
+  }
+  if (dynamic_cast<const CLI::RequiredError*>(&error)) {
+    const CLI::Option* option = app.get_option_no_throw(name);
+    return fmt::format("'{}' needs {}{}", app.get_name(), name, option ? " " + option->get_type_name() : "");
+  }
+  return text;
+}
+
+// Runs CLI11 over `args`; the help text when --help was asked. Arguments it did not take are left
+// in app.remaining().
+std::optional<HelpSettings> parse_flags(CLI::App& app, std::span<const std::string_view> args) {
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them last first
+  try {
+    app.parse(reversed);
+  } catch (const CLI::CallForHelp&) {
+    return HelpSettings{app.help()};
+  } catch (const CLI::ParseError& error) {
+    // CLI11 checks values before it looks at --help: asking for help wins over a bad value
+    if (const CLI::Option* help = app.get_help_ptr(); help && help->count() > 0)
+      return HelpSettings{app.help()};
+    throw usage_error(translate(app, error));
+  }
+  return std::nullopt;
+}
+
+// The first argument no flag took, as an error.
+void reject_extras(const CLI::App& app) {
+  const std::vector<std::string> extras = app.remaining();
+  if (extras.empty()) return;
+  const std::string& extra = extras.front();
+  if (!extra.starts_with("--") || extra == "--")
+    throw usage_error("unexpected argument " + in_quotes(extra) + " (flags start with --)");
+  const std::string flag = extra.substr(0, extra.find('='));
+  const bool map_size = flag == "--size" && app.get_option_no_throw("--map-size");
+  throw usage_error(fmt::format("unknown flag {} for '{}'{}", in_quotes(flag), app.get_name(),
+                                map_size ? " (the height map's samples are --map-size N)" : ""));
+}
+
+// The settings every command's parser shares: unknown arguments are left for reject_extras(), each
+// flag may be given once.
+void set_up(CLI::App& app) {
+  app.allow_extras();
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::Throw);
+  app.get_formatter()->column_width(36);
+}
+
+// A flag with a value: `type` names the value in --help, `validator` checks it (and rewrites it in
+// the form CLI11 converts); the validator's description, if any, shows the limits next to `type`.
+template <typename Value>
+CLI::Option* add_value(CLI::App& app, const std::string& flag, Value& value, const std::string& description,
+                       const std::string& type, CLI::Validator validator) {
+  return app.add_option(flag, value, description)->type_name(type)->transform(std::move(validator));
+}
+
+// A flag without a value, given at most once.
+CLI::Option* add_switch(CLI::App& app, const std::string& flag, bool& value, const std::string& description) {
+  return app.add_flag(flag, value, description)
+      ->disable_flag_override()
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw);
+}
+
+// ---------------------------------------------------------------------------------------------
+// the synthesis flags shared by `sim` and every --source
+
+struct SourceDraft {
+  SourceKind kind = SourceKind::ocean;
+  int map_size = 0;
+  float time = 0.0f;
+  std::uint64_t seed = 0;
+  float patch_size = 0.0f, wind_speed = 0.0f, wind_direction_degrees = 0.0f, fetch = 0.0f, spreading = 0.0f,
+        choppiness = 0.0f;
+  sim::Spectrum spectrum = sim::Spectrum::phillips;
+  int wave_count = 0;
+};
+
+// The flags that only a --source takes, in the order they are declared.
+const std::vector<std::string> source_only_flags = {
+    "--map-size", "--time",  "--seed",      "--patch-size", "--wind-direction", "--wind-speed",
+    "--spectrum", "--fetch", "--spreading", "--choppiness", "--waves"};
+
+void add_source_flags(CLI::App& app, SourceDraft& draft) {
+  app.option_defaults()->group("Heights from a source");
+  add_value(app, "--source", draft.kind, "what to synthesize", word_list(source_words),
+            word_in(source_words));
+  // a single texel (or a single row) has no relief to displace: at least 2 x 2
+  add_value(app, "--map-size", draft.map_size, "height map samples along u and v", "INT",
+            integer_in(2, max_image_side));
+  add_value(app, "--time", draft.time, "seconds (ocean, sinusoids)", "T", number_in(time_range));
+  add_value(app, "--seed", draft.seed, "random seed", "INT", seed_value());
+  add_value(app, "--patch-size", draft.patch_size, "metres covered by the map (ocean 200, sinusoids 4)", "M",
+            number_in(patch_size_range));
+  add_value(app, "--wind-direction", draft.wind_direction_degrees,
+            "azimuth of the wind / mean wave direction", "DEG", finite_number());
+  add_value(app, "--wind-speed", draft.wind_speed, "ocean: m/s at 10 m (default 12)", "V",
+            number_in(wind_speed_range));
+  add_value(app, "--spectrum", draft.spectrum, "ocean (default phillips)", word_list(spectrum_words),
+            word_in(spectrum_words));
+  add_value(app, "--fetch", draft.fetch, "ocean, jonswap only: fetch in km (default 200)", "KM",
+            number_in(fetch_range));
+  add_value(app, "--spreading", draft.spreading, "ocean: directional spreading exponent (default 2)", "S",
+            number_in(spreading_range));
+  add_value(app, "--choppiness", draft.choppiness,
+            "ocean: horizontal displacement scale, recorded only (default 1)", "L",
+            number_in(choppiness_range));
+  add_value(app, "--waves", draft.wave_count, "sinusoids: number of waves (default 12)", "INT",
+            integer_in(1, max_wave_count));
+}
+
+SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
+  SourceSettings source;
+  source.kind = draft.kind;
+  if (!given(app, "--map-size")) throw usage_error("--source needs --map-size N (samples along u and v)");
+  source.size = draft.map_size;
+  if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
+    // static procedural reliefs: only a seed
+    for (const char* flag : {"--patch-size", "--wind-speed", "--wind-direction", "--fetch", "--spectrum",
+                             "--spreading", "--choppiness", "--waves"}) {
+      if (given(app, flag)) {
+        throw usage_error(
+            "--source bricks and --source cliff take only --map-size, --seed and --time (static)");
       }
-      AovOutput aov{parse_word(flag, text.substr(0, equals), aov_words),
-                    std::filesystem::path(std::string(text.substr(equals + 1)))};
-      ImageFormat format{};
-      parse_output(flag, text.substr(equals + 1), format, aov.aov == Aov::iterations || aov.aov == Aov::fetches);
-      settings.aovs.push_back(aov);
-    } else if (flag == "--compare") {
-      const std::string_view text = reader.value();
-      if (text != "reference") throw usage_error("--compare supports only 'reference', got " + quoted(text));
-      settings.compare_reference = true;
-    } else if (flag == "--bake-budget-ms") {
-      bake_budget = parse_budget(flag, reader.value());
+    }
+    if (given(app, "--seed")) source.seed = draft.seed;
+    return source;
+  }
+  if (!given(app, "--time")) throw usage_error("--source needs --time T (seconds)");
+  source.time = draft.time;
+  const float degrees_to_radians = std::numbers::pi_v<float> / 180.0f;
+
+  if (source.kind == SourceKind::ocean) {
+    if (given(app, "--waves")) throw usage_error("--waves applies to --source sinusoids only");
+    sim::OceanParams& ocean = source.ocean;
+    ocean.size = source.size;
+    if (given(app, "--seed")) ocean.seed = draft.seed;
+    if (given(app, "--patch-size")) ocean.patch_size = draft.patch_size;
+    if (given(app, "--wind-speed")) ocean.wind_speed = draft.wind_speed;
+    if (given(app, "--wind-direction"))
+      ocean.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
+    if (given(app, "--spectrum")) ocean.spectrum = draft.spectrum;
+    if (given(app, "--fetch")) {
+      if (ocean.spectrum != sim::Spectrum::jonswap)
+        throw usage_error("--fetch applies to --spectrum jonswap only");
+      ocean.fetch = draft.fetch;
+    }
+    if (given(app, "--spreading")) ocean.spreading = draft.spreading;
+    if (given(app, "--choppiness")) ocean.choppiness = draft.choppiness;
+  } else {
+    for (const char* flag : {"--wind-speed", "--fetch", "--spectrum", "--spreading", "--choppiness"}) {
+      if (given(app, flag)) throw usage_error(std::string(flag) + " applies to --source ocean only");
+    }
+    sim::SinusoidParams& sinusoids = source.sinusoids;
+    if (given(app, "--seed")) sinusoids.seed = draft.seed;
+    if (given(app, "--patch-size")) sinusoids.patch_size = draft.patch_size;
+    if (given(app, "--wind-direction"))
+      sinusoids.wind_direction = draft.wind_direction_degrees * degrees_to_radians;
+    if (given(app, "--waves")) sinusoids.wave_count = draft.wave_count;
+  }
+  return source;
+}
+
+// ---------------------------------------------------------------------------------------------
+// the heights every command that bakes reads: --input FILE with its load flags, or --source with
+// the synthesis flags (never both)
+
+struct InputDraft {
+  SourceDraft source;
+  std::string file;
+  std::string channel;
+  bool invert = false;
+  std::string height_range;
+};
+
+void add_input_flags(CLI::App& app, InputDraft& draft) {
+  app.option_defaults()->group("Heights from a file");
+  app.add_option("--input", draft.file,
+                 "a height image (8/16-bit: value / maximum; float: min..max or as `sim` wrote it)")
+      ->type_name("FILE")
+      ->check(not_empty());
+  app.add_option("--channel", draft.channel,
+                 "the channel: a name or an index (default `height`, or the only grey one)")
+      ->type_name("NAME|INDEX")
+      ->check(text_check([](const std::string& text) -> std::string {
+        if (text.empty()) return "needs a value";
+        if (!std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) return {};
+        std::string index = text;
+        return integer_in(0, max_channel_index)(index);
+      }));
+  add_switch(app, "--invert", draft.invert, "the image stores depth (1 = deepest)");
+  app.add_option("--height-range", draft.height_range, "float images: the raw values that map to 0 and 1")
+      ->type_name("LOW,HIGH")
+      ->check(text_check([](const std::string& text) -> std::string {
+        if (text.find(',') == std::string::npos) return "expects LOW,HIGH, got " + in_quotes(text);
+        if (!read_height_range(text)) return "needs finite LOW < HIGH, got " + in_quotes(text);
+        return {};
+      }));
+  add_source_flags(app, draft.source);
+}
+
+std::variant<FileInput, SourceSettings> finish_input(const CLI::App& app, const InputDraft& draft) {
+  const bool file = given(app, "--input"), source = given(app, "--source");
+  if (file && source) throw usage_error("give either --input or --source, not both");
+  if (file) {
+    for (const CLI::Option* option : app.parse_order()) {
+      const std::string flag = option->get_name();
+      if (std::find(source_only_flags.begin(), source_only_flags.end(), flag) != source_only_flags.end()) {
+        throw usage_error(flag + " applies to --source only, not --input");
+      }
+    }
+    FileInput input{std::filesystem::path(draft.file), {}};
+    if (given(app, "--channel")) {
+      if (std::all_of(draft.channel.begin(), draft.channel.end(),
+                      [](char c) { return c >= '0' && c <= '9'; })) {
+        input.load.channel.index = std::stoi(draft.channel);
+      } else {
+        input.load.channel.name = draft.channel;
+      }
+    }
+    input.load.invert = draft.invert;
+    if (given(app, "--height-range")) input.load.range = read_height_range(draft.height_range);
+    return input;
+  }
+  if (source) {
+    if (given(app, "--channel") || given(app, "--invert") || given(app, "--height-range")) {
+      throw usage_error("--channel, --invert and --height-range apply to --input only");
+    }
+    return finish_source(app, draft.source);
+  }
+  throw usage_error(
+      fmt::format("'{}' needs --input FILE or --source {}", app.get_name(), word_list(source_words)));
+}
+
+// ---------------------------------------------------------------------------------------------
+// the flags that describe a scene: the heights (file or source) and the view; shared by `render`
+// and the scene files of `sweep`
+
+struct SceneDraft {
+  InputDraft input;
+  render::View view;
+  std::string size, eye, look_at, up, light, surface, albedo;
+};
+
+CLI::Validator vector_value() {
+  return text_check([](const std::string& text) {
+    return read_vector(text) ? std::string() : "expects X,Y,Z (finite numbers), got " + in_quotes(text);
+  });
+}
+
+void add_scene_flags(CLI::App& app, SceneDraft& draft) {
+  add_input_flags(app, draft.input);
+  app.option_defaults()->group("View");
+  render::View& view = draft.view;
+  app.add_option("--size", draft.size, "the image in pixels (default 512x512)")
+      ->type_name("WxH")
+      ->check(text_check(
+          [](const std::string& text) -> std::string {
+            if (text.find('x') == std::string::npos) {
+              return "expects WxH (pixels), got " + in_quotes(text) +
+                     "; a --source's samples are --map-size N";
+            }
+            if (!read_image_size(text)) {
+              return fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                 max_image_side, in_quotes(text));
+            }
+            return {};
+          },
+          fmt::format("[1, {}] each", max_image_side)));
+  add_value(app, "--address", view.address, "how the map continues past its edges (default wrap)",
+            word_list(address_words), word_in(address_words));
+  add_value(app, "--tile", view.tile, "texture repeats over the plane (above 1 needs --address wrap)", "INT",
+            integer_in(1, max_tile));
+  add_value(app, "--depth-scale", view.depth_scale, "world units between height 1 and height 0 (default 0.1)",
+            "D", number_in(depth_scale_range));
+  add_value(app, "--eye", draft.eye, "camera position", "X,Y,Z", vector_value());
+  add_value(app, "--look-at", draft.look_at, "point the camera looks at", "X,Y,Z", vector_value());
+  add_value(app, "--up", draft.up, "camera up (default 0,0,1)", "X,Y,Z", vector_value());
+  add_value(app, "--fov-y", view.camera.fov_y_degrees, "full vertical angle (default 45)", "DEG",
+            number_in(fov_range));
+  add_value(app, "--light", draft.light, "direction towards the light", "X,Y,Z", vector_value());
+  add_switch(app, "--shadows", view.shadows, "self-shadowing, traced towards the light with the same method");
+  add_value(app, "--albedo", draft.albedo,
+            "shade with an image (1-4 channels) instead of the procedural grid", "IMAGE", not_empty());
+  app.add_option("--surface", draft.surface, "what the relief lies on (default plane)")
+      ->type_name(word_list(surface_words) + "|mesh:FILE.obj")
+      ->check(text_check([](const std::string& text) -> std::string {
+        if (text == "mesh:") return "mesh:FILE.obj needs a file name after 'mesh:'";
+        if (text.starts_with("mesh:")) return {};
+        std::string word = text;
+        return word_in(surface_words)(word);
+      }));
+  add_value(app, "--radius", view.radius, "the quadric's outer radius (default 0.25)", "R",
+            number_in(radius_range));
+}
+
+SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const std::string& name) {
+  SceneSettings scene{
+      name, finish_input(app, draft.input), draft.view, std::filesystem::path(draft.albedo), {}};
+  render::View& view = scene.view;
+  if (given(app, "--size")) std::tie(view.camera.width, view.camera.height) = *read_image_size(draft.size);
+  if (given(app, "--eye")) view.camera.eye = *read_vector(draft.eye);
+  if (given(app, "--look-at")) view.camera.look_at = *read_vector(draft.look_at);
+  if (given(app, "--up")) view.camera.up = *read_vector(draft.up);
+  if (given(app, "--light")) view.light_direction = *read_vector(draft.light);
+  if (given(app, "--surface")) {
+    if (draft.surface.starts_with("mesh:")) {
+      view.surface = render::Surface::mesh;
+      scene.mesh = std::filesystem::path(draft.surface.substr(5));
     } else {
-      throw usage_error("unknown flag " + quoted(flag) + " for 'displace render'");
+      view.surface = word_value(surface_words, draft.surface);
     }
   }
-  const SceneSettings parsed = finish_scene(scene, "render", "render");
+  if (view.tile > 1 && view.address != bake::Address::wrap)
+    throw usage_error("--tile above 1 needs --address wrap");
+  try {
+    view.camera.validate();
+  } catch (const render::RenderError& error) {
+    throw usage_error(error.what());
+  }
+  return scene;
+}
+
+// --device, --validate and --pipeline-cache, for every command that renders.
+void add_renderer_flags(CLI::App& app, render::RendererOptions& options) {
+  app.option_defaults()->group("Vulkan");
+  add_value(app, "--device", options.device,
+            "a device index or part of its name (default: the best GPU, else lavapipe)", "N|NAME",
+            not_empty());
+  add_switch(app, "--validate", options.validate, "Khronos validation layer; any message fails the command");
+  app.add_option(
+         "--pipeline-cache", options.pipeline_cache,
+         "where compiled pipelines are kept (default $DISPLACE_PIPELINE_CACHE, else ~/.cache/displace)")
+      ->type_name("DIR|off")
+      ->check(text_check([](const std::string& text) {
+        return text.empty() ? std::string("needs a directory or 'off'") : std::string();
+      }));
+}
+
+// ---------------------------------------------------------------------------------------------
+// the commands
+
+CommandSettings parse_sim(std::span<const std::string_view> args) {
+  CLI::App app(
+      "Synthesize heights and write raw metres to channel `height`, with the source "
+      "parameters and the [0, 1] mapping as EXR attributes.",
+      "displace sim");
+  set_up(app);
+  SourceDraft source;
+  std::string output;
+  add_source_flags(app, source);
+  app.get_option("--source")->required();
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the heights", "FILE.exr", output_file({".exr"}))->required();
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  return SimSettings{finish_source(app, source), std::filesystem::path(output)};
+}
+
+CommandSettings parse_bake(std::span<const std::string_view> args) {
+  CLI::App app("Bake a cone map from a height image or a source.", "displace bake");
+  set_up(app);
+  BakeSettings settings;
+  InputDraft input;
+  std::string output;
+  Baker mode = Baker::exact;
+  double budget = 0.0, tolerance = 0.0;
+  bool relaxed = false;
+  add_input_flags(app, input);
+  app.option_defaults()->group("Cones");
+  app.add_option("--sectors", settings.sector_count, "cone sectors per texel")
+      ->type_name("1|4|8")
+      ->transform(CLI::Validator(
+          [](std::string& text) -> std::string {
+            int value = 0;
+            if (read_number(text, value) != std::errc{}) return "expects an integer, got " + in_quotes(text);
+            if (!bake::is_valid_sector_count(value)) return "must be 1, 4 or 8, got " + std::to_string(value);
+            text = std::to_string(value);
+            return {};
+          },
+          ""))
+      ->required();
+  add_value(app, "--mode", mode, "the baker (bilinear cones: budgeted or full)", word_list(mode_words),
+            word_in(mode_words));
+  add_switch(app, "--relaxed", relaxed, "relaxed cones (sectors 1 or 4), its own baker");
+  add_value(app, "--cones", settings.cones,
+            "between texel centres, or the renderer's bilinear cones with apex heights",
+            word_list(cone_kind_words), word_in(cone_kind_words));
+  add_value(app, "--budget-ms", budget, "budgeted: refinement time (default unlimited; 0 allowed)", "MS",
+            number_in(budget_range));
+  app.add_option("--tolerance", tolerance,
+                 "budgeted: refine while a ratio may be more than T below exact (default 0.25)")
+      ->type_name("T")
+      ->transform(CLI::Validator(
+          [](std::string& text) -> std::string {
+            double value = 0.0;
+            if (read_number(text, value) != std::errc{} || !std::isfinite(value)) {
+              return "expects a finite number, got " + in_quotes(text);
+            }
+            if (!(value >= 0.0 && value < 1.0)) return "must be in [0, 1), got " + in_quotes(text);
+            text = fmt::format("{}", value);
+            return {};
+          },
+          "[0, 1)"));
+  add_value(app, "--address", settings.address, "how the map continues past its edges (default wrap)",
+            word_list(address_words), word_in(address_words));
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the cone map (.png: heights quantized to 8 bits before baking)",
+            "FILE.exr|FILE.png", output_file({".exr", ".png"}))
+      ->required();
+  add_switch(app, "--stats", settings.stats, "print one JSON line instead of the human line");
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+
+  settings.input = finish_input(app, input);
+  if (settings.cones == ConeKind::bilinear) {
+    if (relaxed) throw usage_error("--cones bilinear bakes with --mode budgeted|full, not --relaxed");
+    if (!given(app, "--mode"))
+      throw usage_error("'displace bake --cones bilinear' needs --mode budgeted|full");
+    if (mode != Baker::budgeted && mode != Baker::full) {
+      throw usage_error(std::string("--cones bilinear bakes with --mode budgeted|full, not --mode ") +
+                        baker_name(mode));
+    }
+    settings.baker = mode;
+  } else if (relaxed) {
+    if (settings.sector_count != 1 && settings.sector_count != 4) {
+      throw usage_error("--relaxed supports --sectors 1 or 4, got " + std::to_string(settings.sector_count));
+    }
+    if (given(app, "--mode")) throw usage_error("--relaxed is its own baker; drop --mode");
+    settings.baker = Baker::relaxed;
+  } else {
+    if (!given(app, "--mode")) {
+      throw usage_error("'displace bake' needs --mode exact|original|paper-adaptive|budgeted (or --relaxed)");
+    }
+    if (mode == Baker::full) throw usage_error("--mode full bakes bilinear cones only: add --cones bilinear");
+    settings.baker = mode;
+  }
+  if (given(app, "--budget-ms")) {
+    if (settings.baker != Baker::budgeted) throw usage_error("--budget-ms applies to --mode budgeted only");
+    settings.budget_milliseconds = budget;
+  }
+  if (given(app, "--tolerance")) {
+    if (settings.baker != Baker::budgeted) throw usage_error("--tolerance applies to --mode budgeted only");
+    settings.tolerance = float(tolerance);
+  }
+  settings.output = output;
+  settings.output_format = lower_extension(settings.output) == ".png" ? ImageFormat::png : ImageFormat::exr;
+  return settings;
+}
+
+CommandSettings parse_render(std::span<const std::string_view> args) {
+  CLI::App app("Render the height field with one per-pixel method, baking the maps it needs.",
+               "displace render");
+  set_up(app);
+  RenderSettings settings;
+  SceneDraft scene;
+  std::string output, compare;
+  std::vector<std::string> aovs;
+  double bake_budget = 0.0;
+  add_scene_flags(app, scene);
+  add_renderer_flags(app, settings.renderer);
+  const Words<render::Method> methods = method_words();
+  app.option_defaults()->group("Method");
+  add_value(app, "--method", settings.method.method, "the per-pixel method", word_list(methods),
+            word_in(methods))
+      ->required();
+  add_value(app, "--steps", settings.method.steps, "linear-search steps or maximum cone steps (default 32)",
+            "INT", integer_in(1, max_steps));
+  add_value(app, "--refine", settings.method.refine, "binary or secant steps (default 8)", "INT",
+            integer_in(0, max_refine));
+  add_value(app, "--bake-budget-ms", bake_budget,
+            "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
+            number_in(budget_range));
+  app.option_defaults()->group("Options");
+  add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
+      ->required();
+  app.add_option("--aov", aovs,
+                 "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png")
+      ->type_name("NAME=FILE")
+      ->check(text_check([](const std::string& text) -> std::string {
+        const auto equals = text.find('=');
+        if (equals == std::string::npos || equals + 1 == text.size()) {
+          return "expects NAME=FILE (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
+        }
+        std::string word = text.substr(0, equals);
+        if (std::string problem = word_in(aov_words)(word); !problem.empty()) return problem;
+        const Aov aov = word_value(aov_words, text.substr(0, equals));
+        std::string file = text.substr(equals + 1);
+        return aov == Aov::iterations || aov == Aov::fetches ? output_file({".exr", ".png"})(file)
+                                                             : output_file({".exr"})(file);
+      }))
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--compare", compare, "also render the reference and print the error against it")
+      ->type_name("reference")
+      ->check(text_check([](const std::string& text) {
+        return text == "reference" ? std::string() : "supports only 'reference', got " + in_quotes(text);
+      }));
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+
+  const SceneSettings parsed = finish_scene(app, scene, "render");
   settings.input = parsed.input;
   settings.view = parsed.view;
   settings.albedo = parsed.albedo;
   settings.mesh = parsed.mesh;
-  if (!method) throw usage_error("'displace render' needs --method NAME");
-  settings.method.method = *method;
-  if (!render::supports_surface(*method, settings.view.surface)) {
-    throw usage_error(std::string("--method ") + render::method_info(*method).name + " does not support --surface " +
-                      render::surface_name(settings.view.surface));
+  const render::MethodInfo& info = render::method_info(settings.method.method);
+  if (!render::supports_surface(info.method, settings.view.surface)) {
+    throw usage_error(fmt::format("--method {} does not support --surface {}", info.name,
+                                  render::surface_name(settings.view.surface)));
   }
-  if (bake_budget) {
-    if (render::method_info(*method).cone_sectors == 0) {
-      std::string cone_methods;
-      for (const render::MethodInfo& info : render::method_table()) {
-        if (info.cone_sectors == 0) continue;
-        if (!cone_methods.empty()) cone_methods += ", ";
-        cone_methods += info.name;
+  if (given(app, "--bake-budget-ms")) {
+    if (info.cone_sectors == 0) {
+      std::vector<std::string> cone_methods;
+      for (const render::MethodInfo& known : render::method_table()) {
+        if (known.cone_sectors != 0) cone_methods.emplace_back(known.name);
       }
-      throw usage_error("--bake-budget-ms applies to the methods that read cone maps (" + cone_methods +
-                        "), not --method " + render::method_info(*method).name);
+      throw usage_error(
+          fmt::format("--bake-budget-ms applies to the methods that read cone maps ({}), not --method {}",
+                      fmt::join(cone_methods, ", "), info.name));
     }
-    settings.bake_budget_milliseconds = *bake_budget;
+    settings.bake_budget_milliseconds = bake_budget;
   }
-  if (!output) throw usage_error("'displace render' needs --output FILE.png|FILE.exr");
-  settings.output = *output;
+  for (const std::string& aov : aovs) {
+    const auto equals = aov.find('=');
+    settings.aovs.push_back(
+        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
+  }
+  settings.compare_reference = given(app, "--compare");
+  settings.output = output;
   return settings;
-}
-
-std::vector<int> parse_int_list(std::string_view flag, std::string_view text, int minimum, int maximum) {
-  std::vector<int> values;
-  while (true) {
-    const auto comma = text.find(',');
-    values.push_back(parse_int(flag, text.substr(0, comma), minimum, maximum));
-    if (comma == std::string_view::npos) break;
-    text = text.substr(comma + 1);
-  }
-  return values;
 }
 
 // A scene given as render flags (a built-in one, or a scene file's lines).
 SceneSettings scene_from_args(const std::string& name, std::span<const std::string_view> args,
                               const std::string& where) {
   try {
-    FlagReader reader(args);
+    CLI::App app("", "displace sweep");
+    set_up(app);
+    app.set_help_flag();
     SceneDraft scene;
-    while (!reader.done()) {
-      const std::string_view flag = reader.next_flag();
-      if (!take_scene_flag(flag, reader, scene)) {
-        throw usage_error(quoted(flag) + " does not describe a scene (only heights and view flags do)");
-      }
+    add_scene_flags(app, scene);
+    parse_flags(app, args);
+    if (const std::vector<std::string> extras = app.remaining(); !extras.empty()) {
+      throw usage_error(in_quotes(extras.front()) +
+                        " does not describe a scene (only heights and view flags do)");
     }
-    return finish_scene(scene, name, "sweep");
+    return finish_scene(app, scene, name);
   } catch (const AppError& error) {
-    throw usage_error(where + ": " + error.what());
+    throw AppError(error.kind, where + ": " + error.what());
   }
 }
 
-SweepSettings parse_sweep(std::span<const std::string_view> args) {
-  FlagReader reader(args);
+const std::vector<std::string> sweep_scene_names = {"bricks", "ocean", "cliff"};
+
+CommandSettings parse_sweep(std::span<const std::string_view> args) {
+  CLI::App app(
+      "What accuracy costs: every method at every step count on each scene, against "
+      "the reference. One CSV row per scene, method and steps.",
+      "displace sweep");
+  set_up(app);
   SweepSettings settings;
-  std::optional<std::filesystem::path> output;
-  std::optional<std::pair<int, int>> size;
-  while (!reader.done()) {
-    const std::string_view flag = reader.next_flag();
-    if (flag == "--scene") {
-      const std::string_view text = reader.value();
-      if (text == "bricks" || text == "ocean" || text == "cliff") {
-        settings.scenes.push_back(builtin_scene(text));
-      } else {
-        settings.scenes.push_back(read_scene_file(std::filesystem::path(std::string(text))));
-      }
-    } else if (flag == "--methods") {
-      std::string_view text = reader.value();
-      if (text == "all") {
-        settings.methods = all_methods_but_reference();
-        continue;
-      }
-      while (true) {
-        const auto comma = text.find(',');
-        const std::string_view word = text.substr(0, comma);
-        const render::MethodInfo* info = render::find_method(word);
-        if (!info) throw usage_error("--methods: unknown method " + quoted(word));
-        settings.methods.push_back(info->method);
-        if (comma == std::string_view::npos) break;
-        text = text.substr(comma + 1);
-      }
-    } else if (flag == "--steps") {
-      settings.steps = parse_int_list(flag, reader.value(), 1, 4096);
-    } else if (flag == "--refine") {
-      settings.refine = parse_int(flag, reader.value(), 0, 64);
-    } else if (flag == "--repeat") {
-      settings.repeat = parse_int(flag, reader.value(), 1, 100);
-    } else if (flag == "--size") {
-      size = parse_image_size(flag, reader.value(), max_image_side);
-    } else if (flag == "--output") {
-      const std::filesystem::path path{std::string(reader.value())};
-      if (lower_extension(path) != ".csv") throw usage_error("--output of 'displace sweep' must end in .csv");
-      output = path;
-    } else if (take_renderer_flag(flag, reader, settings.renderer)) {
-    } else {
-      throw usage_error("unknown flag " + quoted(flag) + " for 'displace sweep'");
-    }
+  std::vector<std::string> scenes;
+  std::string methods, steps, size, output;
+  app.add_option("--scene", scenes,
+                 "a built-in scene or a file of render flags, one per line (default: all three)")
+      ->type_name(fmt::format("{}|FILE", fmt::join(sweep_scene_names, "|")))
+      ->check(not_empty())
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--methods", methods, "all (but the reference, the default) or a list")
+      ->type_name("all|NAME,NAME...")
+      ->check(text_check([](const std::string& text) -> std::string {
+        if (text == "all") return {};
+        std::string_view rest = text;
+        while (true) {
+          const auto comma = rest.find(',');
+          const std::string_view word = rest.substr(0, comma);
+          if (!render::find_method(word)) {
+            return fmt::format("names an unknown method {} (methods: {})", in_quotes(word),
+                               word_list(method_words(), ", "));
+          }
+          if (comma == std::string_view::npos) return {};
+          rest = rest.substr(comma + 1);
+        }
+      }));
+  app.add_option("--steps", steps, "the step counts (default 4,8,16,32,64)")
+      ->type_name("S,S,...")
+      ->check(text_check(
+          [](const std::string& text) -> std::string {
+            std::string_view rest = text;
+            while (true) {
+              const auto comma = rest.find(',');
+              std::string one(rest.substr(0, comma));
+              if (std::string problem = integer_in(1, max_steps)(one); !problem.empty()) return problem;
+              if (comma == std::string_view::npos) return {};
+              rest = rest.substr(comma + 1);
+            }
+          },
+          fmt::format("[1, {}] each", max_steps)));
+  add_value(app, "--refine", settings.refine, "binary or secant steps (default 8)", "INT",
+            integer_in(0, max_refine));
+  app.add_option("--repeat", settings.repeat,
+                 "renders per row; the row reports the median device time (default 3)")
+      ->type_name("INT")
+      ->transform(integer_in(1, max_repeat));
+  app.add_option("--size", size, "the image in pixels of every scene (default 512x512)")
+      ->type_name("WxH")
+      ->check(text_check(
+          [](const std::string& text) {
+            return read_image_size(text)
+                       ? std::string()
+                       : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                     max_image_side, in_quotes(text));
+          },
+          fmt::format("[1, {}] each", max_image_side)));
+  app.add_option("--output", output, "the table")
+      ->type_name("FILE.csv")
+      ->check(text_check([](const std::string& text) {
+        return lower_extension(std::filesystem::path(text)) == ".csv"
+                   ? std::string()
+                   : std::string("of 'displace sweep' must end in .csv");
+      }))
+      ->required();
+  add_renderer_flags(app, settings.renderer);
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+
+  for (const std::string& scene : scenes) {
+    const bool builtin =
+        std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end();
+    settings.scenes.push_back(builtin ? builtin_scene(scene) : read_scene_file(std::filesystem::path(scene)));
   }
   if (settings.scenes.empty()) {
-    for (std::string_view name : {"bricks", "ocean", "cliff"}) settings.scenes.push_back(builtin_scene(name));
+    for (const std::string& name : sweep_scene_names) settings.scenes.push_back(builtin_scene(name));
   }
-  if (settings.methods.empty()) settings.methods = all_methods_but_reference();
-  if (settings.steps.empty()) settings.steps = {4, 8, 16, 32, 64};
-  if (size) {
-    for (SceneSettings& scene : settings.scenes) std::tie(scene.view.camera.width, scene.view.camera.height) = *size;
+  if (methods.empty() || methods == "all") {
+    settings.methods = all_methods_but_reference();
+  } else {
+    std::string_view rest = methods;
+    while (true) {
+      const auto comma = rest.find(',');
+      settings.methods.push_back(render::find_method(rest.substr(0, comma))->method);
+      if (comma == std::string_view::npos) break;
+      rest = rest.substr(comma + 1);
+    }
   }
-  if (!output) throw usage_error("'displace sweep' needs --output FILE.csv");
-  settings.output = *output;
+  settings.steps = {4, 8, 16, 32, 64};
+  if (given(app, "--steps")) {
+    settings.steps.clear();
+    std::istringstream list(steps);
+    for (std::string one; std::getline(list, one, ',');) settings.steps.push_back(std::stoi(one));
+  }
+  if (given(app, "--size")) {
+    for (SceneSettings& scene : settings.scenes) {
+      std::tie(scene.view.camera.width, scene.view.camera.height) = *read_image_size(size);
+    }
+  }
+  settings.output = output;
   return settings;
 }
 
-DemoSettings parse_demo(std::span<const std::string_view> args) {
-  FlagReader reader(args);
+CommandSettings parse_demo(std::span<const std::string_view> args) {
+  CLI::App app("The default ocean end to end: synthesize, bake, export, render and compare.",
+               "displace demo");
+  set_up(app);
   DemoSettings settings;
-  while (!reader.done()) {
-    const std::string_view flag = reader.next_flag();
-    if (flag == "--size") {
-      settings.size = parse_int(flag, reader.value(), 2, max_image_side);
-    } else if (flag == "--output-dir") {
-      settings.output_directory = std::filesystem::path(std::string(reader.value()));
-    } else {
-      throw usage_error("unknown flag " + quoted(flag) + " for 'displace demo'");
-    }
-  }
+  std::string directory = settings.output_directory.string();
+  add_value(app, "--map-size", settings.map_size, "ocean samples along u and v (default 512)", "INT",
+            integer_in(2, max_image_side));
+  add_value(app, "--output-dir", directory, "where the files go (default out)", "DIR", not_empty());
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  settings.output_directory = directory;
   return settings;
 }
+
+CommandSettings parse_scene(std::span<const std::string_view> args) {
+  CLI::App app("Built-in scenes of the frame pipeline as TOML scene files.", "displace scene");
+  set_up(app);
+  PrintSceneSettings settings;
+  const std::vector<std::string> names = pipeline::builtin_scene_names();
+  app.add_option("--print", settings.name, "write the built-in scene NAME as TOML to stdout")
+      ->type_name(fmt::format("{}", fmt::join(names, "|")))
+      ->check(text_check([names](const std::string& text) -> std::string {
+        if (std::find(names.begin(), names.end(), text) != names.end()) return {};
+        return fmt::format("must name a built-in scene ({}), got {}", fmt::join(names, ", "),
+                           in_quotes(text));
+      }))
+      ->required();
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  return settings;
+}
+
+struct Command {
+  std::string_view name;
+  CommandSettings (*parse)(std::span<const std::string_view> args);  // the arguments after the name
+};
+constexpr Command commands[] = {{"sim", parse_sim},     {"bake", parse_bake}, {"render", parse_render},
+                                {"sweep", parse_sweep}, {"demo", parse_demo}, {"scene", parse_scene}};
 
 }  // namespace
 
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return extension;
+}
+
+bool is_command(std::string_view word) {
+  return std::any_of(std::begin(commands), std::end(commands),
+                     [&](const Command& c) { return c.name == word; });
+}
+
 CommandSettings parse_command_line(std::span<const std::string_view> args) {
   if (args.empty()) throw usage_error("no command given");
-  const std::string_view command = args.front();
-  const auto rest = args.subspan(1);
-  if (is_help_flag(command) ||
-      std::any_of(rest.begin(), rest.end(), [](std::string_view a) { return a == "--help" || a == "-h"; })) {
-    return HelpSettings{};
+  const std::string_view word = args.front();
+  if (word == "help" || word == "--help" || word == "-h") return HelpSettings{};
+  for (const Command& command : commands) {
+    if (command.name == word) return command.parse(args.subspan(1));
   }
-  if (command == "sim") return parse_sim(rest);
-  if (command == "bake") return parse_bake(rest);
-  if (command == "demo") return parse_demo(rest);
-  if (command == "render") return parse_render(rest);
-  if (command == "sweep") return parse_sweep(rest);
-  throw usage_error("unknown command " + quoted(command) + " (commands: sim, bake, render, sweep, demo, help)");
+  std::vector<std::string_view> names;
+  for (const Command& command : commands) names.push_back(command.name);
+  throw usage_error(
+      fmt::format("unknown command {} (commands: {}, help)", in_quotes(word), fmt::join(names, ", ")));
 }
 
 SceneSettings builtin_scene(std::string_view name) {
-  const std::string source = name == "ocean" ? "ocean" : name == "bricks" ? "bricks" : "cliff";
-  if (name != "ocean" && name != "bricks" && name != "cliff") {
-    throw usage_error("unknown built-in scene " + app::quoted(name) + " (bricks, ocean, cliff)");
+  if (std::find(sweep_scene_names.begin(), sweep_scene_names.end(), name) == sweep_scene_names.end()) {
+    throw usage_error(
+        fmt::format("unknown built-in scene {} ({})", in_quotes(name), fmt::join(sweep_scene_names, ", ")));
   }
-  const std::vector<std::string_view> args = {"--source", source, "--map-size", "256", "--time", "0"};
+  const std::vector<std::string_view> args = {"--source", name, "--map-size", "256", "--time", "0"};
   return scene_from_args(std::string(name), args, "scene " + std::string(name));
 }
 
 SceneSettings read_scene_file(const std::filesystem::path& file) {
   std::ifstream in(file);
-  if (!in) throw usage_error("cannot read scene file " + app::quoted(file.string()));
+  if (!in) throw runtime_error("cannot read scene file " + in_quotes(file.string()));
   std::vector<std::string> words;
   std::string line;
   int number = 0;
@@ -828,19 +1027,19 @@ SceneSettings read_scene_file(const std::filesystem::path& file) {
     std::istringstream tokens(line);
     std::string flag, value, extra;
     if (!(tokens >> flag)) continue;
-    if (flag.rfind("--", 0) != 0) {
-      throw usage_error("scene file " + app::quoted(file.string()) + " line " + std::to_string(number) +
-                        ": expected a --flag, got " + app::quoted(flag));
+    if (!flag.starts_with("--")) {
+      throw usage_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
+                                    in_quotes(file.string()), number, in_quotes(flag)));
     }
     words.push_back(flag);
     if (tokens >> value) words.push_back(value);
     if (tokens >> extra) {
-      throw usage_error("scene file " + app::quoted(file.string()) + " line " + std::to_string(number) +
-                        ": one flag and at most one value per line");
+      throw usage_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
+                                    in_quotes(file.string()), number));
     }
   }
   const std::vector<std::string_view> args(words.begin(), words.end());
-  return scene_from_args(file.stem().string(), args, "scene file " + app::quoted(file.string()));
+  return scene_from_args(file.stem().string(), args, "scene file " + in_quotes(file.string()));
 }
 
 }  // namespace displace::app

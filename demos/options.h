@@ -1,14 +1,17 @@
 // demos/options.h - the `displace` command line, parsed into typed settings.
 //
-// This is the only place that looks at argv strings: every flag is checked here (unknown flags,
-// missing values, bad or absurd numbers) and becomes a typed value; the commands take these structs.
-// Every problem throws AppError of kind usage (exit status 2).
+// This is the only place that looks at argv strings: each command's flags are declared to CLI11
+// with their limits (shown by `displace COMMAND --help`), checked there (unknown flags, missing
+// values, bad or absurd numbers, flags that do not go together) and become typed values; the
+// commands take these structs. Every problem throws AppError of kind usage (exit status 2), except a
+// sweep scene file that cannot be read (runtime, exit status 1).
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <span>
+#include <string>
 #include <string_view>
 #include <variant>
 #include <vector>
@@ -23,7 +26,7 @@ namespace displace::app {
 
 enum class SourceKind { ocean, sinusoids, bricks, cliff };
 
-// A synthesized height field: `size` x `size` samples at `time`.
+// A synthesized height field: `size` x `size` samples at `time` (--map-size, --time).
 struct SourceSettings {
   SourceKind kind = SourceKind::ocean;
   int size = 0;                   // samples along u and along v
@@ -41,7 +44,11 @@ struct FileInput {
 
 enum class ImageFormat { exr, png };
 
-struct HelpSettings {};
+// `--help`: `text` is one command's help (its flags and their limits); empty: the overview
+// (usage_text() in commands.h).
+struct HelpSettings {
+  std::string text;
+};
 
 struct SimSettings {
   SourceSettings source;
@@ -62,7 +69,7 @@ struct BakeSettings {
 };
 
 struct DemoSettings {
-  int size = 512;  // ocean samples along u and v
+  int map_size = 512;  // ocean samples along u and v
   std::filesystem::path output_directory = "out";
 };
 
@@ -109,14 +116,23 @@ struct SweepSettings {
 // The built-in scenes of `displace sweep`: bricks, ocean and cliff.
 SceneSettings builtin_scene(std::string_view name);
 // A scene file: one render flag per line ("--source ocean", "--map-size 256", "--eye 0.5,-0.3,0.6"),
-// '#' starts a comment. Throws AppError (usage) naming the file and line for anything malformed.
+// '#' starts a comment. Throws AppError naming the file (and the line where it helps): runtime when
+// it cannot be read, usage for anything malformed.
 SceneSettings read_scene_file(const std::filesystem::path& file);
 
-using CommandSettings =
-    std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings, SweepSettings>;
+// `displace scene --print NAME`: a built-in scene of pipeline/scene.h (pipeline::builtin_scene_names()).
+struct PrintSceneSettings {
+  std::string name;
+};
+
+using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings,
+                                     SweepSettings, PrintSceneSettings>;
 
 // The extension of a path, lower-cased (".png").
 std::string lower_extension(const std::filesystem::path& path);
+
+// Whether `word` names a command (sim, bake, render, sweep, demo, scene).
+bool is_command(std::string_view word);
 
 // `args` excludes the program name and must not be empty.
 CommandSettings parse_command_line(std::span<const std::string_view> args);

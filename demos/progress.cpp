@@ -1,12 +1,12 @@
 // demos/progress.cpp - the progress line of long bakes (progress.h).
 #include "demos/progress.h"
 
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 
 namespace displace::app {
 namespace {
@@ -34,10 +34,8 @@ void ProgressLine::update(double fraction_done) {
   const double elapsed = clock_() - start_seconds_;
   if (elapsed < show_after_seconds) return;
   if (drawn_at_seconds_ >= 0.0 && elapsed - drawn_at_seconds_ < redraw_seconds && fraction_done < 1.0) return;
-  char text[256];
-  std::snprintf(text, sizeof text, "displace: %s %3d%% (%.1f s)", what_.c_str(),
-                int(std::floor(100.0 * std::clamp(fraction_done, 0.0, 1.0))), elapsed);
-  const std::string line = text;
+  const std::string line = fmt::format("displace: {} {:3d}% ({:.1f} s)", what_,
+                                       int(std::floor(100.0 * std::clamp(fraction_done, 0.0, 1.0))), elapsed);
   // pad over what the previous line left
   stream_ << '\r' << line << std::string(drawn_length_ > line.size() ? drawn_length_ - line.size() : 0, ' ')
           << std::flush;

@@ -25,6 +25,7 @@
 #include "demos/obj_io.h"
 #include "demos/options.h"
 #include "demos/progress.h"
+#include "pipeline/scene.h"
 
 namespace {
 
@@ -566,17 +567,17 @@ TEST(Options, RejectsWhatDoesNotApply) {
     return false;
   };
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact"}));  // no output
+  EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--map-size", "4", "--sectors", "4", "--mode", "exact",
+                     "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"bake", "--source", "ocean", "--map-size", "8", "--time", "0", "--invert", "--sectors",
+                     "4", "--mode", "exact", "--output", "c.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "sinusoids", "--map-size", "8", "--time", "0", "--spectrum",
+                     "jonswap", "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "8", "--time", "inf", "--output", "h.exr"}));
   EXPECT_TRUE(usage(
-      {"bake", "--input", "h.exr", "--size", "4", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
-  EXPECT_TRUE(usage({"bake", "--source", "ocean", "--size", "8", "--time", "0", "--invert", "--sectors", "4",
-                     "--mode", "exact", "--output", "c.exr"}));
-  EXPECT_TRUE(usage({"sim", "--source", "sinusoids", "--size", "8", "--time", "0", "--spectrum", "jonswap",
-                     "--output", "h.exr"}));
-  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "8", "--time", "inf", "--output", "h.exr"}));
-  EXPECT_TRUE(
-      usage({"sim", "--source", "ocean", "--size", "8", "--time", "0", "--seed", "-3", "--output", "h.exr"}));
-  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "20000", "--time", "0", "--output", "h.exr"}));
-  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--size", "8", "--time", "0", "--output", "h.png"}));
+      {"sim", "--source", "ocean", "--map-size", "8", "--time", "0", "--seed", "-3", "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "20000", "--time", "0", "--output", "h.exr"}));
+  EXPECT_TRUE(usage({"sim", "--source", "ocean", "--map-size", "8", "--time", "0", "--output", "h.png"}));
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--budget-ms", "3",
                      "--output", "c.exr"}));
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--mode", "original",
@@ -605,6 +606,29 @@ TEST(Options, ParsesBilinearCones) {
   const BakeSettings center = std::get<BakeSettings>(
       parse({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
   EXPECT_EQ(center.cones, ConeKind::center);
+}
+
+// Numbers are decimal whatever CLI11 would make of them; sweep scenes and render AOVs may repeat;
+// --help is the command's own help.
+TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
+  const RenderSettings render = std::get<RenderSettings>(
+      parse({"render", "--source", "bricks", "--map-size", "016", "--method", "pom", "--steps", "010",
+             "--aov", "uv=a.exr", "--aov=depth=b.exr", "--size=64x48", "--output", "f.png"}));
+  EXPECT_EQ(std::get<SourceSettings>(render.input).size, 16);
+  EXPECT_EQ(render.method.steps, 10);
+  ASSERT_EQ(render.aovs.size(), 2u);
+  EXPECT_EQ(render.aovs[1].aov, Aov::depth);
+  EXPECT_EQ(render.aovs[1].file, "b.exr");
+  EXPECT_EQ(render.view.camera.width, 64);
+  EXPECT_EQ(render.view.camera.height, 48);
+  const SweepSettings sweep = std::get<SweepSettings>(
+      parse({"sweep", "--scene", "bricks", "--scene", "cliff", "--steps", "4,08", "--output", "s.csv"}));
+  ASSERT_EQ(sweep.scenes.size(), 2u);
+  EXPECT_EQ(sweep.scenes[1].name, "cliff");
+  EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
+  const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
+  EXPECT_NE(help.text.find("--steps INT:[1, 4096]"), std::string::npos) << help.text;
+  EXPECT_TRUE(std::get<HelpSettings>(parse({"help"})).text.empty());  // the overview
 }
 
 TEST(Options, ParsesTheRenderBakeBudget) {
@@ -671,6 +695,93 @@ TEST(Cli, HelpAndNoArguments) {
   EXPECT_NE(none.err.find("usage"), std::string::npos);
 }
 
+// `scene --print NAME` writes a TOML scene file that reads back to the built-in scene.
+TEST(Cli, ScenePrintWritesTomlThatParsesBack) {
+  namespace pipeline = displace::pipeline;
+  TempDir dir;
+  for (const std::string& name : pipeline::builtin_scene_names()) {
+    const RunResult result = run_displace(dir, "scene --print " + name);
+    ASSERT_EQ(result.exit_code, 0) << name << "\n" << result.err;
+    EXPECT_EQ(result.err, "");
+    const pipeline::Scene printed = pipeline::parse_scene(result.out, name + ".toml");
+    const pipeline::Scene builtin = pipeline::builtin_scene(name);
+    EXPECT_EQ(printed.name, builtin.name);
+    EXPECT_EQ(printed.source, builtin.source) << name;
+    EXPECT_EQ(printed.map_size, builtin.map_size) << name;
+    EXPECT_EQ(printed.method, builtin.method) << name;
+    EXPECT_EQ(printed.steps, builtin.steps) << name;
+    EXPECT_EQ(printed.camera.eye, builtin.camera.eye) << name;
+    EXPECT_EQ(printed.ocean.choppiness, builtin.ocean.choppiness) << name;
+    EXPECT_EQ(printed.keyframes.size(), builtin.keyframes.size()) << name;
+    EXPECT_EQ(pipeline::scene_toml(printed), result.out) << name;  // nothing lost on the way
+  }
+  const RunResult unknown = run_displace(dir, "scene --print nowhere");
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_EQ(unknown.out, "");
+  for (const std::string& name : pipeline::builtin_scene_names()) {
+    EXPECT_NE(unknown.err.find(name), std::string::npos) << unknown.err;
+  }
+}
+
+// Every command: a usage error exits 2 with one error line and a hint to its --help; a missing
+// file (or one that cannot be written) exits 1 with one error line and no hint.
+TEST(Cli, EveryCommandExitsTwoOnUsageErrorsAndOneOnMissingFiles) {
+  TempDir dir;
+  write_bytes(dir / "file.txt", "not a directory");
+  const std::string missing = "'" + (dir / "missing.png").string() + "'";
+  const std::string render =
+      "render --source ocean --map-size 16 --time 0 --method pom --output '" + (dir / "f.png").string() + "'";
+  const struct {
+    std::string command, usage, missing_file;
+  } cases[] = {
+      {"sim", "sim --source ocean --map-size 16 --time 0 --output h.exr --frobnicate",
+       "sim --source ocean --map-size 16 --time 0 --output '" + (dir / "no/such/dir/h.exr").string() + "'"},
+      {"bake", "bake --input " + missing + " --sectors 4 --mode exact --output c.exr --steps 3",
+       "bake --input " + missing + " --sectors 4 --mode exact --output '" + (dir / "c.exr").string() + "'"},
+      {"render", render + " --steps 0", "render --input " + missing + " --method pom --output f.png"},
+      {"sweep", "sweep --repeat 0 --output s.csv",
+       "sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv"},
+      {"demo", "demo --map-size 1", "demo --output-dir '" + (dir / "file.txt" / "out").string() + "'"},
+  };
+  for (const auto& test : cases) {
+    const RunResult usage = run_displace(dir, test.usage);
+    EXPECT_EQ(usage.exit_code, 2) << test.usage << "\n" << usage.err;
+    EXPECT_EQ(usage.err.find("displace: error: "), 0u) << usage.err;
+    EXPECT_EQ(usage.err.find("displace: error: "), usage.err.rfind("displace: error: ")) << usage.err;
+    EXPECT_NE(usage.err.find("run 'displace " + test.command + " --help'"), std::string::npos) << usage.err;
+    const RunResult runtime = run_displace(dir, test.missing_file);
+    EXPECT_EQ(runtime.exit_code, 1) << test.missing_file << "\n" << runtime.err;
+    EXPECT_EQ(runtime.err.find("displace: error: "), 0u) << runtime.err;
+    EXPECT_EQ(runtime.err.find("displace: error: "), runtime.err.rfind("displace: error: ")) << runtime.err;
+    EXPECT_EQ(runtime.err.find("--help"), std::string::npos) << runtime.err;
+  }
+  // --size is an image's pixels everywhere: the error for a map says so
+  const RunResult size = run_displace(dir, "sim --source ocean --size 16 --time 0 --output h.exr");
+  EXPECT_EQ(size.exit_code, 2);
+  EXPECT_NE(size.err.find("--map-size"), std::string::npos) << size.err;
+}
+
+// `displace COMMAND --help` is CLI11's help for that command, with the limits of its numbers.
+TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
+  TempDir dir;
+  const struct {
+    std::string command, limit;
+  } cases[] = {
+      {"sim", "--map-size INT:[2, 16384]"},  {"bake", "--tolerance T:[0, 1)"},
+      {"render", "--steps INT:[1, 4096]"},   {"sweep", "--repeat INT:[1, 100]"},
+      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print calm|choppy|ripples|bricks|cliff"},
+  };
+  for (const auto& test : cases) {
+    const RunResult help = run_displace(dir, test.command + " --help");
+    EXPECT_EQ(help.exit_code, 0) << test.command << "\n" << help.err;
+    EXPECT_NE(help.out.find("Usage: displace " + test.command), std::string::npos) << help.out;
+    EXPECT_NE(help.out.find(test.limit), std::string::npos) << test.limit << " in\n" << help.out;
+  }
+  const RunResult bake = run_displace(dir, "bake --help");
+  EXPECT_NE(bake.out.find("--budget-ms MS:[0, 1e+09] ms"), std::string::npos) << bake.out;
+  EXPECT_NE(bake.out.find("--sectors 1|4|8"), std::string::npos) << bake.out;
+}
+
 TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
   TempDir dir;
   std::mt19937 random(3);
@@ -707,17 +818,19 @@ TEST(Cli, BadInputGetsOneClearErrorNeverACrash) {
       {input("one.png"), 1},
       {"bake --input '" + (dir / "whole.png").string() + "' --sectors 3 --mode exact --output c.exr", 2},
       {input("whole.png") + " --frobnicate", 2},
-      {"sim --source ocean --size -5 --time 0 --output h.exr", 2},
+      {"sim --source ocean --map-size -5 --time 0 --output h.exr", 2},
       {"bake --input '" + (dir / "whole.png").string() + "' --relaxed --sectors 8 --output c.exr", 2},
-      {"sim --source ocean --size 16 --time nan --output h.exr", 2},
-      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact", 2},
+      {"sim --source ocean --map-size 16 --time nan --output h.exr", 2},
+      {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode exact", 2},
       {"unknown-command", 2},
-      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output c.exr", 2},
-      {"bake --source ocean --size 16 --time 0 --sectors 4 --mode exact --tolerance 0 --output c.exr", 2},
-      {"bake --source sinusoids --size 1 --time 0 --sectors 4 --mode budgeted --output c.exr", 2},
-      {"sim --source ocean --size 16 --time 1e30 --output h.exr", 2},
-      {"sim --source ocean --size 16 --time 0 --wind-speed 1e30 --output h.exr", 2},
-      {"sim --source ocean --size 16 --time 0 --patch-size 1e-30 --output h.exr", 2},
+      {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode budgeted --tolerance 1.5 --output "
+       "c.exr",
+       2},
+      {"bake --source ocean --map-size 16 --time 0 --sectors 4 --mode exact --tolerance 0 --output c.exr", 2},
+      {"bake --source sinusoids --map-size 1 --time 0 --sectors 4 --mode budgeted --output c.exr", 2},
+      {"sim --source ocean --map-size 16 --time 1e30 --output h.exr", 2},
+      {"sim --source ocean --map-size 16 --time 0 --wind-speed 1e30 --output h.exr", 2},
+      {"sim --source ocean --map-size 16 --time 0 --patch-size 1e-30 --output h.exr", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
@@ -764,7 +877,7 @@ TEST(Cli, BakesBilinearConesToAnExrWithApexHeights) {
   TempDir dir;
   namespace bake = displace::bake;
   const std::string source =
-      "bake --source bricks --size 24 --seed 3 --sectors 4 --address clamp --cones bilinear ";
+      "bake --source bricks --map-size 24 --seed 3 --sectors 4 --address clamp --cones bilinear ";
   const RunResult budgeted =
       run_displace(dir, source + "--mode budgeted --budget-ms 0 --output '" + (dir / "b.exr").string() + "'");
   ASSERT_EQ(budgeted.exit_code, 0) << budgeted.err;
@@ -816,7 +929,7 @@ TEST(Cli, ALongBakeDrawsNoProgressWhenStderrIsNotATerminal) {
   TempDir dir;
   const RunResult result =
       run_displace(dir,
-                   "bake --source ocean --size 256 --time 0 --sectors 4 --cones bilinear "
+                   "bake --source ocean --map-size 256 --time 0 --sectors 4 --cones bilinear "
                    "--mode full --output '" +
                        (dir / "c.exr").string() + "'");
   ASSERT_EQ(result.exit_code, 0) << result.err;
@@ -828,7 +941,7 @@ TEST(Cli, ALongBakeDrawsNoProgressWhenStderrIsNotATerminal) {
 TEST(Cli, BilinearConesRefuseOtherModesWithOneError) {
   TempDir dir;
   const std::string bake =
-      "bake --source ocean --size 16 --time 0 --sectors 4 --output '" + (dir / "c.exr").string() + "' ";
+      "bake --source ocean --map-size 16 --time 0 --sectors 4 --output '" + (dir / "c.exr").string() + "' ";
   const struct {
     std::string arguments, message;
   } cases[] = {
@@ -924,7 +1037,7 @@ TEST(Cli, BakesABilinearPngThatDecodesConservatively) {
 TEST(Cli, SimWritesMetresWithItsMapping) {
   TempDir dir;
   const RunResult result =
-      run_displace(dir, "sim --source sinusoids --size 24 --time 0.5 --seed 9 --output '" +
+      run_displace(dir, "sim --source sinusoids --map-size 24 --time 0.5 --seed 9 --output '" +
                             (dir / "h.exr").string() + "'");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const FloatImage image = read_float_image(dir / "h.exr");
@@ -1158,16 +1271,19 @@ TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
     std::ofstream(dir / name) << text;
     return "sweep --scene '" + (dir / name).string() + "' --output '" + (dir / "s.csv").string() + "'";
   };
-  const std::string cases[] = {
-      scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"),
-      scene("two.scene", "--source ocean\n--map-size 16 --time\n"),
-      scene("word.scene", "source ocean\n"),
-      scene("empty.scene", "# nothing\n"),
-      "sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv",
+  const struct {
+    std::string arguments;
+    int exit_code;
+  } cases[] = {
+      {scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"), 2},
+      {scene("two.scene", "--source ocean\n--map-size 16 --time\n"), 2},
+      {scene("word.scene", "source ocean\n"), 2},
+      {scene("empty.scene", "# nothing\n"), 2},
+      {"sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv", 1},  // a missing file
   };
-  for (const std::string& arguments : cases) {
+  for (const auto& [arguments, exit_code] : cases) {
     const RunResult result = run_displace(dir, arguments);
-    EXPECT_EQ(result.exit_code, 2) << arguments << "\n" << result.err;
+    EXPECT_EQ(result.exit_code, exit_code) << arguments << "\n" << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
     EXPECT_NE(result.err.find("scene"), std::string::npos) << result.err;
   }
