@@ -401,6 +401,8 @@ FrameSummary summarize(const render::Frame& frame) {
   return summary;
 }
 
+}  // namespace
+
 void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata) {
   if (lower_extension(file) == ".png") {
     write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
@@ -446,6 +448,8 @@ void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata&
   const ExrChannel exr[] = {{iterations ? "iterations" : "fetches", values}};
   write_exr(aov.file, frame.width, frame.height, exr, metadata);
 }
+
+namespace {
 
 void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& file) {
   Rgba8Image image = read_color_image(file);
@@ -792,6 +796,10 @@ int run_command(const CommandSettings& settings, std::ostream& out) {
     run_render(*render_settings, out);
   } else if (const auto* sweep_settings = std::get_if<SweepSettings>(&settings)) {
     run_sweep(*sweep_settings, out);
+  } else if (const auto* sequence_settings = std::get_if<SequenceSettings>(&settings)) {
+    run_sequence(*sequence_settings, out);
+  } else if (const auto* bench_settings = std::get_if<BenchFrameSettings>(&settings)) {
+    run_bench_frame(*bench_settings, out);
   } else {
     run_demo(std::get<DemoSettings>(settings), out);
   }

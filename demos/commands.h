@@ -64,6 +64,10 @@ BakedCones bake_bilinear(std::span<const float> heights, int width, int height, 
 std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address,
                        ConeKind kind = ConeKind::center);
 
+// A rendered frame's colour to .png (8-bit) or .exr (float RGBA), and one AOV (AovOutput's formats).
+void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata);
+void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata);
+
 void run_sim(const SimSettings& settings, std::ostream& out);
 void run_bake(const BakeSettings& settings, std::ostream& out);
 void run_render(const RenderSettings& settings, std::ostream& out);
@@ -71,6 +75,9 @@ void run_sweep(const SweepSettings& settings, std::ostream& out);
 void run_demo(const DemoSettings& settings, std::ostream& out);
 // Writes the built-in scene as a TOML scene file (pipeline::scene_toml).
 void run_print_scene(const PrintSceneSettings& settings, std::ostream& out);
+// demos/frames.cpp: the frame pipeline's users.
+void run_sequence(const SequenceSettings& settings, std::ostream& out);
+void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out);
 
 // The overview `displace --help` prints; `displace COMMAND --help` lists one command's flags.
 std::string usage_text();

@@ -971,12 +971,192 @@ CommandSettings parse_scene(std::span<const std::string_view> args) {
   return settings;
 }
 
+// ---------------------------------------------------------------------------------------------
+// the frame pipeline's commands: a scene (built-in or TOML file) with a few overrides
+
+struct PipelineSceneDraft {
+  std::string scene = "water";
+  std::string size;
+  int map_size = 0;
+  render::Method method = render::Method::acm4;
+  int steps = 0;
+  double budget_ms = 0.0;
+  long long bake_work = 0;
+};
+
+void add_pipeline_scene_flags(CLI::App& app, PipelineSceneDraft& draft) {
+  app.option_defaults()->group("Scene");
+  const std::vector<std::string> names = pipeline::builtin_scene_names();
+  add_value(app, "--scene", draft.scene,
+            fmt::format("a built-in scene ({}) or a TOML scene file (default water)", fmt::join(names, ", ")),
+            "NAME|FILE.toml", not_empty());
+  add_value(app, "--map-size", draft.map_size, "the height map's texels a side (default: the scene's)", "N",
+            integer_in(2, 8192));
+  app.add_option("--size", draft.size, "the image in pixels (default: the scene's)")
+      ->type_name("WxH")
+      ->check(text_check([](const std::string& text) -> std::string {
+        return read_image_size(text) ? std::string() : "expects WxH (1 to 16384 each), got " + in_quotes(text);
+      }));
+  const Words<render::Method> methods = method_words();
+  add_value(app, "--method", draft.method, "the per-pixel method (default: the scene's)", word_list(methods),
+            word_in(methods));
+  add_value(app, "--steps", draft.steps, "search steps (default: the scene's)", "INT", integer_in(1, max_steps));
+  add_value(app, "--budget-ms", draft.budget_ms, "the frame budget the bake's share comes from (default: the scene's)",
+            "MS", number_in(budget_range));
+  add_value(app, "--bake-work", draft.bake_work, "texels the cone bake may search a frame (default: the scene's)",
+            "N", integer_in(0, 1ll << 40));
+}
+
+pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDraft& draft) {
+  pipeline::Scene scene;
+  const std::vector<std::string> names = pipeline::builtin_scene_names();
+  try {
+    if (std::find(names.begin(), names.end(), draft.scene) != names.end()) {
+      scene = pipeline::builtin_scene(draft.scene);
+    } else {
+      if (!std::filesystem::exists(draft.scene)) {
+        throw runtime_error(fmt::format("--scene {} is neither a built-in scene ({}) nor a file", in_quotes(draft.scene),
+                                        fmt::join(names, ", ")));
+      }
+      scene = pipeline::read_scene_file(draft.scene);
+    }
+  } catch (const pipeline::SceneError& error) {
+    throw usage_error(error.what());
+  }
+  if (given(app, "--map-size")) {
+    if (scene.source == pipeline::SourceKind::ocean && draft.map_size % 2 != 0) {
+      throw usage_error("--map-size must be even for the ocean");
+    }
+    scene.map_size = draft.map_size;
+  }
+  if (given(app, "--size")) std::tie(scene.camera.width, scene.camera.height) = *read_image_size(draft.size);
+  if (given(app, "--method")) scene.method = draft.method;
+  if (given(app, "--steps")) scene.steps = draft.steps;
+  if (given(app, "--budget-ms")) scene.frame_ms = draft.budget_ms;
+  if (given(app, "--bake-work")) scene.bake_work = draft.bake_work;
+  if (!render::supports_surface(scene.method, scene.surface)) {
+    throw usage_error(fmt::format("--method {} does not support the scene's surface {}",
+                                  render::method_info(scene.method).name, render::surface_name(scene.surface)));
+  }
+  return scene;
+}
+
+// A file pattern: at least one '#' in its name, one of `extensions`.
+CLI::Validator frame_pattern(std::vector<std::string> extensions) {
+  return text_check([extensions](const std::string& text) -> std::string {
+    if (std::filesystem::path(text).filename().string().find('#') == std::string::npos) {
+      return "needs '#' in the file name for the frame number (name_####.png), got " + in_quotes(text);
+    }
+    return output_file(extensions)(text);
+  });
+}
+
+CommandSettings parse_sequence(std::span<const std::string_view> args) {
+  CLI::App app(
+      "Render frames A..B of a scene headless, each to its own file; deterministic, so any split "
+      "into shards, any order and a resumed run give the same files.",
+      "displace sequence");
+  set_up(app);
+  SequenceSettings settings;
+  PipelineSceneDraft scene;
+  std::string frames, output, shard, video;
+  std::vector<std::string> aovs;
+  add_pipeline_scene_flags(app, scene);
+  add_renderer_flags(app, settings.renderer);
+  app.option_defaults()->group("Frames");
+  app.add_option("--frames", frames, "frames A to B inclusive, every STEP-th (frame n is at start + n / fps)")
+      ->type_name("A:B[:STEP]")
+      ->check(text_check([](const std::string& text) -> std::string {
+        long long a = 0, b = 0, step = 1;
+        char extra = 0;
+        const int read = std::sscanf(text.c_str(), "%lld:%lld:%lld%c", &a, &b, &step, &extra);
+        if ((read != 2 && read != 3) || a < 0 || b < a || step < 1 || b - a > 10000000) {
+          return "expects A:B[:STEP] with 0 <= A <= B and STEP >= 1, got " + in_quotes(text);
+        }
+        return {};
+      }))
+      ->required();
+  add_value(app, "--output", output, "the frames: '#' runs become the frame number", "DIR/name_####.png|.exr",
+            frame_pattern({".png", ".exr"}))
+      ->required();
+  app.add_option("--aov", aovs, "also write uv=DIR/uv_####.exr, depth=..., iterations=..., fetches=... per frame")
+      ->type_name("NAME=PATTERN")
+      ->check(text_check([](const std::string& text) -> std::string {
+        const auto equals = text.find('=');
+        if (equals == std::string::npos || equals + 1 == text.size()) {
+          return "expects NAME=PATTERN (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
+        }
+        if (std::string problem = word_in(aov_words)(text.substr(0, equals)); !problem.empty()) return problem;
+        const Aov aov = word_value(aov_words, text.substr(0, equals));
+        return aov == Aov::iterations || aov == Aov::fetches ? frame_pattern({".exr", ".png"})(text.substr(equals + 1))
+                                                             : frame_pattern({".exr"})(text.substr(equals + 1));
+      }))
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--shard", shard, "render shard I of N (round robin over the frames, I from 1)")
+      ->type_name("I/N")
+      ->check(text_check([](const std::string& text) -> std::string {
+        int i = 0, n = 0;
+        char extra = 0;
+        if (std::sscanf(text.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 || i > n) {
+          return "expects I/N with 1 <= I <= N, got " + in_quotes(text);
+        }
+        return {};
+      }));
+  add_switch(app, "--resume", settings.resume, "skip frames whose outputs all exist");
+  add_value(app, "--video", video, "also encode the frames with ffmpeg (needs ffmpeg on the PATH)",
+            "FILE.mp4|FILE.webm", output_file({".mp4", ".webm"}));
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  settings.scene = finish_pipeline_scene(app, scene);
+  long long step = 1;
+  std::sscanf(frames.c_str(), "%lld:%lld:%lld", &settings.first, &settings.last, &step);
+  settings.step = step;
+  if (!shard.empty()) std::sscanf(shard.c_str(), "%d/%d", &settings.shard_index, &settings.shard_count);
+  settings.output = output;
+  for (const std::string& aov : aovs) {
+    const auto equals = aov.find('=');
+    settings.aovs.push_back(
+        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
+  }
+  settings.video = video;
+  if (!settings.video.empty() && settings.shard_count > 1) {
+    throw usage_error("--video encodes one run's frames: not with --shard");
+  }
+  return settings;
+}
+
+CommandSettings parse_bench_frame(std::span<const std::string_view> args) {
+  CLI::App app(
+      "Run the frame pipeline for F frames after a warm-up and print, per stage, the p50, p95 and "
+      "p99 milliseconds, the frames within budget, FFTs per frame, the effects, and Vulkan allocations.",
+      "displace bench-frame");
+  set_up(app);
+  BenchFrameSettings settings;
+  PipelineSceneDraft scene;
+  std::string json;
+  add_pipeline_scene_flags(app, scene);
+  add_renderer_flags(app, settings.renderer);
+  app.option_defaults()->group("Benchmark");
+  add_value(app, "--frames", settings.frames, "frames timed (default 120)", "F", integer_in(1, 1000000));
+  add_value(app, "--warm-up", settings.warm_up, "frames run first, not timed (default 5)", "N",
+            integer_in(2, 10000));
+  add_value(app, "--json", json, "also write the table as JSON", "FILE.json", output_file({".json"}));
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  settings.scene = finish_pipeline_scene(app, scene);
+  settings.json = json;
+  return settings;
+}
+
 struct Command {
   std::string_view name;
   CommandSettings (*parse)(std::span<const std::string_view> args);  // the arguments after the name
 };
-constexpr Command commands[] = {{"sim", parse_sim},     {"bake", parse_bake}, {"render", parse_render},
-                                {"sweep", parse_sweep}, {"demo", parse_demo}, {"scene", parse_scene}};
+constexpr Command commands[] = {{"sim", parse_sim},       {"bake", parse_bake},
+                                {"render", parse_render}, {"sweep", parse_sweep},
+                                {"demo", parse_demo},     {"scene", parse_scene},
+                                {"sequence", parse_sequence}, {"bench-frame", parse_bench_frame}};
 
 }  // namespace
 

@@ -19,6 +19,7 @@
 #include "bake/bake.h"
 #include "demos/cone_export.h"
 #include "demos/image_io.h"
+#include "pipeline/scene.h"
 #include "render/render.h"
 #include "sim/sim.h"
 
@@ -125,8 +126,32 @@ struct PrintSceneSettings {
   std::string name;
 };
 
+// `displace sequence`: frames A..B (every STEP-th) of a frame-pipeline scene, headless, each to
+// a file named by a '#' pattern (one zero-padded digit per '#').
+struct SequenceSettings {
+  pipeline::Scene scene;
+  long long first = 0, last = 0, step = 1;
+  // --shard I/N: this run renders the frames whose position in A..B:STEP is I modulo N (round robin,
+  // I from 1), so that shards finish together
+  int shard_index = 1, shard_count = 1;
+  std::filesystem::path output;  // pattern, .png (8-bit) or .exr (float colour)
+  std::vector<AovOutput> aovs;   // file patterns
+  bool resume = false;           // skip frames whose every output exists
+  std::filesystem::path video;   // .mp4 or .webm through ffmpeg; empty: none
+  render::RendererOptions renderer;
+};
+
+// `displace bench-frame`: the frame-pipeline loop timed stage by stage.
+struct BenchFrameSettings {
+  pipeline::Scene scene;
+  int frames = 120;
+  int warm_up = 5;
+  std::filesystem::path json;  // empty: none
+  render::RendererOptions renderer;
+};
+
 using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings,
-                                     SweepSettings, PrintSceneSettings>;
+                                     SweepSettings, PrintSceneSettings, SequenceSettings, BenchFrameSettings>;
 
 // The extension of a path, lower-cased (".png").
 std::string lower_extension(const std::filesystem::path& path);

@@ -1,0 +1,294 @@
+// demos/frames.cpp - the frame pipeline's headless users: `displace sequence` (frames to files,
+// shardable, resumable) and `displace bench-frame` (the loop timed stage by stage).
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "demos/commands.h"
+#include "demos/error.h"
+#include "demos/progress.h"
+#include "pipeline/frame_pipeline.h"
+
+namespace displace::app {
+namespace {
+
+double seconds_now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// The application's height-image reader for image scenes.
+pipeline::HeightLoader image_loader() {
+  return [](const std::filesystem::path& file) {
+    LoadedHeights loaded = load_heights(file, {});
+    return render::HeightField{loaded.width, loaded.height, std::move(loaded.heights)};
+  };
+}
+
+std::vector<std::string> effect_names(unsigned effects) {
+  std::vector<std::string> names;
+  if (effects & pipeline::effect_heights) names.emplace_back("heights");
+  if (effects & pipeline::effect_choppy) names.emplace_back("choppy");
+  if (effects & pipeline::effect_foam) names.emplace_back("foam");
+  return names;
+}
+
+// Writes through a temporary name in the same directory and renames it into place, so that an
+// interrupted run never leaves half a file under the real name.
+template <typename Write>
+void write_atomically(const std::filesystem::path& file, Write&& write) {
+  const std::filesystem::path temporary =
+      file.parent_path() / fmt::format(".{}.partial{}{}", file.stem().string(), ::getpid(), file.extension().string());
+  write(temporary);
+  std::error_code error;
+  std::filesystem::rename(temporary, file, error);
+  if (error) {
+    std::filesystem::remove(temporary, error);
+    throw runtime_error(fmt::format("cannot move the frame into place as '{}'", file.string()));
+  }
+}
+
+bool on_path(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  if (!path) return false;
+  std::string directories = path;
+  std::size_t start = 0;
+  while (start <= directories.size()) {
+    const std::size_t end = std::min(directories.find(':', start), directories.size());
+    const std::filesystem::path candidate = std::filesystem::path(directories.substr(start, end - start)) / program;
+    if (::access(candidate.c_str(), X_OK) == 0) return true;
+    start = end + 1;
+  }
+  return false;
+}
+
+// The per-frame CSV of a sequence: next to the frames, named after the pattern without its '#'s.
+std::filesystem::path csv_file(const SequenceSettings& settings) {
+  std::string stem = settings.output.stem().string();
+  stem.erase(std::remove(stem.begin(), stem.end(), '#'), stem.end());
+  while (!stem.empty() && (stem.back() == '_' || stem.back() == '-' || stem.back() == '.')) stem.pop_back();
+  if (stem.empty()) stem = "frames";
+  if (settings.shard_count > 1) stem += fmt::format(".shard{}of{}", settings.shard_index, settings.shard_count);
+  return settings.output.parent_path() / (stem + ".csv");
+}
+
+double percentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t rank = std::min(values.size() - 1, std::size_t(std::ceil(fraction * double(values.size())) - 1));
+  return values[rank];
+}
+
+}  // namespace
+
+void run_sequence(const SequenceSettings& settings, std::ostream& out) {
+  // the frames of this shard (round robin over A..B:STEP)
+  std::vector<long long> frames;
+  long long position = 0;
+  for (long long n = settings.first; n <= settings.last; n += settings.step, ++position) {
+    if (position % settings.shard_count == settings.shard_index - 1) frames.push_back(n);
+  }
+  std::error_code error;
+  for (const std::filesystem::path& pattern : [&] {
+         std::vector<std::filesystem::path> patterns{settings.output};
+         for (const AovOutput& aov : settings.aovs) patterns.push_back(aov.file);
+         return patterns;
+       }()) {
+    if (!pattern.parent_path().empty()) std::filesystem::create_directories(pattern.parent_path(), error);
+    if (error) throw runtime_error(fmt::format("cannot create the directory '{}'", pattern.parent_path().string()));
+  }
+  if (!settings.video.empty() && !on_path("ffmpeg")) {
+    throw runtime_error("--video needs ffmpeg on the PATH (apt-get install ffmpeg); the frames alone need no --video");
+  }
+
+  unsigned outputs = render::output_color;
+  for (const AovOutput& aov : settings.aovs) {
+    outputs |= aov.aov == Aov::uv          ? render::output_uv
+               : aov.aov == Aov::depth     ? render::output_depth
+               : aov.aov == Aov::iterations ? render::output_uv | render::output_iterations
+                                           : render::output_uv | render::output_fetches;
+  }
+  render::Renderer renderer(settings.renderer);
+  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader());
+  const pipeline::Scene& scene = settings.scene;
+
+  std::FILE* video = nullptr;
+  if (!settings.video.empty()) {
+    const std::string command =
+        fmt::format("ffmpeg -loglevel error -y -f rawvideo -pix_fmt rgba -s {}x{} -r {} -i - -pix_fmt yuv420p '{}'",
+                    scene.camera.width, scene.camera.height, scene.fps, settings.video.string());
+    video = ::popen(command.c_str(), "w");
+    if (!video) throw runtime_error("cannot start ffmpeg for --video");
+  }
+
+  const std::filesystem::path csv_path = csv_file(settings);
+  std::string csv =
+      "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_mean_ratio,"
+      "pending_texels\n";
+  const bool terminal = stderr_is_terminal();
+  const double start = seconds_now();
+  render::Frame frame;
+  long long done = 0, skipped = 0;
+  for (const long long n : frames) {
+    const std::filesystem::path picture = pipeline::image_for_frame(settings.output, n);
+    std::vector<AovOutput> aovs = settings.aovs;
+    for (AovOutput& aov : aovs) aov.file = pipeline::image_for_frame(aov.file, n);
+    const bool present = std::filesystem::exists(picture) &&
+                         std::all_of(aovs.begin(), aovs.end(), [](const AovOutput& aov) { return std::filesystem::exists(aov.file); });
+    if (settings.resume && present && !video) {
+      ++skipped;
+      continue;
+    }
+    const pipeline::FrameRecord record = pipeline.run(n, frame, outputs);
+    Metadata metadata = {{"displace:scene", scene.name},
+                         {"displace:frame", int(n)},
+                         {"displace:time", fmt::format("{:.17g}", record.time)},
+                         {"displace:method", std::string(render::method_info(scene.method).name)},
+                         {"displace:steps", scene.steps}};
+    write_atomically(picture, [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
+    for (const AovOutput& aov : aovs) {
+      write_atomically(aov.file, [&](const std::filesystem::path& file) { write_aov({aov.aov, file}, frame, metadata); });
+    }
+    if (video && std::fwrite(frame.color.data(), 1, frame.color.size(), video) != frame.color.size()) {
+      ::pclose(video);
+      throw runtime_error("ffmpeg stopped taking frames for --video");
+    }
+    csv += fmt::format("{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{}\n", n, record.time,
+                       record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
+                       std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
+                       record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
+                       record.cones.mean_ratio, record.pending);
+    ++done;
+    const double elapsed = seconds_now() - start;
+    const double rate = double(done) / std::max(elapsed, 1e-9);
+    const long long left = (long long)frames.size() - done - skipped;
+    if (terminal) {
+      const int width = 30;
+      const int filled = int(width * double(done + skipped) / double(frames.size()));
+      std::fprintf(stderr, "\r[%s%s] frame %lld of %zu, %.2f frames/s, %.0f s left ", std::string(filled, '#').c_str(),
+                   std::string(width - filled, '.').c_str(), done + skipped, frames.size(), rate,
+                   double(left) / std::max(rate, 1e-9));
+      std::fflush(stderr);
+    } else {
+      out << fmt::format("frame {} ({} of {}): {:.1f} ms (sim {:.1f}, bake {:.1f}, upload {:.1f}, render {:.1f}) -> {}\n",
+                         n, done + skipped, frames.size(), record.frame_ms, record.sim_ms, record.bake_ms,
+                         record.upload_ms, record.render_ms, picture.string());
+    }
+  }
+  if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
+  if (video && ::pclose(video) != 0) throw runtime_error("ffmpeg failed to encode --video");
+  if (done > 0) {
+    write_atomically(csv_path, [&](const std::filesystem::path& file) {
+      std::ofstream stream(file);
+      stream << csv;
+      if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
+    });
+  }
+  out << fmt::format("displace sequence: {} {}, frames {}..{} step {}{}: rendered {}, skipped {} (present), "
+                     "{:.1f} s on {}\n",
+                     scene.name, render::method_info(scene.method).name, settings.first, settings.last, settings.step,
+                     settings.shard_count > 1 ? fmt::format(", shard {}/{}", settings.shard_index, settings.shard_count)
+                                              : std::string(),
+                     done, skipped, seconds_now() - start, renderer.device().name);
+  if (done > 0) out << "  per-frame stage times: " << csv_path.string() << '\n';
+  if (settings.renderer.validate && renderer.validation_messages() > 0) {
+    throw runtime_error(fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
+  }
+}
+
+void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
+  render::Renderer renderer(settings.renderer);
+  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader());
+  const pipeline::Scene& scene = settings.scene;
+  std::vector<double> sim, bake, upload, draw, frame_ms, interval;
+  long long ffts = 0, within = 0;
+  unsigned effects = 0;
+  long long allocations_after_warm_up = 0;
+  double last_done = 0.0;
+  long long seen = 0;
+  pipeline.run_frames(0, settings.warm_up + settings.frames, render::output_none,
+                      [&](const pipeline::FrameRecord& record, const render::Frame&) {
+                        const double now = seconds_now() * 1e3;
+                        if (seen == settings.warm_up) allocations_after_warm_up = renderer.memory_allocations();
+                        if (seen >= settings.warm_up) {
+                          sim.push_back(record.sim_ms);
+                          bake.push_back(record.bake_ms);
+                          upload.push_back(record.upload_ms);
+                          draw.push_back(record.render_ms);
+                          frame_ms.push_back(record.frame_ms);
+                          if (seen > settings.warm_up) interval.push_back(now - last_done);
+                          ffts += record.ffts;
+                          effects |= record.effects;
+                          within += std::isfinite(scene.frame_ms) ? (now - last_done <= scene.frame_ms) : 1;
+                        }
+                        last_done = now;
+                        ++seen;
+                      });
+  renderer.wait_idle();
+  const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
+  if (interval.empty()) interval = frame_ms;
+  struct Row {
+    const char* name;
+    const std::vector<double>* values;
+  };
+  const Row rows[] = {{"sim", &sim},       {"bake", &bake},         {"upload", &upload},
+                      {"render", &draw},   {"frame", &interval},    {"latency", &frame_ms}};
+  out << fmt::format("displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
+                     "budget {}, on {}\n",
+                     scene.name, scene.source == pipeline::SourceKind::image ? "image" : "a",
+                     scene.map_size, scene.map_size, scene.camera.width, scene.camera.height,
+                     render::method_info(scene.method).name, scene.steps, settings.frames, settings.warm_up,
+                     std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
+                     renderer.device().name);
+  out << "  stage     p50 ms   p95 ms   p99 ms\n";
+  nlohmann::ordered_json stages = nlohmann::ordered_json::object();
+  for (const Row& row : rows) {
+    const double p50 = percentile(*row.values, 0.50), p95 = percentile(*row.values, 0.95),
+                 p99 = percentile(*row.values, 0.99);
+    out << fmt::format("  {:<8} {:8.2f} {:8.2f} {:8.2f}\n", row.name, p50, p95, p99);
+    stages[row.name] = {{"p50_ms", p50}, {"p95_ms", p95}, {"p99_ms", p99}};
+  }
+  const double within_budget = double(within) / double(settings.frames);
+  out << fmt::format("  frame = the time between finished frames (stages overlap: the next frame's sim and bake run\n"
+                     "  while this one renders); latency = from a frame's sim to its render's end\n");
+  out << fmt::format("  within budget: {:.1f}% of frames; FFTs per frame: {:.2f}; effects: {}; Vulkan allocations "
+                     "after warm-up: {}\n",
+                     100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
+                     allocations);
+  if (!settings.json.empty()) {
+    nlohmann::ordered_json json = {{"frames", settings.frames},
+                                   {"budget_ms", std::isfinite(scene.frame_ms) ? nlohmann::ordered_json(scene.frame_ms)
+                                                                               : nlohmann::ordered_json(nullptr)},
+                                   {"stages", stages},
+                                   {"within_budget", within_budget},
+                                   {"ffts_per_frame", double(ffts) / double(settings.frames)},
+                                   {"effects", effect_names(effects)},
+                                   {"vulkan_allocations_after_warmup", allocations},
+                                   {"scene", scene.name},
+                                   {"device", renderer.device().name}};
+    write_atomically(settings.json, [&](const std::filesystem::path& file) {
+      std::ofstream stream(file);
+      stream << json.dump(2) << '\n';
+      if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
+    });
+    out << "  wrote " << settings.json.string() << '\n';
+  }
+  if (settings.renderer.validate && renderer.validation_messages() > 0) {
+    throw runtime_error(fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
+  }
+}
+
+}  // namespace displace::app
