@@ -43,7 +43,10 @@
 // emitted. Certified means every quadrant's ratio is at least (1 - tolerance) times a certified upper
 // bound of the best ratio: the centre-to-centre lane sweep of the texels against the apexes (a texel
 // centre q above H_c that a lane's cone from p = c does not clear bounds every conservative ratio;
-// lane_sweep.cpp's bound), made when refinement first needs it. 8 sectors have no octant bounds and
+// lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
+// surface within 2 texels that rises above H_c gives r <= |x - p| / (s(x) - H_c) for the point p of
+// Q_c nearest x that sees x in the quadrant (witness_upper); both made when refinement first needs
+// them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant bounds and
 // certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched ratios that
 // cannot have changed: those of texels whose apex is unchanged, where heights only fell (a lower
 // surface keeps every claim) or where the raised texels' region is too far to lower them.
@@ -74,6 +77,9 @@ constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below t
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
+constexpr int witness_reach = 4;            // half texels: how far the upper bounds' near witnesses reach
+constexpr int witness_pad = 6;              // half texels the witness rows hold past the map (even, > witness_reach)
+constexpr float witness_slack = 2e-7f;      // height units: a witness sample's rounding and its difference to H_c
 
 // Made for a band of rows at a time (first_row on), so that a thread's planes stay O(W).
 struct SubCells {
@@ -424,6 +430,101 @@ void emit_texel(const State& state, std::size_t t, float* out) {
   }
 }
 
+// Upper bounds from witnesses near the texel. For a surface point x with s(x) > H_c whose direction
+// from some p in Q_c lies in quadrant q, every valid ratio r of q has s(x) <= H_c + |x - p| / r, so
+// r <= |x - p| / (s(x) - H_c); p is taken as the point of Q_c nearest x among those that see x in
+// q (per axis towards q, x at dX half texels from c's centre with dX >= -1: a gap of
+// max(0, dX - 1) half texels). Points x: the half-texel samples of s (texel centres, edge midpoints,
+// cell corners, exact averages of texels, rounded to float) within witness_reach half texels; with
+// clamp only those inside [0, 1]^2. The sample's rounding and the float difference are covered by
+// witness_slack, 1 / gap is rounded down and the bound up, so each is a real upper bound.
+struct WitnessRows {
+  int columns = 0, first_row = 0;
+  std::vector<float> planes[2];  // [parity of X]: sample X at [(X + witness_pad) / 2]
+  const float* row(int parity, int Y) const { return planes[parity].data() + std::size_t(Y - first_row) * columns; }
+};
+
+void make_witness_rows(const State& state, int first_row, int last_row, WitnessRows& rows) {
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  rows.columns = W + witness_pad;  // X from -witness_pad to 2 W + witness_pad - 1
+  rows.first_row = first_row;
+  for (auto& plane : rows.planes) plane.resize(std::size_t(rows.columns) * (last_row - first_row));
+  auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
+  auto half_floor = [](int X) { return X >= 0 ? X / 2 : -((1 - X) / 2); };
+  constexpr float absent = -std::numeric_limits<float>::infinity();
+  // per plane column: the texels on either side of its sample, or -1 outside [0, 1]^2 (clamp)
+  thread_local std::vector<int> left[2], right[2];
+  for (int parity = 0; parity < 2; ++parity) {
+    left[parity].resize(rows.columns);
+    right[parity].resize(rows.columns);
+    for (int k = 0; k < rows.columns; ++k) {
+      const int X = 2 * k + parity - witness_pad, j0 = half_floor(X), j1 = X == 2 * j0 ? j0 : j0 + 1;
+      const bool outside = !wrap && (X < -1 || X > 2 * W - 1);
+      left[parity][k] = outside ? -1 : texel(j0, W);
+      right[parity][k] = outside ? -1 : texel(j1, W);
+    }
+  }
+  for (int Y = first_row; Y < last_row; ++Y) {
+    const int i0 = half_floor(Y), i1 = Y == 2 * i0 ? i0 : i0 + 1;
+    const bool outside_v = !wrap && (Y < -1 || Y > 2 * H - 1);
+    const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
+    const float* b = state.heights.data() + std::size_t(texel(i1, H)) * W;
+    for (int parity = 0; parity < 2; ++parity) {
+      float* out = rows.planes[parity].data() + std::size_t(Y - first_row) * rows.columns;
+      const int* l = left[parity].data();
+      const int* r = right[parity].data();
+      for (int k = 0; k < rows.columns; ++k) {
+        const int k0 = l[k], k1 = r[k];
+        out[k] = outside_v || k0 < 0 ? absent
+                                     : float(0.25 * ((double(a[k0]) + double(a[k1])) + (double(b[k0]) + double(b[k1]))));
+      }
+    }
+  }
+}
+
+long long witness_upper(State& state) {
+  const int W = state.width, H = state.height;
+  const int side = witness_reach + 2;  // offsets -1 .. witness_reach per axis
+  std::vector<float> inverse_gap(std::size_t(side) * side, 0.0f);
+  for (int dy = -1; dy <= witness_reach; ++dy)
+    for (int dx = -1; dx <= witness_reach; ++dx) {
+      if (dx <= 1 && dy <= 1) continue;  // in Q_c: no higher than H_c
+      const double gu = std::max(0, dx - 1) * 0.5 / W, gv = std::max(0, dy - 1) * 0.5 / H;
+      inverse_gap[std::size_t(dy + 1) * side + dx + 1] = float(1.0 / std::sqrt(gu * gu + gv * gv) * (1.0 - 1e-6));
+    }
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& range) {
+    thread_local WitnessRows rows;
+    thread_local std::vector<float> steepest;
+    make_witness_rows(state, 2 * range.begin() - witness_reach, 2 * (range.end() - 1) + witness_reach + 1, rows);
+    steepest.resize(W);
+    float* steep = steepest.data();
+    for (int i = range.begin(); i < range.end(); ++i) {
+      const float* apex = state.apex.data() + std::size_t(i) * W;
+      for (int q = 0; q < 4; ++q) {
+        const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
+        // the largest (s(x) - H_c) / |x - p| over the witnesses, rounded down
+        std::fill(steepest.begin(), steepest.end(), 0.0f);
+        for (int dy = -1; dy <= witness_reach; ++dy)
+          for (int dx = -1; dx <= witness_reach; ++dx) {
+            const float inverse = inverse_gap[std::size_t(dy + 1) * side + dx + 1];
+            if (inverse == 0.0f) continue;
+            // texel j's sample at X = 2 j + su dx
+            const float* sample = rows.row(dx & 1, 2 * i + sv * dy) + (su * dx + witness_pad - (dx & 1)) / 2;
+            for (int j = 0; j < W; ++j) {
+              const float excess = (sample[j] - apex[j]) - witness_slack;
+              steep[j] = steep[j] > excess * inverse ? steep[j] : excess * inverse;
+            }
+          }
+        float* upper = state.upper.data() + std::size_t(i) * W * 4 + q;
+        for (int j = 0; j < W; ++j)
+          if (steep[j] > 0.0f) upper[std::size_t(j) * 4] = std::min(upper[std::size_t(j) * 4], float(1.0 / double(steep[j]) * (1.0 + 1e-5)));
+      }
+    }
+  });
+  return (long long)W * H * 4 * (side * side - 9);
+}
+
 // Certified upper bounds of the best ratio per texel and quadrant, for the tolerance.
 long long ensure_upper(State& state) {
   if (state.upper_ready) return 0;
@@ -454,6 +555,8 @@ long long ensure_upper(State& state) {
               std::min(state.upper[n * 4 + q], state.upper_plan.lane_upper[detail::lanes_passed(masks[q][n])]);
     });
   }
+  // and the witnesses near the texel
+  work += witness_upper(state);
   state.upper_ready = true;
   return work;
 }

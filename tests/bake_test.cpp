@@ -1885,6 +1885,43 @@ TEST(BilinearBaker, UpdateChainsStayConservative) {
         }
 }
 
+// The certified upper bounds (lanes and near witnesses) are real: an unlimited bake keeps every
+// ratio within the tolerance of the full bake, which the best ratio bounds, at every tolerance; and
+// the witnesses do certify (a smooth map is not searched whole).
+TEST(BilinearBaker, UpperBoundsHoldAtEveryTolerance) {
+  std::vector<Map> maps = bilinear_maps();
+  for (int n = 0; n < 12; ++n) {
+    const int w = 2 + int(test::hash01(53, n, 1) * 12), h = 2 + int(test::hash01(53, n, 2) * 12);
+    Map map = test::make_flat(w, h, 0.0f);
+    map.name = "random-" + std::to_string(n);
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) {
+        const float r = test::hash01(59, n * 97 + i, j);
+        map.at(i, j) = n % 2 ? r : (r > 0.85f ? 1.0f : 0.2f * r);
+      }
+    maps.push_back(map);
+  }
+  for (const Map& map : maps)
+    for (int sectors : {1, 4})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BilinearCones full = bake_bilinear(map, sectors, address);
+        for (float tolerance : {0.02f, 0.1f, 0.5f, 0.9f}) {
+          Budget budget;
+          budget.tolerance = tolerance;
+          const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, budget);
+          for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+            ASSERT_GE(b.cones.ratios[v], (1.0f - tolerance) * full.cones.ratios[v] * (1.0f - 1e-6f))
+                << map.name << " sectors " << sectors << " " << address_name(address) << " tolerance " << tolerance
+                << " value " << v;
+        }
+      }
+  const Map smooth = make_noise(32, 32);
+  Budget budget;
+  budget.tolerance = 0.5f;
+  const BudgetedBilinear b = bake_bilinear_budgeted(smooth, 4, Address::wrap, budget);
+  EXPECT_LT(b.stats.texels_refined, 32 * 32);
+}
+
 TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
   const Map map = test::make_fractal_cliff(24, 20);
   for (Address address : {Address::wrap, Address::clamp}) {
