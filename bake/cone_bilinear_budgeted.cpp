@@ -29,8 +29,8 @@
 //    rise_v^2), rise_u the largest rate of rise along +u over the sub-cells beyond Q_c's edge along
 //    u that rise above H_c (a segment moves along u only there), rise_v likewise. On a sub-cell the
 //    rate along u is largest on one of its two u edges, where it is a difference of two samples of s
-//    (at texel centres, edge midpoints and corners: exact averages of texels, in double, rounded
-//    up). Each sub-cell above H_c also bounds by its gap to Q_c over its rise above H_c, so the
+//    (at texel centres, edge midpoints and corners: averages of texels, in float, raised past
+//    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over its rise above H_c, so the
 //    region's bound is max(smallest gap bound, 1 / G) (0 for the first term when a sub-cell
 //    touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels) this covers the near
 //    cells; box 3's G also bounds the ring between the boxes.
@@ -74,6 +74,7 @@ namespace {
 
 constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane of make_lane_plan (replaced below)
 constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below this ratio, dense above
+constexpr int stage_l_sweeps = 2;           // stage L: sweeps of detail::lane_count lanes each
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
@@ -165,38 +166,45 @@ void make_cells(State& state) {
 }
 
 // The near field's data, on the half-texel grid: samples of s at texel-centre coordinates
-// (X / 2, Y / 2) - texel centres, edge midpoints and corners, where s is an exact average of one, two
+// (X / 2, Y / 2) - texel centres, edge midpoints and corners, where s is the average of one, two
 // or four texels - and per half-texel square ("sub-cell", lower corner (X, Y)) its maximum and the
 // largest rates at which s rises along +u, -u, +v and -v over it. s is bilinear on a sub-cell (it
 // lies in one cell), so its maximum is at a corner and its rate along u is largest on one of its two
-// u edges, where it is the difference of two samples over half a texel. Computed in double, stored
-// rounded up. Sub-cells are split by the parity of X, so that texel j's sub-cell at a fixed offset
-// is at a fixed index j + k in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
+// u edges, where it is the difference of two samples over half a texel. Computed in float and
+// stored raised past their roundings (sample_slack): a sample is 1/4 of two float sums of two column
+// sums of heights in [0, 1], within 2^-24 of s; a maximum is raised by top_slack, more than that
+// and its own rounding; a rate is a rounded difference (2^-25) of two samples times 2 W or 2 H
+// (relative 2^-24), raised by a relative 2^-20 and by rate_slack times 2 W (2 H). Sub-cells are
+// split by the parity of X, so that texel j's sub-cell at a fixed offset is at a fixed index j + k
+// in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
+constexpr float top_slack = 2.4e-7f;   // height units: over a sample's error (2^-24) and the sum's rounding
+constexpr double rate_slack = 4e-7;    // height units per half texel: over two samples' errors and the difference's
 
-// x rounded up to float, for 0 <= x <= 2^64: the product is at least x (1 + 2^-22) before its
-// rounding to nearest, which loses at most a relative 2^-24 (the 1e-30 covers subnormals)
-inline float round_up_positive(double x) { return float(x * (1.0 + 0x1p-22) + 1e-30); }
-constexpr double rate_margin = 1e-9;  // uv^-1: covers the double rounding of sample differences
-
-
-// One row of sub-cells (lower corners Y and Y + 1 rows of samples s0, s1, X from -near_reach).
-void sub_cell_row(const double* s0, const double* s1, int count, double per_u, double per_v, float* const out[5][2],
-                  std::size_t at) {
+// One row of sub-cells from the samples of rows Y and Y + 1, split by parity: even[k] at
+// X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach.
+void sub_cell_row(const float* even0, const float* odd0, const float* even1, const float* odd1, int count, float per_u,
+                  float per_v, float slack_u, float slack_v, float* const out[5][2], std::size_t at) {
+  constexpr float raise = 1.0f + 0x1p-20f;
   for (int parity = 0; parity < 2; ++parity) {
+    // corners X and X + 1 of the sub-cells of this parity
+    const float* left0 = parity ? odd0 : even0;
+    const float* right0 = parity ? even0 + 1 : odd0;
+    const float* left1 = parity ? odd1 : even1;
+    const float* right1 = parity ? even1 + 1 : odd1;
     float* top = out[0][parity] + at;
     float* plus_u = out[1][parity] + at;
     float* minus_u = out[2][parity] + at;
     float* plus_v = out[3][parity] + at;
     float* minus_v = out[4][parity] + at;
     for (int k = 0; k < count; ++k) {
-      const int x = 2 * k + parity;
-      const double a = s0[x], b = s0[x + 1], c = s1[x], d = s1[x + 1];
-      const double du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
-      top[k] = round_up_positive(std::max(std::max(a, b), std::max(c, d)));
-      plus_u[k] = round_up_positive(std::max(0.0, std::max(du0, du1)) + rate_margin);
-      minus_u[k] = round_up_positive(std::max(0.0, -std::min(du0, du1)) + rate_margin);
-      plus_v[k] = round_up_positive(std::max(0.0, std::max(dv0, dv1)) + rate_margin);
-      minus_v[k] = round_up_positive(std::max(0.0, -std::min(dv0, dv1)) + rate_margin);
+      const float a = left0[k], b = right0[k], c = left1[k], d = right1[k];
+      const float du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
+      const float highest = std::max(std::max(a, b), std::max(c, d));
+      top[k] = highest + top_slack;
+      plus_u[k] = std::max(0.0f, std::max(du0, du1)) * raise + slack_u;
+      minus_u[k] = std::max(0.0f, -std::min(du0, du1)) * raise + slack_u;
+      plus_v[k] = std::max(0.0f, std::max(dv0, dv1)) * raise + slack_v;
+      minus_v[k] = std::max(0.0f, -std::min(dv0, dv1)) * raise + slack_v;
     }
   }
 }
@@ -211,35 +219,43 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   for (auto& field : cells.planes)
     for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
-  // sample columns X from -pad to 2 W + pad (one past the last sub-cell): the texels on either side
-  const int sample_count = 2 * W + 2 * pad + 1;
-  thread_local std::vector<int> left, right;
-  left.resize(sample_count);
-  right.resize(sample_count);
-  for (int c = 0; c < sample_count; ++c) {
-    const int X = c - pad, j0 = X >= 0 ? X / 2 : -((1 - X) / 2);
-    left[c] = texel(j0, W);
-    right[c] = texel(X == 2 * j0 ? j0 : j0 + 1, W);
-  }
-  const double per_u = 2.0 * W, per_v = 2.0 * H;  // 1 / (half a texel) in uv
+  // samples per parity: cells.columns + 1 of each (X up to 2 W + pad + 1); the column sums of
+  // texels m - pad / 2 for m in [0, W + pad + 2)
+  const int sums = W + pad + 2, samples = cells.columns + 1;
+  thread_local std::vector<int> column;
+  column.resize(sums);
+  for (int m = 0; m < sums; ++m) column[m] = texel(m - pad / 2, W);
+  const float per_u = float(2 * W), per_v = float(2 * H);  // 1 / (half a texel) in uv, exact
+  const float slack_u = float(rate_slack * per_u * (1.0 + 1e-6)), slack_v = float(rate_slack * per_v * (1.0 + 1e-6));
   float* out[5][2];
   for (int f = 0; f < 5; ++f)
     for (int p = 0; p < 2; ++p) out[f][p] = cells.planes[f][p].data();
-  // a row of samples at Y: the average of the texel rows on either side (the same row at a centre)
-  auto sample_row = [&](int Y, std::vector<double>& row) {
+  thread_local std::vector<float> column_sum, rows[2][2];
+  column_sum.resize(sums);
+  // the samples of row Y: the texel rows on either side (the same row at a centre) summed per
+  // column, then even X = 2 k - pad the column sum of texel k - pad / 2 halved and odd X the
+  // average of two neighbouring column sums halved
+  auto sample_row = [&](int Y, std::vector<float>* row) {
     const int i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
     const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
     const float* b = state.heights.data() + std::size_t(texel(Y == 2 * i0 ? i0 : i0 + 1, H)) * W;
-    row.resize(sample_count);
-    for (int c = 0; c < sample_count; ++c)
-      row[c] = 0.25 * ((double(a[left[c]]) + double(a[right[c]])) + (double(b[left[c]]) + double(b[right[c]])));
+    for (int m = 0; m < sums; ++m) column_sum[m] = a[column[m]] + b[column[m]];
+    row[0].resize(samples);
+    row[1].resize(samples);
+    float* even = row[0].data();
+    float* odd = row[1].data();
+    for (int k = 0; k < samples; ++k) {
+      even[k] = 0.25f * (column_sum[k] + column_sum[k]);
+      odd[k] = 0.25f * (column_sum[k] + column_sum[k + 1]);
+    }
   };
-  thread_local std::vector<double> lower, upper;
-  sample_row(first_row, lower);
+  int lower = 0;
+  sample_row(first_row, rows[lower]);
   for (int Y = first_row; Y < last_row; ++Y) {
-    sample_row(Y + 1, upper);
-    sub_cell_row(lower.data(), upper.data(), cells.columns, per_u, per_v, out, std::size_t(Y - first_row) * cells.columns);
-    std::swap(lower, upper);
+    sample_row(Y + 1, rows[1 - lower]);
+    sub_cell_row(rows[lower][0].data(), rows[lower][1].data(), rows[1 - lower][0].data(), rows[1 - lower][1].data(),
+                 cells.columns, per_u, per_v, slack_u, slack_v, out, std::size_t(Y - first_row) * cells.columns);
+    lower = 1 - lower;
   }
 }
 
@@ -335,11 +351,11 @@ long long run_stage_l(State& state) {
   detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
   // 64 lanes in two sweeps of 32, interleaved: from the smallest ratio a map can have (one texel
   // over its height range) to just above 1, 1.3x apart below lane_knee and evenly geometric above
-  double lanes[2 * detail::lane_count];
+  double lanes[stage_l_sweeps * detail::lane_count];
   {
     const double range = double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
     const double smallest = range > 0.0 ? std::clamp(double(state.plan.nearest) / range, 1.0 / 8192.0, lane_knee) : lane_knee;
-    const int total = 2 * detail::lane_count;
+    const int total = stage_l_sweeps * detail::lane_count;
     const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
     const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
     for (int l = 0; l < total; ++l)
@@ -349,9 +365,9 @@ long long run_stage_l(State& state) {
   }
   const double t = 1.0 / double(std::max(W, H));
   long long work = 0;
-  for (int sweep = 0; sweep < 2; ++sweep) {
+  for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
     double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.plan, ratios);
     // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
     alignas(64) std::uint16_t bonus[detail::lane_count];
@@ -391,7 +407,7 @@ long long run_stage_l(State& state) {
   auto floor_ratio = [&](float apex) {
     return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
   };
-  state.lanes.assign(lanes, lanes + 2 * detail::lane_count);
+  state.lanes.assign(lanes, lanes + stage_l_sweeps * detail::lane_count);
   state.upper_ready = false;
   state.stage_l.resize(texels * 4);
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
@@ -541,9 +557,9 @@ long long ensure_upper(State& state) {
   detail::make_lane_plan(state.heights.data(), W, H, wrap, lane_lowest_ratio, true, false, state.upper_plan);
   state.upper_plan.bottom = state.apex_bottom;
   state.upper.assign(texels * 4, 1.0f);
-  for (int sweep = 0; sweep < 2; ++sweep) {  // the same 64 lanes, the smaller bound
+  for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {  // the same lanes, the smaller bound
     double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.upper_plan, ratios);
     std::uint32_t* masks[4];
     for (int q = 0; q < 4; ++q) masks[q] = state.masks[q].data();
