@@ -187,24 +187,43 @@ void sub_cell_row(const float* even0, const float* odd0, const float* even1, con
   constexpr float raise = 1.0f + 0x1p-20f;
   for (int parity = 0; parity < 2; ++parity) {
     // corners X and X + 1 of the sub-cells of this parity
-    const float* left0 = parity ? odd0 : even0;
-    const float* right0 = parity ? even0 + 1 : odd0;
-    const float* left1 = parity ? odd1 : even1;
-    const float* right1 = parity ? even1 + 1 : odd1;
-    float* top = out[0][parity] + at;
-    float* plus_u = out[1][parity] + at;
-    float* minus_u = out[2][parity] + at;
-    float* plus_v = out[3][parity] + at;
-    float* minus_v = out[4][parity] + at;
-    for (int k = 0; k < count; ++k) {
+    const float* __restrict left0 = parity ? odd0 : even0;
+    const float* __restrict right0 = parity ? even0 + 1 : odd0;
+    const float* __restrict left1 = parity ? odd1 : even1;
+    const float* __restrict right1 = parity ? even1 + 1 : odd1;
+    float* __restrict top = out[0][parity] + at;
+    float* __restrict plus_u = out[1][parity] + at;
+    float* __restrict minus_u = out[2][parity] + at;
+    float* __restrict plus_v = out[3][parity] + at;
+    float* __restrict minus_v = out[4][parity] + at;
+    // four sub-cells at a time in SSE registers (the generic build's width), then the tail
+    typedef float Four __attribute__((vector_size(16)));
+    auto larger = [](auto a, auto b) { return a > b ? a : b; };
+    auto load = [](const float* p) {
+      Four v;
+      std::memcpy(&v, p, sizeof v);
+      return v;
+    };
+    auto store = [](float* p, Four v) { std::memcpy(p, &v, sizeof v); };
+    const Four zero = Four{} + 0.0f;
+    int k = 0;
+    for (; k + 4 <= count; k += 4) {
+      const Four a = load(left0 + k), b = load(right0 + k), c = load(left1 + k), d = load(right1 + k);
+      const Four du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
+      store(top + k, larger(larger(a, b), larger(c, d)) + top_slack);
+      store(plus_u + k, larger(zero, larger(du0, du1)) * raise + slack_u);
+      store(minus_u + k, larger(zero, larger(-du0, -du1)) * raise + slack_u);
+      store(plus_v + k, larger(zero, larger(dv0, dv1)) * raise + slack_v);
+      store(minus_v + k, larger(zero, larger(-dv0, -dv1)) * raise + slack_v);
+    }
+    for (; k < count; ++k) {
       const float a = left0[k], b = right0[k], c = left1[k], d = right1[k];
       const float du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
-      const float highest = std::max(std::max(a, b), std::max(c, d));
-      top[k] = highest + top_slack;
-      plus_u[k] = std::max(0.0f, std::max(du0, du1)) * raise + slack_u;
-      minus_u[k] = std::max(0.0f, -std::min(du0, du1)) * raise + slack_u;
-      plus_v[k] = std::max(0.0f, std::max(dv0, dv1)) * raise + slack_v;
-      minus_v[k] = std::max(0.0f, -std::min(dv0, dv1)) * raise + slack_v;
+      top[k] = larger(larger(a, b), larger(c, d)) + top_slack;
+      plus_u[k] = larger(0.0f, larger(du0, du1)) * raise + slack_u;
+      minus_u[k] = larger(0.0f, larger(-du0, -du1)) * raise + slack_u;
+      plus_v[k] = larger(0.0f, larger(dv0, dv1)) * raise + slack_v;
+      minus_v[k] = larger(0.0f, larger(-dv0, -dv1)) * raise + slack_v;
     }
   }
 }
