@@ -232,7 +232,7 @@ void sub_cell_row(const float* even0, const float* odd0, const float* even1, con
 void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
-  cells.columns = W + pad;  // X from -pad to 2 W + pad - 1, per parity
+  cells.columns = std::max(W, detail::near_block) + pad;  // X from -pad to 2 W + pad - 1 (or more), per parity
   cells.rows = last_row - first_row;
   cells.first_row = first_row;
   for (auto& field : cells.planes)
@@ -290,8 +290,8 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
 void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near,
               float* slope3) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
-  detail::NearOffset offsets[45];
-  int count = 0;
+  detail::NearOffset grouped[detail::near_groups][45];
+  detail::NearRowJob job;
   for (int y = 0; y < 7; ++y)
     for (int x = 0; x < 7; ++x) {
       if (x < 2 && y < 2) continue;
@@ -300,19 +300,20 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
       const int parity = su > 0 ? (x + 1) & 1 : x & 1;
       // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
       const int k0 = su > 0 ? (x - 1 + near_reach - parity) / 2 : (near_reach - x - parity) / 2;
-      detail::NearOffset& offset = offsets[count++];
+      const bool box2 = x < 5 && y < 5, touching = x <= 2 && y <= 2;
+      const int group = (box2 ? (touching ? 0 : 3) : 6) + (y < 2 ? 0 : x < 2 ? 1 : 2);  // beyond u, v, both
+      detail::NearOffset& offset = grouped[group][job.group_counts[group]++];
       offset.top = cells.row(0, parity, Y) + k0;
       offset.along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
       offset.along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
-      offset.beyond_u = x >= 2;
-      offset.beyond_v = y >= 2;
-      offset.box2 = x < 5 && y < 5;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      offset.gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
+      offset.inverse_gap = touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
     }
-  detail::NearRowJob job;
+  detail::NearOffset offsets[45];
+  int count = 0;
+  for (int g = 0; g < detail::near_groups; ++g)
+    for (int n = 0; n < job.group_counts[g]; ++n) offsets[count++] = grouped[g][n];
   job.offsets = offsets;
-  job.offset_count = count;
   job.apex = apex;
   job.width = width;
   job.near = near;

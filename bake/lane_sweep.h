@@ -184,17 +184,21 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
 // along the axes it lies beyond Q_c's edge for (box 2 and box 3 apart), and, in box 2, bounds by
 // gap / (top - apex) or, at gap 0, touches Q_c. Out per texel: near[j] (box 2) and slope3[j]
 // (1 / G over box 3, infinity where nothing there is above the apex). Built per instruction set
-// like the sweeps; 16 texels at a time with the offsets' accumulators in registers.
+// like the sweeps; near_block texels at a time with the accumulators in registers, the offsets in
+// near_groups groups of one kind each (no test per offset): box 2 touching Q_c, box 2 apart, box 3
+// only, each beyond Q_c's edge along u only, along v only, along both. A row narrower than
+// near_block reads near_block values of each plane from the texel's index on.
+constexpr int near_block = 16;
+constexpr int near_groups = 9;
 struct NearOffset {
   const float* top = nullptr;
   const float* along_u = nullptr;
   const float* along_v = nullptr;
-  float gap = 0.0f;
-  bool beyond_u = false, beyond_v = false, box2 = false;
+  float inverse_gap = 0.0f;  // 1 / (the uv gap to Q_c), rounded up (0 where touching)
 };
 struct NearRowJob {
-  const NearOffset* offsets = nullptr;
-  int offset_count = 0;
+  const NearOffset* offsets = nullptr;  // group by group
+  int group_counts[near_groups] = {};
   const float* apex = nullptr;
   int width = 0;
   float* near = nullptr;
