@@ -111,10 +111,10 @@ struct BilinearBaker::State {
   // stage L scratch, kept between frames
   std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
-  std::vector<std::uint32_t> masks[4], masks3[4];
-  // per texel and quadrant: the lanes' bounds for the cells beyond the boxes {0, 1, 2}^2 and
-  // {0, ..., 3}^2 (0: none)
-  std::vector<float> far, far3;
+  // per sweep, quadrant and texel: the lanes that pass for the cells beyond the boxes {0, 1, 2}^2
+  // (masks) and {0, ..., 3}^2 (masks3)
+  std::vector<std::uint32_t> masks[stage_l_sweeps][4], masks3[stage_l_sweeps][4];
+  float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count of passing lanes proves
   detail::LanePlan plan, upper_plan;
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
@@ -344,26 +344,35 @@ long long run_stage_l(State& state) {
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
       const float* rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
-      for (int j = 0; j < W; ++j) {
-        const std::size_t t = std::size_t(i) * W + j;
-        // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
-        // corners, edge midpoints and centre, rounded up to float
-        const int columns[3] = {before[j], j, after[j]};
+      float* apex_row = state.apex.data() + std::size_t(i) * W;
+      std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
+      // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
+      // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
+      // rounded up to float (to the next float's bits where the nearest is below)
+      auto apex_at = [&](int j, int left, int right) {
+        const int columns[3] = {left, j, right};
         double h[3][3];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
         double highest = 0.0;
         for (int b = 0; b < 3; ++b)
           for (int a = 0; a < 3; ++a) {
-            const int r1 = b == 1 ? 1 : b, c1 = a == 1 ? 1 : a;
-            highest = std::max(highest, 0.25 * (h[1][1] + h[1][c1] + h[r1][1] + h[r1][c1]));
+            const double value = 0.25 * (h[1][1] + h[1][a] + h[b][1] + h[b][a]);
+            highest = highest < value ? value : highest;
           }
-        float apex = float(highest);
-        if (double(apex) < highest) apex = std::nextafter(apex, 2.0f);
-        state.apex[t] = apex;
+        const float nearest = float(highest);
+        std::uint32_t bits;
+        std::memcpy(&bits, &nearest, sizeof bits);
+        bits += double(nearest) < highest ? 1u : 0u;
+        float apex;
+        std::memcpy(&apex, &bits, sizeof apex);
+        apex_row[j] = apex;
         const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
-        state.apex_bottom[t] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
-      }
+        bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
+      };
+      apex_at(0, before[0], after[0]);
+      for (int j = 1; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);  // the columns next to j in place
+      if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
     }
   });
   make_cells(state);
@@ -404,24 +413,13 @@ long long run_stage_l(State& state) {
     std::uint32_t* masks[4];
     std::uint32_t* masks3[4];
     for (int q = 0; q < 4; ++q) {
-      state.masks[q].resize(texels);
-      masks[q] = state.masks[q].data();
-      state.masks3[q].resize(texels);
-      masks3[q] = state.masks3[q].data();
+      state.masks[sweep][q].resize(texels);
+      masks[q] = state.masks[sweep][q].data();
+      state.masks3[sweep][q].resize(texels);
+      masks3[q] = state.masks3[sweep][q].data();
     }
     work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks, bonus3, masks3);
-    // the larger of the two sweeps' passing lanes, as a ratio
-    state.far.resize(texels * 4);
-    state.far3.resize(texels * 4);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
-      for (std::size_t n = range.begin(); n < range.end(); ++n)
-        for (int q = 0; q < 4; ++q) {
-          const float ratio = state.plan.lane_ratio[detail::lanes_passed(masks[q][n])];
-          const float ratio3 = state.plan.lane_ratio[detail::lanes_passed(masks3[q][n])];
-          state.far[n * 4 + q] = sweep == 0 ? ratio : std::max(state.far[n * 4 + q], ratio);
-          state.far3[n * 4 + q] = sweep == 0 ? ratio3 : std::max(state.far3[n * 4 + q], ratio3);
-        }
-    });
+    std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
   }
   const float highest = state.plan.highest;
   auto floor_ratio = [&](float apex) {
@@ -432,24 +430,31 @@ long long run_stage_l(State& state) {
   state.stage_l.resize(texels * 4);
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
-    thread_local std::vector<float> near, slope3;
+    thread_local std::vector<float> near, slope3, floor;
     thread_local SubCells sub_cells;
     near.resize(W);
     slope3.resize(W);
+    floor.resize(W);
     make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, sub_cells);
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      const std::size_t row = std::size_t(i) * W;
+      // below the lowest lane: every far cell is at least half a texel away and at most `highest`
+      for (int j = 0; j < W; ++j) floor[j] = floor_ratio(state.apex[row + j]);
       for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data(), slope3.data());
+        near_row(sub_cells, state.apex.data() + row, W, H, i, q, near.data(), slope3.data());
         for (int j = 0; j < W; ++j) {
-          const std::size_t n = std::size_t(i) * W + j;
-          // below the lowest lane: every far cell is at least half a texel away and at most `highest`
-          const float floor = floor_ratio(state.apex[n]);
-          const float beyond2 = std::max(state.far[n * 4 + q], floor);
-          const float beyond3 = std::max(state.far3[n * 4 + q], floor);
+          const std::size_t n = row + j;
+          // the larger of the sweeps' passing lanes, as a ratio
+          float beyond2 = floor[j], beyond3 = floor[j];
+          for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
+            beyond2 = std::max(beyond2, state.lane_ratio[sweep][detail::lanes_passed(state.masks[sweep][q][n])]);
+            beyond3 = std::max(beyond3, state.lane_ratio[sweep][detail::lanes_passed(state.masks3[sweep][q][n])]);
+          }
           // cells beyond box 3: the lanes; between the boxes: the lanes or the slope; box 2: near
           state.stage_l[n * 4 + q] = std::min({beyond3, std::max(beyond2, slope3[j]), near[j], 1.0f});
         }
       }
+    }
   });
   return work + (long long)texels * 4;
 }
@@ -582,7 +587,7 @@ long long ensure_upper(State& state) {
     for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.upper_plan, ratios);
     std::uint32_t* masks[4];
-    for (int q = 0; q < 4; ++q) masks[q] = state.masks[q].data();
+    for (int q = 0; q < 4; ++q) masks[q] = state.masks[0][q].data();
     work += detail::sweep_sectors(state.upper_plan, state.heights.data(), 4, masks, nullptr, nullptr).work;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t n = range.begin(); n < range.end(); ++n)
