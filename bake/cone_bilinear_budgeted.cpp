@@ -111,9 +111,10 @@ struct BilinearBaker::State {
   // stage L scratch, kept between frames
   std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
-  // per sweep, quadrant and texel: the lanes that pass for the cells beyond the boxes {0, 1, 2}^2
-  // (masks) and {0, ..., 3}^2 (masks3)
-  std::vector<std::uint32_t> masks[stage_l_sweeps][4], masks3[stage_l_sweeps][4];
+  // per sweep, quadrant and texel: the count of lanes that pass for the cells beyond the boxes
+  // {0, 1, 2}^2 (passed) and {0, ..., 3}^2 (passed3)
+  std::vector<std::uint8_t> passed[stage_l_sweeps][4], passed3[stage_l_sweeps][4];
+  std::vector<std::uint32_t> upper_masks[4];  // the upper bounds' centre sweep, per quadrant
   float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count of passing lanes proves
   detail::LanePlan plan, upper_plan;
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
@@ -410,15 +411,15 @@ long long run_stage_l(State& state) {
       const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
       bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
     }
-    std::uint32_t* masks[4];
-    std::uint32_t* masks3[4];
+    std::uint8_t* passed[4];
+    std::uint8_t* passed3[4];
     for (int q = 0; q < 4; ++q) {
-      state.masks[sweep][q].resize(texels);
-      masks[q] = state.masks[sweep][q].data();
-      state.masks3[sweep][q].resize(texels);
-      masks3[q] = state.masks3[sweep][q].data();
+      state.passed[sweep][q].resize(texels);
+      passed[q] = state.passed[sweep][q].data();
+      state.passed3[sweep][q].resize(texels);
+      passed3[q] = state.passed3[sweep][q].data();
     }
-    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks, bonus3, masks3);
+    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, passed, bonus3, passed3);
     std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
   }
   const float highest = state.plan.highest;
@@ -447,8 +448,8 @@ long long run_stage_l(State& state) {
           // the larger of the sweeps' passing lanes, as a ratio
           float beyond2 = floor[j], beyond3 = floor[j];
           for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
-            beyond2 = std::max(beyond2, state.lane_ratio[sweep][detail::lanes_passed(state.masks[sweep][q][n])]);
-            beyond3 = std::max(beyond3, state.lane_ratio[sweep][detail::lanes_passed(state.masks3[sweep][q][n])]);
+            beyond2 = std::max(beyond2, state.lane_ratio[sweep][state.passed[sweep][q][n]]);
+            beyond3 = std::max(beyond3, state.lane_ratio[sweep][state.passed3[sweep][q][n]]);
           }
           // cells beyond box 3: the lanes; between the boxes: the lanes or the slope; box 2: near
           state.stage_l[n * 4 + q] = std::min({beyond3, std::max(beyond2, slope3[j]), near[j], 1.0f});
@@ -587,7 +588,10 @@ long long ensure_upper(State& state) {
     for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.upper_plan, ratios);
     std::uint32_t* masks[4];
-    for (int q = 0; q < 4; ++q) masks[q] = state.masks[0][q].data();
+    for (int q = 0; q < 4; ++q) {
+      state.upper_masks[q].resize(texels);
+      masks[q] = state.upper_masks[q].data();
+    }
     work += detail::sweep_sectors(state.upper_plan, state.heights.data(), 4, masks, nullptr, nullptr).work;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t n = range.begin(); n < range.end(); ++n)

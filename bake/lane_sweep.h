@@ -61,8 +61,9 @@ struct LaneSweepJob {
   const std::uint16_t* bonus = nullptr;         // lane_count values, rounded down
   std::uint16_t* bilinear_scratch = nullptr;    // bilinear_sweep_scratch(width, texel_width) values
   // the same test through the seven face cells of the box {0, ..., 3}^2 - cells (t + 3, b + k),
-  // k = 0..3, and (t + k, b + 3), k = 0..2 - with its own bonus, into masks3
-  std::uint32_t* masks3 = nullptr;
+  // k = 0..3, and (t + k, b + 3), k = 0..2 - with its own bonus, into passed3
+  std::uint8_t* passed = nullptr;
+  std::uint8_t* passed3 = nullptr;
   const std::uint16_t* bonus3 = nullptr;
 };
 
@@ -173,10 +174,11 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // The bilinear sweeps (LaneSweepJob::bilinear) of the four quadrants in parallel, over a plan made
 // for the cell grid (make_lane_plan on the cell maxima: W x H cells with wrap, (W + 1) x (H + 1) with
 // clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
-// quadrant q's masks (per texel) to masks[q]. bonus: lane_count values (see bilinear_sweep.cpp).
+// quadrant q's counts of passing lanes (per texel) to passed[q] and passed3[q]. bonus, bonus3:
+// lane_count values (see LaneSweepJob).
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint32_t* const masks[4],
-                                   const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level = -1);
+                                   const std::uint16_t* bonus, std::uint8_t* const passed[4],
+                                   const std::uint16_t* bonus3, std::uint8_t* const passed3[4], int level = -1);
 
 // The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
 // says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and

@@ -191,8 +191,8 @@ void sweep_kernel(LaneSweepJob& job) {
       if (tested >= 0 && tested < texel_height) {
         const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
         const std::uint16_t* apex_row = job.texel_bottom + std::size_t(physical_texel_row) * texel_width;
-        std::uint32_t* texel_masks = job.masks + std::size_t(physical_texel_row) * texel_width;
-        std::uint32_t* texel_masks3 = job.masks3 + std::size_t(physical_texel_row) * texel_width;
+        std::uint8_t* texel_passed = job.passed + std::size_t(physical_texel_row) * texel_width;
+        std::uint8_t* texel_passed3 = job.passed3 + std::size_t(physical_texel_row) * texel_width;
         const V bonus = Ops::load(job.bonus), bonus3 = Ops::load(job.bonus3);
         // cells b + offset, + 1, ... of rows a .. a + 3 are at row[k][b + offset + 1 ...]
         const std::size_t shift = std::size_t(1 + job.cell_offset_x) * lane_stride;
@@ -212,8 +212,9 @@ void sweep_kernel(LaneSweepJob& job) {
           const V box3 = Ops::max(Ops::max(Ops::max(w30, w31), Ops::max(w32, x3)), Ops::max(Ops::max(x0, x1), x2));
           const int column = job.flip_x ? texel_width - 1 - b : b;
           const V apex = Ops::broadcast(apex_row[column]);
-          Ops::store_mask_at_most(texel_masks + column, Ops::subs(box2, bonus), apex);
-          Ops::store_mask_at_most(texel_masks3 + column, Ops::subs(box3, bonus3), apex);
+          // lanes pass from the lowest up: the count of set bits says which
+          texel_passed[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box2, bonus), apex)));
+          texel_passed3[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box3, bonus3), apex)));
           near0 = x0;
           near1 = x1;
           w20 = w21;
