@@ -158,10 +158,13 @@ void make_cells(State& state) {
     for (int nv = rows.begin(); nv < rows.end(); ++nv) {
       const float* row0 = state.heights.data() + std::size_t(texel(nv - 1, H)) * W;
       const float* row1 = state.heights.data() + std::size_t(texel(nv, H)) * W;
-      for (int nu = 0; nu < cells_u; ++nu) {
-        const int j0 = texel(nu - 1, W), j1 = texel(nu, W);
-        state.cell_max[std::size_t(nv) * cells_u + nu] = std::max(std::max(row0[j0], row0[j1]), std::max(row1[j0], row1[j1]));
-      }
+      float* out = state.cell_max.data() + std::size_t(nv) * cells_u;
+      auto cell = [&](int nu, int j0, int j1) {
+        out[nu] = std::max(std::max(row0[j0], row0[j1]), std::max(row1[j0], row1[j1]));
+      };
+      cell(0, texel(-1, W), texel(0, W));
+      for (int nu = 1; nu < std::min(W, cells_u); ++nu) cell(nu, nu - 1, nu);  // both texels in the map
+      for (int nu = std::max(1, W); nu < cells_u; ++nu) cell(nu, texel(nu - 1, W), texel(nu, W));
     }
   });
 }
