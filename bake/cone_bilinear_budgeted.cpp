@@ -30,10 +30,10 @@
 //    u that rise above H_c (a segment moves along u only there), rise_v likewise. On a sub-cell the
 //    rate along u is largest on one of its two u edges, where it is a difference of two samples of s
 //    (at texel centres, edge midpoints and corners: averages of texels, in float, raised past
-//    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over its rise above H_c, so the
-//    region's bound is max(smallest gap bound, 1 / G) (0 for the first term when a sub-cell
-//    touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels) this covers the near
-//    cells; box 3's G also bounds the ring between the boxes.
+//    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over
+//    its rise above H_c, so the region's bound is max(smallest gap bound, 1 / G) (0 for the first
+//    term when a sub-cell touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels)
+//    this covers the near cells; box 3's G also bounds the ring between the boxes.
 // The quadrant's ratio is min(box 3's lanes, max(box 2's lanes, box 3's 1 / G), box 2's near bound),
 // clamped to 1; 8 sectors take their quadrant's ratio (an octant lies inside it), 1 sector the
 // smallest of the four.
@@ -46,10 +46,10 @@
 // lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
 // surface within 2 texels that rises above H_c gives r <= |x - p| / (s(x) - H_c) for the point p of
 // Q_c nearest x that sees x in the quadrant (witness_upper); both made when refinement first needs
-// them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant bounds and
-// certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched ratios that
-// cannot have changed: those of texels whose apex is unchanged, where heights only fell (a lower
-// surface keeps every claim) or where the raised texels' region is too far to lower them.
+// them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant
+// bounds and certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched
+// ratios that cannot have changed: those of texels whose apex is unchanged, where heights only fell
+// (a lower surface keeps every claim) or where the raised texels' region is too far to lower them.
 #include "bake/bilinear_search.h"
 #include "bake/budget_clock.h"
 
@@ -79,8 +79,8 @@ constexpr int refine_chunk = 64;            // texels searched between two looks
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
 constexpr int witness_reach = 4;            // half texels: how far the upper bounds' near witnesses reach
-constexpr int witness_pad = 6;              // half texels the witness rows hold past the map (even, > witness_reach)
-constexpr float witness_slack = 2e-7f;      // height units: a witness sample's rounding and its difference to H_c
+constexpr int witness_pad = 6;              // half texels of witness rows past the map (even, > reach)
+constexpr float witness_slack = 2e-7f;      // heights: a witness's rounding and its difference to H_c
 
 // Made for a band of rows at a time (first_row on), so that a thread's planes stay O(W).
 struct SubCells {
@@ -115,7 +115,7 @@ struct BilinearBaker::State {
   // {0, 1, 2}^2 (passed) and {0, ..., 3}^2 (passed3)
   std::vector<std::uint8_t> passed[stage_l_sweeps][4], passed3[stage_l_sweeps][4];
   std::vector<std::uint32_t> upper_masks[4];  // the upper bounds' centre sweep, per quadrant
-  float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count of passing lanes proves
+  float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count proves
   detail::LanePlan plan, upper_plan;
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
@@ -181,8 +181,8 @@ void make_cells(State& state) {
 // (relative 2^-24), raised by a relative 2^-20 and by rate_slack times 2 W (2 H). Sub-cells are
 // split by the parity of X, so that texel j's sub-cell at a fixed offset is at a fixed index j + k
 // in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
-constexpr float top_slack = 2.4e-7f;   // height units: over a sample's error (2^-24) and the sum's rounding
-constexpr double rate_slack = 4e-7;    // height units per half texel: over two samples' errors and the difference's
+constexpr float top_slack = 2.4e-7f;  // heights: over a sample's error (2^-24) and the sum's rounding
+constexpr double rate_slack = 4e-7;   // heights per half texel: two samples' errors and their difference's
 
 // One row of sub-cells from the samples of rows Y and Y + 1, split by parity: even[k] at
 // X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach.
@@ -236,7 +236,7 @@ void sub_cell_row(const float* even0, const float* odd0, const float* even1, con
 void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
-  cells.columns = std::max(W, detail::near_block) + pad;  // X from -pad to 2 W + pad - 1 (or more), per parity
+  cells.columns = std::max(W, detail::near_block) + pad;  // X from -pad to 2 W + pad - 1 (or on)
   cells.rows = last_row - first_row;
   cells.first_row = first_row;
   for (auto& field : cells.planes)
