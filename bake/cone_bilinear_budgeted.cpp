@@ -114,7 +114,7 @@ struct BilinearBaker::State {
   // per sweep, quadrant and texel: the count of lanes that pass for the cells beyond the boxes
   // {0, 1, 2}^2 (passed) and {0, ..., 3}^2 (passed3)
   std::vector<std::uint8_t> passed[stage_l_sweeps][4], passed3[stage_l_sweeps][4];
-  std::vector<std::uint32_t> upper_masks[4];  // the upper bounds' centre sweep, per quadrant
+  std::vector<std::uint32_t> upper_masks[4];                 // the upper bounds' centre sweep, per quadrant
   float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count proves
   detail::LanePlan plan, upper_plan;
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
@@ -186,8 +186,9 @@ constexpr double rate_slack = 4e-7;   // heights per half texel: two samples' er
 
 // One row of sub-cells from the samples of rows Y and Y + 1, split by parity: even[k] at
 // X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach.
-void sub_cell_row(const float* even0, const float* odd0, const float* even1, const float* odd1, int count, float per_u,
-                  float per_v, float slack_u, float slack_v, float* const out[5][2], std::size_t at) {
+void sub_cell_row(const float* even0, const float* odd0, const float* even1, const float* odd1, int count,
+                  float per_u, float per_v, float slack_u, float slack_v, float* const out[5][2],
+                  std::size_t at) {
   constexpr float raise = 1.0f + 0x1p-20f;
   for (int parity = 0; parity < 2; ++parity) {
     // corners X and X + 1 of the sub-cells of this parity
@@ -249,7 +250,8 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   column.resize(sums);
   for (int m = 0; m < sums; ++m) column[m] = texel(m - pad / 2, W);
   const float per_u = float(2 * W), per_v = float(2 * H);  // 1 / (half a texel) in uv, exact
-  const float slack_u = float(rate_slack * per_u * (1.0 + 1e-6)), slack_v = float(rate_slack * per_v * (1.0 + 1e-6));
+  const float slack_u = float(rate_slack * per_u * (1.0 + 1e-6)),
+              slack_v = float(rate_slack * per_v * (1.0 + 1e-6));
   float* out[5][2];
   for (int f = 0; f < 5; ++f)
     for (int p = 0; p < 2; ++p) out[f][p] = cells.planes[f][p].data();
@@ -276,8 +278,9 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   sample_row(first_row, rows[lower]);
   for (int Y = first_row; Y < last_row; ++Y) {
     sample_row(Y + 1, rows[1 - lower]);
-    sub_cell_row(rows[lower][0].data(), rows[lower][1].data(), rows[1 - lower][0].data(), rows[1 - lower][1].data(),
-                 cells.columns, per_u, per_v, slack_u, slack_v, out, std::size_t(Y - first_row) * cells.columns);
+    sub_cell_row(rows[lower][0].data(), rows[lower][1].data(), rows[1 - lower][0].data(),
+                 rows[1 - lower][1].data(), cells.columns, per_u, per_v, slack_u, slack_v, out,
+                 std::size_t(Y - first_row) * cells.columns);
     lower = 1 - lower;
   }
 }
@@ -311,7 +314,8 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
       offset.along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
       offset.along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      offset.inverse_gap = touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
+      offset.inverse_gap =
+          touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
     }
   detail::NearOffset offsets[45];
   int count = 0;
@@ -401,7 +405,8 @@ long long run_stage_l(State& state) {
           }
         const D2 highest = highest_sample(h);
         const F2 nearest = __builtin_convertvector(highest, F2);
-        const I2 below = __builtin_convertvector(__builtin_convertvector(nearest, D2) < highest, I2);  // -1 where below
+        const I2 below =
+            __builtin_convertvector(__builtin_convertvector(nearest, D2) < highest, I2);  // -1 where below
         I2 bits;
         std::memcpy(&bits, &nearest, sizeof bits);
         bits -= below;
@@ -461,7 +466,8 @@ long long run_stage_l(State& state) {
       state.passed3[sweep][q].resize(texels);
       passed3[q] = state.passed3[sweep][q].data();
     }
-    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, passed, bonus3, passed3);
+    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, passed,
+                                             bonus3, passed3);
     std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
   }
   const float highest = state.plan.highest;
@@ -525,7 +531,9 @@ void emit_texel(const State& state, std::size_t t, float* out) {
 struct WitnessRows {
   int columns = 0, first_row = 0;
   std::vector<float> planes[2];  // [parity of X]: sample X at [(X + witness_pad) / 2]
-  const float* row(int parity, int Y) const { return planes[parity].data() + std::size_t(Y - first_row) * columns; }
+  const float* row(int parity, int Y) const {
+    return planes[parity].data() + std::size_t(Y - first_row) * columns;
+  }
 };
 
 void make_witness_rows(const State& state, int first_row, int last_row, WitnessRows& rows) {
@@ -560,8 +568,9 @@ void make_witness_rows(const State& state, int first_row, int last_row, WitnessR
       const int* r = right[parity].data();
       for (int k = 0; k < rows.columns; ++k) {
         const int k0 = l[k], k1 = r[k];
-        out[k] = outside_v || k0 < 0 ? absent
-                                     : float(0.25 * ((double(a[k0]) + double(a[k1])) + (double(b[k0]) + double(b[k1]))));
+        out[k] = outside_v || k0 < 0
+                     ? absent
+                     : float(0.25 * ((double(a[k0]) + double(a[k1])) + (double(b[k0]) + double(b[k1]))));
       }
     }
   }
@@ -575,12 +584,14 @@ long long witness_upper(State& state) {
     for (int dx = -1; dx <= witness_reach; ++dx) {
       if (dx <= 1 && dy <= 1) continue;  // in Q_c: no higher than H_c
       const double gu = std::max(0, dx - 1) * 0.5 / W, gv = std::max(0, dy - 1) * 0.5 / H;
-      inverse_gap[std::size_t(dy + 1) * side + dx + 1] = float(1.0 / std::sqrt(gu * gu + gv * gv) * (1.0 - 1e-6));
+      inverse_gap[std::size_t(dy + 1) * side + dx + 1] =
+          float(1.0 / std::sqrt(gu * gu + gv * gv) * (1.0 - 1e-6));
     }
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& range) {
     thread_local WitnessRows rows;
     thread_local std::vector<float> steepest;
-    make_witness_rows(state, 2 * range.begin() - witness_reach, 2 * (range.end() - 1) + witness_reach + 1, rows);
+    make_witness_rows(state, 2 * range.begin() - witness_reach, 2 * (range.end() - 1) + witness_reach + 1,
+                      rows);
     steepest.resize(W);
     float* steep = steepest.data();
     for (int i = range.begin(); i < range.end(); ++i) {
@@ -602,7 +613,9 @@ long long witness_upper(State& state) {
           }
         float* upper = state.upper.data() + std::size_t(i) * W * 4 + q;
         for (int j = 0; j < W; ++j)
-          if (steep[j] > 0.0f) upper[std::size_t(j) * 4] = std::min(upper[std::size_t(j) * 4], float(1.0 / double(steep[j]) * (1.0 + 1e-5)));
+          if (steep[j] > 0.0f)
+            upper[std::size_t(j) * 4] =
+                std::min(upper[std::size_t(j) * 4], float(1.0 / double(steep[j]) * (1.0 + 1e-5)));
       }
     }
   });

@@ -434,9 +434,10 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   return totals;
 }
 
-long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint8_t* const passed[4],
-                                   const std::uint16_t* bonus3, std::uint8_t* const passed3[4], int level) {
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
+                                   const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
+                                   std::uint8_t* const passed[4], const std::uint16_t* bonus3,
+                                   std::uint8_t* const passed3[4], int level) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(0, 4, [&](int quadrant) {

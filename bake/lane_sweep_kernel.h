@@ -76,7 +76,8 @@ void sweep_kernel(LaneSweepJob& job) {
   std::uint16_t* ring[4] = {};
   const int texel_width = job.texel_width, texel_height = job.texel_height;
   if (bilinear) {
-    for (int k = 0; k < 4; ++k) ring[k] = job.bilinear_scratch + std::size_t(k) * (std::size_t(W) + 5) * lane_stride;
+    for (int k = 0; k < 4; ++k)
+      ring[k] = job.bilinear_scratch + std::size_t(k) * (std::size_t(W) + 5) * lane_stride;
     for (std::size_t n = 0; n < 4 * (std::size_t(W) + 5) * lane_stride; ++n) job.bilinear_scratch[n] = 0;
   }
 
@@ -209,12 +210,15 @@ void sweep_kernel(LaneSweepJob& job) {
           const V x0 = Ops::load(row0 + next), x1 = Ops::load(row1 + next), x2 = Ops::load(row2 + next),
                   x3 = Ops::load(row3 + next);
           const V box2 = Ops::max(Ops::max(Ops::max(w20, w21), w22), Ops::max(near0, near1));
-          const V box3 = Ops::max(Ops::max(Ops::max(w30, w31), Ops::max(w32, x3)), Ops::max(Ops::max(x0, x1), x2));
+          const V box3 =
+              Ops::max(Ops::max(Ops::max(w30, w31), Ops::max(w32, x3)), Ops::max(Ops::max(x0, x1), x2));
           const int column = job.flip_x ? texel_width - 1 - b : b;
           const V apex = Ops::broadcast(apex_row[column]);
           // lanes pass from the lowest up: the count of set bits says which
-          texel_passed[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box2, bonus), apex)));
-          texel_passed3[column] = std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box3, bonus3), apex)));
+          texel_passed[column] =
+              std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box2, bonus), apex)));
+          texel_passed3[column] =
+              std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box3, bonus3), apex)));
           near0 = x0;
           near1 = x1;
           w20 = w21;

@@ -577,8 +577,9 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
 }
 
 // The bilinear baker's near-field kernel: every instruction set gives the generic kernel's bounds
-// (to a relative 1e-6: fused multiply-adds), and those are the definition's (computed here in double, one offset at a time) shrunk
-// by no more than a relative 1e-5, on rows narrower than a block and with a partial last block.
+// (to a relative 1e-6: fused multiply-adds), and those are the definition's (computed here in double, one
+// offset at a time) shrunk by no more than a relative 1e-5, on rows narrower than a block and with a partial
+// last block.
 TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
   const int best = detail::lane_sweep_best_level();
   for (int width : {1, 5, 16, 37}) {
@@ -600,7 +601,8 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
         }
         detail::NearOffset offset;
         const bool touching = g < 3;
-        offset.inverse_gap = touching ? 0.0f : 20.0f + 100.0f * test::hash01(67, std::uint64_t(offsets.size()), 0);
+        offset.inverse_gap =
+            touching ? 0.0f : 20.0f + 100.0f * test::hash01(67, std::uint64_t(offsets.size()), 0);
         offsets.push_back(offset);
         group_of.push_back(g);
       }
@@ -611,7 +613,8 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       offsets[o].along_v = planes[3 * o + 2].data();
     }
     std::vector<float> apex(width);
-    for (int j = 0; j < width; ++j) apex[j] = 0.55f + 0.45f * test::hash01(71, std::uint64_t(width), std::uint64_t(j));
+    for (int j = 0; j < width; ++j)
+      apex[j] = 0.55f + 0.45f * test::hash01(71, std::uint64_t(width), std::uint64_t(j));
     job.offsets = offsets.data();
     job.apex = apex.data();
     job.width = width;
@@ -629,11 +632,13 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       if (level <= best) {
         const auto other = run(level);
         for (int j = 0; j < width; ++j)  // equal up to fused multiply-adds where the compiler makes them
-          for (const auto& [got, want] : {std::pair{other.first[j], generic.first[j]}, std::pair{other.second[j], generic.second[j]}}) {
+          for (const auto& [got, want] :
+               {std::pair{other.first[j], generic.first[j]}, std::pair{other.second[j], generic.second[j]}}) {
             if (std::isinf(want)) {
               EXPECT_EQ(got, want) << "width " << width << " level " << level << " texel " << j;
             } else {
-              EXPECT_NEAR(got, want, 1e-6 * want) << "width " << width << " level " << level << " texel " << j;
+              EXPECT_NEAR(got, want, 1e-6 * want)
+                  << "width " << width << " level " << level << " texel " << j;
             }
           }
       }
@@ -660,7 +665,8 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       }
       const double slope3 = any3 ? 1.0 / std::hypot(ru3, rv3) : infinite;
       const double near = any ? std::max(touch ? 0.0 : far, 1.0 / std::hypot(ru, rv)) : infinite;
-      for (const auto& [got, want] : {std::pair{double(generic.first[j]), near}, std::pair{double(generic.second[j]), slope3}}) {
+      for (const auto& [got, want] :
+           {std::pair{double(generic.first[j]), near}, std::pair{double(generic.second[j]), slope3}}) {
         if (std::isinf(want)) {
           EXPECT_TRUE(std::isinf(got)) << "width " << width << " texel " << j;
         } else {
@@ -2007,8 +2013,8 @@ TEST(BilinearBaker, UpperBoundsHoldAtEveryTolerance) {
           const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, budget);
           for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
             ASSERT_GE(b.cones.ratios[v], (1.0f - tolerance) * full.cones.ratios[v] * (1.0f - 1e-6f))
-                << map.name << " sectors " << sectors << " " << address_name(address) << " tolerance " << tolerance
-                << " value " << v;
+                << map.name << " sectors " << sectors << " " << address_name(address) << " tolerance "
+                << tolerance << " value " << v;
         }
       }
   const Map smooth = make_noise(32, 32);
