@@ -29,11 +29,11 @@
 //    rise_v^2), rise_u the largest rate of rise along +u over the sub-cells beyond Q_c's edge along
 //    u that rise above H_c (a segment moves along u only there), rise_v likewise. On a sub-cell the
 //    rate along u is largest on one of its two u edges, where it is a difference of two samples of s
-//    (at texel centres, edge midpoints and corners: exact averages of texels, in double, rounded
-//    up). Each sub-cell above H_c also bounds by its gap to Q_c over its rise above H_c, so the
-//    region's bound is max(smallest gap bound, 1 / G) (0 for the first term when a sub-cell
-//    touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels) this covers the near
-//    cells; box 3's G also bounds the ring between the boxes.
+//    (at texel centres, edge midpoints and corners: averages of texels, in float, raised past
+//    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over
+//    its rise above H_c, so the region's bound is max(smallest gap bound, 1 / G) (0 for the first
+//    term when a sub-cell touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels)
+//    this covers the near cells; box 3's G also bounds the ring between the boxes.
 // The quadrant's ratio is min(box 3's lanes, max(box 2's lanes, box 3's 1 / G), box 2's near bound),
 // clamped to 1; 8 sectors take their quadrant's ratio (an octant lies inside it), 1 sector the
 // smallest of the four.
@@ -43,10 +43,13 @@
 // emitted. Certified means every quadrant's ratio is at least (1 - tolerance) times a certified upper
 // bound of the best ratio: the centre-to-centre lane sweep of the texels against the apexes (a texel
 // centre q above H_c that a lane's cone from p = c does not clear bounds every conservative ratio;
-// lane_sweep.cpp's bound), made when refinement first needs it. 8 sectors have no octant bounds and
-// certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched ratios that
-// cannot have changed: those of texels whose apex is unchanged, where heights only fell (a lower
-// surface keeps every claim) or where the raised texels' region is too far to lower them.
+// lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
+// surface within 2 texels that rises above H_c gives r <= |x - p| / (s(x) - H_c) for the point p of
+// Q_c nearest x that sees x in the quadrant (witness_upper); both made when refinement first needs
+// them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant
+// bounds and certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched
+// ratios that cannot have changed: those of texels whose apex is unchanged, where heights only fell
+// (a lower surface keeps every claim) or where the raised texels' region is too far to lower them.
 #include "bake/bilinear_search.h"
 #include "bake/budget_clock.h"
 
@@ -71,9 +74,13 @@ namespace {
 
 constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane of make_lane_plan (replaced below)
 constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below this ratio, dense above
+constexpr int stage_l_sweeps = 2;           // stage L: sweeps of detail::lane_count lanes each
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
+constexpr int witness_reach = 4;            // half texels: how far the upper bounds' near witnesses reach
+constexpr int witness_pad = 6;              // half texels of witness rows past the map (even, > reach)
+constexpr float witness_slack = 2e-7f;      // heights: a witness's rounding and its difference to H_c
 
 // Made for a band of rows at a time (first_row on), so that a thread's planes stay O(W).
 struct SubCells {
@@ -104,10 +111,11 @@ struct BilinearBaker::State {
   // stage L scratch, kept between frames
   std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
-  std::vector<std::uint32_t> masks[4], masks3[4];
-  // per texel and quadrant: the lanes' bounds for the cells beyond the boxes {0, 1, 2}^2 and
-  // {0, ..., 3}^2 (0: none)
-  std::vector<float> far, far3;
+  // per sweep, quadrant and texel: the count of lanes that pass for the cells beyond the boxes
+  // {0, 1, 2}^2 (passed) and {0, ..., 3}^2 (passed3)
+  std::vector<std::uint8_t> passed[stage_l_sweeps][4], passed3[stage_l_sweeps][4];
+  std::vector<std::uint32_t> upper_masks[4];                 // the upper bounds' centre sweep, per quadrant
+  float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count proves
   detail::LanePlan plan, upper_plan;
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
@@ -150,47 +158,77 @@ void make_cells(State& state) {
     for (int nv = rows.begin(); nv < rows.end(); ++nv) {
       const float* row0 = state.heights.data() + std::size_t(texel(nv - 1, H)) * W;
       const float* row1 = state.heights.data() + std::size_t(texel(nv, H)) * W;
-      for (int nu = 0; nu < cells_u; ++nu) {
-        const int j0 = texel(nu - 1, W), j1 = texel(nu, W);
-        state.cell_max[std::size_t(nv) * cells_u + nu] = std::max(std::max(row0[j0], row0[j1]), std::max(row1[j0], row1[j1]));
-      }
+      float* out = state.cell_max.data() + std::size_t(nv) * cells_u;
+      auto cell = [&](int nu, int j0, int j1) {
+        out[nu] = std::max(std::max(row0[j0], row0[j1]), std::max(row1[j0], row1[j1]));
+      };
+      cell(0, texel(-1, W), texel(0, W));
+      for (int nu = 1; nu < std::min(W, cells_u); ++nu) cell(nu, nu - 1, nu);  // both texels in the map
+      for (int nu = std::max(1, W); nu < cells_u; ++nu) cell(nu, texel(nu - 1, W), texel(nu, W));
     }
   });
 }
 
 // The near field's data, on the half-texel grid: samples of s at texel-centre coordinates
-// (X / 2, Y / 2) - texel centres, edge midpoints and corners, where s is an exact average of one, two
+// (X / 2, Y / 2) - texel centres, edge midpoints and corners, where s is the average of one, two
 // or four texels - and per half-texel square ("sub-cell", lower corner (X, Y)) its maximum and the
 // largest rates at which s rises along +u, -u, +v and -v over it. s is bilinear on a sub-cell (it
 // lies in one cell), so its maximum is at a corner and its rate along u is largest on one of its two
-// u edges, where it is the difference of two samples over half a texel. Computed in double, stored
-// rounded up. Sub-cells are split by the parity of X, so that texel j's sub-cell at a fixed offset
-// is at a fixed index j + k in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
+// u edges, where it is the difference of two samples over half a texel. Computed in float and
+// stored raised past their roundings (sample_slack): a sample is 1/4 of two float sums of two column
+// sums of heights in [0, 1], within 2^-24 of s; a maximum is raised by top_slack, more than that
+// and its own rounding; a rate is a rounded difference (2^-25) of two samples times 2 W or 2 H
+// (relative 2^-24), raised by a relative 2^-20 and by rate_slack times 2 W (2 H). Sub-cells are
+// split by the parity of X, so that texel j's sub-cell at a fixed offset is at a fixed index j + k
+// in its plane: X = 2 k + parity - near_reach. Rows Y from -near_reach.
+constexpr float top_slack = 2.4e-7f;  // heights: over a sample's error (2^-24) and the sum's rounding
+constexpr double rate_slack = 4e-7;   // heights per half texel: two samples' errors and their difference's
 
-// x rounded up to float, for 0 <= x <= 2^64: the product is at least x (1 + 2^-22) before its
-// rounding to nearest, which loses at most a relative 2^-24 (the 1e-30 covers subnormals)
-inline float round_up_positive(double x) { return float(x * (1.0 + 0x1p-22) + 1e-30); }
-constexpr double rate_margin = 1e-9;  // uv^-1: covers the double rounding of sample differences
-
-
-// One row of sub-cells (lower corners Y and Y + 1 rows of samples s0, s1, X from -near_reach).
-void sub_cell_row(const double* s0, const double* s1, int count, double per_u, double per_v, float* const out[5][2],
+// One row of sub-cells from the samples of rows Y and Y + 1, split by parity: even[k] at
+// X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach.
+void sub_cell_row(const float* even0, const float* odd0, const float* even1, const float* odd1, int count,
+                  float per_u, float per_v, float slack_u, float slack_v, float* const out[5][2],
                   std::size_t at) {
+  constexpr float raise = 1.0f + 0x1p-20f;
   for (int parity = 0; parity < 2; ++parity) {
-    float* top = out[0][parity] + at;
-    float* plus_u = out[1][parity] + at;
-    float* minus_u = out[2][parity] + at;
-    float* plus_v = out[3][parity] + at;
-    float* minus_v = out[4][parity] + at;
-    for (int k = 0; k < count; ++k) {
-      const int x = 2 * k + parity;
-      const double a = s0[x], b = s0[x + 1], c = s1[x], d = s1[x + 1];
-      const double du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
-      top[k] = round_up_positive(std::max(std::max(a, b), std::max(c, d)));
-      plus_u[k] = round_up_positive(std::max(0.0, std::max(du0, du1)) + rate_margin);
-      minus_u[k] = round_up_positive(std::max(0.0, -std::min(du0, du1)) + rate_margin);
-      plus_v[k] = round_up_positive(std::max(0.0, std::max(dv0, dv1)) + rate_margin);
-      minus_v[k] = round_up_positive(std::max(0.0, -std::min(dv0, dv1)) + rate_margin);
+    // corners X and X + 1 of the sub-cells of this parity
+    const float* __restrict left0 = parity ? odd0 : even0;
+    const float* __restrict right0 = parity ? even0 + 1 : odd0;
+    const float* __restrict left1 = parity ? odd1 : even1;
+    const float* __restrict right1 = parity ? even1 + 1 : odd1;
+    float* __restrict top = out[0][parity] + at;
+    float* __restrict plus_u = out[1][parity] + at;
+    float* __restrict minus_u = out[2][parity] + at;
+    float* __restrict plus_v = out[3][parity] + at;
+    float* __restrict minus_v = out[4][parity] + at;
+    // four sub-cells at a time in SSE registers (the generic build's width), then the tail
+    typedef float Four __attribute__((vector_size(16)));
+    auto larger = [](auto a, auto b) { return a > b ? a : b; };
+    auto load = [](const float* p) {
+      Four v;
+      std::memcpy(&v, p, sizeof v);
+      return v;
+    };
+    auto store = [](float* p, Four v) { std::memcpy(p, &v, sizeof v); };
+    const Four zero = Four{} + 0.0f;
+    int k = 0;
+    for (; k + 4 <= count; k += 4) {
+      const Four a = load(left0 + k), b = load(right0 + k), c = load(left1 + k), d = load(right1 + k);
+      const Four du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
+      store(top + k, larger(larger(a, b), larger(c, d)) + top_slack);
+      store(plus_u + k, larger(zero, larger(du0, du1)) * raise + slack_u);
+      store(minus_u + k, larger(zero, larger(-du0, -du1)) * raise + slack_u);
+      store(plus_v + k, larger(zero, larger(dv0, dv1)) * raise + slack_v);
+      store(minus_v + k, larger(zero, larger(-dv0, -dv1)) * raise + slack_v);
+    }
+    for (; k < count; ++k) {
+      const float a = left0[k], b = right0[k], c = left1[k], d = right1[k];
+      const float du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
+      top[k] = larger(larger(a, b), larger(c, d)) + top_slack;
+      plus_u[k] = larger(0.0f, larger(du0, du1)) * raise + slack_u;
+      minus_u[k] = larger(0.0f, larger(-du0, -du1)) * raise + slack_u;
+      plus_v[k] = larger(0.0f, larger(dv0, dv1)) * raise + slack_v;
+      minus_v[k] = larger(0.0f, larger(-dv0, -dv1)) * raise + slack_v;
     }
   }
 }
@@ -199,41 +237,51 @@ void sub_cell_row(const double* s0, const double* s1, int count, double per_u, d
 void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height, pad = near_reach;
-  cells.columns = W + pad;  // X from -pad to 2 W + pad - 1, per parity
+  cells.columns = std::max(W, detail::near_block) + pad;  // X from -pad to 2 W + pad - 1 (or on)
   cells.rows = last_row - first_row;
   cells.first_row = first_row;
   for (auto& field : cells.planes)
     for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
-  // sample columns X from -pad to 2 W + pad (one past the last sub-cell): the texels on either side
-  const int sample_count = 2 * W + 2 * pad + 1;
-  thread_local std::vector<int> left, right;
-  left.resize(sample_count);
-  right.resize(sample_count);
-  for (int c = 0; c < sample_count; ++c) {
-    const int X = c - pad, j0 = X >= 0 ? X / 2 : -((1 - X) / 2);
-    left[c] = texel(j0, W);
-    right[c] = texel(X == 2 * j0 ? j0 : j0 + 1, W);
-  }
-  const double per_u = 2.0 * W, per_v = 2.0 * H;  // 1 / (half a texel) in uv
+  // samples per parity: cells.columns + 1 of each (X up to 2 W + pad + 1); the column sums of
+  // texels m - pad / 2 for m in [0, W + pad + 2)
+  const int sums = W + pad + 2, samples = cells.columns + 1;
+  thread_local std::vector<int> column;
+  column.resize(sums);
+  for (int m = 0; m < sums; ++m) column[m] = texel(m - pad / 2, W);
+  const float per_u = float(2 * W), per_v = float(2 * H);  // 1 / (half a texel) in uv, exact
+  const float slack_u = float(rate_slack * per_u * (1.0 + 1e-6)),
+              slack_v = float(rate_slack * per_v * (1.0 + 1e-6));
   float* out[5][2];
   for (int f = 0; f < 5; ++f)
     for (int p = 0; p < 2; ++p) out[f][p] = cells.planes[f][p].data();
-  // a row of samples at Y: the average of the texel rows on either side (the same row at a centre)
-  auto sample_row = [&](int Y, std::vector<double>& row) {
+  thread_local std::vector<float> column_sum, rows[2][2];
+  column_sum.resize(sums);
+  // the samples of row Y: the texel rows on either side (the same row at a centre) summed per
+  // column, then even X = 2 k - pad the column sum of texel k - pad / 2 halved and odd X the
+  // average of two neighbouring column sums halved
+  auto sample_row = [&](int Y, std::vector<float>* row) {
     const int i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
     const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
     const float* b = state.heights.data() + std::size_t(texel(Y == 2 * i0 ? i0 : i0 + 1, H)) * W;
-    row.resize(sample_count);
-    for (int c = 0; c < sample_count; ++c)
-      row[c] = 0.25 * ((double(a[left[c]]) + double(a[right[c]])) + (double(b[left[c]]) + double(b[right[c]])));
+    for (int m = 0; m < sums; ++m) column_sum[m] = a[column[m]] + b[column[m]];
+    row[0].resize(samples);
+    row[1].resize(samples);
+    float* even = row[0].data();
+    float* odd = row[1].data();
+    for (int k = 0; k < samples; ++k) {
+      even[k] = 0.25f * (column_sum[k] + column_sum[k]);
+      odd[k] = 0.25f * (column_sum[k] + column_sum[k + 1]);
+    }
   };
-  thread_local std::vector<double> lower, upper;
-  sample_row(first_row, lower);
+  int lower = 0;
+  sample_row(first_row, rows[lower]);
   for (int Y = first_row; Y < last_row; ++Y) {
-    sample_row(Y + 1, upper);
-    sub_cell_row(lower.data(), upper.data(), cells.columns, per_u, per_v, out, std::size_t(Y - first_row) * cells.columns);
-    std::swap(lower, upper);
+    sample_row(Y + 1, rows[1 - lower]);
+    sub_cell_row(rows[lower][0].data(), rows[lower][1].data(), rows[1 - lower][0].data(),
+                 rows[1 - lower][1].data(), cells.columns, per_u, per_v, slack_u, slack_v, out,
+                 std::size_t(Y - first_row) * cells.columns);
+    lower = 1 - lower;
   }
 }
 
@@ -249,8 +297,8 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
 void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near,
               float* slope3) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
-  detail::NearOffset offsets[45];
-  int count = 0;
+  detail::NearOffset grouped[detail::near_groups][45];
+  detail::NearRowJob job;
   for (int y = 0; y < 7; ++y)
     for (int x = 0; x < 7; ++x) {
       if (x < 2 && y < 2) continue;
@@ -259,19 +307,21 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
       const int parity = su > 0 ? (x + 1) & 1 : x & 1;
       // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
       const int k0 = su > 0 ? (x - 1 + near_reach - parity) / 2 : (near_reach - x - parity) / 2;
-      detail::NearOffset& offset = offsets[count++];
+      const bool box2 = x < 5 && y < 5, touching = x <= 2 && y <= 2;
+      const int group = (box2 ? (touching ? 0 : 3) : 6) + (y < 2 ? 0 : x < 2 ? 1 : 2);  // beyond u, v, both
+      detail::NearOffset& offset = grouped[group][job.group_counts[group]++];
       offset.top = cells.row(0, parity, Y) + k0;
       offset.along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
       offset.along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
-      offset.beyond_u = x >= 2;
-      offset.beyond_v = y >= 2;
-      offset.box2 = x < 5 && y < 5;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      offset.gap = float(std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 - 1e-7));
+      offset.inverse_gap =
+          touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
     }
-  detail::NearRowJob job;
+  detail::NearOffset offsets[45];
+  int count = 0;
+  for (int g = 0; g < detail::near_groups; ++g)
+    for (int n = 0; n < job.group_counts[g]; ++n) offsets[count++] = grouped[g][n];
   job.offsets = offsets;
-  job.offset_count = count;
   job.apex = apex;
   job.width = width;
   job.near = near;
@@ -281,6 +331,21 @@ void near_row(const SubCells& cells, const float* apex, int width, int height, i
     case 3: detail::near_row_avx2(job); break;
     default: detail::near_row_avx512(job); break;
   }
+}
+
+// bake_bilinear_cones' apex arithmetic, term for term, over the heights h[r][c] around a texel (rows
+// before, at and after it, columns likewise): the largest of s at Q_c's corners, edge midpoints and
+// centre, 0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2} - for one texel (double) or several (a
+// vector of doubles).
+template <class D>
+D highest_sample(const D (&h)[3][3]) {
+  D highest = h[1][1] * 0.0;
+  for (int b = 0; b < 3; ++b)
+    for (int a = 0; a < 3; ++a) {
+      const D value = 0.25 * (h[1][1] + h[1][a] + h[b][1] + h[b][a]);
+      highest = highest < value ? value : highest;
+    }
+  return highest;
 }
 
 // Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
@@ -302,26 +367,60 @@ long long run_stage_l(State& state) {
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
       const float* rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
-      for (int j = 0; j < W; ++j) {
-        const std::size_t t = std::size_t(i) * W + j;
-        // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
-        // corners, edge midpoints and centre, rounded up to float
-        const int columns[3] = {before[j], j, after[j]};
+      float* apex_row = state.apex.data() + std::size_t(i) * W;
+      std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
+      // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
+      // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
+      // rounded up to float (to the next float's bits where the nearest is below)
+      auto apex_at = [&](int j, int left, int right) {
+        const int columns[3] = {left, j, right};
         double h[3][3];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
-        double highest = 0.0;
-        for (int b = 0; b < 3; ++b)
-          for (int a = 0; a < 3; ++a) {
-            const int r1 = b == 1 ? 1 : b, c1 = a == 1 ? 1 : a;
-            highest = std::max(highest, 0.25 * (h[1][1] + h[1][c1] + h[r1][1] + h[r1][c1]));
-          }
-        float apex = float(highest);
-        if (double(apex) < highest) apex = std::nextafter(apex, 2.0f);
-        state.apex[t] = apex;
+        const double highest = highest_sample(h);
+        const float nearest = float(highest);
+        std::uint32_t bits;
+        std::memcpy(&bits, &nearest, sizeof bits);
+        bits += double(nearest) < highest ? 1u : 0u;
+        float apex;
+        std::memcpy(&apex, &bits, sizeof apex);
+        apex_row[j] = apex;
         const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
-        state.apex_bottom[t] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
+        bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
+      };
+      apex_at(0, before[0], after[0]);
+      // the columns next to j in place: two texels at a time in SSE vectors, the same arithmetic
+      int j = 1;
+      for (; j + 2 < W; j += 2) {
+        typedef float F2 __attribute__((vector_size(8)));
+        typedef double D2 __attribute__((vector_size(16)));
+        typedef std::int32_t I2 __attribute__((vector_size(8)));
+        typedef std::uint16_t U2 __attribute__((vector_size(4)));
+        D2 h[3][3];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            F2 f;
+            std::memcpy(&f, rows3[r] + j - 1 + c, sizeof f);
+            h[r][c] = __builtin_convertvector(f, D2);
+          }
+        const D2 highest = highest_sample(h);
+        const F2 nearest = __builtin_convertvector(highest, F2);
+        const I2 below =
+            __builtin_convertvector(__builtin_convertvector(nearest, D2) < highest, I2);  // -1 where below
+        I2 bits;
+        std::memcpy(&bits, &nearest, sizeof bits);
+        bits -= below;
+        F2 apex;
+        std::memcpy(&apex, &bits, sizeof apex);
+        std::memcpy(apex_row + j, &apex, sizeof apex);
+        I2 floor_scaled = __builtin_convertvector(apex * float(detail::height_scale) - 0x1p-7f, I2);
+        floor_scaled = floor_scaled < 0 ? 0 : floor_scaled;
+        floor_scaled = floor_scaled > 65535 ? 65535 : floor_scaled;
+        const U2 bottom = __builtin_convertvector(floor_scaled, U2);
+        std::memcpy(bottom_row + j, &bottom, sizeof bottom);
       }
+      for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
+      if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
     }
   });
   make_cells(state);
@@ -329,11 +428,11 @@ long long run_stage_l(State& state) {
   detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
   // 64 lanes in two sweeps of 32, interleaved: from the smallest ratio a map can have (one texel
   // over its height range) to just above 1, 1.3x apart below lane_knee and evenly geometric above
-  double lanes[2 * detail::lane_count];
+  double lanes[stage_l_sweeps * detail::lane_count];
   {
     const double range = double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
     const double smallest = range > 0.0 ? std::clamp(double(state.plan.nearest) / range, 1.0 / 8192.0, lane_knee) : lane_knee;
-    const int total = 2 * detail::lane_count;
+    const int total = stage_l_sweeps * detail::lane_count;
     const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
     const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
     for (int l = 0; l < total; ++l)
@@ -343,9 +442,9 @@ long long run_stage_l(State& state) {
   }
   const double t = 1.0 / double(std::max(W, H));
   long long work = 0;
-  for (int sweep = 0; sweep < 2; ++sweep) {
+  for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
     double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.plan, ratios);
     // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
     alignas(64) std::uint16_t bonus[detail::lane_count];
@@ -359,55 +458,52 @@ long long run_stage_l(State& state) {
       const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
       bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
     }
-    std::uint32_t* masks[4];
-    std::uint32_t* masks3[4];
+    std::uint8_t* passed[4];
+    std::uint8_t* passed3[4];
     for (int q = 0; q < 4; ++q) {
-      state.masks[q].resize(texels);
-      masks[q] = state.masks[q].data();
-      state.masks3[q].resize(texels);
-      masks3[q] = state.masks3[q].data();
+      state.passed[sweep][q].resize(texels);
+      passed[q] = state.passed[sweep][q].data();
+      state.passed3[sweep][q].resize(texels);
+      passed3[q] = state.passed3[sweep][q].data();
     }
-    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, masks, bonus3, masks3);
-    // the larger of the two sweeps' passing lanes, as a ratio
-    state.far.resize(texels * 4);
-    state.far3.resize(texels * 4);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
-      for (std::size_t n = range.begin(); n < range.end(); ++n)
-        for (int q = 0; q < 4; ++q) {
-          const float ratio = state.plan.lane_ratio[detail::lanes_passed(masks[q][n])];
-          const float ratio3 = state.plan.lane_ratio[detail::lanes_passed(masks3[q][n])];
-          state.far[n * 4 + q] = sweep == 0 ? ratio : std::max(state.far[n * 4 + q], ratio);
-          state.far3[n * 4 + q] = sweep == 0 ? ratio3 : std::max(state.far3[n * 4 + q], ratio3);
-        }
-    });
+    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, passed,
+                                             bonus3, passed3);
+    std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
   }
   const float highest = state.plan.highest;
   auto floor_ratio = [&](float apex) {
     return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
   };
-  state.lanes.assign(lanes, lanes + 2 * detail::lane_count);
+  state.lanes.assign(lanes, lanes + stage_l_sweeps * detail::lane_count);
   state.upper_ready = false;
   state.stage_l.resize(texels * 4);
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
-    thread_local std::vector<float> near, slope3;
+    thread_local std::vector<float> near, slope3, floor;
     thread_local SubCells sub_cells;
     near.resize(W);
     slope3.resize(W);
+    floor.resize(W);
     make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, sub_cells);
-    for (int i = rows.begin(); i < rows.end(); ++i)
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      const std::size_t row = std::size_t(i) * W;
+      // below the lowest lane: every far cell is at least half a texel away and at most `highest`
+      for (int j = 0; j < W; ++j) floor[j] = floor_ratio(state.apex[row + j]);
       for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, state.apex.data() + std::size_t(i) * W, W, H, i, q, near.data(), slope3.data());
+        near_row(sub_cells, state.apex.data() + row, W, H, i, q, near.data(), slope3.data());
         for (int j = 0; j < W; ++j) {
-          const std::size_t n = std::size_t(i) * W + j;
-          // below the lowest lane: every far cell is at least half a texel away and at most `highest`
-          const float floor = floor_ratio(state.apex[n]);
-          const float beyond2 = std::max(state.far[n * 4 + q], floor);
-          const float beyond3 = std::max(state.far3[n * 4 + q], floor);
+          const std::size_t n = row + j;
+          // the larger of the sweeps' passing lanes, as a ratio
+          float beyond2 = floor[j], beyond3 = floor[j];
+          for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
+            beyond2 = std::max(beyond2, state.lane_ratio[sweep][state.passed[sweep][q][n]]);
+            beyond3 = std::max(beyond3, state.lane_ratio[sweep][state.passed3[sweep][q][n]]);
+          }
           // cells beyond box 3: the lanes; between the boxes: the lanes or the slope; box 2: near
           state.stage_l[n * 4 + q] = std::min({beyond3, std::max(beyond2, slope3[j]), near[j], 1.0f});
         }
       }
+    }
   });
   return work + (long long)texels * 4;
 }
@@ -422,6 +518,108 @@ void emit_texel(const State& state, std::size_t t, float* out) {
                                         : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
     out[t * sectors + k] = state.searched_flag[t] ? std::max(from_l, state.searched[t * sectors + k]) : from_l;
   }
+}
+
+// Upper bounds from witnesses near the texel. For a surface point x with s(x) > H_c whose direction
+// from some p in Q_c lies in quadrant q, every valid ratio r of q has s(x) <= H_c + |x - p| / r, so
+// r <= |x - p| / (s(x) - H_c); p is taken as the point of Q_c nearest x among those that see x in
+// q (per axis towards q, x at dX half texels from c's centre with dX >= -1: a gap of
+// max(0, dX - 1) half texels). Points x: the half-texel samples of s (texel centres, edge midpoints,
+// cell corners, exact averages of texels, rounded to float) within witness_reach half texels; with
+// clamp only those inside [0, 1]^2. The sample's rounding and the float difference are covered by
+// witness_slack, 1 / gap is rounded down and the bound up, so each is a real upper bound.
+struct WitnessRows {
+  int columns = 0, first_row = 0;
+  std::vector<float> planes[2];  // [parity of X]: sample X at [(X + witness_pad) / 2]
+  const float* row(int parity, int Y) const {
+    return planes[parity].data() + std::size_t(Y - first_row) * columns;
+  }
+};
+
+void make_witness_rows(const State& state, int first_row, int last_row, WitnessRows& rows) {
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  rows.columns = W + witness_pad;  // X from -witness_pad to 2 W + witness_pad - 1
+  rows.first_row = first_row;
+  for (auto& plane : rows.planes) plane.resize(std::size_t(rows.columns) * (last_row - first_row));
+  auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
+  auto half_floor = [](int X) { return X >= 0 ? X / 2 : -((1 - X) / 2); };
+  constexpr float absent = -std::numeric_limits<float>::infinity();
+  // per plane column: the texels on either side of its sample, or -1 outside [0, 1]^2 (clamp)
+  thread_local std::vector<int> left[2], right[2];
+  for (int parity = 0; parity < 2; ++parity) {
+    left[parity].resize(rows.columns);
+    right[parity].resize(rows.columns);
+    for (int k = 0; k < rows.columns; ++k) {
+      const int X = 2 * k + parity - witness_pad, j0 = half_floor(X), j1 = X == 2 * j0 ? j0 : j0 + 1;
+      const bool outside = !wrap && (X < -1 || X > 2 * W - 1);
+      left[parity][k] = outside ? -1 : texel(j0, W);
+      right[parity][k] = outside ? -1 : texel(j1, W);
+    }
+  }
+  for (int Y = first_row; Y < last_row; ++Y) {
+    const int i0 = half_floor(Y), i1 = Y == 2 * i0 ? i0 : i0 + 1;
+    const bool outside_v = !wrap && (Y < -1 || Y > 2 * H - 1);
+    const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
+    const float* b = state.heights.data() + std::size_t(texel(i1, H)) * W;
+    for (int parity = 0; parity < 2; ++parity) {
+      float* out = rows.planes[parity].data() + std::size_t(Y - first_row) * rows.columns;
+      const int* l = left[parity].data();
+      const int* r = right[parity].data();
+      for (int k = 0; k < rows.columns; ++k) {
+        const int k0 = l[k], k1 = r[k];
+        out[k] = outside_v || k0 < 0
+                     ? absent
+                     : float(0.25 * ((double(a[k0]) + double(a[k1])) + (double(b[k0]) + double(b[k1]))));
+      }
+    }
+  }
+}
+
+long long witness_upper(State& state) {
+  const int W = state.width, H = state.height;
+  const int side = witness_reach + 2;  // offsets -1 .. witness_reach per axis
+  std::vector<float> inverse_gap(std::size_t(side) * side, 0.0f);
+  for (int dy = -1; dy <= witness_reach; ++dy)
+    for (int dx = -1; dx <= witness_reach; ++dx) {
+      if (dx <= 1 && dy <= 1) continue;  // in Q_c: no higher than H_c
+      const double gu = std::max(0, dx - 1) * 0.5 / W, gv = std::max(0, dy - 1) * 0.5 / H;
+      inverse_gap[std::size_t(dy + 1) * side + dx + 1] =
+          float(1.0 / std::sqrt(gu * gu + gv * gv) * (1.0 - 1e-6));
+    }
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& range) {
+    thread_local WitnessRows rows;
+    thread_local std::vector<float> steepest;
+    make_witness_rows(state, 2 * range.begin() - witness_reach, 2 * (range.end() - 1) + witness_reach + 1,
+                      rows);
+    steepest.resize(W);
+    float* steep = steepest.data();
+    for (int i = range.begin(); i < range.end(); ++i) {
+      const float* apex = state.apex.data() + std::size_t(i) * W;
+      for (int q = 0; q < 4; ++q) {
+        const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
+        // the largest (s(x) - H_c) / |x - p| over the witnesses, rounded down
+        std::fill(steepest.begin(), steepest.end(), 0.0f);
+        for (int dy = -1; dy <= witness_reach; ++dy)
+          for (int dx = -1; dx <= witness_reach; ++dx) {
+            const float inverse = inverse_gap[std::size_t(dy + 1) * side + dx + 1];
+            if (inverse == 0.0f) continue;
+            // texel j's sample at X = 2 j + su dx
+            const float* sample = rows.row(dx & 1, 2 * i + sv * dy) + (su * dx + witness_pad - (dx & 1)) / 2;
+            for (int j = 0; j < W; ++j) {
+              const float excess = (sample[j] - apex[j]) - witness_slack;
+              steep[j] = steep[j] > excess * inverse ? steep[j] : excess * inverse;
+            }
+          }
+        float* upper = state.upper.data() + std::size_t(i) * W * 4 + q;
+        for (int j = 0; j < W; ++j)
+          if (steep[j] > 0.0f)
+            upper[std::size_t(j) * 4] =
+                std::min(upper[std::size_t(j) * 4], float(1.0 / double(steep[j]) * (1.0 + 1e-5)));
+      }
+    }
+  });
+  return (long long)W * H * 4 * (side * side - 9);
 }
 
 // Certified upper bounds of the best ratio per texel and quadrant, for the tolerance.
@@ -440,12 +638,15 @@ long long ensure_upper(State& state) {
   detail::make_lane_plan(state.heights.data(), W, H, wrap, lane_lowest_ratio, true, false, state.upper_plan);
   state.upper_plan.bottom = state.apex_bottom;
   state.upper.assign(texels * 4, 1.0f);
-  for (int sweep = 0; sweep < 2; ++sweep) {  // the same 64 lanes, the smaller bound
+  for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {  // the same lanes, the smaller bound
     double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[2 * l + sweep];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
     detail::set_lane_ratios(state.upper_plan, ratios);
     std::uint32_t* masks[4];
-    for (int q = 0; q < 4; ++q) masks[q] = state.masks[q].data();
+    for (int q = 0; q < 4; ++q) {
+      state.upper_masks[q].resize(texels);
+      masks[q] = state.upper_masks[q].data();
+    }
     work += detail::sweep_sectors(state.upper_plan, state.heights.data(), 4, masks, nullptr, nullptr).work;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t n = range.begin(); n < range.end(); ++n)
@@ -454,6 +655,8 @@ long long ensure_upper(State& state) {
               std::min(state.upper[n * 4 + q], state.upper_plan.lane_upper[detail::lanes_passed(masks[q][n])]);
     });
   }
+  // and the witnesses near the texel
+  work += witness_upper(state);
   state.upper_ready = true;
   return work;
 }

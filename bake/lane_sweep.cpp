@@ -434,9 +434,10 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   return totals;
 }
 
-long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint32_t* const masks[4],
-                                   const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level) {
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
+                                   const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
+                                   std::uint8_t* const passed[4], const std::uint16_t* bonus3,
+                                   std::uint8_t* const passed3[4], int level) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(0, 4, [&](int quadrant) {
@@ -465,7 +466,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.steps = cells.steps;
     job.scratch = scratch.get();
     job.row_sums = row_sums.data();
-    job.masks = masks[quadrant];
+    job.passed = passed[quadrant];
     job.bilinear = true;
     job.texel_width = width;
     job.texel_height = height;
@@ -476,7 +477,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.texel_bottom = texel_bottom;
     job.bonus = bonus;
     job.bilinear_scratch = bilinear_scratch.get();
-    job.masks3 = masks3[quadrant];
+    job.passed3 = passed3[quadrant];
     job.bonus3 = bonus3;
     switch (level) {
       case 0: lane_sweep_generic(job); break;

@@ -61,15 +61,16 @@ struct LaneSweepJob {
   const std::uint16_t* bonus = nullptr;         // lane_count values, rounded down
   std::uint16_t* bilinear_scratch = nullptr;    // bilinear_sweep_scratch(width, texel_width) values
   // the same test through the seven face cells of the box {0, ..., 3}^2 - cells (t + 3, b + k),
-  // k = 0..3, and (t + k, b + 3), k = 0..2 - with its own bonus, into masks3
-  std::uint32_t* masks3 = nullptr;
+  // k = 0..3, and (t + k, b + 3), k = 0..2 - with its own bonus, into passed3
+  std::uint8_t* passed = nullptr;
+  std::uint8_t* passed3 = nullptr;
   const std::uint16_t* bonus3 = nullptr;
 };
 
-// Extra scratch of a bilinear sweep: one row of dilations with one padding cell before and four
-// after, and three plus four rows of texel accumulators.
-inline std::size_t bilinear_sweep_scratch(int cell_width, int texel_width) {
-  return (std::size_t(cell_width) + 5 + 7 * std::size_t(texel_width)) * lane_count;
+// Extra scratch of a bilinear sweep: a ring of four rows of dilations, each with one padding cell
+// before and four after.
+inline std::size_t bilinear_sweep_scratch(int cell_width, int /*texel_width*/) {
+  return 4 * (std::size_t(cell_width) + 5) * lane_count;
 }
 
 struct LanePlan;
@@ -173,10 +174,12 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // The bilinear sweeps (LaneSweepJob::bilinear) of the four quadrants in parallel, over a plan made
 // for the cell grid (make_lane_plan on the cell maxima: W x H cells with wrap, (W + 1) x (H + 1) with
 // clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
-// quadrant q's masks (per texel) to masks[q]. bonus: lane_count values (see bilinear_sweep.cpp).
-long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height, const std::uint16_t* texel_bottom,
-                                   const std::uint16_t* bonus, std::uint32_t* const masks[4],
-                                   const std::uint16_t* bonus3, std::uint32_t* const masks3[4], int level = -1);
+// quadrant q's counts of passing lanes (per texel) to passed[q] and passed3[q]. bonus, bonus3:
+// lane_count values (see LaneSweepJob).
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
+                                   const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
+                                   std::uint8_t* const passed[4], const std::uint16_t* bonus3,
+                                   std::uint8_t* const passed3[4], int level = -1);
 
 // The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
 // says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and
@@ -184,17 +187,21 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
 // along the axes it lies beyond Q_c's edge for (box 2 and box 3 apart), and, in box 2, bounds by
 // gap / (top - apex) or, at gap 0, touches Q_c. Out per texel: near[j] (box 2) and slope3[j]
 // (1 / G over box 3, infinity where nothing there is above the apex). Built per instruction set
-// like the sweeps; 16 texels at a time with the offsets' accumulators in registers.
+// like the sweeps; near_block texels at a time with the accumulators in registers, the offsets in
+// near_groups groups of one kind each (no test per offset): box 2 touching Q_c, box 2 apart, box 3
+// only, each beyond Q_c's edge along u only, along v only, along both. A row narrower than
+// near_block reads near_block values of each plane from the texel's index on.
+constexpr int near_block = 16;
+constexpr int near_groups = 9;
 struct NearOffset {
   const float* top = nullptr;
   const float* along_u = nullptr;
   const float* along_v = nullptr;
-  float gap = 0.0f;
-  bool beyond_u = false, beyond_v = false, box2 = false;
+  float inverse_gap = 0.0f;  // 1 / (the uv gap to Q_c), rounded up (0 where touching)
 };
 struct NearRowJob {
-  const NearOffset* offsets = nullptr;
-  int offset_count = 0;
+  const NearOffset* offsets = nullptr;  // group by group
+  int group_counts[near_groups] = {};
   const float* apex = nullptr;
   int width = 0;
   float* near = nullptr;

@@ -66,19 +66,20 @@ void sweep_kernel(LaneSweepJob& job) {
   // row is equal too (a row depends only on the `depth` below it), and the first lap's masks there
   // stand. The first lap's sums are kept for the rows the second lap may reach before that; past
   // them it goes on to the end of the map.
-  // Bilinear mode: the row's dilations over blockers e (with the wrap fix-up) are kept in
-  // `dilations` (cell n at n + 1; one padding cell before and four after, wrapped or empty), and
-  // three rows of texel accumulators take them: a texel row is begun by the cell row two past it
-  // (its three face cells there), gets the face cell two columns on from the two rows after, and is
-  // tested when the last of them is done. The accumulators go round by step, so a row begun at
-  // step s is tested at step s + 2. The box {0, ..., 3}^2 does the same with four rows.
-  std::uint16_t* dilations = bilinear ? job.bilinear_scratch : nullptr;
-  std::uint16_t* accumulators = bilinear ? dilations + (std::size_t(W) + 5) * lane_stride : nullptr;
+  // Bilinear mode: the row's dilations over blockers e (with the wrap fix-up) are kept in a ring of
+  // the last four rows swept (cell n at n + 1; one padding cell before and four after, wrapped or
+  // empty; rows not swept yet are empty). Cell row a tests texel row a (shifted by cell_offset_y):
+  // its box {0, 1, 2}^2 reads the cells two past it in row a + 2 and the cell two columns on in rows
+  // a and a + 1, its box {0, ..., 3}^2 the cells three past it in row a + 3 and the cell three columns
+  // on in rows a, a + 1 and a + 2 - the rows swept in the three steps before - each row's cells in
+  // registers as the test slides along it.
+  std::uint16_t* ring[4] = {};
   const int texel_width = job.texel_width, texel_height = job.texel_height;
-  std::uint16_t* accumulators3 = bilinear ? accumulators + 3 * std::size_t(texel_width) * lane_stride : nullptr;
-  if (bilinear)
-    for (std::size_t n = 0; n < (std::size_t(W) + 5 + 7 * std::size_t(texel_width)) * lane_stride; ++n)
-      dilations[n] = 0;
+  if (bilinear) {
+    for (int k = 0; k < 4; ++k)
+      ring[k] = job.bilinear_scratch + std::size_t(k) * (std::size_t(W) + 5) * lane_stride;
+    for (std::size_t n = 0; n < 4 * (std::size_t(W) + 5) * lane_stride; ++n) job.bilinear_scratch[n] = 0;
+  }
 
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
   long long* row_sums = job.row_sums;
@@ -95,6 +96,7 @@ void sweep_kernel(LaneSweepJob& job) {
     const int physical_row = job.flip_y ? H - 1 - a : a;
     const std::uint16_t* top_row = job.top + std::size_t(physical_row) * W;
     const std::uint16_t* bottom_row = bilinear ? nullptr : job.bottom + std::size_t(physical_row) * W;
+    std::uint16_t* const dilations = bilinear ? ring[step & 3] : nullptr;
     std::uint32_t* mask_row = bilinear ? nullptr : job.masks + std::size_t(physical_row) * W;
     const int first = flip_x ? W - 1 : 0, stride = flip_x ? -1 : 1;
 
@@ -184,88 +186,48 @@ void sweep_kernel(LaneSweepJob& job) {
       for (int k = 0; k < 4; ++k)
         Ops::store(dilations + std::size_t(W + 1 + k) * lane_stride,
                    wrap ? Ops::load(dilations + std::size_t(1 + k % W) * lane_stride) : nothing);
-      // local texel rows begun, continued and tested by cell row a (unrolled with wrap)
+      // the texel row tested by cell row a (unrolled with wrap)
       auto texel_row = [&](int row) { return wrap ? ((row % texel_height) + texel_height) % texel_height : row; };
-      const int begun = texel_row(a - 2 - job.cell_offset_y), continued = texel_row(a - 1 - job.cell_offset_y),
-                tested = texel_row(a - job.cell_offset_y);
-      const bool begin = begun >= 0 && begun < texel_height, go_on = continued >= 0 && continued < texel_height,
-                 test = tested >= 0 && tested < texel_height;
-      std::uint16_t* begin_row = accumulators + std::size_t((step + 2) % 3) * texel_width * lane_stride;
-      std::uint16_t* go_on_row = accumulators + std::size_t((step + 1) % 3) * texel_width * lane_stride;
-      std::uint16_t* test_row = accumulators + std::size_t(step % 3) * texel_width * lane_stride;
-      const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
-      const std::uint16_t* apex_row = job.texel_bottom + std::size_t(test ? physical_texel_row : 0) * texel_width;
-      std::uint32_t* texel_masks = job.masks + std::size_t(test ? physical_texel_row : 0) * texel_width;
-      const V bonus = Ops::load(job.bonus);
-      // cells b + offset, + 1, + 2 of this row are at dilations[b + offset + 1 ...]
-      const std::uint16_t* cells = dilations + std::size_t(1 + job.cell_offset_x) * lane_stride;
-      // the box {0, ..., 3}^2: begun three rows before its test, four accumulators round by step
-      const int begun3 = texel_row(a - 3 - job.cell_offset_y);
-      const int middle[2] = {texel_row(a - 2 - job.cell_offset_y), texel_row(a - 1 - job.cell_offset_y)};
-      const bool begin3 = begun3 >= 0 && begun3 < texel_height;
-      std::uint16_t* begin3_row = accumulators3 + std::size_t((step + 3) % 4) * texel_width * lane_stride;
-      std::uint16_t* middle_rows[2] = {accumulators3 + std::size_t((step + 2) % 4) * texel_width * lane_stride,
-                                       accumulators3 + std::size_t((step + 1) % 4) * texel_width * lane_stride};
-      const bool middle_valid[2] = {middle[0] >= 0 && middle[0] < texel_height,
-                                    middle[1] >= 0 && middle[1] < texel_height};
-      std::uint16_t* test3_row = accumulators3 + std::size_t(step % 4) * texel_width * lane_stride;
-      std::uint32_t* texel_masks3 = job.masks3 + std::size_t(test ? physical_texel_row : 0) * texel_width;
-      const V bonus3 = Ops::load(job.bonus3);
-      if (begin && go_on && test && begin3 && middle_valid[0] && middle_valid[1]) {
-        // every row in the map (all of them with wrap): both boxes in one pass, the four cells in
-        // registers as the window slides
-        V c0 = Ops::load(cells), c1 = Ops::load(cells + lane_stride), c2 = Ops::load(cells + 2 * lane_stride);
+      const int tested = texel_row(a - job.cell_offset_y);
+      if (tested >= 0 && tested < texel_height) {
+        const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
+        const std::uint16_t* apex_row = job.texel_bottom + std::size_t(physical_texel_row) * texel_width;
+        std::uint8_t* texel_passed = job.passed + std::size_t(physical_texel_row) * texel_width;
+        std::uint8_t* texel_passed3 = job.passed3 + std::size_t(physical_texel_row) * texel_width;
+        const V bonus = Ops::load(job.bonus), bonus3 = Ops::load(job.bonus3);
+        // cells b + offset, + 1, ... of rows a .. a + 3 are at row[k][b + offset + 1 ...]
+        const std::size_t shift = std::size_t(1 + job.cell_offset_x) * lane_stride;
+        const std::uint16_t* row0 = dilations + shift;
+        const std::uint16_t* row1 = ring[(step + 3) & 3] + shift;
+        const std::uint16_t* row2 = ring[(step + 2) & 3] + shift;
+        const std::uint16_t* row3 = ring[(step + 1) & 3] + shift;
+        // windows: cells b + 2 of rows a, a + 1; b .. b + 2 of row a + 2; b .. b + 3 of row a + 3
+        V near0 = Ops::load(row0 + 2 * lane_stride), near1 = Ops::load(row1 + 2 * lane_stride);
+        V w20 = Ops::load(row2), w21 = Ops::load(row2 + lane_stride), w22 = Ops::load(row2 + 2 * lane_stride);
+        V w30 = Ops::load(row3), w31 = Ops::load(row3 + lane_stride), w32 = Ops::load(row3 + 2 * lane_stride);
         for (int b = 0; b < texel_width; ++b) {
-          const V c3 = Ops::load(cells + std::size_t(b + 3) * lane_stride);
-          const std::size_t at = std::size_t(b) * lane_stride;
-          const V first3 = Ops::max(Ops::max(c0, c1), c2);
-          Ops::store(begin_row + at, first3);
-          Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
-          Ops::store(begin3_row + at, Ops::max(first3, c3));
-          Ops::store(middle_rows[0] + at, Ops::max(Ops::load(middle_rows[0] + at), c3));
-          Ops::store(middle_rows[1] + at, Ops::max(Ops::load(middle_rows[1] + at), c3));
+          const std::size_t next = std::size_t(b + 3) * lane_stride;
+          const V x0 = Ops::load(row0 + next), x1 = Ops::load(row1 + next), x2 = Ops::load(row2 + next),
+                  x3 = Ops::load(row3 + next);
+          const V box2 = Ops::max(Ops::max(Ops::max(w20, w21), w22), Ops::max(near0, near1));
+          const V box3 =
+              Ops::max(Ops::max(Ops::max(w30, w31), Ops::max(w32, x3)), Ops::max(Ops::max(x0, x1), x2));
           const int column = job.flip_x ? texel_width - 1 - b : b;
           const V apex = Ops::broadcast(apex_row[column]);
-          Ops::store_mask_at_most(texel_masks + column, Ops::subs(Ops::max(Ops::load(test_row + at), c2), bonus), apex);
-          Ops::store_mask_at_most(texel_masks3 + column, Ops::subs(Ops::max(Ops::load(test3_row + at), c3), bonus3),
-                                  apex);
-          c0 = c1;
-          c1 = c2;
-          c2 = c3;
+          // lanes pass from the lowest up: the count of set bits says which
+          texel_passed[column] =
+              std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box2, bonus), apex)));
+          texel_passed3[column] =
+              std::uint8_t(__builtin_popcount(Ops::mask_at_most(Ops::subs(box3, bonus3), apex)));
+          near0 = x0;
+          near1 = x1;
+          w20 = w21;
+          w21 = w22;
+          w22 = x2;
+          w30 = w31;
+          w31 = w32;
+          w32 = x3;
         }
-      } else {
-        for (int b = 0; b < texel_width; ++b) {
-          const V c0 = Ops::load(cells + std::size_t(b) * lane_stride), c1 = Ops::load(cells + std::size_t(b + 1) * lane_stride),
-                  c2 = Ops::load(cells + std::size_t(b + 2) * lane_stride);
-          const std::size_t at = std::size_t(b) * lane_stride;
-          if (begin) Ops::store(begin_row + at, Ops::max(Ops::max(c0, c1), c2));
-          if (go_on) Ops::store(go_on_row + at, Ops::max(Ops::load(go_on_row + at), c2));
-          if (test) {
-            const V all = Ops::max(Ops::load(test_row + at), c2);
-            const int column = job.flip_x ? texel_width - 1 - b : b;
-            Ops::store_mask_at_most(texel_masks + column, Ops::subs(all, bonus), Ops::broadcast(apex_row[column]));
-          }
-        }
-        if (!begin)  // a row that begins past the end of the cells (clamp) starts empty
-          for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin_row[n] = 0;
-        for (int b = 0; b < texel_width; ++b) {
-          const V c3 = Ops::load(cells + std::size_t(b + 3) * lane_stride);
-          const std::size_t at = std::size_t(b) * lane_stride;
-          if (begin3)
-            Ops::store(begin3_row + at,
-                       Ops::max(Ops::max(Ops::load(cells + std::size_t(b) * lane_stride),
-                                         Ops::load(cells + std::size_t(b + 1) * lane_stride)),
-                                Ops::max(Ops::load(cells + std::size_t(b + 2) * lane_stride), c3)));
-          for (int k = 0; k < 2; ++k)
-            if (middle_valid[k]) Ops::store(middle_rows[k] + at, Ops::max(Ops::load(middle_rows[k] + at), c3));
-          if (test) {
-            const V all = Ops::max(Ops::load(test3_row + at), c3);
-            const int column = job.flip_x ? texel_width - 1 - b : b;
-            Ops::store_mask_at_most(texel_masks3 + column, Ops::subs(all, bonus3), Ops::broadcast(apex_row[column]));
-          }
-        }
-        if (!begin3)
-          for (std::size_t n = 0; n < std::size_t(texel_width) * lane_stride; ++n) begin3_row[n] = 0;
       }
       work += texel_width;
     }

@@ -576,6 +576,108 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
       }
 }
 
+// The bilinear baker's near-field kernel: every instruction set gives the generic kernel's bounds
+// (to a relative 1e-6: fused multiply-adds), and those are the definition's (computed here in double, one
+// offset at a time) shrunk by no more than a relative 1e-5, on rows narrower than a block and with a partial
+// last block.
+TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
+  const int best = detail::lane_sweep_best_level();
+  for (int width : {1, 5, 16, 37}) {
+    const int columns = std::max(width, detail::near_block) + 8;
+    std::vector<std::vector<float>> planes;
+    std::vector<detail::NearOffset> offsets;
+    detail::NearRowJob job;
+    std::vector<int> group_of;
+    for (int g = 0; g < detail::near_groups; ++g) {
+      job.group_counts[g] = 1 + (g * 7 + width) % 4;
+      for (int n = 0; n < job.group_counts[g]; ++n) {
+        for (int f = 0; f < 3; ++f) {
+          std::vector<float> plane(columns);
+          for (int j = 0; j < columns; ++j) {
+            const float r = test::hash01(61, std::uint64_t(planes.size()), std::uint64_t(j));
+            plane[j] = f == 0 ? r : 40.0f * r * r;
+          }
+          planes.push_back(std::move(plane));
+        }
+        detail::NearOffset offset;
+        const bool touching = g < 3;
+        offset.inverse_gap =
+            touching ? 0.0f : 20.0f + 100.0f * test::hash01(67, std::uint64_t(offsets.size()), 0);
+        offsets.push_back(offset);
+        group_of.push_back(g);
+      }
+    }
+    for (std::size_t o = 0; o < offsets.size(); ++o) {
+      offsets[o].top = planes[3 * o].data();
+      offsets[o].along_u = planes[3 * o + 1].data();
+      offsets[o].along_v = planes[3 * o + 2].data();
+    }
+    std::vector<float> apex(width);
+    for (int j = 0; j < width; ++j)
+      apex[j] = 0.55f + 0.45f * test::hash01(71, std::uint64_t(width), std::uint64_t(j));
+    job.offsets = offsets.data();
+    job.apex = apex.data();
+    job.width = width;
+    auto run = [&](int level) {
+      std::vector<float> near(width), slope3(width);
+      job.near = near.data();
+      job.slope3 = slope3.data();
+      if (level == 0) detail::near_row_generic(job);
+      if (level == 3) detail::near_row_avx2(job);
+      if (level == 4) detail::near_row_avx512(job);
+      return std::pair{near, slope3};
+    };
+    const auto generic = run(0);
+    for (int level : {3, 4})
+      if (level <= best) {
+        const auto other = run(level);
+        for (int j = 0; j < width; ++j)  // equal up to fused multiply-adds where the compiler makes them
+          for (const auto& [got, want] :
+               {std::pair{other.first[j], generic.first[j]}, std::pair{other.second[j], generic.second[j]}}) {
+            if (std::isinf(want)) {
+              EXPECT_EQ(got, want) << "width " << width << " level " << level << " texel " << j;
+            } else {
+              EXPECT_NEAR(got, want, 1e-6 * want)
+                  << "width " << width << " level " << level << " texel " << j;
+            }
+          }
+      }
+    const double infinite = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < width; ++j) {
+      double ru = 0, rv = 0, ru3 = 0, rv3 = 0, far = infinite;
+      bool touch = false, any = false, any3 = false;
+      for (std::size_t o = 0; o < offsets.size(); ++o) {
+        const int g = group_of[o];
+        const double top = offsets[o].top[j];
+        if (!(top > apex[j])) continue;
+        const bool box2 = g < 6, along_u = g % 3 != 1, along_v = g % 3 != 0;
+        any3 = true;
+        if (along_u) ru3 = std::max(ru3, double(offsets[o].along_u[j]));
+        if (along_v) rv3 = std::max(rv3, double(offsets[o].along_v[j]));
+        if (!box2) continue;
+        any = true;
+        if (along_u) ru = std::max(ru, double(offsets[o].along_u[j]));
+        if (along_v) rv = std::max(rv, double(offsets[o].along_v[j]));
+        if (g < 3)
+          touch = true;
+        else
+          far = std::min(far, 1.0 / double(offsets[o].inverse_gap) / (top - apex[j]));
+      }
+      const double slope3 = any3 ? 1.0 / std::hypot(ru3, rv3) : infinite;
+      const double near = any ? std::max(touch ? 0.0 : far, 1.0 / std::hypot(ru, rv)) : infinite;
+      for (const auto& [got, want] :
+           {std::pair{double(generic.first[j]), near}, std::pair{double(generic.second[j]), slope3}}) {
+        if (std::isinf(want)) {
+          EXPECT_TRUE(std::isinf(got)) << "width " << width << " texel " << j;
+        } else {
+          EXPECT_LE(got, want) << "width " << width << " texel " << j;
+          EXPECT_GE(got, want * (1.0 - 1e-5)) << "width " << width << " texel " << j;
+        }
+      }
+    }
+  }
+}
+
 // The second lap stops where its rows meet the first lap's; what it leaves is what a whole second
 // lap gives, and on a smooth periodic map it does stop early.
 TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
@@ -1883,6 +1985,43 @@ TEST(BilinearBaker, UpdateChainsStayConservative) {
             EXPECT_THROW(baker.update(view_of(changed), elsewhere, budget, cones.view(), apex), BakeError);
           }
         }
+}
+
+// The certified upper bounds (lanes and near witnesses) are real: an unlimited bake keeps every
+// ratio within the tolerance of the full bake, which the best ratio bounds, at every tolerance; and
+// the witnesses do certify (a smooth map is not searched whole).
+TEST(BilinearBaker, UpperBoundsHoldAtEveryTolerance) {
+  std::vector<Map> maps = bilinear_maps();
+  for (int n = 0; n < 12; ++n) {
+    const int w = 2 + int(test::hash01(53, n, 1) * 12), h = 2 + int(test::hash01(53, n, 2) * 12);
+    Map map = test::make_flat(w, h, 0.0f);
+    map.name = "random-" + std::to_string(n);
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) {
+        const float r = test::hash01(59, n * 97 + i, j);
+        map.at(i, j) = n % 2 ? r : (r > 0.85f ? 1.0f : 0.2f * r);
+      }
+    maps.push_back(map);
+  }
+  for (const Map& map : maps)
+    for (int sectors : {1, 4})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const BilinearCones full = bake_bilinear(map, sectors, address);
+        for (float tolerance : {0.02f, 0.1f, 0.5f, 0.9f}) {
+          Budget budget;
+          budget.tolerance = tolerance;
+          const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, budget);
+          for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+            ASSERT_GE(b.cones.ratios[v], (1.0f - tolerance) * full.cones.ratios[v] * (1.0f - 1e-6f))
+                << map.name << " sectors " << sectors << " " << address_name(address) << " tolerance "
+                << tolerance << " value " << v;
+        }
+      }
+  const Map smooth = make_noise(32, 32);
+  Budget budget;
+  budget.tolerance = 0.5f;
+  const BudgetedBilinear b = bake_bilinear_budgeted(smooth, 4, Address::wrap, budget);
+  EXPECT_LT(b.stats.texels_refined, 32 * 32);
 }
 
 TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
