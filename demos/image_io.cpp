@@ -319,6 +319,9 @@ void write_exr(const std::filesystem::path& file, int width, int height, std::sp
   for (const ExrChannel& channel : channels) spec.channelnames.push_back(channel.name);
   spec.alpha_channel = -1;
   spec.attribute("compression", "zip");
+  // no capture date (OpenImageIO writes the current time otherwise): the same content gives the
+  // same bytes, so that re-rendered frames and shards of a sequence compare equal
+  spec.attribute("DateTime", "");
   add_metadata(spec, metadata);
   write_image(file, spec, oiio::TypeDesc::FLOAT, pixels.data());
 }
