@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
 # builds in ./build (Release), then runs what was asked:
-#   bash cmake/setup.sh main    # the main job on the built-in default scene (writes out/)
+#   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
 #   bash cmake/setup.sh test    # the whole test suite (ctest)
 #   bash cmake/setup.sh build   # only install + configure + build
 set -euo pipefail
@@ -34,7 +34,12 @@ case "$mode" in
   build) ;;
   main)
     cd "$root"
-    "$build/displace" demo ;;
+    # the product: 1.5 s of the water scene as a headless sequence with an animated preview, then the
+    # frame-budget table
+    "$build/displace" sequence --scene water --map-size 256 --size 480x270 --frames 0:89 --bake-work 20000 \
+      --output out/water/water_####.png --preview out/water.gif
+    "$build/displace" bench-frame --scene water --map-size 256 --size 256x256 --frames 60 --budget-ms 33 \
+      --json out/bench-frame.json ;;
   test)
     cd "$build"
     ctest --output-on-failure -j "$jobs" ;;

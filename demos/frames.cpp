@@ -141,6 +141,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   const bool terminal = stderr_is_terminal();
   const double start = seconds_now();
   render::Frame frame;
+  std::vector<std::vector<std::uint8_t>> preview;
   long long done = 0, skipped = 0;
   for (const long long n : frames) {
     const std::filesystem::path picture = pipeline::image_for_frame(settings.output, n);
@@ -148,7 +149,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
     for (AovOutput& aov : aovs) aov.file = pipeline::image_for_frame(aov.file, n);
     const bool present = std::filesystem::exists(picture) &&
                          std::all_of(aovs.begin(), aovs.end(), [](const AovOutput& aov) { return std::filesystem::exists(aov.file); });
-    if (settings.resume && present && !video) {
+    if (settings.resume && present && !video && settings.preview.empty()) {
       ++skipped;
       continue;
     }
@@ -162,6 +163,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
     for (const AovOutput& aov : aovs) {
       write_atomically(aov.file, [&](const std::filesystem::path& file) { write_aov({aov.aov, file}, frame, metadata); });
     }
+    if (!settings.preview.empty()) preview.push_back(frame.color);
     if (video && std::fwrite(frame.color.data(), 1, frame.color.size(), video) != frame.color.size()) {
       ::pclose(video);
       throw runtime_error("ffmpeg stopped taking frames for --video");
@@ -190,6 +192,12 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   }
   if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
   if (video && ::pclose(video) != 0) throw runtime_error("ffmpeg failed to encode --video");
+  if (!preview.empty()) {
+    write_atomically(settings.preview, [&](const std::filesystem::path& file) {
+      write_animated_gif(file, scene.camera.width, scene.camera.height, preview, int(std::lround(scene.fps)));
+    });
+    out << "  animated preview: " << settings.preview.string() << '\n';
+  }
   if (done > 0) {
     write_atomically(csv_path, [&](const std::filesystem::path& file) {
       std::ofstream stream(file);

@@ -340,6 +340,35 @@ void write_png_rgba8(const std::filesystem::path& file, int width, int height,
   write_image(file, spec, oiio::TypeDesc::UINT8, rgba.data());
 }
 
+void write_animated_gif(const std::filesystem::path& file, int width, int height,
+                        const std::vector<std::vector<std::uint8_t>>& frames, int fps) {
+  check_size(file, width, height);
+  if (frames.empty()) throw runtime_error("cannot write " + quoted(file) + ": no frames");
+  auto output = oiio::ImageOutput::create(file.string());
+  if (!output || !output->supports("multiimage")) {
+    throw runtime_error("cannot write " + quoted(file) + ": this OpenImageIO writes no animated GIF");
+  }
+  std::vector<oiio::ImageSpec> specs(frames.size(), oiio::ImageSpec(width, height, 4, oiio::TypeDesc::UINT8));
+  const int rate[2] = {std::max(fps, 1), 1};
+  for (oiio::ImageSpec& spec : specs) spec.attribute("FramesPerSecond", oiio::TypeRational, rate);
+  if (!output->open(file.string(), int(specs.size()), specs.data())) {
+    throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
+  }
+  for (std::size_t n = 0; n < frames.size(); ++n) {
+    if (frames[n].size() != std::size_t(width) * std::size_t(height) * 4) {
+      output->close();
+      throw runtime_error("cannot write " + quoted(file) + ": frames of different sizes");
+    }
+    if ((n > 0 && !output->open(file.string(), specs[n], oiio::ImageOutput::AppendSubimage)) ||
+        !output->write_image(oiio::TypeDesc::UINT8, frames[n].data())) {
+      const std::string message = take_error(output.get());
+      output->close();
+      throw runtime_error("cannot write " + quoted(file) + ": " + message);
+    }
+  }
+  if (!output->close()) throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
+}
+
 std::vector<float> FloatImage::channel(std::string_view name) const {
   const auto found = std::find(channel_names.begin(), channel_names.end(), name);
   if (found == channel_names.end())

@@ -40,7 +40,7 @@ struct Range {
   double low, high;
   const char* unit;
 };
-constexpr Range time_range{-1e6, 1e6, "s"};           // beyond, float phases w t lose the wave shape
+constexpr Range time_range{-1e12, 1e12, "s"};         // phases w t are formed in double (sim.h)
 constexpr Range patch_size_range{1e-2, 1e5, "m"};     // a centimetre to a hundred kilometres
 constexpr Range wind_speed_range{0.1, 100.0, "m/s"};  // calm air to beyond a hurricane
 constexpr Range fetch_range{0.1, 1e5, "km"};
@@ -346,7 +346,7 @@ CLI::Option* add_switch(CLI::App& app, const std::string& flag, bool& value, con
 struct SourceDraft {
   SourceKind kind = SourceKind::ocean;
   int map_size = 0;
-  float time = 0.0f;
+  double time = 0.0;
   std::uint64_t seed = 0;
   float patch_size = 0.0f, wind_speed = 0.0f, wind_direction_degrees = 0.0f, fetch = 0.0f, spreading = 0.0f,
         choppiness = 0.0f;
@@ -1106,9 +1106,16 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   add_switch(app, "--resume", settings.resume, "skip frames whose outputs all exist");
   add_value(app, "--video", video, "also encode the frames with ffmpeg (needs ffmpeg on the PATH)",
             "FILE.mp4|FILE.webm", output_file({".mp4", ".webm"}));
+  std::string preview;
+  add_value(app, "--preview", preview, "also an animated GIF of the frames (a preview)", "FILE.gif",
+            output_file({".gif"}));
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   settings.scene = finish_pipeline_scene(app, scene);
+  settings.preview = preview;
+  if (!settings.preview.empty() && settings.shard_count > 1) {
+    throw usage_error("--preview shows one run's frames: not with --shard");
+  }
   long long step = 1;
   std::sscanf(frames.c_str(), "%lld:%lld:%lld", &settings.first, &settings.last, &step);
   settings.step = step;

@@ -138,6 +138,7 @@ struct SequenceSettings {
   std::vector<AovOutput> aovs;   // file patterns
   bool resume = false;           // skip frames whose every output exists
   std::filesystem::path video;   // .mp4 or .webm through ffmpeg; empty: none
+  std::filesystem::path preview; // an animated .gif of the frames rendered; empty: none
   render::RendererOptions renderer;
 };
 

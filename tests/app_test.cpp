@@ -771,7 +771,7 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   } cases[] = {
       {"sim", "--map-size INT:[2, 16384]"},  {"bake", "--tolerance T:[0, 1)"},
       {"render", "--steps INT:[1, 4096]"},   {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print calm|choppy|ripples|bricks|cliff"},
+      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print water|calm|ripples|bricks|cliff"},
   };
   for (const auto& test : cases) {
     const RunResult help = run_displace(dir, test.command + " --help");

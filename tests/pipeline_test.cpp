@@ -275,8 +275,8 @@ namespace {
 
 // Every cone ray of `pipeline`'s frames ends at or before its exact first crossing (render::cpu_trace
 // on the frame's heights).
-void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames) {
-  FramePipeline pipeline(scene, shared_renderer());
+void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames, pipeline::HeightLoader loader = {}) {
+  FramePipeline pipeline(scene, shared_renderer(), {}, std::move(loader));
   render::Frame frame;
   long long compared = 0, beyond = 0;
   for (int n = 0; n < frames; ++n) {
@@ -309,6 +309,26 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
       scene.steps = 8;
       scene.frame_ms = 0.0;
       expect_no_ray_past_the_first_crossing(scene, 3);
+    }
+  }
+  // animated checkers and terraces (an image sequence whose frames shift the pattern)
+  const pipeline::HeightLoader loader = [](const std::filesystem::path& file) {
+    const int frame = std::stoi(file.stem().string().substr(2));
+    if (file.string().find("checkers") != std::string::npos) {
+      return displace::testing::field_of(32, 32, [&](int i, int j) { return ((i + frame) / 4 + j / 4) % 2 ? 0.9 : 0.1; });
+    }
+    return displace::testing::field_of(32, 32, [&](int i, int j) { return 0.1 + 0.2 * (((i + 2 * j + frame) / 5) % 5); });
+  };
+  for (const char* pattern : {"checkers/c_##.png", "terraces/t_##.png"}) {
+    for (const render::Method method : {render::Method::csm, render::Method::acm4, render::Method::acm8}) {
+      Scene scene = small_scene("bricks", 32, 40);
+      scene.name = pattern;
+      scene.source = pipeline::SourceKind::image;
+      scene.image = pattern;
+      scene.method = method;
+      scene.steps = 8;
+      scene.frame_ms = 0.0;
+      expect_no_ray_past_the_first_crossing(scene, 3, loader);
     }
   }
 }
