@@ -227,7 +227,9 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   long long allocations_after_warm_up = 0;
   double last_done = 0.0;
   long long seen = 0;
-  pipeline.run_frames(0, settings.warm_up + settings.frames, render::output_none,
+  // colour read back: a frame's render stage then ends when the device has drawn it (with no
+  // readback the submission returns at once and the wait shows up in the next upload instead)
+  pipeline.run_frames(0, settings.warm_up + settings.frames, render::output_color,
                       [&](const pipeline::FrameRecord& record, const render::Frame&) {
                         const double now = seconds_now() * 1e3;
                         if (seen == settings.warm_up) allocations_after_warm_up = renderer.memory_allocations();
