@@ -38,6 +38,14 @@ pipeline::HeightLoader image_loader() {
   };
 }
 
+// The application's colour-image reader for albedo materials.
+pipeline::AlbedoLoader albedo_loader() {
+  return [](const std::filesystem::path& file) {
+    Rgba8Image image = read_color_image(file);
+    return render::Albedo{image.width, image.height, std::move(image.pixels)};
+  };
+}
+
 std::vector<std::string> effect_names(unsigned effects) {
   std::vector<std::string> names;
   if (effects & pipeline::effect_heights) names.emplace_back("heights");
@@ -122,7 +130,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                                            : render::output_uv | render::output_fetches;
   }
   render::Renderer renderer(settings.renderer);
-  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader());
+  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
 
   std::FILE* video = nullptr;
@@ -219,7 +227,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
 
 void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
-  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader());
+  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
   std::vector<double> sim, bake, upload, draw, frame_ms, interval;
   long long ffts = 0, within = 0;

@@ -90,9 +90,15 @@ struct FramePipeline::State {
 };
 
 FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock,
-                             HeightLoader loader)
+                             HeightLoader loader, AlbedoLoader albedo_loader)
     : state_(std::make_unique<State>(scene, renderer, std::move(clock), std::move(loader))) {
   State& s = *state_;
+  if (!scene.albedo.empty()) {
+    if (!albedo_loader) throw SceneError("an albedo material needs an albedo loader (the application's image reader)");
+    renderer.set_albedo(albedo_loader(scene.albedo));
+  } else {
+    renderer.clear_albedo();
+  }
   const int n = scene.source == SourceKind::image ? 0 : scene.map_size;
   if (scene.source != SourceKind::image && (n < 2 || n > 8192)) {
     throw SceneError("source.map_size must be between 2 and 8192");

@@ -54,13 +54,16 @@ struct FrameRecord {
 // Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
 // (demos/ uses OpenImageIO); it throws for a file it cannot read.
 using HeightLoader = std::function<render::HeightField(const std::filesystem::path& file)>;
+// Reads an albedo image (Scene::albedo) as RGBA8: the application's reader.
+using AlbedoLoader = std::function<render::Albedo(const std::filesystem::path& file)>;
 
 class FramePipeline {
  public:
   // clock: milliseconds (any origin); by default std::chrono::steady_clock. loader: needed by image
-  // scenes. Throws SceneError or render::RenderError for a scene that cannot run.
+  // scenes; albedo_loader by albedo materials (the albedo is set on the renderer here, once).
+  // Throws SceneError or render::RenderError for a scene that cannot run.
   FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock = {},
-                HeightLoader loader = {});
+                HeightLoader loader = {}, AlbedoLoader albedo_loader = {});
   ~FramePipeline();
   FramePipeline(FramePipeline&&) noexcept;
   FramePipeline& operator=(FramePipeline&&) noexcept;

@@ -282,9 +282,18 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   const toml::table* ocean = read.section(root, "ocean");
   if (ocean) {
     read.known_keys(*ocean, "ocean",
-                    {"patch_size", "spectrum", "wind_speed", "wind_direction", "choppiness", "seed"});
+                    {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "choppiness", "seed"});
   }
   sim::OceanParams& params = scene.ocean;
+  // [ocean] size: the ocean's grid, the same as [source] map_size (either may be given; not both, differing)
+  if (const toml::node* size = ocean ? ocean->get("size") : nullptr) {
+    const int ocean_size = int(read.integer(ocean, "ocean", "size", scene.map_size, min_map_size, max_map_size));
+    if (ocean_size % 2 != 0) read.fail(size, "ocean.size", "must be even");
+    if (source && source->get("map_size") && ocean_size != scene.map_size) {
+      read.fail(size, "ocean.size", "differs from source.map_size (" + std::to_string(scene.map_size) + ")");
+    }
+    scene.map_size = ocean_size;
+  }
   params.patch_size = float(read.number(ocean, "ocean", "patch_size", params.patch_size, 1.0, 1e5));
   params.spectrum = read.word(ocean, "ocean", "spectrum", "phillips", {"phillips", "jonswap"}) == "jonswap"
                         ? sim::Spectrum::jonswap
@@ -306,10 +315,19 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
 
   // [material]
   const toml::table* material = read.section(root, "material");
-  if (material) read.known_keys(*material, "material", {"kind", "foam"});
-  scene.material = read.word(material, "material", "kind", "grid", {"grid", "water"}) == "water"
-                       ? render::Material::water
-                       : render::Material::grid;
+  if (material) read.known_keys(*material, "material", {"kind", "foam", "albedo"});
+  const std::string material_kind = read.word(material, "material", "kind", "grid", {"grid", "albedo", "water"});
+  scene.material = material_kind == "water" ? render::Material::water : render::Material::grid;
+  const std::string albedo = read.word(material, "material", "albedo", "", {});
+  if (material_kind == "albedo") {
+    if (albedo.empty()) read.fail(material->get("kind"), "material.albedo", "kind = \"albedo\" needs an albedo image");
+    scene.albedo = albedo;
+    if (scene.albedo.is_relative() && source_name.find('/') != std::string::npos) {
+      scene.albedo = std::filesystem::path(source_name).parent_path() / scene.albedo;
+    }
+  } else if (!albedo.empty()) {
+    read.fail(material->get("albedo"), "material.albedo", "only kind = \"albedo\" reads an image");
+  }
   scene.foam = read.boolean(material, "material", "foam", false);
   if (scene.foam && (scene.material != render::Material::water || scene.source != SourceKind::ocean)) {
     read.fail(material->get("foam"), "material.foam", "foam needs kind = \"water\" and the ocean source");
@@ -445,8 +463,12 @@ std::string scene_toml(const Scene& scene) {
                                        {"patch_size", tidy(scene.sinusoids.patch_size)},
                                        {"steepness", tidy(scene.sinusoids.steepness)},
                                        {"seed", std::int64_t(scene.sinusoids.seed)}});
-  root.insert("material", toml::table{{"kind", scene.material == render::Material::water ? "water" : "grid"},
-                                      {"foam", scene.foam}});
+  toml::table material{{"kind", scene.material == render::Material::water ? "water"
+                                : !scene.albedo.empty()                   ? "albedo"
+                                                                          : "grid"},
+                       {"foam", scene.foam}};
+  if (!scene.albedo.empty()) material.insert("albedo", scene.albedo.string());
+  root.insert("material", material);
   toml::table camera{{"eye", vec(scene.camera.eye)},
                      {"look_at", vec(scene.camera.look_at)},
                      {"up", vec(scene.camera.up)},

@@ -50,9 +50,11 @@ struct Scene {
   render::Camera camera;
   std::vector<CameraKey> keyframes;  // sorted by time
 
-  // [material]: kind = "grid" | "water"; foam (water only) shows where the choppy surface folds
+  // [material]: kind = "grid" | "albedo" | "water"; foam (water only) shows where the choppy
+  // surface folds; albedo = an image the hit is shaded with (kind = "albedo"; relative to the file)
   render::Material material = render::Material::grid;
   bool foam = false;
+  std::filesystem::path albedo;
 
   // [render]
   render::Method method = render::Method::acm4;

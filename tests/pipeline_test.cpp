@@ -105,7 +105,8 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"ocean.seed", {"\"x\""}},                   {"sinusoids.wave_count", {"1.5", "0"}},
       {"sinusoids.patch_size", {"true", "0"}},      {"sinusoids.steepness", {"\"s\"", "2"}},
       {"sinusoids.seed", {"\"x\""}},               {"material.kind", {"1", "\"glass\""}},
-      {"material.foam", {"1"}},                     {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
+      {"material.foam", {"1"}},                     {"material.albedo", {"1"}},
+      {"ocean.size", {"7", "\"big\"", "0"}},                     {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
       {"camera.look_at", {"[1, 2, 3, 4]"}},         {"camera.up", {"\"up\""}},
       {"camera.fov_y", {"\"wide\"", "180"}},        {"camera.keyframes", {"3", "[1, 2]"}},
       {"render.method", {"1", "\"magic\""}},        {"render.steps", {"\"many\"", "0", "5000"}},
@@ -128,6 +129,40 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       EXPECT_EQ(error.rfind("scene.toml:", 0), 0u) << text << " -> " << error;
     }
   }
+}
+
+// [ocean] size is the map size; an albedo material names its image next to the scene file.
+TEST(Scene, OceanSizeAndAlbedoMaterial) {
+  EXPECT_EQ(pipeline::parse_scene("[ocean]\nsize = 64\n", "s.toml").map_size, 64);
+  EXPECT_NE(error_of("[source]\nmap_size = 32\n[ocean]\nsize = 64\n").find("ocean.size: differs"), std::string::npos);
+  const Scene albedo = pipeline::parse_scene("[material]\nkind = \"albedo\"\nalbedo = \"a.png\"\n", "dir/s.toml");
+  EXPECT_EQ(albedo.albedo, std::filesystem::path("dir/a.png"));
+  EXPECT_EQ(pipeline::parse_scene(pipeline::scene_toml(albedo), "x").albedo, albedo.albedo);
+  EXPECT_NE(error_of("[material]\nkind = \"albedo\"\n").find("material.albedo"), std::string::npos);
+  EXPECT_NE(error_of("[material]\nalbedo = \"a.png\"\n").find("material.albedo"), std::string::npos);
+  // the pipeline hands the image to the renderer: a red albedo shades the bricks red
+  Scene scene = small_scene("bricks", 16, 16);
+  scene.method = render::Method::relief;
+  scene.albedo = "red.png";
+  std::vector<std::string> read;
+  const pipeline::AlbedoLoader loader = [&](const std::filesystem::path& file) {
+    read.push_back(file.string());
+    return render::Albedo{1, 1, {255, 0, 0, 255}};
+  };
+  EXPECT_THROW(FramePipeline(scene, shared_renderer()), SceneError);
+  FramePipeline red(scene, shared_renderer(), {}, {}, loader);
+  render::Frame frame;
+  red.run(0, frame, render::output_all);
+  EXPECT_EQ(read, std::vector<std::string>{"red.png"});
+  long long reddish = 0, hit = 0;
+  for (std::size_t p = 0; p < frame.uv.size() / 3; ++p) {
+    if (frame.uv[p * 3 + 2] < 0.5f) continue;
+    ++hit;
+    reddish += frame.color[p * 4] > 2 * frame.color[p * 4 + 1] + 10;
+  }
+  EXPECT_GT(hit, 50);
+  EXPECT_EQ(reddish, hit);
+  shared_renderer().clear_albedo();
 }
 
 TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
