@@ -43,6 +43,17 @@ std::string take_error(Io* io) {
   return message.empty() ? std::string("unknown error") : message;
 }
 
+// A read that succeeded can still have met a truncated or corrupt file: libjpeg, for one, fills the
+// missing rows and only leaves a warning ("Premature end of JPEG file") in the reader's error text.
+// Such a file is refused, not read as a silently wrong image.
+void check_complete(oiio::ImageInput& input, const std::filesystem::path& file) {
+  std::string warning = input.geterror();
+  if (warning.empty()) return;
+  while (!warning.empty() && (warning.back() == '\n' || warning.back() == ' ')) warning.pop_back();
+  std::replace(warning.begin(), warning.end(), '\n', ' ');
+  throw runtime_error("cannot read the pixels of " + quoted(file) + ": the file is truncated or corrupt (" + warning + ")");
+}
+
 std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file) {
   std::error_code error;
   if (!std::filesystem::exists(file, error))
@@ -125,6 +136,7 @@ std::vector<float> read_channel_as(oiio::ImageInput& input, int channel, oiio::T
   if (!input.read_image(0, 0, channel, channel + 1, type, samples.data())) {
     throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(&input));
   }
+  check_complete(input, file);
   return std::vector<float>(samples.begin(), samples.end());
 }
 
@@ -392,6 +404,7 @@ FloatImage read_float_image(const std::filesystem::path& file) {
   if (!input->read_image(0, 0, 0, spec.nchannels, oiio::TypeDesc::FLOAT, image.pixels.data())) {
     throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
   }
+  check_complete(*input, file);
   input->close();
   return image;
 }
@@ -407,6 +420,7 @@ Rgba8Image read_color_image(const std::filesystem::path& file) {
   if (!input->read_image(0, 0, 0, channels, oiio::TypeDesc::UINT8, stored.data())) {
     throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
   }
+  check_complete(*input, file);
   input->close();
   Rgba8Image image;
   image.width = spec.width;
@@ -441,6 +455,7 @@ Rgba8Image read_rgba8_image(const std::filesystem::path& file) {
   if (!input->read_image(0, 0, 0, 4, oiio::TypeDesc::UINT8, image.pixels.data())) {
     throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
   }
+  check_complete(*input, file);
   input->close();
   return image;
 }

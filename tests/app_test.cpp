@@ -197,6 +197,29 @@ TEST(ImageIo, ChoosesAChannelByIndexOrName) {
   EXPECT_THROW(load_heights(dir / "c.png", beyond), AppError);
 }
 
+// A truncated JPEG (its first third) is refused: libjpeg fills the missing rows and leaves only a
+// warning, which the reader turns into one clear error instead of a silently wrong map.
+TEST(ImageIo, RefusesATruncatedJpeg) {
+  TempDir dir;
+  std::vector<std::uint8_t> pixels(64 * 64);
+  for (std::size_t i = 0; i < pixels.size(); ++i) pixels[i] = std::uint8_t(i % 251);
+  const fs::path whole = dir / "whole.jpg", cut = dir / "cut.jpg";
+  write_with_oiio(whole, 64, 64, 1, OIIO::TypeDesc::UINT8, pixels.data());
+  EXPECT_NO_THROW(load_heights(whole, {}));
+  const std::string bytes = read_text(whole);
+  {
+    std::ofstream out(cut, std::ios::binary);
+    out << bytes.substr(0, bytes.size() / 3);
+  }
+  try {
+    load_heights(cut, {});
+    ADD_FAILURE() << "a truncated JPEG was read";
+  } catch (const AppError& error) {
+    EXPECT_EQ(error.kind, ErrorKind::runtime);
+    EXPECT_NE(std::string(error.what()).find("truncated or corrupt"), std::string::npos) << error.what();
+  }
+}
+
 TEST(ImageIo, BadFilesThrowOneErrorNamingTheFile) {
   TempDir dir;
   write_bytes(dir / "corrupt.png", std::string("\x89PNG\r\n\x1a\n this is not a png at all", 32));
