@@ -32,6 +32,7 @@ namespace {
 constexpr int max_wave_count = 4096;             // sinusoid waves
 constexpr double max_budget_milliseconds = 1e9;  // about 11 days
 constexpr int max_steps = 4096;                  // search steps per pixel
+constexpr int max_ocean_size = 8192;             // the ocean's FFT grid (sim::OceanParams)
 constexpr int max_refine = 64;                   // refinement steps per pixel
 constexpr int max_tile = 64;                     // texture repeats over the plane
 constexpr int max_repeat = 100;                  // sweep renders per row
@@ -392,6 +393,10 @@ SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
   source.kind = draft.kind;
   if (!given(app, "--map-size")) throw usage_error("--source needs --map-size N (samples along u and v)");
   source.size = draft.map_size;
+  if (source.kind == SourceKind::ocean && (source.size % 2 != 0 || source.size > max_ocean_size)) {
+    throw usage_error(fmt::format("--map-size for the ocean must be even and at most {} (its FFT grid), got {}",
+                                  max_ocean_size, source.size));
+  }
   if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
     // static procedural reliefs: only a seed
     for (const char* flag : {"--patch-size", "--wind-speed", "--wind-direction", "--fetch", "--spectrum",
@@ -580,7 +585,10 @@ SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const s
   if (given(app, "--eye")) view.camera.eye = *read_vector(draft.eye);
   if (given(app, "--look-at")) view.camera.look_at = *read_vector(draft.look_at);
   if (given(app, "--up")) view.camera.up = *read_vector(draft.up);
-  if (given(app, "--light")) view.light_direction = *read_vector(draft.light);
+  if (given(app, "--light")) {
+    view.light_direction = *read_vector(draft.light);
+    if (glm::length(view.light_direction) < 1e-6f) throw usage_error("--light must not be 0,0,0 (a direction towards the light)");
+  }
   if (given(app, "--surface")) {
     if (draft.surface.starts_with("mesh:")) {
       view.surface = render::Surface::mesh;

@@ -1463,3 +1463,15 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_EQ(parsed["effects"], nlohmann::json({"heights", "choppy", "foam"}));
   EXPECT_EQ(parsed["vulkan_allocations_after_warmup"], 0);
 }
+
+// Flag limits agree with what the code accepts, and usage errors exit 2 with the project's words.
+TEST(Cli, OceanSizeAndZeroLightAreUsageErrors) {
+  TempDir dir;
+  const RunResult big = run_displace(dir, "render --source ocean --map-size 16384 --time 0 --method bump --output a.png");
+  EXPECT_EQ(big.exit_code, 2);
+  EXPECT_NE(big.err.find("at most 8192"), std::string::npos) << big.err;
+  EXPECT_EQ(big.err.find("OceanParams"), std::string::npos) << big.err;
+  const RunResult dark = run_displace(dir, "render --source ocean --map-size 16 --time 0 --method bump --light 0,0,0 --output a.png");
+  EXPECT_EQ(dark.exit_code, 2);
+  EXPECT_NE(dark.err.find("--light"), std::string::npos) << dark.err;
+}
