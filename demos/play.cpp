@@ -34,6 +34,9 @@ constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel 
 constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
 constexpr float max_elevation = 1.5f;
 constexpr int max_play_steps = 4096;
+// frames before nothing is allocated any more: every frame slot has made its targets and readback
+// buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
+constexpr long long warm_up_frames = render::frames_in_flight + 1;
 // the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
 constexpr std::array<double, 10> budget_levels = {0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0,
                                                   std::numeric_limits<double>::infinity()};
@@ -81,7 +84,7 @@ struct Controls {
   int method_delta = 0;     // methods to move by in the table
   int steps_factor = 0;     // +1: double, -1: halve
   int budget_delta = 0;     // budget levels to move by
-  bool reset_camera = false;
+  bool camera_moved = false;  // draw the shown frame again (while paused)
   bool dragging = false;
   double last_x = 0.0, last_y = 0.0;
   float yaw = 0.0f, pitch = 0.0f;  // radians added to the scene camera's azimuth and elevation
@@ -106,6 +109,7 @@ void on_key(GLFWwindow* window, int key, int, int action, int mods) {
       controls.yaw = controls.pitch = 0.0f;
       controls.zoom = 1.0f;
       controls.orbited = false;
+      controls.camera_moved = true;
       break;
     case GLFW_KEY_ESCAPE:
     case GLFW_KEY_Q: glfwSetWindowShouldClose(window, GLFW_TRUE); break;
@@ -128,12 +132,14 @@ void on_cursor(GLFWwindow* window, double x, double y) {
   controls.last_x = x;
   controls.last_y = y;
   controls.orbited = true;
+  controls.camera_moved = true;
 }
 
 void on_scroll(GLFWwindow* window, double, double y_offset) {
   auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
   controls.zoom = std::clamp(controls.zoom * std::pow(zoom_per_wheel_step, float(y_offset)), 0.05f, 20.0f);
   controls.orbited = true;
+  controls.camera_moved = true;
 }
 
 // The GLFW window (no client API: Vulkan presents into it).
@@ -293,6 +299,8 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   double status_time = now_seconds();
   long long status_frames = 0;
   double frames_per_second = 0.0;
+  // vkAllocateMemory calls after the warm-up frames, and before the last frame (its readback buffer)
+  long long warm_allocations = -1, settled_allocations = -1;
 
   while (!glfwWindowShouldClose(window.get())) {
     glfwPollEvents();
@@ -312,14 +320,22 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     const long long shown = advance ? index : std::max(index - 1, 0LL);
     const bool last = fixed && shown == settings.frames - 1;
     const bool read_back = (last && !settings.screenshot.empty()) || controls.screenshot;
-    const bool redraw = advance || read_back || controls.orbited || controls.reset_camera;
+    const bool redraw = advance || read_back || controls.camera_moved;
+    glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
     if (redraw) {
-      const render::View view = orbit_view(pipeline::scene_view(scene, pipeline::frame_time(scene, shown)), controls);
+      render::View view = orbit_view(pipeline::scene_view(scene, pipeline::frame_time(scene, shown)), controls);
+      if (!fixed && framebuffer_width > 0 && framebuffer_height > 0) {
+        // the picture follows the window (with --frames it keeps --size: the frames are fixed)
+        view.camera.width = framebuffer_width;
+        view.camera.height = framebuffer_height;
+      }
+      if (last) settled_allocations = renderer.memory_allocations();  // before the screenshot's readback buffer
       record = pipeline->run(shown, view, frame, read_back ? render::output_color : render::output_none);
       have_frame = true;
       if (advance) index = shown + 1;
+      if (fixed && index == warm_up_frames) warm_allocations = renderer.memory_allocations();
       controls.step = false;
-      controls.reset_camera = false;
+      controls.camera_moved = false;
       ++status_frames;
     }
     if (read_back && controls.screenshot) {
@@ -330,7 +346,6 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     }
     if (last && !settings.screenshot.empty()) write_screenshot(settings.screenshot, frame, scene, record);
 
-    glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
     swapchain.present(framebuffer_width, framebuffer_height);
 
     // report: the title and the terminal, once a second
@@ -350,9 +365,13 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
     throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
   }
-  out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s{}\n", index, scene.name,
-                     scene.camera.width, scene.camera.height, scene.map_size, record.time,
-                     settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string());
+  out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", index, scene.name,
+                     scene.camera.width, scene.camera.height, scene.map_size, record.time);
+  if (warm_allocations >= 0 && settled_allocations >= 0) {
+    out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
+                       warm_up_frames, index - 2);
+  }
+  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string()) << '\n';
 }
 
 }  // namespace displace::app

@@ -1355,6 +1355,10 @@ TEST(Cli, PlayRendersThePipelinesFramesInAWindow) {
   ASSERT_EQ(played.exit_code, 0) << played.err << played.out;
   EXPECT_EQ(played.err.find("validation"), std::string::npos) << played.err;
   EXPECT_NE(played.out.find("play: 3 frames of water"), std::string::npos) << played.out;
+  // after the warm-up a frame allocates no device memory (frames 3..6 of 8; the last reads back)
+  const RunResult longer = run_displace(dir, "play --frames 8 --size 64x64 --map-size 32", "xvfb-run -a ");
+  ASSERT_EQ(longer.exit_code, 0) << longer.err;
+  EXPECT_NE(longer.out.find(", 0 device allocations in frames 3..6"), std::string::npos) << longer.out;
   const Rgba8Image image = read_rgba8_image(shot);
 
   pipeline::Scene scene = pipeline::builtin_scene("water");
