@@ -273,6 +273,9 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   Glfw glfw;
   render::RendererOptions renderer_options = settings.renderer;
   renderer_options.instance_extensions = glfw.instance_extensions();
+  renderer_options.can_present = [](VkInstance instance, VkPhysicalDevice device, std::uint32_t family) {
+    return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
+  };
   render::Renderer renderer(renderer_options);
   Controls controls;
   Window window(scene.camera.width, scene.camera.height, "displace play", controls);
@@ -367,7 +370,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   }
   out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", index, scene.name,
                      scene.camera.width, scene.camera.height, scene.map_size, record.time);
-  if (warm_allocations >= 0 && settled_allocations >= 0) {
+  if (warm_allocations >= 0 && settled_allocations >= 0 && index - 2 >= warm_up_frames) {
     out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
                        warm_up_frames, index - 2);
   }

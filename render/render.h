@@ -195,6 +195,10 @@ struct RendererOptions {
   // Non-empty: the renderer can present (Swapchain): the device also gets VK_KHR_swapchain, and only
   // devices that have it are chosen.
   std::vector<std::string> instance_extensions;
+  // With instance_extensions: whether a device's queue family can present to the caller's window
+  // system (glfwGetPhysicalDevicePresentationSupport), asked before any surface exists, so that a
+  // device that cannot show the window (a GPU under Xvfb) is passed over. Empty: not asked.
+  std::function<bool(VkInstance, VkPhysicalDevice, std::uint32_t queue_family)> can_present;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,

@@ -156,29 +156,37 @@ bool has_device_extension(VkPhysicalDevice device, const char* name) {
   });
 }
 
-// `present`: only devices with VK_KHR_swapchain are usable.
-std::vector<Candidate> candidates(VkInstance instance, bool present = false) {
+// `present`: only devices with VK_KHR_swapchain (and, when `can_present` is given, whose graphics
+// queue family it accepts) are usable.
+std::vector<Candidate> candidates(VkInstance instance, bool present = false,
+                                  const RendererOptions* options = nullptr) {
   std::vector<Candidate> result;
   int index = 0;
   for (VkPhysicalDevice device : physical_devices(instance)) {
     VkPhysicalDeviceProperties properties;
     vkGetPhysicalDeviceProperties(device, &properties);
-    const bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && graphics_queue_family(device) >= 0 &&
-                        (!present || has_device_extension(device, VK_KHR_SWAPCHAIN_EXTENSION_NAME));
+    const int family = graphics_queue_family(device);
+    bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && family >= 0;
+    if (usable && present) {
+      usable = has_device_extension(device, VK_KHR_SWAPCHAIN_EXTENSION_NAME) &&
+               (!options || !options->can_present || options->can_present(instance, device, std::uint32_t(family)));
+    }
     DeviceInfo info{index++, properties.deviceName, type_name(properties.deviceType)};
     result.push_back({device, info, usable ? type_rank(properties.deviceType) : -1});
   }
   return result;
 }
 
-Candidate choose_device(VkInstance instance, const std::string& wanted, bool present) {
-  const std::vector<Candidate> all = candidates(instance, present);
+Candidate choose_device(VkInstance instance, const RendererOptions& options) {
+  const bool present = !options.instance_extensions.empty();
+  const std::string& wanted = options.device;
+  const std::vector<Candidate> all = candidates(instance, present, &options);
   if (all.empty()) throw RenderError(std::string("no Vulkan device found; ") + install_hint);
   if (wanted.empty()) {
     const auto best = std::max_element(all.begin(), all.end(),
                                        [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
     if (best->rank < 0) {
-      throw RenderError(std::string("no Vulkan 1.2 device with graphics") + (present ? " and VK_KHR_swapchain" : "") +
+      throw RenderError(std::string("no Vulkan 1.2 device with graphics") + (present ? " that presents to the window" : "") +
                         " found; " + install_hint);
     }
     return *best;
@@ -191,7 +199,7 @@ Candidate choose_device(VkInstance instance, const std::string& wanted, bool pre
     const bool by_name = lower(candidate.info.name).find(lower(wanted)) != std::string::npos;
     if (by_index || by_name) {
       if (candidate.rank < 0) throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics" +
-                                                   (present ? std::string(" or VK_KHR_swapchain") : std::string()));
+                                                   (present ? std::string(" or cannot present to the window") : std::string()));
       return candidate;
     }
     names += (names.empty() ? "" : ", ") + std::to_string(candidate.info.index) + ": " + candidate.info.name;
@@ -239,7 +247,7 @@ Context::Context(const RendererOptions& options) {
       DISPLACE_VK_CHECK(create(instance_, &info, nullptr, &messenger_));
     }
 
-    const Candidate chosen = choose_device(instance_, options.device, present);
+    const Candidate chosen = choose_device(instance_, options);
     physical_device_ = chosen.device;
     info_ = chosen.info;
     queue_family_ = std::uint32_t(graphics_queue_family(physical_device_));
