@@ -365,6 +365,9 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   }
   renderer.wait_idle();
   if (terminal) out << '\n';
+  if (fixed && index < settings.frames) {
+    throw runtime_error(fmt::format("the window was closed after {} of the {} frames asked for", index, settings.frames));
+  }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
     throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
   }
