@@ -985,9 +985,9 @@ constexpr const char* play_keys = R"(Keys:
 
 CommandSettings parse_play(std::span<const std::string_view> args) {
   CLI::App app(
-      "The frame pipeline's scene animated in a window (GLFW, a Vulkan swapchain). The title and the terminal "
-      "show the frame time, its split (sim, bake, upload, render), the bake budget and the texels left to "
-      "refine. Needs a display: without one, run it under 'xvfb-run -a'.",
+      "The frame pipeline's scene animated in a window (GLFW, a Vulkan swapchain). The title and the "
+      "terminal show the frame time, its split (sim, bake, upload, render), the bake budget and the "
+      "texels left to refine. Needs a display: without one, run it under 'xvfb-run -a'.",
       "displace play");
   set_up(app);
   app.footer(play_keys);
@@ -1014,14 +1014,15 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
                                      max_image_side, in_quotes(text));
           },
           fmt::format("[1, {}] each", max_image_side)));
-  add_value(app, "--map-size", settings.map_size, "height map samples along u and v (default: the scene's)", "INT",
-            integer_in(2, 8192));
+  add_value(app, "--map-size", settings.map_size, "height map samples along u and v (default: the scene's)",
+            "INT", integer_in(2, 8192));
   add_value(app, "--frames", settings.frames,
             "render exactly N fixed-step frames (scene time start + n / fps), then exit", "N",
             integer_in(1, 1000000000));
   add_value(app, "--screenshot", screenshot, "with --frames: write the last frame", "F.png",
             output_file({".png"}));
-  add_switch(app, "--vsync", settings.vsync, "present at the display's rate (default: as fast as frames come)");
+  add_switch(app, "--vsync", settings.vsync,
+             "present at the display's rate (default: as fast as frames come)");
   add_renderer_flags(app, settings.renderer);
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);

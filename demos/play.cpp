@@ -28,7 +28,7 @@
 namespace displace::app {
 namespace {
 
-constexpr double status_period_seconds = 1.0;       // terminal and title updates
+constexpr double status_period_seconds = 1.0;      // terminal and title updates
 constexpr float orbit_radians_per_pixel = 0.005f;  // mouse drag
 constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel step
 constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
@@ -38,8 +38,8 @@ constexpr int max_play_steps = 4096;
 // buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
 constexpr long long warm_up_frames = render::frames_in_flight + 1;
 // the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
-constexpr std::array<double, 10> budget_levels = {0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0,
-                                                  std::numeric_limits<double>::infinity()};
+constexpr std::array<double, 10> budget_levels = {
+    0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -79,11 +79,11 @@ class Glfw {
 // The user's input between frames.
 struct Controls {
   bool paused = false;
-  bool step = false;        // one frame forward while paused
-  bool screenshot = false;  // read the next frame back and write it
-  int method_delta = 0;     // methods to move by in the table
-  int steps_factor = 0;     // +1: double, -1: halve
-  int budget_delta = 0;     // budget levels to move by
+  bool step = false;          // one frame forward while paused
+  bool screenshot = false;    // read the next frame back and write it
+  int method_delta = 0;       // methods to move by in the table
+  int steps_factor = 0;       // +1: double, -1: halve
+  int budget_delta = 0;       // budget levels to move by
   bool camera_moved = false;  // draw the shown frame again (while paused)
   bool dragging = false;
   double last_x = 0.0, last_y = 0.0;
@@ -173,10 +173,11 @@ render::View orbit_view(render::View view, const Controls& controls) {
   const float distance = glm::length(offset) * controls.zoom;
   const float azimuth = std::atan2(offset.y, offset.x) + controls.yaw;
   const float elevation =
-      std::clamp(std::asin(std::clamp(offset.z / glm::length(offset), -1.0f, 1.0f)) + controls.pitch, min_elevation,
-                 max_elevation);
-  camera.eye = camera.look_at + distance * glm::vec3(std::cos(elevation) * std::cos(azimuth),
-                                                     std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+      std::clamp(std::asin(std::clamp(offset.z / glm::length(offset), -1.0f, 1.0f)) + controls.pitch,
+                 min_elevation, max_elevation);
+  camera.eye =
+      camera.look_at + distance * glm::vec3(std::cos(elevation) * std::cos(azimuth),
+                                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
   return view;
 }
 
@@ -186,7 +187,8 @@ const render::MethodInfo& next_method(render::Method current, int delta, render:
   for (const render::MethodInfo& info : render::method_table()) {
     if (render::supports_surface(info.method, surface)) usable.push_back(&info);
   }
-  const auto at = std::find_if(usable.begin(), usable.end(), [&](auto* info) { return info->method == current; });
+  const auto at =
+      std::find_if(usable.begin(), usable.end(), [&](auto* info) { return info->method == current; });
   const int count = int(usable.size());
   const int index = at == usable.end() ? 0 : int(at - usable.begin());
   return *usable[std::size_t(((index + delta) % count + count) % count)];
@@ -217,14 +219,15 @@ bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
   return changed;
 }
 
-std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecord& record, double frames_per_second,
-                        bool paused) {
+std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecord& record,
+                        double frames_per_second, bool paused) {
   return fmt::format(
       "{} {} {} steps | frame {} t {:.2f} s | {:.1f} ms ({:.0f} fps): sim {:.1f} bake {:.1f} upload {:.1f} "
       "render {:.1f} | budget {} (bake {}) | pending {}{}",
-      scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time, record.frame_ms,
-      frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, budget_text(scene.frame_ms),
-      budget_text(record.bake_budget_ms), record.pending, paused ? " | paused" : "");
+      scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time,
+      record.frame_ms, frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
+      budget_text(scene.frame_ms), budget_text(record.bake_budget_ms), record.pending,
+      paused ? " | paused" : "");
 }
 
 pipeline::HeightLoader image_loader() {
@@ -234,8 +237,8 @@ pipeline::HeightLoader image_loader() {
   };
 }
 
-void write_screenshot(const std::filesystem::path& file, const render::Frame& frame, const pipeline::Scene& scene,
-                      const pipeline::FrameRecord& record) {
+void write_screenshot(const std::filesystem::path& file, const render::Frame& frame,
+                      const pipeline::Scene& scene, const pipeline::FrameRecord& record) {
   Metadata metadata;
   metadata.push_back({"displace:scene", scene.name});
   metadata.push_back({"displace:method", render::method_info(scene.method).name});
@@ -293,8 +296,8 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
       },
       framebuffer_width, framebuffer_height, settings.vsync);
 
-  auto pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
-                                                            image_loader());
+  auto pipeline =
+      std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{}, image_loader());
   render::Frame frame;
   pipeline::FrameRecord record;
   long long index = 0;  // the next frame
@@ -326,13 +329,15 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     const bool redraw = advance || read_back || controls.camera_moved;
     glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
     if (redraw) {
-      render::View view = orbit_view(pipeline::scene_view(scene, pipeline::frame_time(scene, shown)), controls);
+      render::View view =
+          orbit_view(pipeline::scene_view(scene, pipeline::frame_time(scene, shown)), controls);
       if (!fixed && framebuffer_width > 0 && framebuffer_height > 0) {
         // the picture follows the window (with --frames it keeps --size: the frames are fixed)
         view.camera.width = framebuffer_width;
         view.camera.height = framebuffer_height;
       }
-      if (last) settled_allocations = renderer.memory_allocations();  // before the screenshot's readback buffer
+      if (last)
+        settled_allocations = renderer.memory_allocations();  // before the screenshot's readback buffer
       record = pipeline->run(shown, view, frame, read_back ? render::output_color : render::output_none);
       have_frame = true;
       if (advance) index = shown + 1;
@@ -366,10 +371,12 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   renderer.wait_idle();
   if (terminal) out << '\n';
   if (fixed && index < settings.frames) {
-    throw runtime_error(fmt::format("the window was closed after {} of the {} frames asked for", index, settings.frames));
+    throw runtime_error(
+        fmt::format("the window was closed after {} of the {} frames asked for", index, settings.frames));
   }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
+    throw runtime_error(std::to_string(renderer.validation_messages()) +
+                        " Vulkan validation messages (printed above)");
   }
   out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", index, scene.name,
                      scene.camera.width, scene.camera.height, scene.map_size, record.time);
@@ -377,7 +384,8 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
                        warm_up_frames, index - 2);
   }
-  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string()) << '\n';
+  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string())
+      << '\n';
 }
 
 }  // namespace displace::app

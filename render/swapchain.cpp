@@ -66,38 +66,42 @@ Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, boo
   if (surface.handle == VK_NULL_HANDLE) throw RenderError("the window system made no Vulkan surface");
 
   VkBool32 supported = VK_FALSE;
-  DISPLACE_VK_CHECK(
-      vkGetPhysicalDeviceSurfaceSupportKHR(context.physical_device(), context.queue_family(), surface.handle, &supported));
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfaceSupportKHR(context.physical_device(), context.queue_family(),
+                                                         surface.handle, &supported));
   if (!supported) {
-    throw RenderError("device '" + context.info().name + "' cannot present to this window (its graphics queue has no "
+    throw RenderError("device '" + context.info().name +
+                      "' cannot present to this window (its graphics queue has no "
                       "present support); pick another with --device");
   }
 
   // surface format: an 8-bit UNORM one the blit can write
   std::uint32_t count = 0;
-  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count, nullptr));
-  std::vector<VkSurfaceFormatKHR> formats(count);
   DISPLACE_VK_CHECK(
-      vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count, formats.data()));
+      vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count, nullptr));
+  std::vector<VkSurfaceFormatKHR> formats(count);
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count,
+                                                         formats.data()));
   bool found = false;
   for (VkFormat wanted : wanted_formats) {
     for (const VkSurfaceFormatKHR& offered : formats) {
       VkFormatProperties properties;
       vkGetPhysicalDeviceFormatProperties(context.physical_device(), offered.format, &properties);
-      if (!found && offered.format == wanted && (properties.optimalTilingFeatures & VK_FORMAT_FEATURE_BLIT_DST_BIT)) {
+      if (!found && offered.format == wanted &&
+          (properties.optimalTilingFeatures & VK_FORMAT_FEATURE_BLIT_DST_BIT)) {
         format = offered;
         found = true;
       }
     }
   }
-  if (!found) throw RenderError("the window offers no 8-bit UNORM (B8G8R8A8 or R8G8B8A8) swapchain format to blit to");
+  if (!found)
+    throw RenderError("the window offers no 8-bit UNORM (B8G8R8A8 or R8G8B8A8) swapchain format to blit to");
 
   // present mode: FIFO always exists; without vsync take mailbox, else immediate, when offered
   DISPLACE_VK_CHECK(
       vkGetPhysicalDeviceSurfacePresentModesKHR(context.physical_device(), surface.handle, &count, nullptr));
   std::vector<VkPresentModeKHR> modes(count);
-  DISPLACE_VK_CHECK(
-      vkGetPhysicalDeviceSurfacePresentModesKHR(context.physical_device(), surface.handle, &count, modes.data()));
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfacePresentModesKHR(context.physical_device(), surface.handle,
+                                                              &count, modes.data()));
   present_mode = VK_PRESENT_MODE_FIFO_KHR;
   if (!vsync) {
     for (VkPresentModeKHR mode : {VK_PRESENT_MODE_IMMEDIATE_KHR, VK_PRESENT_MODE_MAILBOX_KHR}) {
@@ -123,7 +127,8 @@ Swapchain::Impl::~Impl() {
   const VkDevice device = context.device();
   vkDeviceWaitIdle(device);  // the presents and blits in flight
   for (PresentSlot& present_slot : slots) {
-    if (present_slot.commands) vkFreeCommandBuffers(device, context.command_pool(), 1, &present_slot.commands);
+    if (present_slot.commands)
+      vkFreeCommandBuffers(device, context.command_pool(), 1, &present_slot.commands);
   }
 }
 
@@ -134,15 +139,17 @@ void Swapchain::Impl::recreate(int width, int height) {
   DISPLACE_VK_CHECK(
       vkGetPhysicalDeviceSurfaceCapabilitiesKHR(context.physical_device(), surface.handle, &capabilities));
   if (!(capabilities.supportedUsageFlags & VK_IMAGE_USAGE_TRANSFER_DST_BIT)) {
-    throw RenderError("the window's swapchain images cannot be written by a transfer (no TRANSFER_DST usage)");
+    throw RenderError(
+        "the window's swapchain images cannot be written by a transfer (no TRANSFER_DST usage)");
   }
   requested_width = width;
   requested_height = height;
   extent = capabilities.currentExtent;
   if (extent.width == std::numeric_limits<std::uint32_t>::max()) {
-    extent.width = std::clamp(std::uint32_t(width), capabilities.minImageExtent.width, capabilities.maxImageExtent.width);
-    extent.height =
-        std::clamp(std::uint32_t(height), capabilities.minImageExtent.height, capabilities.maxImageExtent.height);
+    extent.width = std::clamp(std::uint32_t(width), capabilities.minImageExtent.width,
+                              capabilities.maxImageExtent.width);
+    extent.height = std::clamp(std::uint32_t(height), capabilities.minImageExtent.height,
+                               capabilities.maxImageExtent.height);
   }
   if (extent.width == 0 || extent.height == 0) return;  // minimized: made when the window has a size again
 
@@ -161,9 +168,9 @@ void Swapchain::Impl::recreate(int width, int height) {
                           ? VK_SURFACE_TRANSFORM_IDENTITY_BIT_KHR
                           : capabilities.currentTransform;
   info.compositeAlpha = VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR;
-  for (VkCompositeAlphaFlagBitsKHR alpha : {VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR, VK_COMPOSITE_ALPHA_INHERIT_BIT_KHR,
-                                            VK_COMPOSITE_ALPHA_PRE_MULTIPLIED_BIT_KHR,
-                                            VK_COMPOSITE_ALPHA_POST_MULTIPLIED_BIT_KHR}) {
+  for (VkCompositeAlphaFlagBitsKHR alpha :
+       {VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR, VK_COMPOSITE_ALPHA_INHERIT_BIT_KHR,
+        VK_COMPOSITE_ALPHA_PRE_MULTIPLIED_BIT_KHR, VK_COMPOSITE_ALPHA_POST_MULTIPLIED_BIT_KHR}) {
     if (capabilities.supportedCompositeAlpha & alpha) {
       info.compositeAlpha = alpha;
       break;
@@ -194,7 +201,8 @@ bool Swapchain::Impl::present(int width, int height) {
   if (width <= 0 || height <= 0) return false;
   const Targets& targets = renderer.targets;
   if (targets.width == 0 || !targets.color.handle()) return false;  // nothing rendered yet
-  if (stale || !swapchain.get() || width != requested_width || height != requested_height) recreate(width, height);
+  if (stale || !swapchain.get() || width != requested_width || height != requested_height)
+    recreate(width, height);
   if (!swapchain.get() || extent.width == 0 || extent.height == 0) return false;
 
   // the slot's previous blit has finished
@@ -204,8 +212,8 @@ bool Swapchain::Impl::present(int width, int height) {
   DISPLACE_VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, no_timeout));
 
   std::uint32_t index = 0;
-  const VkResult acquired =
-      vkAcquireNextImageKHR(device, swapchain.get(), no_timeout, present_slot.acquired.get(), VK_NULL_HANDLE, &index);
+  const VkResult acquired = vkAcquireNextImageKHR(device, swapchain.get(), no_timeout,
+                                                  present_slot.acquired.get(), VK_NULL_HANDLE, &index);
   if (acquired == VK_ERROR_OUT_OF_DATE_KHR) {
     stale = true;
     return false;
@@ -233,7 +241,8 @@ bool Swapchain::Impl::present(int width, int height) {
   vkCmdBlitImage(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image,
                  VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_NEAREST);
   image_barrier(commands, image, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_PRESENT_SRC_KHR,
-                VK_ACCESS_TRANSFER_WRITE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+                VK_ACCESS_TRANSFER_WRITE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   DISPLACE_VK_CHECK(vkEndCommandBuffer(commands));
 
   // submit after the renderer's frame (same queue), then present
@@ -268,7 +277,8 @@ bool Swapchain::Impl::present(int width, int height) {
   return true;
 }
 
-Swapchain::Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height, bool vsync)
+Swapchain::Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height,
+                     bool vsync)
     : impl_(std::make_unique<Impl>(*renderer.impl_, make_surface, vsync)) {
   impl_->recreate(width, height);
 }

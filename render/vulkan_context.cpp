@@ -150,7 +150,8 @@ bool has_device_extension(VkPhysicalDevice device, const char* name) {
   std::uint32_t count = 0;
   if (vkEnumerateDeviceExtensionProperties(device, nullptr, &count, nullptr) != VK_SUCCESS) return false;
   std::vector<VkExtensionProperties> extensions(count);
-  if (vkEnumerateDeviceExtensionProperties(device, nullptr, &count, extensions.data()) != VK_SUCCESS) return false;
+  if (vkEnumerateDeviceExtensionProperties(device, nullptr, &count, extensions.data()) != VK_SUCCESS)
+    return false;
   return std::any_of(extensions.begin(), extensions.end(), [&](const VkExtensionProperties& extension) {
     return std::strcmp(extension.extensionName, name) == 0;
   });
@@ -169,7 +170,8 @@ std::vector<Candidate> candidates(VkInstance instance, bool present = false,
     bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && family >= 0;
     if (usable && present) {
       usable = has_device_extension(device, VK_KHR_SWAPCHAIN_EXTENSION_NAME) &&
-               (!options || !options->can_present || options->can_present(instance, device, std::uint32_t(family)));
+               (!options || !options->can_present ||
+                options->can_present(instance, device, std::uint32_t(family)));
     }
     DeviceInfo info{index++, properties.deviceName, type_name(properties.deviceType)};
     result.push_back({device, info, usable ? type_rank(properties.deviceType) : -1});
@@ -186,8 +188,8 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
     const auto best = std::max_element(all.begin(), all.end(),
                                        [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
     if (best->rank < 0) {
-      throw RenderError(std::string("no Vulkan 1.2 device with graphics") + (present ? " that presents to the window" : "") +
-                        " found; " + install_hint);
+      throw RenderError(std::string("no Vulkan 1.2 device with graphics") +
+                        (present ? " that presents to the window" : "") + " found; " + install_hint);
     }
     return *best;
   }
@@ -198,8 +200,9 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
     const bool by_index = error == std::errc{} && end == wanted.data() + wanted.size() && index == candidate.info.index;
     const bool by_name = lower(candidate.info.name).find(lower(wanted)) != std::string::npos;
     if (by_index || by_name) {
-      if (candidate.rank < 0) throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics" +
-                                                   (present ? std::string(" or cannot present to the window") : std::string()));
+      if (candidate.rank < 0)
+        throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics" +
+                          (present ? std::string(" or cannot present to the window") : std::string()));
       return candidate;
     }
     names += (names.empty() ? "" : ", ") + std::to_string(candidate.info.index) + ": " + candidate.info.name;

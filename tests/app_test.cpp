@@ -774,9 +774,9 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   const struct {
     std::string command, limit;
   } cases[] = {
-      {"sim", "--map-size INT:[2, 16384]"},  {"bake", "--tolerance T:[0, 1)"},
-      {"render", "--steps INT:[1, 4096]"},   {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print " + scene_names},
+      {"sim", "--map-size INT:[2, 16384]"},   {"bake", "--tolerance T:[0, 1)"},
+      {"render", "--steps INT:[1, 4096]"},    {"sweep", "--repeat INT:[1, 100]"},
+      {"demo", "--map-size INT:[2, 16384]"},  {"scene", "--print " + scene_names},
       {"play", "--frames N:[1, 1000000000]"},
   };
   for (const auto& test : cases) {
@@ -1349,9 +1349,9 @@ TEST(Cli, PlayRendersThePipelinesFramesInAWindow) {
   namespace render = displace::render;
   TempDir dir;
   const fs::path shot = dir / "play.png";
-  const RunResult played =
-      run_displace(dir, "play --frames 3 --size 64x64 --map-size 32 --screenshot '" + shot.string() + "' --validate",
-                   "xvfb-run -a ");
+  const RunResult played = run_displace(
+      dir, "play --frames 3 --size 64x64 --map-size 32 --screenshot '" + shot.string() + "' --validate",
+      "xvfb-run -a ");
   ASSERT_EQ(played.exit_code, 0) << played.err << played.out;
   EXPECT_EQ(played.err.find("validation"), std::string::npos) << played.err;
   EXPECT_NE(played.out.find("play: 3 frames of water"), std::string::npos) << played.out;
@@ -1382,14 +1382,16 @@ TEST(Cli, PlayRendersThePipelinesFramesInAWindow) {
 // Without a display, `displace play` says how to get one and exits 1; its help lists the keys.
 TEST(Cli, PlayWithoutADisplaySaysWhatToRun) {
   TempDir dir;
-  const RunResult result = run_displace(dir, "play --frames 1 --size 64x64 --map-size 32", "env -u DISPLAY -u WAYLAND_DISPLAY ");
+  const RunResult result =
+      run_displace(dir, "play --frames 1 --size 64x64 --map-size 32", "env -u DISPLAY -u WAYLAND_DISPLAY ");
   EXPECT_EQ(result.exit_code, 1) << result.err;
   EXPECT_EQ(result.err,
             "displace: error: no display: run 'xvfb-run -a displace play ...' or render frames headless with "
             "'displace sequence'\n");
   const RunResult help = run_displace(dir, "play --help");
   EXPECT_EQ(help.exit_code, 0);
-  for (const char* key : {"Space", "Shift+M", "Up / Down", "Right / Left", "screenshot", "orbit", "--frames"}) {
+  for (const char* key :
+       {"Space", "Shift+M", "Up / Down", "Right / Left", "screenshot", "orbit", "--frames"}) {
     EXPECT_NE(help.out.find(key), std::string::npos) << key;
   }
   const RunResult usage = run_displace(dir, "play --screenshot f.png");
