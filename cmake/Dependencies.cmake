@@ -28,6 +28,8 @@ displace_require_package(tomlplusplus libtomlplusplus-dev CONFIG)
 displace_require_package(CLI11 libcli11-dev CONFIG)
 displace_require_package(fmt libfmt-dev CONFIG)
 displace_require_package(nlohmann_json nlohmann-json3-dev CONFIG)
+# demos/: the `displace play` window (a Vulkan surface through GLFW; its tests run under xvfb-run)
+displace_require_package(glfw3 libglfw3-dev CONFIG)
 
 # render/: Vulkan (loader + headers), GLM, and glslang's compiler for the shaders at build time.
 # The CPU driver (mesa-vulkan-drivers: lavapipe) and the validation layers are runtime packages;

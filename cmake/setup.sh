@@ -11,7 +11,7 @@ build="${DISPLACE_BUILD_DIR:-$root/build}"
 
 packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools
-          mesa-vulkan-drivers vulkan-validationlayers parallel)
+          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb)
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

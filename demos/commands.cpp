@@ -19,6 +19,7 @@
 #include <stdexcept>
 
 #include "demos/obj_io.h"
+#include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/maps.h"
 #include "pipeline/scene.h"
@@ -757,6 +758,12 @@ usage:
   displace scene --print NAME
       Write a built-in scene of the frame pipeline (NAMES) as a TOML scene file to stdout.
 
+  displace play [--scene NAME|FILE.toml] [--size WxH] [--map-size N] [--frames N [--screenshot F.png]] [--vsync]
+      The frame pipeline's scene (default water) animated in a window: M cycles methods, Up/Down
+      steps, Right/Left the frame budget, Space pauses, N steps, S screenshots, the mouse orbits
+      (`displace play --help` lists the keys). --frames N renders exactly frames 0..N-1 and exits.
+      Needs a display: 'xvfb-run -a displace play ...' without one.
+
   displace help | --help
       This overview. `displace COMMAND --help` lists the flags of one command with their limits.
 
@@ -800,6 +807,8 @@ int run_command(const CommandSettings& settings, std::ostream& out) {
     run_sequence(*sequence_settings, out);
   } else if (const auto* bench_settings = std::get_if<BenchFrameSettings>(&settings)) {
     run_bench_frame(*bench_settings, out);
+  } else if (const auto* play_settings = std::get_if<PlaySettings>(&settings)) {
+    run_play(*play_settings, out);
   } else {
     run_demo(std::get<DemoSettings>(settings), out);
   }

@@ -1137,6 +1137,72 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   settings.video = video;
   if (!settings.video.empty() && settings.shard_count > 1) {
     throw usage_error("--video encodes one run's frames: not with --shard");
+
+  }
+  return settings;
+}
+
+// The keys of the play window, for `displace play --help` (demos/play.cpp acts on them).
+constexpr const char* play_keys = R"(Keys:
+  M / Shift+M      next / previous method (those the scene's surface supports)
+  Up / Down        search steps x2 / /2
+  Right / Left     frame budget up / down (unlimited, 100 .. 1 ms, 0: the bake's share is what is left)
+  Space            pause / resume
+  N                one frame forward (while paused)
+  S                screenshot: play_NNNNNN.png (the frame index) in the working directory
+  R                camera back to the scene's
+  Esc / Q          quit
+  mouse drag       orbit the camera around its look-at point; wheel: closer / farther)";
+
+CommandSettings parse_play(std::span<const std::string_view> args) {
+  CLI::App app(
+      "The frame pipeline's scene animated in a window (GLFW, a Vulkan swapchain). The title and the "
+      "terminal show the frame time, its split (sim, bake, upload, render), the bake budget and the "
+      "texels left to refine. Needs a display: without one, run it under 'xvfb-run -a'.",
+      "displace play");
+  set_up(app);
+  app.footer(play_keys);
+  PlaySettings settings;
+  std::string size, screenshot;
+  const std::vector<std::string> names = pipeline::builtin_scene_names();
+  app.add_option("--scene", settings.scene, "a built-in scene or a TOML scene file (default water)")
+      ->type_name(fmt::format("{}|FILE.toml", fmt::join(names, "|")))
+      ->check(text_check([names](const std::string& text) -> std::string {
+        if (std::find(names.begin(), names.end(), text) != names.end() ||
+            lower_extension(std::filesystem::path(text)) == ".toml") {
+          return {};
+        }
+        return fmt::format("must name a built-in scene ({}) or a .toml file, got {}", fmt::join(names, ", "),
+                           in_quotes(text));
+      }));
+  app.add_option("--size", size, "the window and image in pixels (default: the scene's, 512x512)")
+      ->type_name("WxH")
+      ->check(text_check(
+          [](const std::string& text) {
+            return read_image_size(text)
+                       ? std::string()
+                       : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                     max_image_side, in_quotes(text));
+          },
+          fmt::format("[1, {}] each", max_image_side)));
+  add_value(app, "--map-size", settings.map_size, "height map samples along u and v (default: the scene's)",
+            "INT", integer_in(2, 8192));
+  add_value(app, "--frames", settings.frames,
+            "render exactly N fixed-step frames (scene time start + n / fps), then exit", "N",
+            integer_in(1, 1000000000));
+  add_value(app, "--screenshot", screenshot, "with --frames: write the last frame", "F.png",
+            output_file({".png"}));
+  add_switch(app, "--vsync", settings.vsync,
+             "present at the display's rate (default: as fast as frames come)");
+  add_renderer_flags(app, settings.renderer);
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+  if (given(app, "--size")) std::tie(settings.width, settings.height) = *read_image_size(size);
+  if (given(app, "--screenshot")) {
+    if (!given(app, "--frames")) {
+      throw usage_error("--screenshot needs --frames N (in the window, S writes a screenshot)");
+    }
+    settings.screenshot = screenshot;
   }
   return settings;
 }
@@ -1168,10 +1234,11 @@ struct Command {
   std::string_view name;
   CommandSettings (*parse)(std::span<const std::string_view> args);  // the arguments after the name
 };
-constexpr Command commands[] = {{"sim", parse_sim},       {"bake", parse_bake},
-                                {"render", parse_render}, {"sweep", parse_sweep},
-                                {"demo", parse_demo},     {"scene", parse_scene},
-                                {"sequence", parse_sequence}, {"bench-frame", parse_bench_frame}};
+constexpr Command commands[] = {{"sim", parse_sim},           {"bake", parse_bake},
+                                {"render", parse_render},     {"sweep", parse_sweep},
+                                {"demo", parse_demo},         {"scene", parse_scene},
+                                {"sequence", parse_sequence}, {"bench-frame", parse_bench_frame},
+                                {"play", parse_play}};
 
 }  // namespace
 

@@ -151,13 +151,25 @@ struct BenchFrameSettings {
   render::RendererOptions renderer;
 };
 
+// `displace play`: the frame pipeline's scene animated in a window (demos/play.cpp).
+struct PlaySettings {
+  std::string scene = "water";  // a built-in scene (pipeline::builtin_scene_names()) or a .toml scene file
+  int width = 0, height = 0;    // --size WxH: the window and image in pixels; 0: the scene's
+  int map_size = 0;             // --map-size N; 0: the scene's
+  long long frames = -1;        // --frames N: exactly N fixed-step frames (0 .. N-1), then exit; -1: until closed
+  std::filesystem::path screenshot;  // --screenshot F.png (with --frames): the last frame
+  bool vsync = false;                // present with FIFO (the display's rate)
+  render::RendererOptions renderer;
+};
+
 using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings,
-                                     SweepSettings, PrintSceneSettings, SequenceSettings, BenchFrameSettings>;
+                                     SweepSettings, PrintSceneSettings, SequenceSettings, BenchFrameSettings,
+                                     PlaySettings>;
 
 // The extension of a path, lower-cased (".png").
 std::string lower_extension(const std::filesystem::path& path);
 
-// Whether `word` names a command (sim, bake, render, sweep, demo, scene).
+// Whether `word` names a command (sim, bake, render, sweep, demo, scene, play).
 bool is_command(std::string_view word);
 
 // `args` excludes the program name and must not be empty.

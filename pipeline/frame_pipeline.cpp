@@ -339,6 +339,10 @@ void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigne
 }
 
 FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned outputs) {
+  return run(index, scene_view(state_->scene, frame_time(state_->scene, index)), frame, outputs);
+}
+
+FrameRecord FramePipeline::run(long long index, const render::View& view, render::Frame& frame, unsigned outputs) {
   State& s = *state_;
   FrameRecord record;
   record.index = index;
@@ -352,7 +356,7 @@ FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned o
   const double baked = s.clock();
   upload(record);
   const double uploaded = s.clock();
-  draw(scene_view(s.scene, time), frame, outputs, record);
+  draw(view, frame, outputs, record);
   const double drawn = s.clock();
   record.sim_ms = simulated - start;
   record.bake_ms = baked - simulated;

@@ -70,6 +70,9 @@ class FramePipeline {
 
   // Frame `index`: every stage, the picture read back into `frame` (`outputs`, render::Output).
   FrameRecord run(long long index, render::Frame& frame, unsigned outputs = render::output_color);
+  // The same frame seen through `view` instead of the scene's camera (an interactive camera).
+  FrameRecord run(long long index, const render::View& view, render::Frame& frame,
+                  unsigned outputs = render::output_color);
 
   // Frames first .. first + count - 1 with the stages overlapped (tbb::parallel_pipeline, two frames
   // in flight): frame n + 1's sim and bake run while frame n uploads and renders. `consume` gets

@@ -46,6 +46,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -54,6 +55,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <vulkan/vulkan_core.h>
 
 #include "bake/bake.h"
 #include "render/mesh.h"
@@ -189,6 +191,14 @@ struct RendererOptions {
   // Where the VkPipelineCache is kept between runs: a directory; empty for the default
   // (default_pipeline_cache_dir()); "off" for none.
   std::string pipeline_cache;
+  // Instance extensions a window system needs to make a surface (glfwGetRequiredInstanceExtensions).
+  // Non-empty: the renderer can present (Swapchain): the device also gets VK_KHR_swapchain, and only
+  // devices that have it are chosen.
+  std::vector<std::string> instance_extensions;
+  // With instance_extensions: whether a device's queue family can present to the caller's window
+  // system (glfwGetPhysicalDevicePresentationSupport), asked before any surface exists, so that a
+  // device that cannot show the window (a GPU under Xvfb) is passed over. Empty: not asked.
+  std::function<bool(VkInstance, VkPhysicalDevice, std::uint32_t queue_family)> can_present;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,
@@ -334,6 +344,41 @@ class Renderer {
   long long memory_allocations() const;
   // Graphics pipelines created so far (each method and surface once per renderer).
   long long pipelines_created() const;
+
+  struct Impl;
+
+ private:
+  friend class Swapchain;
+  std::unique_ptr<Impl> impl_;
+};
+
+// ---- Presenting: a window's swapchain, fed on the device from the renderer's colour target.
+//
+// render/ knows no window system: the caller makes the surface for the renderer's instance (the
+// callback, e.g. glfwCreateWindowSurface) and the Swapchain owns it from then on. present() blits the
+// colour target of the renderer's last frame (rendered with output_none: nothing is read back) into
+// the next swapchain image on the same queue, after that frame. Out-of-date or suboptimal swapchains
+// and size changes are handled by making the swapchain again; after the first frames of a size,
+// present() allocates nothing.
+using SurfaceFactory = std::function<VkSurfaceKHR(VkInstance instance)>;
+
+class Swapchain {
+ public:
+  // `renderer` (made with RendererOptions::instance_extensions) must outlive the swapchain. Throws
+  // RenderError when the device cannot present to the surface. vsync: FIFO; otherwise MAILBOX or
+  // IMMEDIATE when offered (FIFO when not).
+  Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height, bool vsync = false);
+  ~Swapchain();  // waits for the presents in flight
+  Swapchain(Swapchain&&) noexcept;
+  Swapchain& operator=(Swapchain&&) noexcept;
+
+  // Presents the renderer's last frame in a window of `width` x `height` pixels (the framebuffer
+  // size now; the picture is scaled when its size differs). Returns false when nothing was shown:
+  // a zero-sized (minimized) window, or a swapchain that went out of date (made again for the next
+  // call).
+  bool present(int width, int height);
+  int width() const;   // of the swapchain images
+  int height() const;
 
   struct Impl;
 

@@ -28,6 +28,10 @@ const char* result_name(VkResult result) {
     case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
     case VK_ERROR_FORMAT_NOT_SUPPORTED: return "VK_ERROR_FORMAT_NOT_SUPPORTED";
     case VK_TIMEOUT: return "VK_TIMEOUT";
+    case VK_SUBOPTIMAL_KHR: return "VK_SUBOPTIMAL_KHR";
+    case VK_ERROR_OUT_OF_DATE_KHR: return "VK_ERROR_OUT_OF_DATE_KHR";
+    case VK_ERROR_SURFACE_LOST_KHR: return "VK_ERROR_SURFACE_LOST_KHR";
+    case VK_ERROR_NATIVE_WINDOW_IN_USE_KHR: return "VK_ERROR_NATIVE_WINDOW_IN_USE_KHR";
     default: return "VkResult error";
   }
 }
@@ -70,22 +74,40 @@ bool has_layer(const char* name) {
                      [&](const VkLayerProperties& layer) { return std::strcmp(layer.layerName, name) == 0; });
 }
 
-VkInstance create_instance(bool validate) {
+bool has_instance_extension(const char* name) {
+  std::uint32_t count = 0;
+  vkEnumerateInstanceExtensionProperties(nullptr, &count, nullptr);
+  std::vector<VkExtensionProperties> extensions(count);
+  vkEnumerateInstanceExtensionProperties(nullptr, &count, extensions.data());
+  return std::any_of(extensions.begin(), extensions.end(), [&](const VkExtensionProperties& extension) {
+    return std::strcmp(extension.extensionName, name) == 0;
+  });
+}
+
+// `window_extensions`: what the caller's window system needs for a surface (presenting).
+VkInstance create_instance(bool validate, const std::vector<std::string>& window_extensions = {}) {
   VkApplicationInfo application{VK_STRUCTURE_TYPE_APPLICATION_INFO};
   application.pApplicationName = "displace";
   application.apiVersion = VK_API_VERSION_1_2;
   VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   info.pApplicationInfo = &application;
-  const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+  std::vector<const char*> extensions;
+  for (const std::string& name : window_extensions) {
+    if (!has_instance_extension(name.c_str())) {
+      throw RenderError("the Vulkan loader lacks the instance extension " + name + " that the window needs");
+    }
+    extensions.push_back(name.c_str());
+  }
   if (validate) {
     if (!has_layer(validation_layer)) {
       throw RenderError("--validate needs the Khronos validation layer: 'apt-get install vulkan-validationlayers'");
     }
     info.enabledLayerCount = 1;
     info.ppEnabledLayerNames = &validation_layer;
-    info.enabledExtensionCount = 1;
-    info.ppEnabledExtensionNames = &extension;
+    extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
   }
+  info.enabledExtensionCount = std::uint32_t(extensions.size());
+  info.ppEnabledExtensionNames = extensions.data();
   VkInstance instance = VK_NULL_HANDLE;
   const VkResult result = vkCreateInstance(&info, nullptr, &instance);
   if (result == VK_ERROR_INCOMPATIBLE_DRIVER) throw RenderError(std::string("no Vulkan 1.2 driver found; ") + install_hint);
@@ -124,26 +146,51 @@ struct Candidate {
   int rank;
 };
 
-std::vector<Candidate> candidates(VkInstance instance) {
+bool has_device_extension(VkPhysicalDevice device, const char* name) {
+  std::uint32_t count = 0;
+  if (vkEnumerateDeviceExtensionProperties(device, nullptr, &count, nullptr) != VK_SUCCESS) return false;
+  std::vector<VkExtensionProperties> extensions(count);
+  if (vkEnumerateDeviceExtensionProperties(device, nullptr, &count, extensions.data()) != VK_SUCCESS)
+    return false;
+  return std::any_of(extensions.begin(), extensions.end(), [&](const VkExtensionProperties& extension) {
+    return std::strcmp(extension.extensionName, name) == 0;
+  });
+}
+
+// `present`: only devices with VK_KHR_swapchain (and, when `can_present` is given, whose graphics
+// queue family it accepts) are usable.
+std::vector<Candidate> candidates(VkInstance instance, bool present = false,
+                                  const RendererOptions* options = nullptr) {
   std::vector<Candidate> result;
   int index = 0;
   for (VkPhysicalDevice device : physical_devices(instance)) {
     VkPhysicalDeviceProperties properties;
     vkGetPhysicalDeviceProperties(device, &properties);
-    const bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && graphics_queue_family(device) >= 0;
+    const int family = graphics_queue_family(device);
+    bool usable = properties.apiVersion >= VK_API_VERSION_1_2 && family >= 0;
+    if (usable && present) {
+      usable = has_device_extension(device, VK_KHR_SWAPCHAIN_EXTENSION_NAME) &&
+               (!options || !options->can_present ||
+                options->can_present(instance, device, std::uint32_t(family)));
+    }
     DeviceInfo info{index++, properties.deviceName, type_name(properties.deviceType)};
     result.push_back({device, info, usable ? type_rank(properties.deviceType) : -1});
   }
   return result;
 }
 
-Candidate choose_device(VkInstance instance, const std::string& wanted) {
-  const std::vector<Candidate> all = candidates(instance);
+Candidate choose_device(VkInstance instance, const RendererOptions& options) {
+  const bool present = !options.instance_extensions.empty();
+  const std::string& wanted = options.device;
+  const std::vector<Candidate> all = candidates(instance, present, &options);
   if (all.empty()) throw RenderError(std::string("no Vulkan device found; ") + install_hint);
   if (wanted.empty()) {
     const auto best = std::max_element(all.begin(), all.end(),
                                        [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
-    if (best->rank < 0) throw RenderError(std::string("no Vulkan 1.2 device with graphics found; ") + install_hint);
+    if (best->rank < 0) {
+      throw RenderError(std::string("no Vulkan 1.2 device with graphics") +
+                        (present ? " that presents to the window" : "") + " found; " + install_hint);
+    }
     return *best;
   }
   std::string names;
@@ -153,7 +200,9 @@ Candidate choose_device(VkInstance instance, const std::string& wanted) {
     const bool by_index = error == std::errc{} && end == wanted.data() + wanted.size() && index == candidate.info.index;
     const bool by_name = lower(candidate.info.name).find(lower(wanted)) != std::string::npos;
     if (by_index || by_name) {
-      if (candidate.rank < 0) throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics");
+      if (candidate.rank < 0)
+        throw RenderError("device '" + candidate.info.name + "' lacks Vulkan 1.2 graphics" +
+                          (present ? std::string(" or cannot present to the window") : std::string()));
       return candidate;
     }
     names += (names.empty() ? "" : ", ") + std::to_string(candidate.info.index) + ": " + candidate.info.name;
@@ -184,7 +233,8 @@ std::vector<DeviceInfo> list_devices() {
 }
 
 Context::Context(const RendererOptions& options) {
-  instance_ = create_instance(options.validate);
+  instance_ = create_instance(options.validate, options.instance_extensions);
+  const bool present = !options.instance_extensions.empty();
   try {
     if (options.validate) {
       VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
@@ -200,7 +250,7 @@ Context::Context(const RendererOptions& options) {
       DISPLACE_VK_CHECK(create(instance_, &info, nullptr, &messenger_));
     }
 
-    const Candidate chosen = choose_device(instance_, options.device);
+    const Candidate chosen = choose_device(instance_, options);
     physical_device_ = chosen.device;
     info_ = chosen.info;
     queue_family_ = std::uint32_t(graphics_queue_family(physical_device_));
@@ -225,6 +275,11 @@ Context::Context(const RendererOptions& options) {
     VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     device_info.queueCreateInfoCount = 1;
     device_info.pQueueCreateInfos = &queue_info;
+    const char* swapchain_extension = VK_KHR_SWAPCHAIN_EXTENSION_NAME;
+    if (present) {
+      device_info.enabledExtensionCount = 1;
+      device_info.ppEnabledExtensionNames = &swapchain_extension;
+    }
     DISPLACE_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 

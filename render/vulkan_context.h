@@ -1,4 +1,5 @@
-// render/vulkan_context.h - the one place that creates the headless Vulkan instance and device, and
+// render/vulkan_context.h - the one place that creates the Vulkan instance and device (headless, or able
+// to present when RendererOptions::instance_extensions asks), and
 // move-only RAII owners for buffers and images (each with its memory), destroyed in reverse order.
 // Internal to render/.
 #pragma once
@@ -26,6 +27,7 @@ class Context {
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
 
+  VkInstance instance() const { return instance_; }
   VkDevice device() const { return device_; }
   VkPhysicalDevice physical_device() const { return physical_device_; }
   VkQueue queue() const { return queue_; }
@@ -178,5 +180,7 @@ using OwnedFramebuffer = Owned<VkFramebuffer, vkDestroyFramebuffer>;
 using OwnedShaderModule = Owned<VkShaderModule, vkDestroyShaderModule>;
 using OwnedSampler = Owned<VkSampler, vkDestroySampler>;
 using OwnedQueryPool = Owned<VkQueryPool, vkDestroyQueryPool>;
+using OwnedSemaphore = Owned<VkSemaphore, vkDestroySemaphore>;
+using OwnedSwapchain = Owned<VkSwapchainKHR, vkDestroySwapchainKHR>;
 
 }  // namespace displace::render

@@ -27,7 +27,9 @@
 #include "demos/obj_io.h"
 #include "demos/options.h"
 #include "demos/progress.h"
+#include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
+#include "render/render.h"
 
 namespace {
 
@@ -676,10 +678,11 @@ struct RunResult {
   std::string out, err;
 };
 
-RunResult run_displace(const TempDir& dir, const std::string& arguments) {
+// `prefix` goes before the binary (a wrapper such as "xvfb-run -a ", or "env -u DISPLAY ").
+RunResult run_displace(const TempDir& dir, const std::string& arguments, const std::string& prefix = "") {
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string command = "'" + std::string(DISPLACE_BINARY) + "' " + arguments + " >'" + out.string() +
-                              "' 2>'" + err.string() + "'";
+  const std::string command = prefix + "'" + std::string(DISPLACE_BINARY) + "' " + arguments + " >'" +
+                              out.string() + "' 2>'" + err.string() + "'";
   const int status = std::system(command.c_str());
   RunResult result;
   result.exited = status != -1 && WIFEXITED(status);
@@ -789,12 +792,17 @@ TEST(Cli, EveryCommandExitsTwoOnUsageErrorsAndOneOnMissingFiles) {
 // `displace COMMAND --help` is CLI11's help for that command, with the limits of its numbers.
 TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   TempDir dir;
+  std::string scene_names;
+  for (const std::string& name : displace::pipeline::builtin_scene_names()) {
+    scene_names += (scene_names.empty() ? "" : "|") + name;
+  }
   const struct {
     std::string command, limit;
   } cases[] = {
-      {"sim", "--map-size INT:[2, 16384]"},  {"bake", "--tolerance T:[0, 1)"},
-      {"render", "--steps INT:[1, 4096]"},   {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"}, {"scene", "--print water|calm|ripples|bricks|cliff"},
+      {"sim", "--map-size INT:[2, 16384]"},   {"bake", "--tolerance T:[0, 1)"},
+      {"render", "--steps INT:[1, 4096]"},    {"sweep", "--repeat INT:[1, 100]"},
+      {"demo", "--map-size INT:[2, 16384]"},  {"scene", "--print " + scene_names},
+      {"play", "--frames N:[1, 1000000000]"},
   };
   for (const auto& test : cases) {
     const RunResult help = run_displace(dir, test.command + " --help");
@@ -1356,6 +1364,66 @@ TEST(Obj, RejectsMalformedFilesNamingTheLine) {
   }
 }
 
+// `displace play --frames N` under Xvfb: a window, a swapchain on lavapipe, zero validation messages,
+// and the screenshot of frame N - 1 is, bit for bit, what the frame pipeline renders for that index.
+TEST(Cli, PlayRendersThePipelinesFramesInAWindow) {
+  if (std::system("command -v xvfb-run >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "xvfb-run is missing ('apt-get install xvfb'); `displace play` needs a display";
+  }
+  namespace pipeline = displace::pipeline;
+  namespace render = displace::render;
+  TempDir dir;
+  const fs::path shot = dir / "play.png";
+  const RunResult played = run_displace(
+      dir, "play --frames 3 --size 64x64 --map-size 32 --screenshot '" + shot.string() + "' --validate",
+      "xvfb-run -a ");
+  ASSERT_EQ(played.exit_code, 0) << played.err << played.out;
+  EXPECT_EQ(played.err.find("validation"), std::string::npos) << played.err;
+  EXPECT_NE(played.out.find("play: 3 frames of water"), std::string::npos) << played.out;
+  // after the warm-up a frame allocates no device memory (frames 3..6 of 8; the last reads back)
+  const RunResult longer = run_displace(dir, "play --frames 8 --size 64x64 --map-size 32", "xvfb-run -a ");
+  ASSERT_EQ(longer.exit_code, 0) << longer.err;
+  EXPECT_NE(longer.out.find(", 0 device allocations in frames 3..6"), std::string::npos) << longer.out;
+  const Rgba8Image image = read_rgba8_image(shot);
+
+  pipeline::Scene scene = pipeline::builtin_scene("water");
+  scene.camera.width = scene.camera.height = 64;
+  scene.map_size = 32;
+  render::RendererOptions options;
+  options.validate = true;
+  render::Renderer renderer(options);
+  pipeline::FramePipeline frames(scene, renderer);
+  render::Frame frame;
+  frames.run(2, frame, render::output_color);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+  ASSERT_EQ(image.width, 64);
+  ASSERT_EQ(image.height, 64);
+  ASSERT_EQ(image.pixels.size(), frame.color.size());
+  long long different = 0;
+  for (std::size_t i = 0; i < frame.color.size(); ++i) different += image.pixels[i] != frame.color[i];
+  EXPECT_EQ(different, 0) << "bytes of the screenshot that differ from the pipeline's frame 2";
+}
+
+// Without a display, `displace play` says how to get one and exits 1; its help lists the keys.
+TEST(Cli, PlayWithoutADisplaySaysWhatToRun) {
+  TempDir dir;
+  const RunResult result =
+      run_displace(dir, "play --frames 1 --size 64x64 --map-size 32", "env -u DISPLAY -u WAYLAND_DISPLAY ");
+  EXPECT_EQ(result.exit_code, 1) << result.err;
+  EXPECT_EQ(result.err,
+            "displace: error: no display: run 'xvfb-run -a displace play ...' or render frames headless with "
+            "'displace sequence'\n");
+  const RunResult help = run_displace(dir, "play --help");
+  EXPECT_EQ(help.exit_code, 0);
+  for (const char* key :
+       {"Space", "Shift+M", "Up / Down", "Right / Left", "screenshot", "orbit", "--frames"}) {
+    EXPECT_NE(help.out.find(key), std::string::npos) << key;
+  }
+  const RunResult usage = run_displace(dir, "play --screenshot f.png");
+  EXPECT_EQ(usage.exit_code, 2);
+  EXPECT_NE(usage.err.find("--screenshot needs --frames"), std::string::npos) << usage.err;
+}
+
 }  // namespace
 
 namespace {
@@ -1419,7 +1487,9 @@ TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
   EXPECT_EQ(run_displace(dir, "sequence --frames 0:1 --output o_#.png --scene missing.toml").exit_code, 1);
   const RunResult no_ffmpeg =
       run_displace(dir, "sequence --frames 0:1 --output o_#.png --video v.mp4 --map-size 8 --size 8x8");
-  if (no_ffmpeg.exit_code == 1) EXPECT_NE(no_ffmpeg.err.find("ffmpeg"), std::string::npos);
+  if (no_ffmpeg.exit_code == 1) {
+    EXPECT_NE(no_ffmpeg.err.find("ffmpeg"), std::string::npos);
+  }
 }
 
 // The GNU parallel recipe (demos/farm/parallel.sh) on this machine: three shards as parallel jobs

@@ -17,9 +17,16 @@
 
 namespace displace::testing {
 
+// Headless renderer options: the best device, validation on or off, the pipeline cache directory.
+inline render::RendererOptions headless_options(bool validate, std::string pipeline_cache = {}) {
+  render::RendererOptions options;
+  options.validate = validate;
+  options.pipeline_cache = std::move(pipeline_cache);
+  return options;
+}
+
 inline render::Renderer& shared_renderer() {
-  static std::unique_ptr<render::Renderer> renderer =
-      std::make_unique<render::Renderer>(render::RendererOptions{.device = "", .validate = true, .pipeline_cache = {}});
+  static std::unique_ptr<render::Renderer> renderer = std::make_unique<render::Renderer>(headless_options(true));
   return *renderer;
 }
 

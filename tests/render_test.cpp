@@ -1083,7 +1083,7 @@ TEST(Maps, AKeptRendererMatchesAFreshOneOnEveryFrame) {
       kept.set_maps(maps.maps_for(method, view));
       kept.render(view, {method, 24, 6}, frame);
       if (m != n % method_count) continue;
-      render::Renderer fresh(render::RendererOptions{.device = "", .validate = false, .pipeline_cache = "off"});
+      render::Renderer fresh(displace::testing::headless_options(false, "off"));
       fresh.set_maps(maps.maps_for(method, view));
       const Frame expected = fresh.render(view, {method, 24, 6});
       EXPECT_TRUE(same_frame(frame, expected)) << "frame " << n << " " << render::method_info(method).name;
@@ -1283,7 +1283,7 @@ TEST(Maps, PipelineCacheGoesWhereItIsToldAndNowhereWhenOff) {
   std::filesystem::remove_all(directory);
   const HeightField field = waves_field(8);
   auto render_once = [&](const std::string& cache) {
-    render::Renderer renderer(render::RendererOptions{.device = "", .validate = false, .pipeline_cache = cache});
+    render::Renderer renderer(displace::testing::headless_options(false, cache));
     pipeline::MapMaker maps;
     maps.set_heights(field);
     pipeline::render_with_maps(renderer, maps, oblique_view(4), {Method::bump, 1, 0});

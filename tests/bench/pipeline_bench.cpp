@@ -23,7 +23,7 @@ double median(std::vector<double> values) {
 }
 
 void run_frames(benchmark::State& state, const char* scene_name, int map_size, double frame_ms) {
-  static render::Renderer renderer(render::RendererOptions{.device = "", .validate = false, .pipeline_cache = {}});
+  static render::Renderer renderer{render::RendererOptions{}};
   pipeline::Scene scene = pipeline::builtin_scene(scene_name);
   scene.map_size = map_size;
   scene.method = render::Method::acm4;

@@ -50,7 +50,11 @@ render::MapSet map_set(const Maps& maps, std::uint64_t version, std::uint64_t si
 
 // rect_side 0: the whole maps change every frame; otherwise one rect_side^2 rectangle does.
 void run_upload(benchmark::State& state, int rect_side) {
-  static render::Renderer renderer(render::RendererOptions{.device = "", .validate = false, .pipeline_cache = "off"});
+  static render::Renderer renderer([] {
+    render::RendererOptions options;
+    options.pipeline_cache = "off";
+    return options;
+  }());
   Maps maps;
   std::uint64_t version = std::uint64_t(1) << 40;
   renderer.set_maps(map_set(maps, version, 0, {}));

@@ -1,0 +1,391 @@
+// demos/play.cpp - `displace play` (play.h): a GLFW window, the frame pipeline, the swapchain.
+//
+// The one fact to know: the loop is a sequence of named steps - poll input (Controls), remake the
+// pipeline when a key changed the scene, run one frame (FramePipeline::run, output_none), present it
+// (a blit on the device), report - and a frame is read back only for a screenshot.
+#define GLFW_INCLUDE_VULKAN
+#include "demos/play.h"
+
+#include <GLFW/glfw3.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <memory>
+#include <ostream>
+#include <string>
+
+#include "demos/error.h"
+#include "demos/image_io.h"
+#include "pipeline/frame_pipeline.h"
+#include "render/render.h"
+
+namespace displace::app {
+namespace {
+
+constexpr double status_period_seconds = 1.0;      // terminal and title updates
+constexpr float orbit_radians_per_pixel = 0.005f;  // mouse drag
+constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel step
+constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
+constexpr float max_elevation = 1.5f;
+constexpr int max_play_steps = 4096;
+// frames before nothing is allocated any more: every frame slot has made its targets and readback
+// buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
+constexpr long long warm_up_frames = render::frames_in_flight + 1;
+// the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
+constexpr std::array<double, 10> budget_levels = {
+    0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string budget_text(double milliseconds) {
+  return std::isfinite(milliseconds) ? fmt::format("{:g} ms", milliseconds) : std::string("unlimited");
+}
+
+// glfwInit / glfwTerminate.
+class Glfw {
+ public:
+  Glfw() {
+    const char* x11 = std::getenv("DISPLAY");
+    const char* wayland = std::getenv("WAYLAND_DISPLAY");
+    if ((!x11 || !*x11) && (!wayland || !*wayland)) throw runtime_error(no_display_message);
+    glfwSetErrorCallback(nullptr);
+    if (glfwInit() != GLFW_TRUE) throw runtime_error(no_display_message);
+    if (glfwVulkanSupported() != GLFW_TRUE) {
+      glfwTerminate();
+      throw runtime_error("the window system finds no Vulkan loader with surface support (libvulkan1)");
+    }
+  }
+  ~Glfw() { glfwTerminate(); }
+  Glfw(const Glfw&) = delete;
+  Glfw& operator=(const Glfw&) = delete;
+
+  // What a surface for GLFW's windows needs on the instance.
+  std::vector<std::string> instance_extensions() const {
+    std::uint32_t count = 0;
+    const char** names = glfwGetRequiredInstanceExtensions(&count);
+    if (!names) throw runtime_error("the window system names no Vulkan surface extensions");
+    return {names, names + count};
+  }
+};
+
+// The user's input between frames.
+struct Controls {
+  bool paused = false;
+  bool step = false;          // one frame forward while paused
+  bool screenshot = false;    // read the next frame back and write it
+  int method_delta = 0;       // methods to move by in the table
+  int steps_factor = 0;       // +1: double, -1: halve
+  int budget_delta = 0;       // budget levels to move by
+  bool camera_moved = false;  // draw the shown frame again (while paused)
+  bool dragging = false;
+  double last_x = 0.0, last_y = 0.0;
+  float yaw = 0.0f, pitch = 0.0f;  // radians added to the scene camera's azimuth and elevation
+  float zoom = 1.0f;               // factor on its distance
+  bool orbited = false;            // the camera is not the scene's
+};
+
+void on_key(GLFWwindow* window, int key, int, int action, int mods) {
+  if (action != GLFW_PRESS && action != GLFW_REPEAT) return;
+  auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  const bool shift = mods & GLFW_MOD_SHIFT;
+  switch (key) {
+    case GLFW_KEY_M: controls.method_delta += shift ? -1 : 1; break;
+    case GLFW_KEY_UP: controls.steps_factor = 1; break;
+    case GLFW_KEY_DOWN: controls.steps_factor = -1; break;
+    case GLFW_KEY_RIGHT: controls.budget_delta += 1; break;
+    case GLFW_KEY_LEFT: controls.budget_delta -= 1; break;
+    case GLFW_KEY_SPACE: controls.paused = !controls.paused; break;
+    case GLFW_KEY_N: controls.step = true; break;
+    case GLFW_KEY_S: controls.screenshot = true; break;
+    case GLFW_KEY_R:
+      controls.yaw = controls.pitch = 0.0f;
+      controls.zoom = 1.0f;
+      controls.orbited = false;
+      controls.camera_moved = true;
+      break;
+    case GLFW_KEY_ESCAPE:
+    case GLFW_KEY_Q: glfwSetWindowShouldClose(window, GLFW_TRUE); break;
+    default: break;
+  }
+}
+
+void on_mouse_button(GLFWwindow* window, int button, int action, int) {
+  auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  if (button != GLFW_MOUSE_BUTTON_LEFT) return;
+  controls.dragging = action == GLFW_PRESS;
+  glfwGetCursorPos(window, &controls.last_x, &controls.last_y);
+}
+
+void on_cursor(GLFWwindow* window, double x, double y) {
+  auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  if (!controls.dragging) return;
+  controls.yaw -= float(x - controls.last_x) * orbit_radians_per_pixel;
+  controls.pitch += float(y - controls.last_y) * orbit_radians_per_pixel;
+  controls.last_x = x;
+  controls.last_y = y;
+  controls.orbited = true;
+  controls.camera_moved = true;
+}
+
+void on_scroll(GLFWwindow* window, double, double y_offset) {
+  auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  controls.zoom = std::clamp(controls.zoom * std::pow(zoom_per_wheel_step, float(y_offset)), 0.05f, 20.0f);
+  controls.orbited = true;
+  controls.camera_moved = true;
+}
+
+// The GLFW window (no client API: Vulkan presents into it).
+class Window {
+ public:
+  Window(int width, int height, const std::string& title, Controls& controls) {
+    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+    glfwWindowHint(GLFW_RESIZABLE, GLFW_TRUE);
+    window_ = glfwCreateWindow(width, height, title.c_str(), nullptr, nullptr);
+    if (!window_) throw runtime_error(no_display_message);
+    glfwSetWindowUserPointer(window_, &controls);
+    glfwSetKeyCallback(window_, on_key);
+    glfwSetMouseButtonCallback(window_, on_mouse_button);
+    glfwSetCursorPosCallback(window_, on_cursor);
+    glfwSetScrollCallback(window_, on_scroll);
+  }
+  ~Window() { glfwDestroyWindow(window_); }
+  Window(const Window&) = delete;
+  Window& operator=(const Window&) = delete;
+  GLFWwindow* get() const { return window_; }
+
+ private:
+  GLFWwindow* window_ = nullptr;
+};
+
+// The scene camera turned by the orbit controls around its look-at point.
+render::View orbit_view(render::View view, const Controls& controls) {
+  if (!controls.orbited) return view;
+  render::Camera& camera = view.camera;
+  const glm::vec3 offset = camera.eye - camera.look_at;
+  const float distance = glm::length(offset) * controls.zoom;
+  const float azimuth = std::atan2(offset.y, offset.x) + controls.yaw;
+  const float elevation =
+      std::clamp(std::asin(std::clamp(offset.z / glm::length(offset), -1.0f, 1.0f)) + controls.pitch,
+                 min_elevation, max_elevation);
+  camera.eye =
+      camera.look_at + distance * glm::vec3(std::cos(elevation) * std::cos(azimuth),
+                                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+  return view;
+}
+
+// The methods M cycles through: those the scene's surface supports, in the table's order.
+const render::MethodInfo& next_method(render::Method current, int delta, render::Surface surface) {
+  std::vector<const render::MethodInfo*> usable;
+  for (const render::MethodInfo& info : render::method_table()) {
+    if (render::supports_surface(info.method, surface)) usable.push_back(&info);
+  }
+  const auto at =
+      std::find_if(usable.begin(), usable.end(), [&](auto* info) { return info->method == current; });
+  const int count = int(usable.size());
+  const int index = at == usable.end() ? 0 : int(at - usable.begin());
+  return *usable[std::size_t(((index + delta) % count + count) % count)];
+}
+
+// Applies the keys that change the scene; true when the pipeline must be made again.
+bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
+  bool changed = false;
+  if (controls.method_delta != 0) {
+    scene.method = next_method(scene.method, controls.method_delta, scene.surface).method;
+    controls.method_delta = 0;
+    changed = true;
+  }
+  if (controls.steps_factor != 0) {
+    const int steps = controls.steps_factor > 0 ? scene.steps * 2 : scene.steps / 2;
+    scene.steps = std::clamp(steps, 1, max_play_steps);
+    controls.steps_factor = 0;
+    changed = true;
+  }
+  if (controls.budget_delta != 0) {
+    const auto level = std::lower_bound(budget_levels.begin(), budget_levels.end(), scene.frame_ms);
+    const int index = std::clamp(int(level - budget_levels.begin()) + controls.budget_delta, 0,
+                                 int(budget_levels.size()) - 1);
+    scene.frame_ms = budget_levels[std::size_t(index)];
+    controls.budget_delta = 0;
+    changed = true;
+  }
+  return changed;
+}
+
+std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecord& record,
+                        double frames_per_second, bool paused) {
+  return fmt::format(
+      "{} {} {} steps | frame {} t {:.2f} s | {:.1f} ms ({:.0f} fps): sim {:.1f} bake {:.1f} upload {:.1f} "
+      "render {:.1f} | budget {} (bake {}) | pending {}{}",
+      scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time,
+      record.frame_ms, frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
+      budget_text(scene.frame_ms), budget_text(record.bake_budget_ms), record.pending,
+      paused ? " | paused" : "");
+}
+
+pipeline::HeightLoader image_loader() {
+  return [](const std::filesystem::path& file) {
+    LoadedHeights loaded = load_heights(file, {});
+    return render::HeightField{loaded.width, loaded.height, std::move(loaded.heights)};
+  };
+}
+
+void write_screenshot(const std::filesystem::path& file, const render::Frame& frame,
+                      const pipeline::Scene& scene, const pipeline::FrameRecord& record) {
+  Metadata metadata;
+  metadata.push_back({"displace:scene", scene.name});
+  metadata.push_back({"displace:method", render::method_info(scene.method).name});
+  metadata.push_back({"displace:frame", int(record.index)});
+  metadata.push_back({"displace:time", fmt::format("{}", record.time)});
+  write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
+}
+
+}  // namespace
+
+pipeline::Scene play_scene(const PlaySettings& settings) {
+  const std::vector<std::string> names = pipeline::builtin_scene_names();
+  pipeline::Scene scene = std::find(names.begin(), names.end(), settings.scene) != names.end()
+                              ? pipeline::builtin_scene(settings.scene)
+                              : pipeline::read_scene_file(settings.scene);
+  if (settings.width > 0) {
+    scene.camera.width = settings.width;
+    scene.camera.height = settings.height;
+  }
+  if (settings.map_size > 0) {
+    if (scene.source == pipeline::SourceKind::image) {
+      throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
+    }
+    scene.map_size = settings.map_size;
+  }
+  return scene;
+}
+
+void run_play(const PlaySettings& settings, std::ostream& out) {
+  pipeline::Scene scene = play_scene(settings);
+  const bool fixed = settings.frames > 0;
+  const bool terminal = ::isatty(STDOUT_FILENO);
+
+  // window system, renderer (able to present), window, swapchain - destroyed in reverse
+  Glfw glfw;
+  render::RendererOptions renderer_options = settings.renderer;
+  renderer_options.instance_extensions = glfw.instance_extensions();
+  renderer_options.can_present = [](VkInstance instance, VkPhysicalDevice device, std::uint32_t family) {
+    return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
+  };
+  render::Renderer renderer(renderer_options);
+  Controls controls;
+  Window window(scene.camera.width, scene.camera.height, "displace play", controls);
+  int framebuffer_width = 0, framebuffer_height = 0;
+  glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
+  render::Swapchain swapchain(
+      renderer,
+      [&](VkInstance instance) {
+        VkSurfaceKHR surface = VK_NULL_HANDLE;
+        const VkResult result = glfwCreateWindowSurface(instance, window.get(), nullptr, &surface);
+        if (result != VK_SUCCESS) {
+          throw runtime_error(fmt::format("glfwCreateWindowSurface failed with VkResult {}", int(result)));
+        }
+        return surface;
+      },
+      framebuffer_width, framebuffer_height, settings.vsync);
+
+  auto pipeline =
+      std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{}, image_loader());
+  render::Frame frame;
+  pipeline::FrameRecord record;
+  long long index = 0;  // the next frame
+  bool have_frame = false;
+  double status_time = now_seconds();
+  long long status_frames = 0;
+  double frames_per_second = 0.0;
+  // vkAllocateMemory calls after the warm-up frames, and before the last frame (its readback buffer)
+  long long warm_allocations = -1, settled_allocations = -1;
+
+  while (!glfwWindowShouldClose(window.get())) {
+    glfwPollEvents();
+    if (fixed && index >= settings.frames) break;
+
+    // keys that change the scene: the pipeline is made again (its maps and budget follow the scene)
+    if (!fixed && apply_scene_keys(controls, scene)) {
+      renderer.wait_idle();
+      pipeline.reset();
+      pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
+                                                           image_loader());
+      have_frame = false;
+    }
+
+    // one frame: the next one, or the shown one again (paused, the camera moved or a screenshot)
+    const bool advance = fixed || !controls.paused || controls.step || !have_frame;
+    const long long shown = advance ? index : std::max(index - 1, 0LL);
+    const bool last = fixed && shown == settings.frames - 1;
+    const bool read_back = (last && !settings.screenshot.empty()) || controls.screenshot;
+    const bool redraw = advance || read_back || controls.camera_moved;
+    glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
+    if (redraw) {
+      render::View view =
+          orbit_view(pipeline::scene_view(scene, pipeline::frame_time(scene, shown)), controls);
+      if (!fixed && framebuffer_width > 0 && framebuffer_height > 0) {
+        // the picture follows the window (with --frames it keeps --size: the frames are fixed)
+        view.camera.width = framebuffer_width;
+        view.camera.height = framebuffer_height;
+      }
+      if (last)
+        settled_allocations = renderer.memory_allocations();  // before the screenshot's readback buffer
+      record = pipeline->run(shown, view, frame, read_back ? render::output_color : render::output_none);
+      have_frame = true;
+      if (advance) index = shown + 1;
+      if (fixed && index == warm_up_frames) warm_allocations = renderer.memory_allocations();
+      controls.step = false;
+      controls.camera_moved = false;
+      ++status_frames;
+    }
+    if (read_back && controls.screenshot) {
+      const std::filesystem::path file = fmt::format("play_{:06d}.png", record.index);
+      write_screenshot(file, frame, scene, record);
+      out << (terminal ? "\r\033[K" : "") << "screenshot: " << file.string() << '\n';
+      controls.screenshot = false;
+    }
+    if (last && !settings.screenshot.empty()) write_screenshot(settings.screenshot, frame, scene, record);
+
+    swapchain.present(framebuffer_width, framebuffer_height);
+
+    // report: the title and the terminal, once a second
+    const double now = now_seconds();
+    if (now - status_time >= status_period_seconds || last) {
+      frames_per_second = double(status_frames) / std::max(now - status_time, 1e-9);
+      status_time = now;
+      status_frames = 0;
+      const std::string text = status_text(scene, record, frames_per_second, controls.paused);
+      glfwSetWindowTitle(window.get(), ("displace play | " + text).c_str());
+      out << (terminal ? "\r\033[K" : "") << text << (terminal ? "" : "\n") << std::flush;
+    }
+    if (!redraw) glfwWaitEventsTimeout(0.05);  // paused and still: no busy loop
+  }
+  renderer.wait_idle();
+  if (terminal) out << '\n';
+  if (fixed && index < settings.frames) {
+    throw runtime_error(
+        fmt::format("the window was closed after {} of the {} frames asked for", index, settings.frames));
+  }
+  if (settings.renderer.validate && renderer.validation_messages() > 0) {
+    throw runtime_error(std::to_string(renderer.validation_messages()) +
+                        " Vulkan validation messages (printed above)");
+  }
+  out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", index, scene.name,
+                     scene.camera.width, scene.camera.height, scene.map_size, record.time);
+  if (warm_allocations >= 0 && settled_allocations >= 0 && index - 2 >= warm_up_frames) {
+    out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
+                       warm_up_frames, index - 2);
+  }
+  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string())
+      << '\n';
+}
+
+}  // namespace displace::app

@@ -1,0 +1,293 @@
+// render/swapchain.cpp - presenting the renderer's frames in a window (render.h, Swapchain).
+//
+// The one fact to know: the picture never leaves the device. present() records a blit from the
+// renderer's colour target (TRANSFER_SRC_OPTIMAL after every frame) into the acquired swapchain image
+// and submits it on the renderer's queue after the frame; the render pass's external dependencies
+// (colour writes -> transfer reads, transfer reads -> the next frame's writes) order the two.
+#include <algorithm>
+#include <array>
+#include <limits>
+#include <vector>
+
+#include "render/renderer_impl.h"
+
+namespace displace::render {
+namespace {
+
+constexpr std::uint64_t no_timeout = std::numeric_limits<std::uint64_t>::max();
+
+// 8-bit UNORM formats only: the renderer's bytes are shown as they are (no sRGB encoding on top).
+constexpr std::array<VkFormat, 2> wanted_formats = {VK_FORMAT_B8G8R8A8_UNORM, VK_FORMAT_R8G8B8A8_UNORM};
+
+}  // namespace
+
+struct Swapchain::Impl {
+  // the caller's surface, destroyed last
+  struct Surface {
+    VkInstance instance = VK_NULL_HANDLE;
+    VkSurfaceKHR handle = VK_NULL_HANDLE;
+    ~Surface() {
+      if (handle != VK_NULL_HANDLE) vkDestroySurfaceKHR(instance, handle, nullptr);
+    }
+  };
+  // per present in flight: its command buffer, fence and acquire semaphore
+  struct PresentSlot {
+    VkCommandBuffer commands = VK_NULL_HANDLE;
+    OwnedFence fence;  // signalled: the slot's blit has finished
+    OwnedSemaphore acquired;
+  };
+
+  Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted);
+  ~Impl();
+  void recreate(int width, int height);
+  bool present(int width, int height);
+
+  Renderer::Impl& renderer;
+  const Context& context;
+  Surface surface;
+  bool vsync = false;
+  VkSurfaceFormatKHR format{};
+  VkPresentModeKHR present_mode = VK_PRESENT_MODE_FIFO_KHR;
+  OwnedSwapchain swapchain;
+  VkExtent2D extent{0, 0};
+  int requested_width = 0, requested_height = 0;  // the window size the swapchain was made for
+  bool stale = true;                              // out of date or suboptimal: make it again
+  std::vector<VkImage> images;
+  std::vector<OwnedSemaphore> blitted;  // per swapchain image: the present waits for its blit
+  std::array<PresentSlot, frames_in_flight> slots;
+  int slot = 0;
+};
+
+Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted)
+    : renderer(r), context(r.context), vsync(vsync_wanted) {
+  const VkDevice device = context.device();
+  surface.instance = context.instance();
+  surface.handle = make_surface(context.instance());
+  if (surface.handle == VK_NULL_HANDLE) throw RenderError("the window system made no Vulkan surface");
+
+  VkBool32 supported = VK_FALSE;
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfaceSupportKHR(context.physical_device(), context.queue_family(),
+                                                         surface.handle, &supported));
+  if (!supported) {
+    throw RenderError("device '" + context.info().name +
+                      "' cannot present to this window (its graphics queue has no "
+                      "present support); pick another with --device");
+  }
+
+  // surface format: an 8-bit UNORM one the blit can write
+  std::uint32_t count = 0;
+  DISPLACE_VK_CHECK(
+      vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count, nullptr));
+  std::vector<VkSurfaceFormatKHR> formats(count);
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfaceFormatsKHR(context.physical_device(), surface.handle, &count,
+                                                         formats.data()));
+  bool found = false;
+  for (VkFormat wanted : wanted_formats) {
+    for (const VkSurfaceFormatKHR& offered : formats) {
+      VkFormatProperties properties;
+      vkGetPhysicalDeviceFormatProperties(context.physical_device(), offered.format, &properties);
+      if (!found && offered.format == wanted &&
+          (properties.optimalTilingFeatures & VK_FORMAT_FEATURE_BLIT_DST_BIT)) {
+        format = offered;
+        found = true;
+      }
+    }
+  }
+  if (!found)
+    throw RenderError("the window offers no 8-bit UNORM (B8G8R8A8 or R8G8B8A8) swapchain format to blit to");
+
+  // present mode: FIFO always exists; without vsync take mailbox, else immediate, when offered
+  DISPLACE_VK_CHECK(
+      vkGetPhysicalDeviceSurfacePresentModesKHR(context.physical_device(), surface.handle, &count, nullptr));
+  std::vector<VkPresentModeKHR> modes(count);
+  DISPLACE_VK_CHECK(vkGetPhysicalDeviceSurfacePresentModesKHR(context.physical_device(), surface.handle,
+                                                              &count, modes.data()));
+  present_mode = VK_PRESENT_MODE_FIFO_KHR;
+  if (!vsync) {
+    for (VkPresentModeKHR mode : {VK_PRESENT_MODE_IMMEDIATE_KHR, VK_PRESENT_MODE_MAILBOX_KHR}) {
+      if (std::find(modes.begin(), modes.end(), mode) != modes.end()) present_mode = mode;
+    }
+  }
+
+  for (PresentSlot& present_slot : slots) {
+    present_slot.commands = context.allocate_command_buffer();
+    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    fence_info.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    VkFence fence = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateFence(device, &fence_info, nullptr, &fence));
+    present_slot.fence = OwnedFence(device, fence);
+    VkSemaphoreCreateInfo semaphore_info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+    VkSemaphore semaphore = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateSemaphore(device, &semaphore_info, nullptr, &semaphore));
+    present_slot.acquired = OwnedSemaphore(device, semaphore);
+  }
+}
+
+Swapchain::Impl::~Impl() {
+  const VkDevice device = context.device();
+  vkDeviceWaitIdle(device);  // the presents and blits in flight
+  for (PresentSlot& present_slot : slots) {
+    if (present_slot.commands)
+      vkFreeCommandBuffers(device, context.command_pool(), 1, &present_slot.commands);
+  }
+}
+
+void Swapchain::Impl::recreate(int width, int height) {
+  const VkDevice device = context.device();
+  DISPLACE_VK_CHECK(vkDeviceWaitIdle(device));
+  VkSurfaceCapabilitiesKHR capabilities;
+  DISPLACE_VK_CHECK(
+      vkGetPhysicalDeviceSurfaceCapabilitiesKHR(context.physical_device(), surface.handle, &capabilities));
+  if (!(capabilities.supportedUsageFlags & VK_IMAGE_USAGE_TRANSFER_DST_BIT)) {
+    throw RenderError(
+        "the window's swapchain images cannot be written by a transfer (no TRANSFER_DST usage)");
+  }
+  requested_width = width;
+  requested_height = height;
+  extent = capabilities.currentExtent;
+  if (extent.width == std::numeric_limits<std::uint32_t>::max()) {
+    extent.width = std::clamp(std::uint32_t(width), capabilities.minImageExtent.width,
+                              capabilities.maxImageExtent.width);
+    extent.height = std::clamp(std::uint32_t(height), capabilities.minImageExtent.height,
+                               capabilities.maxImageExtent.height);
+  }
+  if (extent.width == 0 || extent.height == 0) return;  // minimized: made when the window has a size again
+
+  std::uint32_t image_count = std::max(capabilities.minImageCount + 1, 2u);
+  if (capabilities.maxImageCount > 0) image_count = std::min(image_count, capabilities.maxImageCount);
+  VkSwapchainCreateInfoKHR info{VK_STRUCTURE_TYPE_SWAPCHAIN_CREATE_INFO_KHR};
+  info.surface = surface.handle;
+  info.minImageCount = image_count;
+  info.imageFormat = format.format;
+  info.imageColorSpace = format.colorSpace;
+  info.imageExtent = extent;
+  info.imageArrayLayers = 1;
+  info.imageUsage = VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+  info.imageSharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  info.preTransform = (capabilities.supportedTransforms & VK_SURFACE_TRANSFORM_IDENTITY_BIT_KHR)
+                          ? VK_SURFACE_TRANSFORM_IDENTITY_BIT_KHR
+                          : capabilities.currentTransform;
+  info.compositeAlpha = VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR;
+  for (VkCompositeAlphaFlagBitsKHR alpha :
+       {VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR, VK_COMPOSITE_ALPHA_INHERIT_BIT_KHR,
+        VK_COMPOSITE_ALPHA_PRE_MULTIPLIED_BIT_KHR, VK_COMPOSITE_ALPHA_POST_MULTIPLIED_BIT_KHR}) {
+    if (capabilities.supportedCompositeAlpha & alpha) {
+      info.compositeAlpha = alpha;
+      break;
+    }
+  }
+  info.presentMode = present_mode;
+  info.clipped = VK_TRUE;
+  info.oldSwapchain = swapchain.get();
+  VkSwapchainKHR made = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateSwapchainKHR(device, &info, nullptr, &made));
+  swapchain = OwnedSwapchain(device, made);  // destroys the old one
+
+  std::uint32_t count = 0;
+  DISPLACE_VK_CHECK(vkGetSwapchainImagesKHR(device, swapchain.get(), &count, nullptr));
+  images.resize(count);
+  DISPLACE_VK_CHECK(vkGetSwapchainImagesKHR(device, swapchain.get(), &count, images.data()));
+  images.resize(count);
+  while (blitted.size() < images.size()) {
+    VkSemaphoreCreateInfo semaphore_info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+    VkSemaphore semaphore = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateSemaphore(device, &semaphore_info, nullptr, &semaphore));
+    blitted.emplace_back(device, semaphore);
+  }
+  stale = false;
+}
+
+bool Swapchain::Impl::present(int width, int height) {
+  if (width <= 0 || height <= 0) return false;
+  const Targets& targets = renderer.targets;
+  if (targets.width == 0 || !targets.color.handle()) return false;  // nothing rendered yet
+  if (stale || !swapchain.get() || width != requested_width || height != requested_height)
+    recreate(width, height);
+  if (!swapchain.get() || extent.width == 0 || extent.height == 0) return false;
+
+  // the slot's previous blit has finished
+  const VkDevice device = context.device();
+  PresentSlot& present_slot = slots[std::size_t(slot)];
+  const VkFence fence = present_slot.fence.get();
+  DISPLACE_VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, no_timeout));
+
+  std::uint32_t index = 0;
+  const VkResult acquired = vkAcquireNextImageKHR(device, swapchain.get(), no_timeout,
+                                                  present_slot.acquired.get(), VK_NULL_HANDLE, &index);
+  if (acquired == VK_ERROR_OUT_OF_DATE_KHR) {
+    stale = true;
+    return false;
+  }
+  if (acquired == VK_SUBOPTIMAL_KHR) {
+    stale = true;  // the image is acquired: show it, then make the swapchain again
+  } else {
+    DISPLACE_VK_CHECK(acquired);
+  }
+
+  // record: swapchain image -> transfer dst, blit the colour target, -> present
+  const VkCommandBuffer commands = present_slot.commands;
+  DISPLACE_VK_CHECK(vkResetCommandBuffer(commands, 0));
+  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  DISPLACE_VK_CHECK(vkBeginCommandBuffer(commands, &begin));
+  const VkImage image = images[index];
+  image_barrier(commands, image, 1, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+                VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
+  VkImageBlit blit{};
+  blit.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  blit.srcOffsets[1] = {targets.width, targets.height, 1};
+  blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  blit.dstOffsets[1] = {std::int32_t(extent.width), std::int32_t(extent.height), 1};
+  vkCmdBlitImage(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image,
+                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_NEAREST);
+  image_barrier(commands, image, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_PRESENT_SRC_KHR,
+                VK_ACCESS_TRANSFER_WRITE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  DISPLACE_VK_CHECK(vkEndCommandBuffer(commands));
+
+  // submit after the renderer's frame (same queue), then present
+  DISPLACE_VK_CHECK(vkResetFences(device, 1, &fence));
+  const VkSemaphore wait = present_slot.acquired.get();
+  const VkSemaphore signal = blitted[index].get();
+  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.waitSemaphoreCount = 1;
+  submit.pWaitSemaphores = &wait;
+  submit.pWaitDstStageMask = &wait_stage;
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &commands;
+  submit.signalSemaphoreCount = 1;
+  submit.pSignalSemaphores = &signal;
+  DISPLACE_VK_CHECK(vkQueueSubmit(context.queue(), 1, &submit, fence));
+  slot = (slot + 1) % frames_in_flight;
+
+  const VkSwapchainKHR handle = swapchain.get();
+  VkPresentInfoKHR present_info{VK_STRUCTURE_TYPE_PRESENT_INFO_KHR};
+  present_info.waitSemaphoreCount = 1;
+  present_info.pWaitSemaphores = &signal;
+  present_info.swapchainCount = 1;
+  present_info.pSwapchains = &handle;
+  present_info.pImageIndices = &index;
+  const VkResult presented = vkQueuePresentKHR(context.queue(), &present_info);
+  if (presented == VK_ERROR_OUT_OF_DATE_KHR || presented == VK_SUBOPTIMAL_KHR) {
+    stale = true;
+    return presented == VK_SUBOPTIMAL_KHR;
+  }
+  DISPLACE_VK_CHECK(presented);
+  return true;
+}
+
+Swapchain::Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height,
+                     bool vsync)
+    : impl_(std::make_unique<Impl>(*renderer.impl_, make_surface, vsync)) {
+  impl_->recreate(width, height);
+}
+Swapchain::~Swapchain() = default;
+Swapchain::Swapchain(Swapchain&&) noexcept = default;
+Swapchain& Swapchain::operator=(Swapchain&&) noexcept = default;
+
+bool Swapchain::present(int width, int height) { return impl_->present(width, height); }
+int Swapchain::width() const { return int(impl_->extent.width); }
+int Swapchain::height() const { return int(impl_->extent.height); }
+
+}  // namespace displace::render
