@@ -39,7 +39,10 @@ case "$mode" in
     "$build/displace" sequence --scene water --map-size 256 --size 480x270 --frames 0:89 --bake-work 20000 \
       --output out/water/water_####.png --preview out/water.gif
     "$build/displace" bench-frame --scene water --map-size 256 --size 256x256 --frames 60 --budget-ms 33 \
-      --json out/bench-frame.json ;;
+      --json out/bench-frame.json
+    if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
+      echo "a display is here: 'build/displace play' opens the water demo in a window (keys: build/displace play --help)"
+    fi ;;
   test)
     cd "$build"
     ctest --output-on-failure -j "$jobs" ;;
