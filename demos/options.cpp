@@ -217,6 +217,17 @@ CLI::Validator output_file(std::vector<std::string> extensions) {
   });
 }
 
+// An image size WxH, each side 1 .. max_image_side.
+CLI::Validator image_size_check() {
+  return text_check(
+      [](const std::string& text) {
+        return read_image_size(text) ? std::string()
+                                     : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                                   max_image_side, in_quotes(text));
+      },
+      fmt::format("[1, {}] each", max_image_side));
+}
+
 const Words<SourceKind> source_words = {{"ocean", SourceKind::ocean},
                                         {"sinusoids", SourceKind::sinusoids},
                                         {"bricks", SourceKind::bricks},
@@ -892,14 +903,7 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
       ->transform(integer_in(1, max_repeat));
   app.add_option("--size", size, "the image in pixels of every scene (default 512x512)")
       ->type_name("WxH")
-      ->check(text_check(
-          [](const std::string& text) {
-            return read_image_size(text)
-                       ? std::string()
-                       : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
-                                     max_image_side, in_quotes(text));
-          },
-          fmt::format("[1, {}] each", max_image_side)));
+      ->check(image_size_check());
   app.add_option("--output", output, "the table")
       ->type_name("FILE.csv")
       ->check(text_check([](const std::string& text) {
@@ -1002,9 +1006,7 @@ void add_pipeline_scene_flags(CLI::App& app, PipelineSceneDraft& draft) {
             integer_in(2, 8192));
   app.add_option("--size", draft.size, "the image in pixels (default: the scene's)")
       ->type_name("WxH")
-      ->check(text_check([](const std::string& text) -> std::string {
-        return read_image_size(text) ? std::string() : "expects WxH (1 to 16384 each), got " + in_quotes(text);
-      }));
+      ->check(image_size_check());
   const Words<render::Method> methods = method_words();
   add_value(app, "--method", draft.method, "the per-pixel method (default: the scene's)", word_list(methods),
             word_in(methods));
@@ -1177,14 +1179,7 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
       }));
   app.add_option("--size", size, "the window and image in pixels (default: the scene's, 512x512)")
       ->type_name("WxH")
-      ->check(text_check(
-          [](const std::string& text) {
-            return read_image_size(text)
-                       ? std::string()
-                       : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
-                                     max_image_side, in_quotes(text));
-          },
-          fmt::format("[1, {}] each", max_image_side)));
+      ->check(image_size_check());
   add_value(app, "--map-size", settings.map_size, "height map samples along u and v (default: the scene's)",
             "INT", integer_in(2, 8192));
   add_value(app, "--frames", settings.frames,
