@@ -228,6 +228,7 @@ CLI::Validator image_size_check() {
       fmt::format("[1, {}] each", max_image_side));
 }
 
+
 const Words<SourceKind> source_words = {{"ocean", SourceKind::ocean},
                                         {"sinusoids", SourceKind::sinusoids},
                                         {"bricks", SourceKind::bricks},
@@ -247,6 +248,7 @@ const Words<render::Surface> surface_words = {{"plane", render::Surface::plane},
                                               {"cone", render::Surface::cone}};
 const Words<Aov> aov_words = {
     {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
+
 
 Words<render::Method> method_words() {
   Words<render::Method> words;
@@ -268,6 +270,47 @@ Enum word_value(const Words<Enum>& words, std::string_view text) {
     if (word == text) return value;
   }
   throw std::logic_error("unknown word " + in_quotes(text) + " passed its flag's validator");
+}
+
+// A file pattern: at least one '#' in its name, one of `extensions`.
+CLI::Validator frame_pattern(std::vector<std::string> extensions) {
+  return text_check([extensions](const std::string& text) -> std::string {
+    if (std::filesystem::path(text).filename().string().find('#') == std::string::npos) {
+      return "needs '#' in the file name for the frame number (name_####.png), got " + in_quotes(text);
+    }
+    return output_file(extensions)(text);
+  });
+}
+
+// --aov NAME=FILE (render) or NAME=PATTERN (sequence, a '#' pattern): uv and depth to .exr,
+// iterations and fetches to .exr (raw) or .png (heatmap).
+void add_aov_option(CLI::App& app, std::vector<std::string>& aovs, const std::string& description, bool patterns) {
+  const std::string value = patterns ? "PATTERN" : "FILE";
+  app.add_option("--aov", aovs, description)
+      ->type_name("NAME=" + value)
+      ->check(text_check([value, patterns](const std::string& text) -> std::string {
+        const auto equals = text.find('=');
+        if (equals == std::string::npos || equals + 1 == text.size()) {
+          return "expects NAME=" + value + " (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
+        }
+        if (std::string problem = word_in(aov_words)(text.substr(0, equals)); !problem.empty()) return problem;
+        const Aov aov = word_value(aov_words, text.substr(0, equals));
+        std::vector<std::string> extensions{".exr"};
+        if (aov == Aov::iterations || aov == Aov::fetches) extensions.push_back(".png");
+        const std::string file = text.substr(equals + 1);
+        return patterns ? frame_pattern(extensions)(file) : output_file(extensions)(file);
+      }))
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+}
+
+std::vector<AovOutput> aov_outputs(const std::vector<std::string>& aovs) {
+  std::vector<AovOutput> outputs;
+  for (const std::string& aov : aovs) {
+    const auto equals = aov.find('=');
+    outputs.push_back({word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
+  }
+  return outputs;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -771,23 +814,8 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   app.option_defaults()->group("Options");
   add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
       ->required();
-  app.add_option("--aov", aovs,
-                 "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png")
-      ->type_name("NAME=FILE")
-      ->check(text_check([](const std::string& text) -> std::string {
-        const auto equals = text.find('=');
-        if (equals == std::string::npos || equals + 1 == text.size()) {
-          return "expects NAME=FILE (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
-        }
-        std::string word = text.substr(0, equals);
-        if (std::string problem = word_in(aov_words)(word); !problem.empty()) return problem;
-        const Aov aov = word_value(aov_words, text.substr(0, equals));
-        std::string file = text.substr(equals + 1);
-        return aov == Aov::iterations || aov == Aov::fetches ? output_file({".exr", ".png"})(file)
-                                                             : output_file({".exr"})(file);
-      }))
-      ->allow_extra_args(false)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  add_aov_option(app, aovs, "also write uv=F.exr, depth=F.exr, iterations=F.exr|F.png or fetches=F.exr|F.png",
+                 false);
   app.add_option("--compare", compare, "also render the reference and print the error against it")
       ->type_name("reference")
       ->check(text_check([](const std::string& text) {
@@ -818,11 +846,7 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
     }
     settings.bake_budget_milliseconds = bake_budget;
   }
-  for (const std::string& aov : aovs) {
-    const auto equals = aov.find('=');
-    settings.aovs.push_back(
-        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
-  }
+  settings.aovs = aov_outputs(aovs);
   settings.compare_reference = given(app, "--compare");
   settings.output = output;
   return settings;
@@ -1051,15 +1075,6 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
   return scene;
 }
 
-// A file pattern: at least one '#' in its name, one of `extensions`.
-CLI::Validator frame_pattern(std::vector<std::string> extensions) {
-  return text_check([extensions](const std::string& text) -> std::string {
-    if (std::filesystem::path(text).filename().string().find('#') == std::string::npos) {
-      return "needs '#' in the file name for the frame number (name_####.png), got " + in_quotes(text);
-    }
-    return output_file(extensions)(text);
-  });
-}
 
 CommandSettings parse_sequence(std::span<const std::string_view> args) {
   CLI::App app(
@@ -1089,20 +1104,8 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   add_value(app, "--output", output, "the frames: '#' runs become the frame number", "DIR/name_####.png|.exr",
             frame_pattern({".png", ".exr"}))
       ->required();
-  app.add_option("--aov", aovs, "also write uv=DIR/uv_####.exr, depth=..., iterations=..., fetches=... per frame")
-      ->type_name("NAME=PATTERN")
-      ->check(text_check([](const std::string& text) -> std::string {
-        const auto equals = text.find('=');
-        if (equals == std::string::npos || equals + 1 == text.size()) {
-          return "expects NAME=PATTERN (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
-        }
-        if (std::string problem = word_in(aov_words)(text.substr(0, equals)); !problem.empty()) return problem;
-        const Aov aov = word_value(aov_words, text.substr(0, equals));
-        return aov == Aov::iterations || aov == Aov::fetches ? frame_pattern({".exr", ".png"})(text.substr(equals + 1))
-                                                             : frame_pattern({".exr"})(text.substr(equals + 1));
-      }))
-      ->allow_extra_args(false)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  add_aov_option(app, aovs, "also write uv=DIR/uv_####.exr, depth=..., iterations=..., fetches=... per frame",
+                 true);
   app.add_option("--shard", shard, "render shard I of N (round robin over the frames, I from 1)")
       ->type_name("I/N")
       ->check(text_check([](const std::string& text) -> std::string {
@@ -1131,11 +1134,7 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   settings.step = step;
   if (!shard.empty()) std::sscanf(shard.c_str(), "%d/%d", &settings.shard_index, &settings.shard_count);
   settings.output = output;
-  for (const std::string& aov : aovs) {
-    const auto equals = aov.find('=');
-    settings.aovs.push_back(
-        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
-  }
+  settings.aovs = aov_outputs(aovs);
   settings.video = video;
   if (!settings.video.empty() && settings.shard_count > 1) {
     throw usage_error("--video encodes one run's frames: not with --shard");

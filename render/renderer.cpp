@@ -51,11 +51,7 @@ void Renderer::Impl::create_frame_slots() {
   const VkDescriptorSetLayout layout = set_layout.get();
   for (FrameSlot& frame_slot : slots) {
     frame_slot.commands = context.allocate_command_buffer();
-    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    fence_info.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    VkFence fence = VK_NULL_HANDLE;
-    DISPLACE_VK_CHECK(vkCreateFence(device, &fence_info, nullptr, &fence));
-    frame_slot.fence = OwnedFence(device, fence);
+    frame_slot.fence = OwnedFence(device, context.create_fence(true));
     VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     allocate.descriptorPool = descriptor_pool.get();
     allocate.descriptorSetCount = 1;

@@ -111,11 +111,7 @@ Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, boo
 
   for (PresentSlot& present_slot : slots) {
     present_slot.commands = context.allocate_command_buffer();
-    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    fence_info.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    VkFence fence = VK_NULL_HANDLE;
-    DISPLACE_VK_CHECK(vkCreateFence(device, &fence_info, nullptr, &fence));
-    present_slot.fence = OwnedFence(device, fence);
+    present_slot.fence = OwnedFence(device, context.create_fence(true));
     VkSemaphoreCreateInfo semaphore_info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
     VkSemaphore semaphore = VK_NULL_HANDLE;
     DISPLACE_VK_CHECK(vkCreateSemaphore(device, &semaphore_info, nullptr, &semaphore));

@@ -287,8 +287,7 @@ Context::Context(const RendererOptions& options) {
     pool_info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT | VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
     pool_info.queueFamilyIndex = queue_family_;
     DISPLACE_VK_CHECK(vkCreateCommandPool(device_, &pool_info, nullptr, &command_pool_));
-    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    DISPLACE_VK_CHECK(vkCreateFence(device_, &fence_info, nullptr, &fence_));
+    fence_ = create_fence(false);
     one_time_commands_ = allocate_command_buffer();
   } catch (...) {
     destroy();
@@ -335,6 +334,14 @@ VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMem
   DISPLACE_VK_CHECK(vkAllocateMemory(device_, &allocate, nullptr, &memory));
   memory_allocations_->fetch_add(1);
   return memory;
+}
+
+VkFence Context::create_fence(bool signaled) const {
+  VkFenceCreateInfo info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  info.flags = signaled ? VK_FENCE_CREATE_SIGNALED_BIT : 0;
+  VkFence fence = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateFence(device_, &info, nullptr, &fence));
+  return fence;
 }
 
 VkCommandBuffer Context::allocate_command_buffer() const {

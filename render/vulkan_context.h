@@ -42,6 +42,8 @@ class Context {
   // vkAllocateMemory, counted (memory_allocations()).
   VkDeviceMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const;
   long long memory_allocations() const { return memory_allocations_->load(); }
+  // A fence, signalled from the start when `signaled`; the caller destroys it (OwnedFence).
+  VkFence create_fence(bool signaled) const;
   // A primary command buffer from the pool (resettable), owned by the caller until the pool goes.
   VkCommandBuffer allocate_command_buffer() const;
 
