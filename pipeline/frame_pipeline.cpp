@@ -48,8 +48,7 @@ struct FrameBuffers {
   std::uint64_t cones_version = 0;
   bake::DualMaxPyramid pyramid;
   std::uint64_t pyramid_version = 0;
-  std::vector<float> distance;
-  int distance_width = 0, distance_height = 0, distance_depth = 0;
+  DistanceMap distance;
   std::uint64_t distance_version = 0;
   bake::BakeStats cone_stats;
   render::MapSet set;
@@ -236,9 +235,6 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     b.pyramid = last.pyramid;
     b.pyramid_version = last.pyramid_version;
     b.distance = last.distance;
-    b.distance_width = last.distance_width;
-    b.distance_height = last.distance_height;
-    b.distance_depth = last.distance_depth;
     b.distance_version = last.distance_version;
     b.cone_stats = last.cone_stats;
     b.maps_made = true;
@@ -282,13 +278,7 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     b.pyramid_version = next_map_version();
   }
   if (s.needs.distance && remake) {
-    const int side = std::min(distance_max_side, s.renderer.device().max_image_dimension_3d);
-    b.distance_width = std::min(width, side);
-    b.distance_height = std::min(height, side);
-    b.distance_depth = std::min(distance_slices, s.renderer.device().max_image_dimension_3d);
-    b.distance.resize(std::size_t(b.distance_width) * b.distance_height * b.distance_depth);
-    bake::bake_distance_map(b.heights_view(), s.needs.address,
-                            {b.distance.data(), b.distance_width, b.distance_height, b.distance_depth});
+    bake_distance(b.heights_view(), s.needs.address, s.renderer.device().max_image_dimension_3d, b.distance);
     b.distance_version = next_map_version();
   }
   b.maps_made = true;
@@ -317,8 +307,8 @@ void upload_from(FramePipeline::State& s, FrameBuffers& b) {
     set.foam_version = b.foam_version;
   }
   if (s.needs.distance) {
-    set.distance = {b.distance_width, b.distance_height, b.distance_depth, s.needs.address, b.distance,
-                    b.distance_version};
+    set.distance = {b.distance.width,  b.distance.height, b.distance.depth,
+                    s.needs.address, b.distance.values, b.distance_version};
   }
   s.renderer.set_maps(set);
 }

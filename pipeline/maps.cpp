@@ -6,6 +6,15 @@
 #include <optional>
 
 namespace displace::pipeline {
+void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_side, DistanceMap& out) {
+  const int side = std::min(distance_max_side, max_3d_side);
+  out.width = std::min(heights.width, side);
+  out.height = std::min(heights.height, side);
+  out.depth = std::min(distance_slices, max_3d_side);
+  out.values.resize(std::size_t(out.width) * std::size_t(out.height) * std::size_t(out.depth));
+  bake::bake_distance_map(heights, address, {out.values.data(), out.width, out.height, out.depth});
+}
+
 std::uint64_t next_map_version() {
   static std::atomic<std::uint64_t> counter{0};
   return ++counter;
@@ -37,9 +46,8 @@ struct MapMaker::State {
   std::uint64_t pyramid_version = 0;
 
   bool distance_made = false;
-  int distance_width = 0, distance_height = 0, distance_depth = 0;
   bake::Address distance_address = bake::Address::wrap;
-  std::vector<float> distance;
+  DistanceMap distance;
   std::uint64_t distance_version = 0;
 
   render::MapSet set;
@@ -128,13 +136,7 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
 
   // the distance map
   if (needs.distance && (!s.distance_made || s.distance_address != needs.address)) {
-    const int side = std::min(distance_max_side, s.max_3d_side);
-    s.distance_width = std::min(width, side);
-    s.distance_height = std::min(height, side);
-    s.distance_depth = std::min(distance_slices, s.max_3d_side);
-    s.distance.resize(std::size_t(s.distance_width) * s.distance_height * s.distance_depth);
-    bake::bake_distance_map(s.view(), needs.address,
-                            {s.distance.data(), s.distance_width, s.distance_height, s.distance_depth});
+    bake_distance(s.view(), needs.address, s.max_3d_side, s.distance);
     s.distance_address = needs.address;
     s.distance_made = true;
     s.distance_version = next_map_version();
@@ -163,8 +165,8 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
   }
   if (s.pyramid_made) set.max_pyramid = {&s.pyramid, s.pyramid_address, s.pyramid_version};
   if (s.distance_made) {
-    set.distance = {s.distance_width, s.distance_height, s.distance_depth, s.distance_address, s.distance,
-                    s.distance_version};
+    set.distance = {s.distance.width,    s.distance.height, s.distance.depth,
+                    s.distance_address, s.distance.values, s.distance_version};
   }
   return set;
 }

@@ -29,6 +29,14 @@ namespace displace::pipeline {
 inline constexpr int distance_slices = 64;     // voxels along h
 inline constexpr int distance_max_side = 512;  // voxels along u and v at most
 
+// The distance map of sphere tracing for `heights`, sized by the constants above and the device's
+// 3D limit (`max_3d_side`), baked into `out` (its buffer reused).
+struct DistanceMap {
+  int width = 0, height = 0, depth = 0;
+  std::vector<float> values;  // bake::DistanceView's layout
+};
+void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_side, DistanceMap& out);
+
 // A fresh map version: one process-wide counter, so that versions name content across map makers
 // and frame pipelines that share a renderer.
 std::uint64_t next_map_version();

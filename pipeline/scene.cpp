@@ -194,13 +194,13 @@ render::View scene_view(const Scene& scene, double time) {
   const double span = b.time - a.time;
   const double s = (time - a.time) / span;
   // tangents (per unit of s) from the neighbours: one-sided at the ends
-  auto tangent = [&](std::size_t k, glm::dvec3 CameraKey::*, auto get) {
+  auto tangent = [&](std::size_t k, auto get) {
     const std::size_t lo = k == 0 ? 0 : k - 1, hi = std::min(k + 1, keys.size() - 1);
     return (get(keys[hi]) - get(keys[lo])) / (keys[hi].time - keys[lo].time) * span;
   };
   auto hermite = [&](auto get) {
     const glm::dvec3 p0 = get(a), p1 = get(b);
-    const glm::dvec3 m0 = tangent(i, nullptr, get), m1 = tangent(i + 1, nullptr, get);
+    const glm::dvec3 m0 = tangent(i, get), m1 = tangent(i + 1, get);
     const double s2 = s * s, s3 = s2 * s;
     return (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
   };

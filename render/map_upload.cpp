@@ -183,16 +183,20 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& given = maps.cones[index];
     if (given.sector_count == 0) continue;
-    const std::string name = std::to_string(given.sector_count) + "-sector cone map";
+    // the map's name, for the errors only (a checked frame allocates nothing)
+    const char* const name = given.sector_count == 1 ? "1-sector cone map"
+                             : given.sector_count == 4 ? "4-sector cone map"
+                                                       : "8-sector cone map";
     if (cone_slot(given.sector_count) != int(index)) {
-      throw RenderError("maps: the " + name + " belongs in cones[" + std::to_string(cone_slot(given.sector_count)) + "]");
+      throw RenderError(std::string("maps: the ") + name + " belongs in cones[" +
+                        std::to_string(cone_slot(given.sector_count)) + "]");
     }
     if (given.ratios.size() != texels * std::size_t(given.sector_count) || given.apex.size() != texels ||
         !(given.relaxed.empty() || given.relaxed.size() == texels)) {
-      throw RenderError("maps: the " + name + " does not match the " + size_text(width, height) +
+      throw RenderError(std::string("maps: the ") + name + " does not match the " + size_text(width, height) +
                         " heights (ratios, apex heights and relaxed ratios are per texel)");
     }
-    check_rects(given.dirty, width, height, name.c_str());
+    check_rects(given.dirty, width, height, name);
   }
   const bake::DualMaxPyramid* pyramid = maps.max_pyramid.pyramid;
   VkDeviceSize pyramid_bytes = 0;
