@@ -3,6 +3,7 @@
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
 #   bash cmake/setup.sh test    # the whole test suite (ctest)
+#   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 20 minutes)
 #   bash cmake/setup.sh build   # only install + configure + build
 set -euo pipefail
 mode="${1:-build}"
@@ -11,7 +12,7 @@ build="${DISPLACE_BUILD_DIR:-$root/build}"
 
 packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools
-          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb)
+          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb python3-matplotlib)
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
@@ -43,10 +44,13 @@ case "$mode" in
     if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
       echo "a display is here: 'build/displace play' opens the water demo in a window (keys: build/displace play --help)"
     fi ;;
+  report)
+    cd "$root"
+    "$build/displace" report --output docs/report ;;
   test)
     cd "$build"
     ctest --output-on-failure -j "$jobs" ;;
   *)
-    echo "setup: unknown mode '$mode' (use main, test or build)" >&2
+    echo "setup: unknown mode '$mode' (use main, test, report or build)" >&2
     exit 2 ;;
 esac

@@ -376,10 +376,7 @@ std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const
   return rgba;
 }
 
-struct FrameSummary {
-  double mean_iterations = 0.0, mean_fetches = 0.0, p99_fetches = 0.0, max_iterations = 0.0;
-  long long hit_pixels = 0;
-};
+}  // namespace
 
 FrameSummary summarize(const render::Frame& frame) {
   FrameSummary summary;
@@ -402,7 +399,22 @@ FrameSummary summarize(const render::Frame& frame) {
   return summary;
 }
 
-}  // namespace
+MethodRun measure_method(render::Renderer& renderer, pipeline::MapMaker& maps, const render::View& view,
+                         const render::MethodSettings& method, int repeat, const render::Frame& reference,
+                         render::Frame& frame) {
+  std::vector<double> times;
+  renderer.set_maps(maps.maps_for(method.method, view));
+  for (int r = 0; r < repeat; ++r) {
+    renderer.render(view, method, frame);
+    times.push_back(frame.gpu_milliseconds);
+  }
+  std::sort(times.begin(), times.end());
+  MethodRun run;
+  run.median_ms = times[times.size() / 2];
+  run.error = render::compare(frame, reference);
+  run.summary = summarize(frame);
+  return run;
+}
 
 void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata) {
   if (lower_extension(file) == ".png") {
@@ -512,6 +524,17 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   }
 }
 
+void load_scene(render::Renderer& renderer, pipeline::MapMaker& maps, const SceneSettings& scene) {
+  BakeInput input = prepare_bake_input(scene.input);
+  maps.set_heights({input.width, input.height, std::move(input.heights)});
+  if (!scene.mesh.empty()) renderer.set_mesh(read_obj(scene.mesh));
+  if (scene.albedo.empty()) {
+    renderer.clear_albedo();
+  } else {
+    set_albedo_from(renderer, scene.albedo);
+  }
+}
+
 void run_sweep(const SweepSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
@@ -522,17 +545,10 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
   out << "displace sweep on " << renderer.device().name << " (" << renderer.device().type << "), "
       << settings.repeat << " renders per row, median device time\n";
   for (const SceneSettings& scene : settings.scenes) {
-    BakeInput input = prepare_bake_input(scene.input);
-    maps.set_heights({input.width, input.height, std::move(input.heights)});
-    if (!scene.mesh.empty()) renderer.set_mesh(read_obj(scene.mesh));
-    if (scene.albedo.empty()) {
-      renderer.clear_albedo();
-    } else {
-      set_albedo_from(renderer, scene.albedo);
-    }
+    load_scene(renderer, maps, scene);
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, scene.view, {render::Method::reference, 1, 0});
-    out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, input.width, input.height,
+    out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, maps.heights().width, maps.heights().height,
                        scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
     for (render::Method method : settings.methods) {
@@ -545,23 +561,17 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
       double best_fetches = -1.0;
       int best_steps = 0;
       double last_rmse = 0.0;
+      render::Frame frame;
       for (int steps : settings.steps) {
-        std::vector<double> times;
-        render::Frame frame;
-        renderer.set_maps(maps.maps_for(method, scene.view));
-        for (int r = 0; r < settings.repeat; ++r) {
-          renderer.render(scene.view, {method, steps, settings.refine}, frame);
-          times.push_back(frame.gpu_milliseconds);
-        }
-        std::sort(times.begin(), times.end());
-        const double median_ms = times[times.size() / 2];
-        const render::ImageError error = render::compare(frame, reference);
-        const FrameSummary summary = summarize(frame);
+        const MethodRun run =
+            measure_method(renderer, maps, scene.view, {method, steps, settings.refine}, settings.repeat, reference, frame);
+        const render::ImageError& error = run.error;
+        const FrameSummary& summary = run.summary;
         csv << fmt::format("{},{},{},{},{:.4f},{:.0f},{:.6f},{:.3f},{:.0f},{:.3f},{:.4f},\"{}\"\n",
                            scene.name, info.name, steps, settings.refine, error.rmse, error.max_error,
                            error.fraction_over_10, summary.mean_fetches, summary.p99_fetches,
-                           summary.mean_iterations, median_ms, renderer.device().name);
-        if (error.rmse <= 3.0 && (best_fetches < 0.0 || summary.mean_fetches < best_fetches)) {
+                           summary.mean_iterations, run.median_ms, renderer.device().name);
+        if (error.rmse <= sweep_target_rmse && (best_fetches < 0.0 || summary.mean_fetches < best_fetches)) {
           best_fetches = summary.mean_fetches;
           best_steps = steps;
         }
@@ -749,6 +759,16 @@ usage:
       --tile, --depth-scale, --address, --light, --shadows, --albedo, --surface, --radius); '#' starts a
       comment.
 
+  displace report [--scene bricks|ocean|cliff|IMAGE|FILE.txt ...] [--invert] [--quick] [--size N]
+                  [--output DIR] [--no-plots]
+      What accuracy costs in time, measured on this machine: every method's rmse against fetches and
+      device ms (steps 4..1024), grazing views (2..80 degrees), the bakers' budgets and tolerances
+      against their tightness and the acm4 fetches it buys, the water frame loop's budget against
+      its error, and iteration heatmaps. Writes the CSV/JSON behind each figure, the figures (PNG,
+      demos/report/plot_report.py with Debian's python3-matplotlib) and DIR/README.md (default
+      docs/report). --quick: fewer runs at 128 x 128 (about a minute); the full report takes about
+      20 minutes on 2 cores. An IMAGE scene is a height map (--invert: a depth map), clamped at its edges.
+
   displace demo [--map-size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
       out/ocean_cone4.png, baked with the budgeted baker and an unlimited budget; then renders it
@@ -809,6 +829,8 @@ int run_command(const CommandSettings& settings, std::ostream& out) {
     run_bench_frame(*bench_settings, out);
   } else if (const auto* play_settings = std::get_if<PlaySettings>(&settings)) {
     run_play(*play_settings, out);
+  } else if (const auto* report_settings = std::get_if<ReportSettings>(&settings)) {
+    run_report(*report_settings, out);
   } else {
     run_demo(std::get<DemoSettings>(settings), out);
   }

@@ -14,6 +14,7 @@
 #include "demos/cone_export.h"
 #include "demos/image_io.h"
 #include "demos/options.h"
+#include "pipeline/maps.h"
 #include "sim/sim.h"
 
 namespace displace::app {
@@ -68,6 +69,30 @@ std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address 
 void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata);
 void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata);
 
+// The error target of `sweep` and `report`: rmse against the reference, 8-bit units.
+inline constexpr double sweep_target_rmse = 3.0;
+
+// Per-pixel statistics of a frame (read back with output_all) over the pixels that hit the relief.
+struct FrameSummary {
+  double mean_iterations = 0.0, mean_fetches = 0.0, p99_fetches = 0.0, max_iterations = 0.0;
+  long long hit_pixels = 0;
+};
+FrameSummary summarize(const render::Frame& frame);
+
+// A sweep scene's heights into `maps`, and its mesh and albedo onto `renderer`.
+void load_scene(render::Renderer& renderer, pipeline::MapMaker& maps, const SceneSettings& scene);
+
+// One method at one step count against a reference frame: its error and what it cost.
+struct MethodRun {
+  render::ImageError error;
+  FrameSummary summary;
+  double median_ms = 0.0;  // the median device time of the renders
+};
+// Renders `method` `repeat` times from the maps `maps` makes for it; `frame` keeps the last one.
+MethodRun measure_method(render::Renderer& renderer, pipeline::MapMaker& maps, const render::View& view,
+                         const render::MethodSettings& method, int repeat, const render::Frame& reference,
+                         render::Frame& frame);
+
 void run_sim(const SimSettings& settings, std::ostream& out);
 void run_bake(const BakeSettings& settings, std::ostream& out);
 void run_render(const RenderSettings& settings, std::ostream& out);
@@ -78,6 +103,8 @@ void run_print_scene(const PrintSceneSettings& settings, std::ostream& out);
 // demos/frames.cpp: the frame pipeline's users.
 void run_sequence(const SequenceSettings& settings, std::ostream& out);
 void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out);
+// demos/report.cpp: what accuracy costs in time, as CSVs, figures and a README.
+void run_report(const ReportSettings& settings, std::ostream& out);
 
 // The overview `displace --help` prints; `displace COMMAND --help` lists one command's flags.
 std::string usage_text();

@@ -352,6 +352,18 @@ void write_png_rgba8(const std::filesystem::path& file, int width, int height,
   write_image(file, spec, oiio::TypeDesc::UINT8, rgba.data());
 }
 
+void write_png_gray16(const std::filesystem::path& file, int width, int height,
+                      std::span<const std::uint16_t> values) {
+  check_size(file, width, height);
+  if (values.size() != std::size_t(width) * std::size_t(height)) {
+    throw runtime_error("cannot write " + quoted(file) + ": " + std::to_string(values.size()) +
+                        " samples do not make a " + std::to_string(width) + " x " + std::to_string(height) +
+                        " image");
+  }
+  const oiio::ImageSpec spec(width, height, 1, oiio::TypeDesc::UINT16);
+  write_image(file, spec, oiio::TypeDesc::UINT16, values.data());
+}
+
 void write_animated_gif(const std::filesystem::path& file, int width, int height,
                         const std::vector<std::vector<std::uint8_t>>& frames, int fps) {
   check_size(file, width, height);

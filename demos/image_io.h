@@ -91,6 +91,10 @@ void write_exr(const std::filesystem::path& file, int width, int height, std::sp
 // stored as given.
 void write_png_rgba8(const std::filesystem::path& file, int width, int height,
                      std::span<const std::uint8_t> rgba, const Metadata& metadata);
+// Writes a 16-bit grey PNG of raw values (data for plots: iteration counts, not a picture).
+void write_png_gray16(const std::filesystem::path& file, int width, int height,
+                      std::span<const std::uint16_t> values);
+
 // An animated GIF of RGBA8 frames of one size (the first frame's), `fps` frames a second; for
 // previews (GIF's 256 colours a frame).
 void write_animated_gif(const std::filesystem::path& file, int width, int height,

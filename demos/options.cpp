@@ -1224,6 +1224,65 @@ CommandSettings parse_bench_frame(std::span<const std::string_view> args) {
   return settings;
 }
 
+constexpr int max_report_image_side = 2048;  // --size of `displace report`
+
+CommandSettings parse_report(std::span<const std::string_view> args) {
+  CLI::App app(
+      "What accuracy costs in time: every method's error against fetches and device milliseconds, "
+      "grazing views, the bake's tightness and price, the frame loop's budget against its error, and "
+      "iteration heatmaps; the CSV and JSON behind each figure, the figures (PNG, matplotlib) and a "
+      "README.md that embeds them.",
+      "displace report");
+  set_up(app);
+  ReportSettings settings;
+  std::vector<std::string> scenes;
+  bool invert = false;
+  std::string output = settings.output.string();
+  app.add_option("--scene", scenes,
+                 "a built-in scene, a height image, or a .txt file of render flags (default: the three "
+                 "built-in ones)")
+      ->type_name(fmt::format("{}|IMAGE|FILE.txt", fmt::join(sweep_scene_names, "|")))
+      ->check(not_empty())
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  add_switch(app, "--invert", invert, "height images store depth (1 = deepest)");
+  add_switch(app, "--quick", settings.quick,
+             "fewer step counts, frames and budgets at 128 x 128 pixels (minutes, for CI)");
+  add_value(app, "--size", settings.image_side,
+            "the render figures' square images, pixels a side (default 256, --quick 128)", "N",
+            integer_in(16, max_report_image_side));
+  add_value(app, "--output", output, "the report's directory (default docs/report)", "DIR", not_empty());
+  bool no_plots = false;
+  add_switch(app, "--no-plots", no_plots, "write the data (CSV, JSON) without running the plotting script");
+  add_renderer_flags(app, settings.renderer);
+  if (auto help = parse_flags(app, args)) return *help;
+  reject_extras(app);
+
+  bool any_image = false;
+  for (const std::string& scene : scenes) {
+    if (std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end()) {
+      settings.scenes.push_back(builtin_scene(scene));
+    } else if (lower_extension(std::filesystem::path(scene)) == ".txt") {
+      settings.scenes.push_back(read_scene_file(std::filesystem::path(scene)));
+    } else {
+      // a user's map: rarely a tile, so clamped at its edges
+      SceneSettings image;
+      image.name = std::filesystem::path(scene).stem().string();
+      image.input = FileInput{std::filesystem::path(scene), HeightLoadSettings{{}, invert, std::nullopt}};
+      image.view.address = bake::Address::clamp;
+      settings.scenes.push_back(std::move(image));
+      any_image = true;
+    }
+  }
+  if (invert && !any_image) throw usage_error("--invert needs a height image in --scene");
+  if (settings.scenes.empty()) {
+    for (const std::string& name : sweep_scene_names) settings.scenes.push_back(builtin_scene(name));
+  }
+  settings.output = output;
+  settings.plots = !no_plots;
+  return settings;
+}
+
 struct Command {
   std::string_view name;
   CommandSettings (*parse)(std::span<const std::string_view> args);  // the arguments after the name
@@ -1232,7 +1291,7 @@ constexpr Command commands[] = {{"sim", parse_sim},           {"bake", parse_bak
                                 {"render", parse_render},     {"sweep", parse_sweep},
                                 {"demo", parse_demo},         {"scene", parse_scene},
                                 {"sequence", parse_sequence}, {"bench-frame", parse_bench_frame},
-                                {"play", parse_play}};
+                                {"play", parse_play},         {"report", parse_report}};
 
 }  // namespace
 

@@ -162,9 +162,20 @@ struct PlaySettings {
   render::RendererOptions renderer;
 };
 
+// `displace report`: what accuracy costs in time (demos/report.cpp). Full or quick (--quick: the
+// same figures from fewer and smaller renders, for CI).
+struct ReportSettings {
+  std::vector<SceneSettings> scenes;  // default: the sweep's three built-in scenes
+  bool quick = false;
+  int image_side = 0;                 // --size N: square images of the render figures; 0: the mode's
+  std::filesystem::path output = "docs/report";
+  bool plots = true;                  // --no-plots: the data only (CSV and JSON), no python
+  render::RendererOptions renderer;
+};
+
 using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings,
                                      SweepSettings, PrintSceneSettings, SequenceSettings, BenchFrameSettings,
-                                     PlaySettings>;
+                                     PlaySettings, ReportSettings>;
 
 // The extension of a path, lower-cased (".png").
 std::string lower_extension(const std::filesystem::path& path);

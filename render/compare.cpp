@@ -11,6 +11,12 @@ ImageError compare(const Frame& frame, const Frame& reference) {
   if (frame.width != reference.width || frame.height != reference.height) {
     throw RenderError("compare: frames differ in size");
   }
+  const std::size_t pixel_count = std::size_t(frame.width) * std::size_t(frame.height);
+  for (const Frame* one : {&frame, &reference}) {
+    if (one->color.size() != pixel_count * 4 || one->uv.size() != pixel_count * 3) {
+      throw RenderError("compare: both frames need their colour and uv read back (output_color | output_uv)");
+    }
+  }
   constexpr int off_threshold = 10;  // 8-bit units: a pixel counts as "off" above this
   ImageError error;
   double sum_squares = 0.0;

@@ -386,9 +386,10 @@ class Swapchain {
   std::unique_ptr<Impl> impl_;
 };
 
-// Image error of a frame against a reference frame, over the pixels the reference hit, in 8-bit
-// output units (each channel of RGB counted; a pixel where only one frame hit counts its full
-// difference against the background).
+// Image error of a frame against a reference frame, over the pixels where either frame hit the
+// relief, in 8-bit output units (each channel of RGB counted; a pixel where only one frame hit
+// counts its full difference against the background). Both frames need their colour and uv read
+// back (throws RenderError otherwise).
 struct ImageError {
   double rmse = 0.0;
   double max_error = 0.0;

@@ -1366,6 +1366,25 @@ TEST(Obj, RejectsMalformedFilesNamingTheLine) {
 
 // `displace play --frames N` under Xvfb: a window, a swapchain on lavapipe, zero validation messages,
 // and the screenshot of frame N - 1 is, bit for bit, what the frame pipeline renders for that index.
+TEST(Cli, ReportRejectsBadFlagsAndUnreadableScenesWithOneError) {
+  TempDir dir;
+  const std::string output = " --no-plots --output '" + (dir / "r").string() + "'";
+  const RunResult small = run_displace(dir, "report --size 8" + output);
+  EXPECT_EQ(small.exit_code, 2);
+  EXPECT_NE(small.err.find("--size"), std::string::npos) << small.err;
+  const RunResult invert = run_displace(dir, "report --invert --scene ocean" + output);
+  EXPECT_EQ(invert.exit_code, 2);
+  EXPECT_NE(invert.err.find("--invert needs a height image"), std::string::npos) << invert.err;
+  const RunResult missing = run_displace(dir, "report --scene '" + (dir / "missing.png").string() + "'" + output);
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.err.find("missing.png"), std::string::npos) << missing.err;
+  EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;
+  const RunResult bad_file = run_displace(dir, "report --scene '" + (dir / "missing.txt").string() + "'" + output);
+  EXPECT_EQ(bad_file.exit_code, 1);
+  EXPECT_NE(bad_file.err.find("missing.txt"), std::string::npos) << bad_file.err;
+  EXPECT_FALSE(fs::exists(dir / "r")) << "a report that cannot start writes nothing";
+}
+
 TEST(Cli, PlayRendersThePipelinesFramesInAWindow) {
   if (std::system("command -v xvfb-run >/dev/null 2>&1") != 0) {
     GTEST_SKIP() << "xvfb-run is missing ('apt-get install xvfb'); `displace play` needs a display";

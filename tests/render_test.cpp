@@ -135,6 +135,23 @@ TEST(CpuTrace, FirstCrossingMatchesADenseMarchAndNeverSkipsAClip) {
   EXPECT_GE(agree, rays * 99 / 100) << agree << " of " << rays;
 }
 
+TEST(CpuTrace, CompareCountsPixelsEitherFrameHitAndNeedsColourAndUv) {
+  render::Frame frame, reference;
+  frame.width = reference.width = 2;
+  frame.height = reference.height = 1;
+  frame.color = {10, 10, 10, 255, 0, 0, 0, 255};
+  reference.color = {10, 10, 10, 255, 30, 30, 30, 255};
+  frame.uv = {0.5f, 0.5f, 1.0f, 0, 0, 0};      // pixel 0 hit, pixel 1 off the relief
+  reference.uv = {0.5f, 0.5f, 1.0f, 0, 0, 1.0f};  // the reference hit both
+  const render::ImageError error = render::compare(frame, reference);
+  EXPECT_EQ(error.pixels, 2);
+  EXPECT_DOUBLE_EQ(error.max_error, 30.0);
+  EXPECT_DOUBLE_EQ(error.rmse, std::sqrt(3 * 900.0 / 6));
+  EXPECT_DOUBLE_EQ(error.fraction_over_10, 0.5);
+  frame.uv.clear();  // read back without uv: an error, not a read past the end
+  EXPECT_THROW(render::compare(frame, reference), render::RenderError);
+}
+
 TEST(CpuTrace, FindsAClipFarThinnerThanAnyMarchStep) {
   // one spike of height 1 on a floor of 0: the bilinear tent's tip is a clip ~0.002 texels long at
   // h = 0.999, which an eighth-texel march steps over

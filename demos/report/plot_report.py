@@ -1,0 +1,431 @@
+#!/usr/bin/env python3
+"""The figures and README.md of `displace report`, from the CSV and JSON it wrote.
+
+    python3 demos/report/plot_report.py DIR
+
+Reads DIR/report.json, cost.csv, grazing.csv, bake.csv, frame.csv, heatmaps.csv and the
+heatmap_*.png data images; writes DIR/*.png figures and DIR/README.md. Every number in the README's
+tables is computed here from those CSVs (tests/report_check.py recomputes them on its own).
+"""
+import csv
+import json
+import math
+import os
+import statistics
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from PIL import Image  # noqa: E402
+
+RMSE_FLOOR = 0.01  # rmse below this is drawn at it (log axes)
+FETCH_FLOOR = 0.5  # bump reads no height: drawn at half a fetch
+GRAZING_FETCH_BUDGET = 64  # fetches per pixel of the grazing figure's left panel
+SURFACE_METHODS = {"bump", "parallax", "parallax-limited", "parallax-slope"}
+
+
+def read_table(directory, name):
+    with open(os.path.join(directory, name), newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def number(text):
+    return math.inf if text == "inf" else float(text)
+
+
+def fmt_ms(value):
+    return f"{value:.1f}" if value >= 1 else f"{value:.2f}"
+
+
+def fmt_budget(value):
+    return "unlimited" if math.isinf(value) else f"{value:g}"
+
+
+def method_order(rows):
+    seen = []
+    for row in rows:
+        if row["method"] not in seen:
+            seen.append(row["method"])
+    return seen
+
+
+def style(methods):
+    colours = plt.get_cmap("tab20").colors
+    markers = "os^vD<>pPhX*dH8"
+    return {m: (colours[i % len(colours)], markers[i % len(markers)]) for i, m in enumerate(methods)}
+
+
+def pareto(points):
+    """The points no other point beats in both coordinates (lower is better), by x."""
+    front, best = [], math.inf
+    for x, y, label in sorted(points, key=lambda p: (p[0], p[1])):
+        if y < best:
+            front.append((x, y, label))
+            best = y
+    return front
+
+
+# ---- the tables (tests/report_check.py recomputes each one)
+
+def fewest_fetches(rows, target):
+    """Per method: the run with the fewest mean fetches reaching rmse <= target (None if none)."""
+    best = {}
+    for row in rows:
+        if float(row["rmse"]) > target:
+            continue
+        method = row["method"]
+        if method not in best or float(row["mean_fetches"]) < float(best[method]["mean_fetches"]):
+            best[method] = row
+    return best
+
+
+def steps_needed(rows, target):
+    """{(method, elevation): fewest steps reaching rmse <= target, or None} over grazing rows."""
+    needed = {}
+    for row in rows:
+        key = (row["method"], float(row["elevation_deg"]))
+        needed.setdefault(key, None)
+        if float(row["rmse"]) <= target:
+            steps = int(row["steps"])
+            if needed[key] is None or steps < needed[key]:
+                needed[key] = steps
+    return needed
+
+
+def frame_summary(rows):
+    """Per frame budget: medians of the stages, p95 of the frame, error and ratio statistics."""
+    budgets = []
+    for row in rows:
+        if row["frame_budget_ms"] not in budgets:
+            budgets.append(row["frame_budget_ms"])
+    summary = []
+    for budget in budgets:
+        mine = [r for r in rows if r["frame_budget_ms"] == budget]
+        column = lambda name: [float(r[name]) for r in mine]  # noqa: E731
+        frames = sorted(column("frame_ms"))
+        summary.append({
+            "budget": number(budget),
+            "sim": statistics.median(column("sim_ms")),
+            "bake": statistics.median(column("bake_ms")),
+            "upload": statistics.median(column("upload_ms")),
+            "render": statistics.median(column("render_ms")),
+            "frame": statistics.median(frames),
+            "frame_p95": frames[min(len(frames) - 1, int(math.ceil(0.95 * len(frames))) - 1)],
+            "rmse_median": statistics.median(column("rmse")),
+            "rmse_max": max(column("rmse")),
+            "ratio": statistics.median(column("mean_ratio")),
+            "fetches": statistics.median(column("mean_fetches")),
+            "frames": len(mine),
+        })
+    return summary
+
+
+# ---- the figures
+
+def cost_figure(directory, scene, rows, target, styles):
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2), sharey=True)
+    for axis, column, label in ((axes[0], "mean_fetches", "mean fetches per pixel (hit pixels)"),
+                                (axes[1], "median_ms", "device milliseconds (median)")):
+        points = []
+        for method in method_order(rows):
+            mine = [r for r in rows if r["method"] == method]
+            xs = [max(float(r[column]), FETCH_FLOOR if column == "mean_fetches" else 1e-3) for r in mine]
+            ys = [max(float(r["rmse"]), RMSE_FLOOR) for r in mine]
+            colour, marker = styles[method]
+            axis.plot(xs, ys, marker=marker, color=colour, label=method, linewidth=1.2, markersize=5)
+            points += [(x, y, method) for x, y in zip(xs, ys)]
+        front = pareto(points)
+        axis.step([p[0] for p in front], [p[1] for p in front], where="post", color="black", linestyle="--",
+                  linewidth=1, label="Pareto front")
+        axis.scatter([p[0] for p in front], [p[1] for p in front], s=70, facecolors="none", edgecolors="black",
+                     zorder=5)
+        axis.axhline(target, color="grey", linewidth=0.8, linestyle=":")
+        axis.set_xscale("log")
+        axis.set_yscale("log")
+        axis.set_xlabel(label)
+        axis.grid(True, which="major", alpha=0.3)
+    axes[0].set_ylabel("rmse against the reference (8-bit units)")
+    axes[1].legend(fontsize=7, ncol=2, loc="upper right")
+    fig.suptitle(f"{scene}: error against what it costs (dotted: rmse = {target:g})")
+    fig.tight_layout()
+    name = f"cost_{scene}.png"
+    fig.savefig(os.path.join(directory, name), dpi=90)
+    plt.close(fig)
+    return name
+
+
+def grazing_figure(directory, rows, scenes, target, styles):
+    scenes = [s for s in scenes if any(r["scene"] == s for r in rows)]
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes) + 1.8, 4.8), squeeze=False, sharey=True)
+    for axis, scene in zip(axes[0], scenes):
+        mine = [r for r in rows if r["scene"] == scene]
+        for method in method_order(mine):
+            elevations, errors = [], []
+            for elevation in sorted({float(r["elevation_deg"]) for r in mine}):
+                runs = [r for r in mine if r["method"] == method and float(r["elevation_deg"]) == elevation
+                        and float(r["mean_fetches"]) <= GRAZING_FETCH_BUDGET]
+                if runs:
+                    elevations.append(elevation)
+                    errors.append(max(min(float(r["rmse"]) for r in runs), RMSE_FLOOR))
+            colour, marker = styles[method]
+            axis.plot(elevations, errors, marker=marker, color=colour, label=method, linewidth=1.2, markersize=5)
+        axis.axhline(target, color="grey", linewidth=0.8, linestyle=":")
+        axis.set_xscale("log")
+        axis.set_yscale("log")
+        axis.set_xticks([2, 5, 10, 20, 45, 80])
+        axis.set_xticklabels(["2", "5", "10", "20", "45", "80"])
+        axis.set_xlabel("view elevation above the plane (degrees)")
+        axis.set_title(scene)
+        axis.grid(True, alpha=0.3)
+    axes[0][0].set_ylabel(f"best rmse within {GRAZING_FETCH_BUDGET} fetches per pixel")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="center right")
+    fig.tight_layout(rect=(0, 0, 0.87, 1))
+    fig.savefig(os.path.join(directory, "grazing.png"), dpi=90)
+    plt.close(fig)
+    return "grazing.png"
+
+
+def bake_figure(directory, rows):
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 4.8))
+    for kind, colour in (("center", "tab:blue"), ("bilinear", "tab:orange")):
+        for series, marker, line in (("budget", "o", "-"), ("tolerance", "s", ":")):
+            if series == "budget":
+                mine = [r for r in rows if r["cones"] == kind and float(r["tolerance"]) == 0.25]
+            else:
+                mine = [r for r in rows if r["cones"] == kind and r["budget_ms"] == "inf"]
+            mine.sort(key=lambda r: float(r["bake_ms"]))
+            axes[0].plot([float(r["bake_ms"]) for r in mine], [float(r["mean_ratio"]) for r in mine], marker=marker,
+                         linestyle=line, color=colour, label=f"{kind} cones, by {series}")
+            if kind == "bilinear":
+                reached = [r for r in mine if r["acm4_fetches"]]
+                axes[1].plot([float(r["bake_ms"]) for r in reached], [float(r["acm4_fetches"]) for r in reached],
+                             marker=marker, linestyle=line, color=colour, label=f"bilinear, by {series}")
+    for row in rows:
+        if row["cones"] == "bilinear-full":
+            axes[0].scatter([float(row["bake_ms"])], [float(row["mean_ratio"])], marker="*", s=160, color="black",
+                            label="bake_bilinear_cones (full bake)", zorder=5)
+            if row["acm4_fetches"]:
+                axes[1].scatter([float(row["bake_ms"])], [float(row["acm4_fetches"])], marker="*", s=160,
+                                color="black", label="bake_bilinear_cones (full bake)", zorder=5)
+    axes[0].set_xscale("log")
+    axes[0].set_xlabel("bake milliseconds (4 sectors)")
+    axes[0].set_ylabel("mean cone ratio (higher: tighter, fewer steps)")
+    axes[0].legend(fontsize=8)
+    axes[0].grid(True, alpha=0.3)
+    axes[1].set_xscale("log")
+    axes[1].set_xlabel("bake milliseconds (bilinear, 4 sectors)")
+    axes[1].set_ylabel("acm4 fetches per pixel at the fewest steps reaching the target")
+    axes[1].legend(fontsize=8)
+    axes[1].grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "bake.png"), dpi=90)
+    plt.close(fig)
+    return "bake.png"
+
+
+def frame_figure(directory, rows, summary):
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 4.8))
+    for entry in summary:
+        key = "inf" if math.isinf(entry["budget"]) else None
+        mine = [r for r in rows if (r["frame_budget_ms"] == key if key else
+                                    (r["frame_budget_ms"] != "inf" and float(r["frame_budget_ms"]) == entry["budget"]))]
+        axes[0].plot([int(r["frame"]) for r in mine], [max(float(r["rmse"]), RMSE_FLOOR / 10) for r in mine],
+                     label=(f"frame budget {fmt_budget(entry['budget'])} ms" if math.isfinite(entry["budget"]) else "no frame budget"), linewidth=1)
+    axes[0].set_yscale("log")
+    axes[0].set_xlabel("frame")
+    axes[0].set_ylabel("rmse against the reference (8-bit units)")
+    axes[0].legend(fontsize=8)
+    axes[0].grid(True, alpha=0.3)
+    labels = [fmt_budget(e["budget"]) for e in summary]
+    bottom = np.zeros(len(summary))
+    for stage, colour in (("sim", "tab:blue"), ("bake", "tab:orange"), ("upload", "tab:green"), ("render", "tab:red")):
+        values = np.array([e[stage] for e in summary])
+        axes[1].bar(labels, values, bottom=bottom, color=colour, label=stage)
+        bottom += values
+    axes[1].set_xlabel("frame budget (ms)")
+    axes[1].set_ylabel("median milliseconds per frame")
+    axes[1].legend(fontsize=8)
+    axes[1].grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "frame.png"), dpi=90)
+    plt.close(fig)
+    return "frame.png"
+
+
+def heatmap_figure(directory, rows):
+    images = [np.array(Image.open(os.path.join(directory, r["file"])), dtype=np.float64) for r in rows]
+    top = max(float(np.max(image)) for image in images)
+    columns = min(5, len(rows))
+    lines = (len(rows) + columns - 1) // columns
+    fig, axes = plt.subplots(lines, columns, figsize=(2.6 * columns + 1.2, 2.8 * lines), squeeze=False,
+                             layout="constrained")
+    colormap = plt.get_cmap("turbo").copy()
+    colormap.set_bad("black")
+    shown = None
+    for axis, row, image in zip(axes.flat, rows, images):
+        iterations = np.ma.masked_where(image == 0, image - 1)  # 0 in the file: off the relief
+        shown = axis.imshow(iterations, cmap=colormap, vmin=0, vmax=max(top - 1, 1), interpolation="nearest")
+        axis.set_title(f"{row['method']}: {float(row['mean_iterations']):.1f} mean", fontsize=9)
+        axis.axis("off")
+    for axis in list(axes.flat)[len(rows):]:
+        axis.axis("off")
+    fig.colorbar(shown, ax=axes, shrink=0.9, label="search iterations per pixel")
+    fig.savefig(os.path.join(directory, "heatmaps.png"), dpi=90)
+    plt.close(fig)
+    return "heatmaps.png"
+
+
+# ---- the README
+
+def table(name, header, rows):
+    lines = [f"<!-- table:{name} -->", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    directory = sys.argv[1]
+    info = json.load(open(os.path.join(directory, "report.json")))
+    target = float(info["target_rmse"])
+    cost = read_table(directory, "cost.csv")
+    grazing = read_table(directory, "grazing.csv")
+    bake = read_table(directory, "bake.csv")
+    frame = read_table(directory, "frame.csv")
+    heatmaps = read_table(directory, "heatmaps.csv")
+    styles = style(method_order(cost + grazing))
+    scenes = info["scenes"]
+
+    out = []
+    out.append("# What accuracy costs in time\n")
+    out.append(
+        f"Generated by `{info['command']}` on {info['date']}: {info['device']} ({info['device_type']}), "
+        f"{info['cpu_threads']} CPU threads, {info['image_side']} x {info['image_side']} pixels, "
+        f"{info['refine']} refinement steps, {info['repeat']} render(s) per point, in {info['seconds']['total']:g} s "
+        f"(cost {info['seconds']['cost']:g} s, grazing {info['seconds']['grazing']:g} s, bake "
+        f"{info['seconds']['bake']:g} s, frame {info['seconds']['frame']:g} s, heatmaps "
+        f"{info['seconds']['heatmaps']:g} s). Error is the rmse of the picture against the exact reference of the "
+        f"same heights and view, in 8-bit units over the pixels where either hit the relief; the target is "
+        f"rmse <= {target:g}. Fetches are height and cone reads per hit pixel, read back from the device. The CSV "
+        f"and JSON next to this file hold every number; the device times are lavapipe's when the device is the "
+        f"CPU, so compare them with each other, not with a GPU.\n")
+
+    # summary: which method and how many steps
+    out.append("## Which method, how many steps\n")
+    out.append(f"For each scene seen from the default camera (about 45 degrees), the methods that reach rmse <= "
+               f"{target:g}, ordered by the fetches they need (fewest first); `-` where a method does not reach it "
+               f"at {max(info['steps'])} steps.\n")
+    for scene in scenes:
+        rows = [r for r in cost if r["scene"] == scene]
+        best = fewest_fetches(rows, target)
+        reached = sorted(best.items(), key=lambda item: float(item[1]["mean_fetches"]))
+        missing = [m for m in method_order(rows) if m not in best]
+        body = [[m, r["steps"], f"{float(r['mean_fetches']):.1f}", fmt_ms(float(r["median_ms"])),
+                 f"{float(r['rmse']):.2f}"] for m, r in reached]
+        body += [[m, "-", "-", "-", "-"] for m in missing]
+        out.append(f"**{scene}**\n")
+        out.append(table(f"best:{scene}", ["method", "steps", "fetches/pixel", "device ms", "rmse"], body))
+
+    # 1 cost
+    out.append("## 1. Render cost against error\n")
+    out.append(
+        "One line per method: rmse against mean fetches per pixel (left) and device milliseconds (right) as the "
+        f"step count grows ({', '.join(str(s) for s in info['steps'])}); log axes, rmse below {RMSE_FLOOR} drawn at "
+        f"{RMSE_FLOOR}. The dashed black steps are the Pareto front: the runs no other run beats in both cost and "
+        "error, so a method off the front is never the right choice at that cost. Bump and the parallax family take "
+        "no steps and show as one point; the searching methods fall until their search resolves the surface and then "
+        "flatten where what is left is refinement or the method's own bias.\n")
+    for scene in scenes:
+        name = cost_figure(directory, scene, [r for r in cost if r["scene"] == scene], target, styles)
+        out.append(f"![cost, {scene}]({name})\n")
+
+    # 2 grazing
+    out.append("## 2. Grazing angles\n")
+    name = grazing_figure(directory, grazing, scenes, target, styles)
+    out.append(
+        f"Each plane scene seen from {', '.join(f'{e:g}' for e in info['elevations'])} degrees above the patch "
+        f"(the eye 1.2 units from the patch centre). The figure gives, per method, the lowest rmse it reaches within "
+        f"{GRAZING_FETCH_BUDGET} mean fetches per pixel at each elevation; the tables give the fewest steps "
+        f"(of {', '.join(str(s) for s in info['grazing_steps'])}) that reach rmse <= {target:g} (`-`: none does). "
+        "Low views are where fixed-step searches skip thin features and cones with loose ratios crawl.\n")
+    out.append(f"![grazing]({name})\n")
+    needed = None
+    for scene in scenes:
+        rows = [r for r in grazing if r["scene"] == scene]
+        if not rows:
+            continue
+        needed = steps_needed(rows, target)
+        elevations = sorted({float(r["elevation_deg"]) for r in rows})
+        body = []
+        for method in method_order(rows):
+            body.append([method] + ["-" if needed[(method, e)] is None else needed[(method, e)] for e in elevations])
+        out.append(f"**{scene}**: steps for rmse <= {target:g} at each elevation\n")
+        out.append(table(f"grazing:{scene}", ["method"] + [f"{e:g} deg" for e in elevations], body))
+
+    # 3 bake
+    out.append("## 3. The bake's accuracy and its price\n")
+    name = bake_figure(directory, bake)
+    scene = bake[0]["scene"] if bake else "?"
+    out.append(
+        f"The budgeted bakers on the {scene} map (4 sectors): by frame budget at tolerance "
+        f"{info['default_tolerance']:g} (solid) and by tolerance with an unlimited budget (dotted). Left: bake time "
+        "against the mean cone ratio - the tightness a ray's step length is made of. Centre cones hold between texel "
+        "centres (the renderer refuses them: they are not safe for the bilinear surface it samples); bilinear cones "
+        "are what the cone methods render from, and the star is the full (unbudgeted) bake_bilinear_cones, itself a "
+        "lower bound of the tightest ratios. Right: "
+        f"for each bilinear map, the fetches per pixel acm4 needs at the fewest steps (of {info['bake_steps'][0]}..."
+        f"{info['bake_steps'][-1]}) that reach rmse <= {target:g} seen from {info['bake_view_elevation']:g} degrees "
+        "- the time a tighter bake costs against what it saves in the render. Every map here is conservative, "
+        "whatever its budget: a starved bake only costs steps.\n")
+    out.append(f"![bake]({name})\n")
+    body = []
+    for r in bake:
+        body.append([r["cones"], fmt_budget(number(r["budget_ms"])), r["tolerance"], f"{float(r['bake_ms']):.1f}",
+                     f"{float(r['mean_ratio']):.4f}", r["texels_fallback"], r["acm4_steps"] or "-",
+                     f"{float(r['acm4_fetches']):.1f}" if r["acm4_fetches"] else "-",
+                     f"{float(r['acm4_ms']):.2f}" if r["acm4_ms"] else "-"])
+    out.append(table("bake", ["cones", "budget ms", "tolerance", "bake ms", "mean ratio", "fallback texels",
+                              "acm4 steps", "acm4 fetches", "acm4 ms"], body))
+
+    # 4 frame
+    out.append("## 4. The frame\n")
+    summary = frame_summary(frame)
+    name = frame_figure(directory, frame, summary)
+    f = info["frame"]
+    out.append(
+        f"The `{f['scene']}` scene of the frame pipeline ({f['map_size']} x {f['map_size']} ocean, choppy with foam, "
+        f"{f['width']} x {f['height']} pixels, {f['method']} at {f['steps']} steps) for {f['frames']} frames at each "
+        "frame budget: the bake gets what the budget leaves after the other stages of the previous frame (never "
+        "less than its first stage), so a tight budget renders from fallback ratios. Left: each frame's rmse "
+        "against the reference rendered from the same heights and foam. Right: the median time of each stage. The "
+        "table adds the frame's p95, the median mean cone ratio and the fetches per pixel the render then needed.\n")
+    out.append(f"![frame]({name})\n")
+    body = [[fmt_budget(e["budget"]), fmt_ms(e["sim"]), fmt_ms(e["bake"]), fmt_ms(e["upload"]), fmt_ms(e["render"]),
+             fmt_ms(e["frame"]), fmt_ms(e["frame_p95"]), f"{e['ratio']:.4f}", f"{e['fetches']:.1f}",
+             f"{e['rmse_median']:.3f}", f"{e['rmse_max']:.3f}"] for e in summary]
+    out.append(table("frame", ["frame budget ms", "sim", "bake", "upload", "render", "frame", "frame p95",
+                               "mean ratio", "fetches/pixel", "rmse median", "rmse max"], body))
+
+    # 5 heatmaps
+    out.append("## 5. Where the steps go\n")
+    name = heatmap_figure(directory, heatmaps)
+    out.append(
+        f"Search iterations per pixel on the {heatmaps[0]['scene'] if heatmaps else '?'} scene's default view at "
+        f"{info['heatmap_steps']} steps, one colour scale for all (black: off the relief). Linear searches spend "
+        "the same steps everywhere they are allowed to; cones and pyramids spend them where rays graze crests; "
+        "sphere tracing spends them near the surface.\n")
+    out.append(f"![heatmaps]({name})\n")
+    body = [[r["method"], r["steps"], f"{float(r['mean_iterations']):.1f}", r["max_iterations"],
+             f"{float(r['mean_fetches']):.1f}", f"{float(r['rmse']):.2f}"] for r in heatmaps]
+    out.append(table("heatmaps", ["method", "steps", "mean iterations", "max iterations", "fetches/pixel", "rmse"],
+                     body))
+
+    with open(os.path.join(directory, "README.md"), "w") as handle:
+        handle.write("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
