@@ -169,6 +169,31 @@ def main():
                 if cell != expected:
                     problem(f"{name}: {method} at {elevation:g} degrees says {cell}, grazing.csv gives {expected}")
 
+    # decide:SCENE - per elevation and target, the fewest fetches of any method reaching the target
+    for scene in info["scenes"]:
+        rows = [r for r in grazing if r["scene"] == scene]
+        name = f"decide:{scene}"
+        if not rows:
+            continue
+        if name not in tables:
+            problem(f"README.md has no table {name}")
+            continue
+        for elevation_cell, goal_cell, method, steps, fetches, ms in tables[name]:
+            at = [r for r in rows if float(r["elevation_deg"]) == float(elevation_cell)
+                  and float(r["rmse"]) <= float(goal_cell)]
+            if method == "-":
+                if at:
+                    problem(f"{name}: {elevation_cell} deg, rmse {goal_cell}: grazing.csv has runs that reach it")
+                continue
+            fewest = min((float(r["mean_fetches"]) for r in at), default=None)
+            if fewest is None or not close(fetches, fewest, decimals(fetches)):
+                problem(f"{name}: {elevation_cell} deg, rmse {goal_cell}: {fetches} fetches, grazing.csv's fewest "
+                        f"is {fewest}")
+            if not any(r["method"] == method and r["steps"] == steps and float(r["mean_fetches"]) == fewest
+                       for r in at):
+                problem(f"{name}: {elevation_cell} deg, rmse {goal_cell}: {method} at {steps} steps is not a run "
+                        "with the fewest fetches")
+
     # bake - one row per bake.csv row, in order
     if len(tables.get("bake", [])) != len(bake):
         problem(f"bake: {len(tables.get('bake', []))} rows, bake.csv has {len(bake)}")

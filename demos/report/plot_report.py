@@ -24,6 +24,7 @@ from PIL import Image  # noqa: E402
 RMSE_FLOOR = 0.01  # rmse below this is drawn at it (log axes)
 FETCH_FLOOR = 0.5  # bump reads no height: drawn at half a fetch
 GRAZING_FETCH_BUDGET = 64  # fetches per pixel of the grazing figure's left panel
+DECISION_TARGETS = (1.0, 3.0, 10.0)  # rmse targets of the "which method" tables
 SURFACE_METHODS = {"bump", "parallax", "parallax-limited", "parallax-slope"}
 
 
@@ -93,6 +94,12 @@ def steps_needed(rows, target):
             if needed[key] is None or steps < needed[key]:
                 needed[key] = steps
     return needed
+
+
+def cheapest(rows, target):
+    """The row with the fewest mean fetches reaching rmse <= target (ties: lower rmse), or None."""
+    within = [r for r in rows if float(r["rmse"]) <= target]
+    return min(within, key=lambda r: (float(r["mean_fetches"]), float(r["rmse"]))) if within else None
 
 
 def frame_summary(rows):
@@ -329,6 +336,25 @@ def main():
         out.append(f"**{scene}**\n")
         out.append(table(f"best:{scene}", ["method", "steps", "fetches/pixel", "device ms", "rmse"], body))
 
+    out.append("**At your viewing angle and error target**: from the grazing runs (section 2), the method and "
+               "step count with the fewest fetches per pixel that reach each rmse target at each elevation "
+               "(`-`: no method does within the steps tried).\n")
+    for scene in scenes:
+        rows = [r for r in grazing if r["scene"] == scene]
+        if not rows:
+            continue
+        body = []
+        for elevation in sorted({float(r["elevation_deg"]) for r in rows}):
+            at = [r for r in rows if float(r["elevation_deg"]) == elevation]
+            for goal in DECISION_TARGETS:
+                best = cheapest(at, goal)
+                body.append([f"{elevation:g}", f"{goal:g}"] + (
+                    [best["method"], best["steps"], f"{float(best['mean_fetches']):.1f}",
+                     fmt_ms(float(best["median_ms"]))] if best else ["-", "-", "-", "-"]))
+        out.append(f"**{scene}**\n")
+        out.append(table(f"decide:{scene}", ["elevation deg", "rmse target", "method", "steps", "fetches/pixel",
+                                             "device ms"], body))
+
     # 1 cost
     out.append("## 1. Render cost against error\n")
     out.append(
@@ -381,6 +407,23 @@ def main():
         "- the time a tighter bake costs against what it saves in the render. Every map here is conservative, "
         "whatever its budget: a starved bake only costs steps.\n")
     out.append(f"![bake]({name})\n")
+    starved = [r for r in bake if r["cones"] == "bilinear" and r["budget_ms"] != "inf" and float(r["budget_ms"]) == 0]
+    full = [r for r in bake if r["cones"] == "bilinear-full"]
+    if starved and full and starved[0]["acm4_fetches"] and full[0]["acm4_fetches"]:
+        zero, whole = starved[0], full[0]
+        out.append(
+            f"Measured here: the first stage alone (budget 0) takes {float(zero['bake_ms']):.1f} ms for a mean ratio of "
+            f"{float(zero['mean_ratio']):.4f}; the full bake takes {float(whole['bake_ms']):.0f} ms for "
+            f"{float(whole['mean_ratio']):.4f}. acm4 then needs {float(zero['acm4_fetches']):.1f} against "
+            f"{float(whole['acm4_fetches']):.1f} fetches per pixel ({zero['acm4_steps']} against "
+            f"{whole['acm4_steps']} steps) for the target.\n")
+        floor = float(zero["bake_ms"])
+        overruns = [(float(r["bake_ms"]) - max(float(r["budget_ms"]), floor), float(r["budget_ms"])) for r in bake
+                    if r["cones"] == "bilinear" and r["budget_ms"] != "inf" and float(r["budget_ms"]) > 0]
+        if overruns:
+            worst = max(overruns)
+            out.append(f"Budgets are met to within {max(worst[0], 0):.1f} ms past the larger of the budget and the "
+                       f"first stage (worst at a {worst[1]:g} ms budget).\n")
     body = []
     for r in bake:
         body.append([r["cones"], fmt_budget(number(r["budget_ms"])), r["tolerance"], f"{float(r['bake_ms']):.1f}",
@@ -403,6 +446,15 @@ def main():
         "against the reference rendered from the same heights and foam. Right: the median time of each stage. The "
         "table adds the frame's p95, the median mean cone ratio and the fetches per pixel the render then needed.\n")
     out.append(f"![frame]({name})\n")
+    if len(summary) > 1:
+        tight, loose = summary[0], summary[-1]
+        out.append(
+            f"Measured here: from a {fmt_budget(tight['budget'])} ms frame budget to "
+            f"{fmt_budget(loose['budget']) + ' ms' if math.isfinite(loose['budget']) else 'none'}, the median mean "
+            f"cone ratio goes from {tight['ratio']:.4f} to {loose['ratio']:.4f}, the fetches per pixel from "
+            f"{tight['fetches']:.1f} to {loose['fetches']:.1f}, and the median rmse from {tight['rmse_median']:.3f} to "
+            f"{loose['rmse_median']:.3f} (largest {tight['rmse_max']:.3f} and {loose['rmse_max']:.3f}): conservative "
+            "fallback ratios cost steps, not error, while the steps last.\n")
     body = [[fmt_budget(e["budget"]), fmt_ms(e["sim"]), fmt_ms(e["bake"]), fmt_ms(e["upload"]), fmt_ms(e["render"]),
              fmt_ms(e["frame"]), fmt_ms(e["frame_p95"]), f"{e['ratio']:.4f}", f"{e['fetches']:.1f}",
              f"{e['rmse_median']:.3f}", f"{e['rmse_max']:.3f}"] for e in summary]
