@@ -3,9 +3,25 @@ add_library(displace_warnings INTERFACE)
 target_compile_options(displace_warnings INTERFACE -Wall -Wextra -Wpedantic -Wshadow)
 
 add_library(displace_sanitizers INTERFACE)
-if(DISPLACE_SANITIZE)
-  target_compile_options(displace_sanitizers INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer)
+# any undefined behaviour ends the program (a test fails), not a line in its output
+if(DISPLACE_SANITIZE OR DISPLACE_FUZZ)
+  target_compile_options(displace_sanitizers INTERFACE -fsanitize=address,undefined -fno-sanitize-recover=undefined
+                         -fno-omit-frame-pointer)
   target_link_options(displace_sanitizers INTERFACE -fsanitize=address,undefined)
+endif()
+if(DISPLACE_TSAN)
+  if(DISPLACE_SANITIZE OR DISPLACE_FUZZ)
+    message(FATAL_ERROR "DISPLACE_TSAN does not go with DISPLACE_SANITIZE or DISPLACE_FUZZ: one build each")
+  endif()
+  target_compile_options(displace_sanitizers INTERFACE -fsanitize=thread -fno-omit-frame-pointer)
+  target_link_options(displace_sanitizers INTERFACE -fsanitize=thread)
+endif()
+if(DISPLACE_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "DISPLACE_FUZZ needs clang (libFuzzer): configure with -DCMAKE_CXX_COMPILER=clang++")
+  endif()
+  # coverage for the fuzzer in every library it reaches; only the fuzz targets link its main
+  target_compile_options(displace_sanitizers INTERFACE -fsanitize=fuzzer-no-link)
 endif()
 
 add_library(displace_options INTERFACE)

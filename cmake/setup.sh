@@ -4,6 +4,7 @@
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
 #   bash cmake/setup.sh test    # the whole test suite (ctest)
 #   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 20 minutes)
+#   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ and command-line readers (clang, build-fuzz/)
 #   bash cmake/setup.sh build   # only install + configure + build
 set -euo pipefail
 mode="${1:-build}"
@@ -47,10 +48,26 @@ case "$mode" in
   report)
     cd "$root"
     "$build/displace" report --output docs/report ;;
+  fuzz)
+    fuzz_packages=(clang libclang-rt-14-dev)
+    for p in "${fuzz_packages[@]}"; do
+      if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+        sudo_cmd=()
+        if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+        DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${fuzz_packages[@]}" >/dev/null
+        break
+      fi
+    done
+    fuzz_build="$root/build-fuzz"
+    CXX=clang++ cmake -S "$root" -B "$fuzz_build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_FUZZ=ON \
+      -DDISPLACE_BENCHMARKS=OFF >/dev/null
+    cmake --build "$fuzz_build" -j "$jobs" --target fuzz_scene fuzz_obj fuzz_cli
+    cd "$fuzz_build"
+    ctest --output-on-failure -R '^fuzz_(scene|obj|cli)$' ;;
   test)
     cd "$build"
     ctest --output-on-failure -j "$jobs" ;;
   *)
-    echo "setup: unknown mode '$mode' (use main, test, report or build)" >&2
+    echo "setup: unknown mode '$mode' (use main, test, report, fuzz or build)" >&2
     exit 2 ;;
 esac
