@@ -99,7 +99,7 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   };
   constexpr VkDescriptorType sampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   const std::array<VkWriteDescriptorSet, 7> writes = {
-      write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, nullptr, &uniform_info),
+      write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &uniform_info),
       write(BINDING_HEIGHT, sampled, &height_info, nullptr),
       write(BINDING_CONES, sampled, &cone_info, nullptr),
       write(BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &pyramid_info),

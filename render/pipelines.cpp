@@ -123,7 +123,8 @@ void Renderer::Impl::save_pipeline_cache() noexcept {
 void Renderer::Impl::create_layouts() {
   const VkDevice device = context.device();
   std::array<VkDescriptorSetLayoutBinding, 7> bindings{};
-  bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+  // FrameUniforms is a storage buffer, not a uniform buffer: see shaders/frame_block.inc.glsl
+  bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[1] = {BINDING_HEIGHT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
@@ -149,10 +150,9 @@ void Renderer::Impl::create_layouts() {
   pipeline_layout = OwnedPipelineLayout(device, pipeline_handle);
 
   // one descriptor set per frame in flight
-  const std::array<VkDescriptorPoolSize, 3> sizes = {
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frames_in_flight},
+  const std::array<VkDescriptorPoolSize, 2> sizes = {
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 5 * frames_in_flight},
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, frames_in_flight}};
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * frames_in_flight}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = frames_in_flight;
   pool_info.poolSizeCount = std::uint32_t(sizes.size());

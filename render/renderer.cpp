@@ -16,7 +16,7 @@
 
 namespace displace::render {
 
-static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 7, "FrameUniforms must match the std140 layout");
+static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 7, "FrameUniforms must match the std430 layout");
 static_assert(offsetof(gpu::FrameUniforms, eye) == 64);
 static_assert(offsetof(gpu::FrameUniforms, counts) == 64 + 16 * 4);
 static_assert(sizeof(gpu::MaxPyramidHeader) == 16 * (1 + MAX_PYRAMID_LEVELS),
@@ -57,7 +57,7 @@ void Renderer::Impl::create_frame_slots() {
     allocate.descriptorSetCount = 1;
     allocate.pSetLayouts = &layout;
     DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device, &allocate, &frame_slot.descriptor_set));
-    frame_slot.uniforms = Buffer(context, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+    frame_slot.uniforms = Buffer(context, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                  VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   }
 

@@ -42,7 +42,7 @@ using mat4 = glm::mat4;
 #define CONE_SLOPE 0.5        // tan of the cone's half-angle: radius gained per unit of descent
 
 // descriptor bindings (set 0)
-#define BINDING_FRAME 0    // uniform FrameUniforms
+#define BINDING_FRAME 0    // read-only storage buffer: FrameUniforms (frame_block.inc.glsl)
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
 #define BINDING_CONES 2    // sampler2DArray, RG32F: layer k = (ratio of sector k, apex height), nearest
 #define RELAXED_CONE_SECTORS 4  // relaxed: layers 0-3 its bilinear cones, 4 their minimum, 5 (relaxed ratio, apex)

@@ -8,7 +8,7 @@
 
 layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 
 layout(location = 0) in vec4 in_position_u;   // xyz: position, w: u

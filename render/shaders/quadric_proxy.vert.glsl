@@ -9,7 +9,7 @@
 
 layout(constant_id = 1) const int SURFACE = SURFACE_SPHERE;
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 
 #include "quadric.inc.glsl"
 

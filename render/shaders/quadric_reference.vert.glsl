@@ -10,7 +10,7 @@
 
 layout(constant_id = 1) const int SURFACE = SURFACE_SPHERE;
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 
 #include "quadric.inc.glsl"

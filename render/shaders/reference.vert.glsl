@@ -4,7 +4,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "config.h"
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 
 layout(location = 0) in vec2 in_uv;  // texture coordinates in [0, tile]

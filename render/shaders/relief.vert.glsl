@@ -4,7 +4,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "config.h"
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 
 #include "surface_varyings.inc.glsl"
 

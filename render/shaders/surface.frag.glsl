@@ -8,7 +8,7 @@
 layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
 layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
 
-layout(std140, binding = BINDING_FRAME) uniform FrameBlock { FrameUniforms frame; };
+#include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 layout(binding = BINDING_CONES) uniform sampler2DArray cone_map;
 layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
