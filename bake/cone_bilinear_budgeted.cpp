@@ -243,9 +243,10 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   for (auto& field : cells.planes)
     for (auto& plane : field) plane.resize(std::size_t(cells.columns) * cells.rows);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
-  // samples per parity: cells.columns + 1 of each (X up to 2 W + pad + 1); the column sums of
-  // texels m - pad / 2 for m in [0, W + pad + 2)
-  const int sums = W + pad + 2, samples = cells.columns + 1;
+  // samples per parity: cells.columns + 1 of each (X up to 2 W + pad + 1, further on a map narrower
+  // than a block); the column sums of texels m - pad / 2 for m in [0, samples + 1), wrapped or
+  // clamped (an odd sample reads column sum k + 1: ASan found the read past the end on narrow maps)
+  const int samples = cells.columns + 1, sums = std::max(W + pad + 2, samples + 1);
   thread_local std::vector<int> column;
   column.resize(sums);
   for (int m = 0; m < sums; ++m) column[m] = texel(m - pad / 2, W);

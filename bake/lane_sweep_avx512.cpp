@@ -31,7 +31,12 @@ struct Ops {
     for (int t = 0; t < texels; ++t)
       parts = _mm512_add_epi32(
           parts, _mm512_madd_epi16(_mm512_xor_si512(load(p + std::size_t(t) * 32), bias), ones));
-    return 32768ll * 32 * texels + _mm512_reduce_add_epi32(parts);
+    // the 16 parts added in 64 bits: their sum can pass 2^31 (a 32-bit reduction overflowed, found by UBSan)
+    alignas(64) int part[16];
+    _mm512_store_si512(part, parts);
+    long long total = 32768ll * 32 * texels;
+    for (int k = 0; k < 16; ++k) total += part[k];
+    return total;
   }
 };
 
