@@ -1143,7 +1143,8 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
     const std::size_t at = result.out.find("compare reference: rmse ");
     ASSERT_NE(at, std::string::npos) << result.out;
     EXPECT_LT(std::stod(result.out.substr(at + 24)), 3.0) << method << "\n" << result.out;
-    const Attribute* budget = find_attribute(read_rgba8_image(out).metadata, "displace:bake_budget_ms");
+    const Rgba8Image written = read_rgba8_image(out);  // kept: the attribute points into it
+    const Attribute* budget = find_attribute(written.metadata, "displace:bake_budget_ms");
     ASSERT_NE(budget, nullptr) << method;
     EXPECT_EQ(std::get<std::string>(budget->value), "0") << method;  // PNG text chunks hold numbers as text
   }
