@@ -868,7 +868,7 @@ SceneSettings scene_from_args(const std::string& name, std::span<const std::stri
     }
     return finish_scene(app, scene, name);
   } catch (const AppError& error) {
-    throw AppError(error.kind, where + ": " + error.what());
+    throw runtime_error(where + ": " + error.what());  // the flags come from a file, not the command line
   }
 }
 
@@ -1055,9 +1055,12 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
       scene = pipeline::read_scene_file(draft.scene);
     }
   } catch (const pipeline::SceneError& error) {
-    throw usage_error(error.what());
+    throw runtime_error(error.what());  // the file's content, not the command line
   }
   if (given(app, "--map-size")) {
+    if (scene.source == pipeline::SourceKind::image) {
+      throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
+    }
     if (scene.source == pipeline::SourceKind::ocean && draft.map_size % 2 != 0) {
       throw usage_error("--map-size must be even for the ocean");
     }
@@ -1343,13 +1346,13 @@ SceneSettings read_scene_file(const std::filesystem::path& file) {
     std::string flag, value, extra;
     if (!(tokens >> flag)) continue;
     if (!flag.starts_with("--")) {
-      throw usage_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
+      throw runtime_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
                                     in_quotes(file.string()), number, in_quotes(flag)));
     }
     words.push_back(flag);
     if (tokens >> value) words.push_back(value);
     if (tokens >> extra) {
-      throw usage_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
+      throw runtime_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
                                     in_quotes(file.string()), number));
     }
   }

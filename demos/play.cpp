@@ -262,6 +262,9 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
     if (scene.source == pipeline::SourceKind::image) {
       throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
     }
+    if (scene.source == pipeline::SourceKind::ocean && settings.map_size % 2 != 0) {
+      throw usage_error("--map-size must be even for the ocean");
+    }
     scene.map_size = settings.map_size;
   }
   return scene;
