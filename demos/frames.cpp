@@ -20,6 +20,7 @@
 
 #include "demos/commands.h"
 #include "demos/error.h"
+#include "demos/memory.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -130,6 +131,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                                            : render::output_uv | render::output_fetches;
   }
   render::Renderer renderer(settings.renderer);
+  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
 
@@ -227,6 +229,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
 
 void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
+  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
   std::vector<double> sim, bake, upload, draw, frame_ms, interval;

@@ -22,6 +22,7 @@
 
 #include "demos/error.h"
 #include "demos/image_io.h"
+#include "demos/memory.h"
 #include "pipeline/frame_pipeline.h"
 #include "render/render.h"
 
@@ -283,6 +284,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
   };
   render::Renderer renderer(renderer_options);
+  require_memory(pipeline_memory(scene), renderer.memory_limits());
   Controls controls;
   Window window(scene.camera.width, scene.camera.height, "displace play", controls);
   int framebuffer_width = 0, framebuffer_height = 0;

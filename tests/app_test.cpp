@@ -831,7 +831,8 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   } cases[] = {
       {"sim", "--map-size INT:[2, 16384]"},   {"bake", "--tolerance T:[0, 1)"},
       {"render", "--steps INT:[1, 4096]"},    {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"},  {"scene", "--print " + scene_names},
+      {"demo", "--map-size INT:[2, 8192]"},   {"scene", "--print " + scene_names},
+      {"sim", "(ocean: even, at most 8192)"},
       {"play", "--frames N:[1, 1000000000]"},
   };
   for (const auto& test : cases) {
@@ -1589,6 +1590,46 @@ TEST(Cli, ExitStatusIsTwoForTheCommandLineAndOneForFiles) {
   }
   EXPECT_FALSE(fs::exists(dir / "c.exr"));
   EXPECT_FALSE(fs::exists(dir / "f.png"));
+}
+
+// Work that cannot fit is refused before it starts, with one line naming what needs how much, what
+// there is and what to lower (exit status 1). DISPLACE_MEMORY_LIMIT_MB holds the guards to 1 GB so
+// that the refusals do not depend on this machine; the tessellation beyond 32-bit indices is refused
+// on any machine. Nothing of these sizes is allocated: the runs end in about a second.
+TEST(Cli, MemoryGuardsRefuseWorkThatCannotFitWithOneLine) {
+  TempDir dir;
+  const std::string limit = "env DISPLACE_MEMORY_LIMIT_MB=1000 ";
+  const std::string to_png = " --output '" + (dir / "f.png").string() + "'";
+  const struct {
+    std::string arguments, prefix, words;
+  } cases[] = {
+      {"render --source bricks --map-size 256 --method reference --tile 64" + to_png, limit,
+       "the reference's tessellation of a 256 x 256 map tiled 64 times"},
+      {"render --source bricks --map-size 256 --method acm4 --compare reference --tile 64" + to_png, limit, "--tile"},
+      {"render --source bricks --map-size 256 --method acm4 --size 16384x16384" + to_png, limit, "16384 x 16384"},
+      {"render --source bricks --map-size 16384 --method reference --tile 64 --size 16x16" + to_png, "",
+       "more than 32-bit indices address: lower --tile or --map-size"},
+      {"render --source bricks --map-size 8192 --method acm8 --size 16x16" + to_png, limit, "lower --map-size"},
+      {"bake --source bricks --map-size 16384 --sectors 8 --mode budgeted --output '" + (dir / "c.exr").string() + "'",
+       limit, "lower --map-size"},
+      {"sim --source ocean --map-size 8192 --time 0 --output '" + (dir / "h.exr").string() + "'", limit,
+       "lower --map-size"},
+      {"bench-frame --scene water --map-size 8192 --frames 1", limit, "lower --map-size"},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments, test.prefix);
+    EXPECT_EQ(result.exit_code, 1) << test.arguments << "\n" << result.err;
+    expect_one_error_line(result, test.arguments);
+    EXPECT_NE(result.err.find(test.words), std::string::npos) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.out, "") << test.arguments;
+  }
+  EXPECT_FALSE(fs::exists(dir / "f.png"));
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+  EXPECT_FALSE(fs::exists(dir / "h.exr"));
+  // a limit that is not a number of megabytes is a usage error
+  const RunResult bad = run_displace(dir, "sim --source bricks --map-size 16 --output h.exr", "env DISPLACE_MEMORY_LIMIT_MB=lots ");
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("DISPLACE_MEMORY_LIMIT_MB"), std::string::npos) << bad.err;
 }
 
 // An albedo image has its own limits (1 x 1 to 16384 pixels a side) and its own words.
