@@ -23,7 +23,7 @@ constexpr std::uint64_t bake_texel_bytes = 16;       // a centre-to-centre bake 
 constexpr std::uint64_t bake_sector_bytes = 13;      //   59 at 4 sectors, 108 at 8 (exact, budgeted, original)
 constexpr std::uint64_t bilinear_texel_bytes = 100;  // a bilinear bake (BilinearBaker, full) with its outputs,
 constexpr std::uint64_t bilinear_sector_bytes = 10;  //   plus per sector: 104 at 4 sectors, 133 at 8
-constexpr std::uint64_t pipeline_texel_bytes = 480;  // the frame pipeline's loop on the water scene (477)
+constexpr std::uint64_t pipeline_texel_bytes = 480;  // the frame pipeline's loop (477 on water, 299 on bricks)
 constexpr std::uint64_t height_bytes = 4;            // one float per texel
 constexpr std::uint64_t mebibyte = 1ull << 20;
 

@@ -245,8 +245,12 @@ TEST(ImageIo, RefusesTruncatedFilesOfEveryFormat) {
         EXPECT_NE(message.find("truncated or corrupt"), std::string::npos) << message;
         EXPECT_NE(message.find(cut.string()), std::string::npos) << message;
         EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-        if (extension == "png") EXPECT_EQ(occurrences(message, "hit end of file"), 1u) << message;
-        if (extension == "tif") EXPECT_EQ(occurrences(message, "TIFFReadRawStrip"), 1u) << message;
+        if (extension == "png") {
+          EXPECT_EQ(occurrences(message, "hit end of file"), 1u) << message;
+        }
+        if (extension == "tif") {
+          EXPECT_EQ(occurrences(message, "TIFFReadRawStrip"), 1u) << message;
+        }
       }
     }
   }
@@ -1736,6 +1740,14 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_EQ(parsed["ffts_per_frame"], 6.0);
   EXPECT_EQ(parsed["effects"], nlohmann::json({"heights", "choppy", "foam"}));
   EXPECT_EQ(parsed["vulkan_allocations_after_warmup"], 0);
+  // every frame came back, and resident memory was sampled (the soak's figures, tests/soak.sh)
+  EXPECT_EQ(parsed["frames_rendered"], 6);
+  const nlohmann::json& rss = parsed["rss_kb"];
+  ASSERT_TRUE(rss.is_object()) << parsed.dump();
+  EXPECT_GT(rss["after_warmup"].get<long long>(), 0);
+  EXPECT_GE(rss["max"].get<long long>(), rss["end"].get<long long>());
+  EXPECT_GE(rss["max"].get<long long>(), rss["after_warmup"].get<long long>());
+  EXPECT_EQ(rss["growth"].get<long long>(), rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
 }
 
 // Flag limits agree with what the code accepts, and usage errors exit 2 with the project's words.
