@@ -831,7 +831,10 @@ synthesis options:
   --choppiness L         ocean: horizontal displacement scale, recorded only (default 1)
   --waves K              sinusoids: number of waves (default 12)
 
-exit status: 0 success, 1 runtime error (files, images, baking, no Vulkan device), 2 usage error.
+exit status: 0 success; 2 when the command line is wrong (a flag, a value, its limits, flags that do
+not go together, a flag that does not fit its input); 1 when the problem lies outside it (a missing,
+truncated or malformed file, an output that cannot be written, no Vulkan device, not enough memory).
+DISPLACE_MEMORY_LIMIT_MB=N holds the memory guards to N megabytes.
 )";
   text.replace(text.find("METHODS"), 7, methods);
   std::string names;
