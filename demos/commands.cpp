@@ -18,6 +18,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "demos/memory.h"
 #include "demos/obj_io.h"
 #include "demos/play.h"
 #include "demos/progress.h"
@@ -309,6 +310,7 @@ std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address 
 }
 
 void run_sim(const SimSettings& settings, std::ostream& out) {
+  require_memory(synthesis_memory(settings.source), host_limits());
   const SynthesizedHeights heights = synthesize(settings.source);
   write_height_exr(settings.output, heights);
   out << "displace: synthesized " << source_name(settings.source.kind) << " heights " << heights.width
@@ -319,7 +321,22 @@ void run_sim(const SimSettings& settings, std::ostream& out) {
 }
 
 void run_bake(const BakeSettings& settings, std::ostream& out) {
+  // refused before the work when it cannot fit: a source before it is synthesized, a file once its
+  // size is known
+  const render::MemoryLimits limits = host_limits();
+  if (const auto* source = std::get_if<SourceSettings>(&settings.input)) {
+    std::vector<render::Allocation> needs = synthesis_memory(*source);
+    for (render::Allocation& bake :
+         bake_memory(source->size, source->size, settings.sector_count, settings.baker, settings.cones)) {
+      needs.push_back(std::move(bake));
+    }
+    require_memory(needs, limits);
+  }
   BakeInput input = prepare_bake_input(settings.input);
+  if (std::holds_alternative<FileInput>(settings.input)) {
+    require_memory(bake_memory(input.width, input.height, settings.sector_count, settings.baker, settings.cones),
+                   limits);
+  }
   const bool png = settings.output_format == ImageFormat::png;
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
 
@@ -472,8 +489,16 @@ void set_albedo_from(render::Renderer& renderer, const std::filesystem::path& fi
 }  // namespace
 
 void run_render(const RenderSettings& settings, std::ostream& out) {
-  BakeInput input = prepare_bake_input(settings.input);
+  // the device first: what it offers decides what fits, before anything is synthesized or baked
   render::Renderer renderer(settings.renderer);
+  const render::MemoryLimits limits = renderer.memory_limits();
+  if (const auto* source = std::get_if<SourceSettings>(&settings.input)) {
+    require_memory(render_memory(settings, source->size, source->size), limits);
+  }
+  BakeInput input = prepare_bake_input(settings.input);
+  if (std::holds_alternative<FileInput>(settings.input)) {
+    require_memory(render_memory(settings, input.width, input.height), limits);
+  }
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
   bake::Budget cone_budget;
   cone_budget.milliseconds = settings.bake_budget_milliseconds;
@@ -605,6 +630,11 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   source.size = settings.map_size;
   source.time = 0.0f;
   source.ocean.size = settings.map_size;
+  std::vector<render::Allocation> needs = synthesis_memory(source);
+  for (render::Allocation& bake : bake_memory(source.size, source.size, demo_sectors, Baker::budgeted, ConeKind::center)) {
+    needs.push_back(std::move(bake));
+  }
+  require_memory(needs, host_limits());
   const SynthesizedHeights ocean = synthesize(source);
   write_height_exr(height_file, ocean);
   out << fmt::format(
@@ -801,7 +831,10 @@ synthesis options:
   --choppiness L         ocean: horizontal displacement scale, recorded only (default 1)
   --waves K              sinusoids: number of waves (default 12)
 
-exit status: 0 success, 1 runtime error (files, images, baking, no Vulkan device), 2 usage error.
+exit status: 0 success; 2 when the command line is wrong (a flag, a value, its limits, flags that do
+not go together, a flag that does not fit its input); 1 when the problem lies outside it (a missing,
+truncated or malformed file, an output that cannot be written, no Vulkan device, not enough memory).
+DISPLACE_MEMORY_LIMIT_MB=N holds the memory guards to N megabytes.
 )";
   text.replace(text.find("METHODS"), 7, methods);
   std::string names;

@@ -20,6 +20,7 @@
 
 #include "demos/commands.h"
 #include "demos/error.h"
+#include "demos/memory.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -93,6 +94,19 @@ std::filesystem::path csv_file(const SequenceSettings& settings) {
   return settings.output.parent_path() / (stem + ".csv");
 }
 
+// The resident memory of this process (VmRSS of /proc/self/status), kilobytes; -1 where there is none.
+long long resident_kilobytes() {
+  std::FILE* status = std::fopen("/proc/self/status", "r");
+  if (!status) return -1;
+  char line[256];
+  long long kilobytes = -1;
+  while (std::fgets(line, sizeof line, status)) {
+    if (std::sscanf(line, "VmRSS: %lld kB", &kilobytes) == 1) break;
+  }
+  std::fclose(status);
+  return kilobytes;
+}
+
 double percentile(std::vector<double> values, double fraction) {
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
@@ -130,6 +144,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                                            : render::output_uv | render::output_fetches;
   }
   render::Renderer renderer(settings.renderer);
+  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
 
@@ -227,12 +242,18 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
 
 void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
+  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
   std::vector<double> sim, bake, upload, draw, frame_ms, interval;
+  for (std::vector<double>* times : {&sim, &bake, &upload, &draw, &frame_ms, &interval}) {
+    times->reserve(std::size_t(settings.frames));  // made before the loop: not counted as growth
+  }
   long long ffts = 0, within = 0;
   unsigned effects = 0;
   long long allocations_after_warm_up = 0;
+  // resident memory: after the warm-up, the most seen after it, at the end (a soak's growth)
+  long long rss_after_warm_up = -1, rss_max = -1;
   double last_done = 0.0;
   long long seen = 0;
   // colour read back: a frame's render stage then ends when the device has drawn it (with no
@@ -240,8 +261,12 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   pipeline.run_frames(0, settings.warm_up + settings.frames, render::output_color,
                       [&](const pipeline::FrameRecord& record, const render::Frame&) {
                         const double now = seconds_now() * 1e3;
-                        if (seen == settings.warm_up) allocations_after_warm_up = renderer.memory_allocations();
+                        if (seen == settings.warm_up) {
+                          allocations_after_warm_up = renderer.memory_allocations();
+                          rss_after_warm_up = resident_kilobytes();
+                        }
                         if (seen >= settings.warm_up) {
+                          rss_max = std::max(rss_max, resident_kilobytes());
                           sim.push_back(record.sim_ms);
                           bake.push_back(record.bake_ms);
                           upload.push_back(record.upload_ms);
@@ -257,6 +282,9 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                       });
   renderer.wait_idle();
   const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
+  const long long rss_end = resident_kilobytes();
+  rss_max = std::max(rss_max, rss_end);
+  const long long frames_rendered = (long long)frame_ms.size();  // timed frames that came back
   if (interval.empty()) interval = frame_ms;
   struct Row {
     const char* name;
@@ -286,6 +314,11 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                      "after warm-up: {}\n",
                      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
                      allocations);
+  if (rss_end >= 0) {
+    out << fmt::format("  {} of {} frames rendered; resident memory {} kB after warm-up, {} kB at the end ({:+} kB), "
+                       "at most {} kB\n",
+                       frames_rendered, settings.frames, rss_after_warm_up, rss_end, rss_end - rss_after_warm_up, rss_max);
+  }
   if (!settings.json.empty()) {
     nlohmann::ordered_json json = {{"frames", settings.frames},
                                    {"budget_ms", std::isfinite(scene.frame_ms) ? nlohmann::ordered_json(scene.frame_ms)
@@ -295,6 +328,13 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                                    {"ffts_per_frame", double(ffts) / double(settings.frames)},
                                    {"effects", effect_names(effects)},
                                    {"vulkan_allocations_after_warmup", allocations},
+                                   {"frames_rendered", frames_rendered},
+                                   {"rss_kb",
+                                    rss_end < 0 ? nlohmann::ordered_json(nullptr)
+                                                : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},
+                                                                         {"end", rss_end},
+                                                                         {"growth", rss_end - rss_after_warm_up},
+                                                                         {"max", rss_max}}},
                                    {"scene", scene.name},
                                    {"device", renderer.device().name}};
     write_atomically(settings.json, [&](const std::filesystem::path& file) {

@@ -3,15 +3,32 @@
 // PNG alpha: OpenImageIO associates (premultiplies) alpha on read and un-associates on write unless
 // told the data is straight; cone maps use alpha as a data channel, so every open passes
 // oiio:UnassociatedAlpha = 1 and the bytes go through untouched.
+//
+// Whole images only: a read that fails, or succeeds with an error left behind (libjpeg fills the
+// rows of a truncated JPEG and leaves "Premature end of JPEG file"; libtiff fills missing strips and
+// leaves one message per strip), is refused as truncated or corrupt, with the libraries' messages
+// folded into one line (read_failure()).
+//
+// Library noise: libpng, as OpenImageIO 2.4 sets it up (libpng's default error handler), prints
+// "libpng error: ..." on the process's stderr before OpenImageIO records the same error, and
+// OpenImageIO has no setting that stops it. So opens and reads run with file descriptor 2 pointed
+// at an anonymous temporary file (StderrCapture); afterwards fd 2 is put back and what the
+// libraries wrote is folded into the error, or dropped when the read succeeded. A file rather than
+// a pipe: a pipe nobody drains during the read would fill up and block the library's write.
 #include "demos/image_io.h"
 
 #include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <string_view>
 
 namespace displace::app {
 namespace {
@@ -29,8 +46,8 @@ std::string channel_list(const oiio::ImageSpec& spec) {
   return list;
 }
 
-// Takes the pending error of an ImageInput/ImageOutput (or the global one) so that none is left
-// unretrieved, and makes it one line.
+// Takes the pending error of an ImageOutput (or the global one) so that none is left unretrieved,
+// and makes it one line.
 template <typename Io>
 std::string take_error(Io* io) {
   std::string message = io ? io->geterror() : oiio::geterror();
@@ -43,18 +60,151 @@ std::string take_error(Io* io) {
   return message.empty() ? std::string("unknown error") : message;
 }
 
-// A read that succeeded can still have met a truncated or corrupt file: libjpeg, for one, fills the
-// missing rows and only leaves a warning ("Premature end of JPEG file") in the reader's error text.
-// Such a file is refused, not read as a silently wrong image.
-void check_complete(oiio::ImageInput& input, const std::filesystem::path& file) {
-  std::string warning = input.geterror();
-  if (warning.empty()) return;
-  while (!warning.empty() && (warning.back() == '\n' || warning.back() == ' ')) warning.pop_back();
-  std::replace(warning.begin(), warning.end(), '\n', ' ');
-  throw runtime_error("cannot read the pixels of " + quoted(file) + ": the file is truncated or corrupt (" + warning + ")");
+// File descriptor 2 pointed at an anonymous temporary file for as long as the object lives (or
+// until finish()), one capture at a time in the process. When no temporary file can be made, nothing
+// is captured and the libraries write to stderr as before.
+class StderrCapture {
+ public:
+  StderrCapture() : lock_(capture_mutex()) {
+    std::fflush(stderr);
+    file_ = std::tmpfile();
+    if (!file_) return;
+    saved_ = ::dup(STDERR_FILENO);
+    if (saved_ >= 0 && ::dup2(::fileno(file_), STDERR_FILENO) >= 0) return;
+    if (saved_ >= 0) ::close(saved_);
+    saved_ = -1;
+  }
+  ~StderrCapture() {
+    restore();
+    if (file_) std::fclose(file_);
+  }
+  StderrCapture(const StderrCapture&) = delete;
+  StderrCapture& operator=(const StderrCapture&) = delete;
+
+  // Puts fd 2 back and returns the lines the libraries wrote meanwhile. Lines this program writes
+  // (they start with "displace", or '\r' for a progress line) come from other threads: they go on
+  // to stderr.
+  std::vector<std::string> finish() {
+    const bool captured = saved_ >= 0;
+    restore();
+    std::vector<std::string> library;
+    if (!captured) return library;
+    std::rewind(file_);
+    std::string line;
+    for (int c = std::fgetc(file_);; c = std::fgetc(file_)) {
+      if (c != EOF && c != '\n') {
+        line += char(c);
+        continue;
+      }
+      if (line.starts_with("displace") || line.starts_with("\r")) {
+        std::fputs((line + (c == '\n' ? "\n" : "")).c_str(), stderr);
+      } else if (!line.empty()) {
+        library.push_back(line);
+      }
+      line.clear();
+      if (c == EOF) break;
+    }
+    return library;
+  }
+
+ private:
+  static std::mutex& capture_mutex() {
+    static std::mutex mutex;
+    return mutex;
+  }
+  void restore() {
+    if (saved_ < 0) return;
+    std::fflush(stderr);
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+    saved_ = -1;
+  }
+
+  std::unique_lock<std::mutex> lock_;
+  std::FILE* file_ = nullptr;
+  int saved_ = -1;  // the real stderr while captured
+};
+
+// `text` with each run of digits replaced by '#': messages of one shape differ only in their numbers.
+std::string shape_of(std::string_view text) {
+  std::string shape;
+  for (const char c : text) {
+    const bool digit = std::isdigit(static_cast<unsigned char>(c));
+    if (!digit) {
+      shape += c;
+    } else if (shape.empty() || shape.back() != '#') {
+      shape += '#';
+    }
+  }
+  return shape;
 }
 
-std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file) {
+// The libraries' account of a failure as one line: OpenImageIO's error text and the lines the
+// libraries wrote on stderr, split into messages, without repeats. A message contained in another
+// is dropped (libpng's "IDAT: Read error: hit end of file" inside OpenImageIO's "PNG read error:
+// IDAT: Read error: hit end of file"); messages that differ only in their numbers (libtiff's one
+// per missing strip) are counted, not repeated.
+std::string one_line(std::string_view error, const std::vector<std::string>& library) {
+  constexpr std::size_t most_messages = 3;  // distinct messages shown; the rest are counted
+  std::vector<std::string> messages;
+  auto add = [&](std::string_view text) {
+    for (std::string_view prefix : {"libpng error: ", "libpng warning: "}) {
+      if (text.starts_with(prefix)) text.remove_prefix(prefix.size());
+    }
+    while (!text.empty() && std::isspace(static_cast<unsigned char>(text.front()))) text.remove_prefix(1);
+    while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.remove_suffix(1);
+    if (!text.empty()) messages.emplace_back(text);
+  };
+  for (std::size_t start = 0; start < error.size();) {
+    const std::size_t end = std::min(error.find('\n', start), error.size());
+    add(error.substr(start, end - start));
+    start = end + 1;
+  }
+  for (const std::string& line : library) add(line);
+
+  // drop repeats and messages inside longer ones
+  std::vector<std::string> kept;
+  for (std::size_t m = 0; m < messages.size(); ++m) {
+    bool inside = false;
+    for (std::size_t other = 0; other < messages.size() && !inside; ++other) {
+      if (other == m || messages[other].find(messages[m]) == std::string::npos) continue;
+      inside = messages[other].size() > messages[m].size() || other < m;  // of equal ones the first stays
+    }
+    if (!inside) kept.push_back(messages[m]);
+  }
+
+  // one message per shape, with a count of the others
+  std::vector<std::pair<std::string, int>> shapes;  // first message, how many more of its shape
+  std::vector<std::string> shape_keys;
+  for (const std::string& message : kept) {
+    const std::string shape = shape_of(message);
+    const auto found = std::find(shape_keys.begin(), shape_keys.end(), shape);
+    if (found != shape_keys.end()) {
+      ++shapes[std::size_t(found - shape_keys.begin())].second;
+      continue;
+    }
+    shape_keys.push_back(shape);
+    shapes.emplace_back(message, 0);
+  }
+  std::string line;
+  for (std::size_t s = 0; s < shapes.size() && s < most_messages; ++s) {
+    line += (line.empty() ? "" : "; ") + shapes[s].first;
+    if (shapes[s].second > 0) line += fmt::format(" (and {} more like it)", shapes[s].second);
+  }
+  if (shapes.size() > most_messages) line += fmt::format("; and {} more", shapes.size() - most_messages);
+  return line.empty() ? std::string("no reason given") : line;
+}
+
+// What an image is read for: the smallest side it may have and the words of the errors.
+struct ImageUse {
+  const char* noun;  // "a height map"
+  int min_side;      // pixels
+};
+constexpr ImageUse height_map_use{"a height map", 2};  // a single texel (or row) has no relief to displace
+constexpr ImageUse albedo_use{"an albedo image", 1};
+constexpr ImageUse data_use{"an image", 1};  // cone maps and float images read back
+
+std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file, const ImageUse& use) {
   std::error_code error;
   if (!std::filesystem::exists(file, error))
     throw runtime_error("cannot read " + quoted(file) + ": no such file");
@@ -62,36 +212,48 @@ std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file) 
     throw runtime_error("cannot read " + quoted(file) + ": it is a directory");
   oiio::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
+  StderrCapture capture;
   auto input = oiio::ImageInput::open(file.string(), &config);
+  const std::vector<std::string> library = capture.finish();
   if (!input) {
-    throw runtime_error("cannot read " + quoted(file) +
-                        " as an image: " + take_error<oiio::ImageInput>(nullptr));
+    throw runtime_error("cannot read " + quoted(file) + " as an image: " + one_line(oiio::geterror(), library));
   }
   const oiio::ImageSpec& spec = input->spec();
-  if (spec.width <= 0 || spec.height <= 0) {
-    throw runtime_error(quoted(file) + " is an empty image (" + std::to_string(spec.width) + " x " +
-                        std::to_string(spec.height) + ")");
-  }
-  if (spec.width < 2 || spec.height < 2) {
-    throw runtime_error(quoted(file) + " is " + std::to_string(spec.width) + " x " + std::to_string(spec.height) +
-                        ": a height map needs at least 2 x 2 texels to displace anything");
+  const std::string size = std::to_string(spec.width) + " x " + std::to_string(spec.height);
+  if (spec.width <= 0 || spec.height <= 0) throw runtime_error(quoted(file) + " is an empty image (" + size + ")");
+  if (spec.width < use.min_side || spec.height < use.min_side) {
+    throw runtime_error(fmt::format("{} is {}: {} needs at least {} x {} texels to displace anything", quoted(file),
+                                    size, use.noun, use.min_side, use.min_side));
   }
   if (spec.width > max_image_side || spec.height > max_image_side) {
-    throw runtime_error(quoted(file) + " is " + std::to_string(spec.width) + " x " +
-                        std::to_string(spec.height) + "; the largest supported side is " +
-                        std::to_string(max_image_side));
+    throw runtime_error(fmt::format("{} is {} pixels; {} may have at most {} a side", quoted(file), size, use.noun,
+                                    max_image_side));
   }
-  if (spec.depth > 1) throw runtime_error(quoted(file) + " is a volume image; a 2D height map is needed");
-  if (spec.deep) throw runtime_error(quoted(file) + " is a deep image; a flat 2D height map is needed");
+  if (spec.depth > 1) throw runtime_error(quoted(file) + " is a volume image; " + use.noun + " is 2D");
+  if (spec.deep) throw runtime_error(quoted(file) + " is a deep image; " + use.noun + " is flat");
   if (spec.nchannels <= 0) throw runtime_error(quoted(file) + " has no channels");
   return input;
+}
+
+// Reads channels [first, end) of every pixel as `type`. A read that fails, or that succeeds with an
+// error left behind (a truncated JPEG or TIFF read "successfully" with its missing rows filled), is
+// refused: a file that is not whole is never read as a silently wrong image.
+void read_pixels(oiio::ImageInput& input, int first, int end, oiio::TypeDesc type, void* pixels,
+                 const std::filesystem::path& file) {
+  StderrCapture capture;
+  const bool read = input.read_image(0, 0, first, end, type, pixels);
+  const std::vector<std::string> library = capture.finish();
+  const std::string left = input.geterror();
+  if (read && left.empty()) return;  // what the libraries wrote on the way was warnings only
+  throw runtime_error("cannot read the pixels of " + quoted(file) + ": the file is truncated or corrupt (" +
+                      one_line(left, library) + ")");
 }
 
 int choose_channel(const oiio::ImageSpec& spec, const ChannelChoice& choice,
                    const std::filesystem::path& file) {
   if (choice.index >= 0) {
     if (choice.index >= spec.nchannels) {
-      throw runtime_error(quoted(file) + " has " + std::to_string(spec.nchannels) + " channel(s) (" +
+      throw usage_error("--channel " + std::to_string(choice.index) + ": " + quoted(file) + " has " + std::to_string(spec.nchannels) + " channel(s) (" +
                           channel_list(spec) + "); there is no channel index " +
                           std::to_string(choice.index));
     }
@@ -100,7 +262,7 @@ int choose_channel(const oiio::ImageSpec& spec, const ChannelChoice& choice,
   if (!choice.name.empty()) {
     for (int c = 0; c < spec.nchannels; ++c)
       if (spec.channel_name(c) == choice.name) return c;
-    throw runtime_error(quoted(file) + " has no channel named '" + choice.name +
+    throw usage_error("--channel " + choice.name + ": " + quoted(file) + " has no channel named '" + choice.name +
                         "' (channels: " + channel_list(spec) + ")");
   }
   for (int c = 0; c < spec.nchannels; ++c)
@@ -133,10 +295,7 @@ std::vector<float> read_channel_as(oiio::ImageInput& input, int channel, oiio::T
                                    const std::filesystem::path& file) {
   const oiio::ImageSpec& spec = input.spec();
   std::vector<Sample> samples(std::size_t(spec.width) * std::size_t(spec.height));
-  if (!input.read_image(0, 0, channel, channel + 1, type, samples.data())) {
-    throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(&input));
-  }
-  check_complete(input, file);
+  read_pixels(input, channel, channel + 1, type, samples.data(), file);
   return std::vector<float>(samples.begin(), samples.end());
 }
 
@@ -221,7 +380,7 @@ void check_size(const std::filesystem::path& file, int width, int height) {
 }  // namespace
 
 LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings) {
-  auto input = open_input(file);
+  auto input = open_input(file, height_map_use);
   const oiio::ImageSpec& spec = input->spec();
 
   LoadedHeights loaded;
@@ -231,6 +390,10 @@ LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSe
   loaded.channel_index = choose_channel(spec, settings.channel, file);
   loaded.channel_name = spec.channel_name(loaded.channel_index);
   loaded.format = sample_format(spec.channelformat(loaded.channel_index), file);
+  if (settings.range && loaded.format != SampleFormat::floating) {
+    throw usage_error("--height-range applies to float images only; " + quoted(file) + " stores " +
+                      (loaded.format == SampleFormat::uint8 ? "8" : "16") + "-bit integers, mapped as value / maximum");
+  }
 
   // read the raw samples in their own format
   std::vector<float> raw;
@@ -259,11 +422,6 @@ LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSe
 
   // choose the mapping to [0, 1]
   if (loaded.format != SampleFormat::floating) {
-    if (settings.range) {
-      throw runtime_error("--height-range applies to float images only; " + quoted(file) + " stores " +
-                          (loaded.format == SampleFormat::uint8 ? "8" : "16") +
-                          "-bit integers, mapped as value / maximum");
-    }
     const float maximum = loaded.format == SampleFormat::uint8 ? 255.0f : 65535.0f;
     loaded.mapping = {1.0f / maximum, 0.0f};
     loaded.mapping_origin = MappingOrigin::integer_max;
@@ -405,7 +563,7 @@ std::vector<float> FloatImage::channel(std::string_view name) const {
 }
 
 FloatImage read_float_image(const std::filesystem::path& file) {
-  auto input = open_input(file);
+  auto input = open_input(file, data_use);
   const oiio::ImageSpec& spec = input->spec();
   FloatImage image;
   image.width = spec.width;
@@ -413,26 +571,20 @@ FloatImage read_float_image(const std::filesystem::path& file) {
   for (int c = 0; c < spec.nchannels; ++c) image.channel_names.push_back(spec.channel_name(c));
   image.metadata = read_metadata(spec);
   image.pixels.resize(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.nchannels));
-  if (!input->read_image(0, 0, 0, spec.nchannels, oiio::TypeDesc::FLOAT, image.pixels.data())) {
-    throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
-  }
-  check_complete(*input, file);
+  read_pixels(*input, 0, spec.nchannels, oiio::TypeDesc::FLOAT, image.pixels.data(), file);
   input->close();
   return image;
 }
 
 Rgba8Image read_color_image(const std::filesystem::path& file) {
-  auto input = open_input(file);
+  auto input = open_input(file, albedo_use);
   const oiio::ImageSpec& spec = input->spec();
   const int channels = spec.nchannels;
   if (channels < 1 || channels > 4) {
     throw runtime_error(quoted(file) + " has " + std::to_string(channels) + " channels; a colour image has 1 to 4");
   }
   std::vector<std::uint8_t> stored(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(channels));
-  if (!input->read_image(0, 0, 0, channels, oiio::TypeDesc::UINT8, stored.data())) {
-    throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
-  }
-  check_complete(*input, file);
+  read_pixels(*input, 0, channels, oiio::TypeDesc::UINT8, stored.data(), file);
   input->close();
   Rgba8Image image;
   image.width = spec.width;
@@ -453,7 +605,7 @@ Rgba8Image read_color_image(const std::filesystem::path& file) {
 }
 
 Rgba8Image read_rgba8_image(const std::filesystem::path& file) {
-  auto input = open_input(file);
+  auto input = open_input(file, data_use);
   const oiio::ImageSpec& spec = input->spec();
   if (spec.nchannels != 4 || spec.format != oiio::TypeDesc::UINT8) {
     throw runtime_error(quoted(file) + " is not an 8-bit RGBA image (" + std::to_string(spec.nchannels) +
@@ -464,10 +616,7 @@ Rgba8Image read_rgba8_image(const std::filesystem::path& file) {
   image.height = spec.height;
   image.metadata = read_metadata(spec);
   image.pixels.resize(std::size_t(spec.width) * std::size_t(spec.height) * 4);
-  if (!input->read_image(0, 0, 0, 4, oiio::TypeDesc::UINT8, image.pixels.data())) {
-    throw runtime_error("cannot read the pixels of " + quoted(file) + ": " + take_error(input.get()));
-  }
-  check_complete(*input, file);
+  read_pixels(*input, 0, 4, oiio::TypeDesc::UINT8, image.pixels.data(), file);
   input->close();
   return image;
 }

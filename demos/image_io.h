@@ -8,7 +8,10 @@
 //   of preference, the user's --height-range, the mapping recorded by `displace sim` in the file
 //   (attributes displace:height_scale / displace:height_bias, for a channel named `height`), or the
 //   image's own min / max (a flat image maps to 0).
-// Every failure throws AppError naming the file.
+// Every failure throws AppError naming the file: of kind usage when a flag does not fit the image
+// (--height-range on integer samples, --channel naming no channel of it), of kind runtime for the
+// file itself: missing, not an image, of a size outside the limits, or not whole (truncated or
+// corrupt: refused, never read with rows filled in), with the decoders' messages in one line.
 #pragma once
 
 #include <cstdint>
@@ -61,7 +64,8 @@ struct LoadedHeights {
   std::size_t clamped = 0;  // samples outside the mapped range, clamped to 0 or 1
 };
 
-// The largest width or height the application layer accepts (texels).
+// The largest width or height the application layer accepts (texels, pixels); a height map needs at
+// least 2 x 2 texels, other images 1 x 1.
 inline constexpr int max_image_side = 16384;
 
 LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings);
@@ -122,8 +126,9 @@ struct Rgba8Image {
 };
 Rgba8Image read_rgba8_image(const std::filesystem::path& file);
 
-// Any image OpenImageIO reads (1 to 4 channels, any bit depth), converted to 8 bits per channel and
-// expanded to RGBA: grey to grey, grey + alpha, RGB with alpha 255. For albedo textures.
+// Any image OpenImageIO reads (1 to 4 channels, any bit depth, 1 to max_image_side pixels a side),
+// converted to 8 bits per channel and expanded to RGBA: grey to grey, grey + alpha, RGB with alpha
+// 255. For albedo textures.
 Rgba8Image read_color_image(const std::filesystem::path& file);
 
 }  // namespace displace::app

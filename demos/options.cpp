@@ -23,6 +23,7 @@
 #include <string>
 #include <utility>
 
+#include "demos/memory.h"
 #include "pipeline/scene.h"
 
 namespace displace::app {
@@ -419,7 +420,8 @@ void add_source_flags(CLI::App& app, SourceDraft& draft) {
   add_value(app, "--source", draft.kind, "what to synthesize", word_list(source_words),
             word_in(source_words));
   // a single texel (or a single row) has no relief to displace: at least 2 x 2
-  add_value(app, "--map-size", draft.map_size, "height map samples along u and v", "INT",
+  add_value(app, "--map-size", draft.map_size,
+            fmt::format("height map samples along u and v (ocean: even, at most {})", max_ocean_size), "INT",
             integer_in(2, max_image_side));
   add_value(app, "--time", draft.time, "seconds (ocean, sinusoids)", "T", number_in(time_range));
   add_value(app, "--seed", draft.seed, "random seed", "INT", seed_value());
@@ -868,7 +870,7 @@ SceneSettings scene_from_args(const std::string& name, std::span<const std::stri
     }
     return finish_scene(app, scene, name);
   } catch (const AppError& error) {
-    throw AppError(error.kind, where + ": " + error.what());
+    throw runtime_error(where + ": " + error.what());  // the flags come from a file, not the command line
   }
 }
 
@@ -980,11 +982,14 @@ CommandSettings parse_demo(std::span<const std::string_view> args) {
   set_up(app);
   DemoSettings settings;
   std::string directory = settings.output_directory.string();
-  add_value(app, "--map-size", settings.map_size, "ocean samples along u and v (default 512)", "INT",
-            integer_in(2, max_image_side));
+  add_value(app, "--map-size", settings.map_size, "ocean samples along u and v, even (default 512)", "INT",
+            integer_in(2, max_ocean_size));
   add_value(app, "--output-dir", directory, "where the files go (default out)", "DIR", not_empty());
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
+  if (settings.map_size % 2 != 0) {
+    throw usage_error(fmt::format("--map-size for the ocean must be even (its FFT grid), got {}", settings.map_size));
+  }
   settings.output_directory = directory;
   return settings;
 }
@@ -1055,9 +1060,12 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
       scene = pipeline::read_scene_file(draft.scene);
     }
   } catch (const pipeline::SceneError& error) {
-    throw usage_error(error.what());
+    throw runtime_error(error.what());  // the file's content, not the command line
   }
   if (given(app, "--map-size")) {
+    if (scene.source == pipeline::SourceKind::image) {
+      throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
+    }
     if (scene.source == pipeline::SourceKind::ocean && draft.map_size % 2 != 0) {
       throw usage_error("--map-size must be even for the ocean");
     }
@@ -1312,7 +1320,17 @@ CommandSettings parse_command_line(std::span<const std::string_view> args) {
   const std::string_view word = args.front();
   if (word == "help" || word == "--help" || word == "-h") return HelpSettings{};
   for (const Command& command : commands) {
-    if (command.name == word) return command.parse(args.subspan(1));
+    if (command.name != word) continue;
+    CommandSettings settings = command.parse(args.subspan(1));
+    std::visit(
+        [](auto& parsed) {
+          if constexpr (requires { parsed.renderer.memory_limit; }) {
+            parsed.renderer.memory_limit = memory_limit_from_environment();
+            parsed.renderer.memory_limit_source = memory_limit_variable;
+          }
+        },
+        settings);
+    return settings;
   }
   std::vector<std::string_view> names;
   for (const Command& command : commands) names.push_back(command.name);
@@ -1343,13 +1361,13 @@ SceneSettings read_scene_file(const std::filesystem::path& file) {
     std::string flag, value, extra;
     if (!(tokens >> flag)) continue;
     if (!flag.starts_with("--")) {
-      throw usage_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
+      throw runtime_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
                                     in_quotes(file.string()), number, in_quotes(flag)));
     }
     words.push_back(flag);
     if (tokens >> value) words.push_back(value);
     if (tokens >> extra) {
-      throw usage_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
+      throw runtime_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
                                     in_quotes(file.string()), number));
     }
   }

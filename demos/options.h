@@ -3,8 +3,16 @@
 // This is the only place that looks at argv strings: each command's flags are declared to CLI11
 // with their limits (shown by `displace COMMAND --help`), checked there (unknown flags, missing
 // values, bad or absurd numbers, flags that do not go together) and become typed values; the
-// commands take these structs. Every problem throws AppError of kind usage (exit status 2), except a
-// sweep scene file that cannot be read (runtime, exit status 1).
+// commands take these structs.
+//
+// Exit status, one rule for every command: 2 (AppError of kind usage) when the command line alone is
+// wrong and changing it fixes it: an unknown flag, a missing or bad value, a value outside the
+// flag's limits, flags that do not go together, or a flag that does not fit its input (--height-range
+// on an integer image, --channel naming no channel of it, --map-size on an image scene); 1 (kind
+// runtime) when the problem lies outside the command line: a file that is missing, unreadable,
+// truncated or malformed (images, meshes, scene files of either kind: their content is a file's, not
+// the command line's), an output that cannot be written, no Vulkan device, a bake or render that
+// fails, or work that needs more memory than the machine has.
 #pragma once
 
 #include <cstdint>
@@ -117,8 +125,8 @@ struct SweepSettings {
 // The built-in scenes of `displace sweep`: bricks, ocean and cliff.
 SceneSettings builtin_scene(std::string_view name);
 // A scene file: one render flag per line ("--source ocean", "--map-size 256", "--eye 0.5,-0.3,0.6"),
-// '#' starts a comment. Throws AppError naming the file (and the line where it helps): runtime when
-// it cannot be read, usage for anything malformed.
+// '#' starts a comment. Throws AppError of kind runtime naming the file (and the line where it
+// helps) when it cannot be read or describes no scene.
 SceneSettings read_scene_file(const std::filesystem::path& file);
 
 // `displace scene --print NAME`: a built-in scene of pipeline/scene.h (pipeline::builtin_scene_names()).

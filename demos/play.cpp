@@ -22,6 +22,7 @@
 
 #include "demos/error.h"
 #include "demos/image_io.h"
+#include "demos/memory.h"
 #include "pipeline/frame_pipeline.h"
 #include "render/render.h"
 
@@ -262,6 +263,9 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
     if (scene.source == pipeline::SourceKind::image) {
       throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
     }
+    if (scene.source == pipeline::SourceKind::ocean && settings.map_size % 2 != 0) {
+      throw usage_error("--map-size must be even for the ocean");
+    }
     scene.map_size = settings.map_size;
   }
   return scene;
@@ -280,6 +284,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
   };
   render::Renderer renderer(renderer_options);
+  require_memory(pipeline_memory(scene), renderer.memory_limits());
   Controls controls;
   Window window(scene.camera.width, scene.camera.height, "displace play", controls);
   int framebuffer_width = 0, framebuffer_height = 0;

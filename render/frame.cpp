@@ -1,7 +1,8 @@
-// render/frame.cpp - one frame: validate the view -> check the method's maps were given -> the
-// pipeline (made once) and, for `reference`, the tessellation -> frame uniforms and the slot's
-// descriptor set -> record the draw and the copies of the outputs asked for -> submit (and wait only
-// when something is read back) -> read back into the caller's Frame.
+// render/frame.cpp - one frame: validate the view -> check the method's maps were given -> check
+// that what the frame allocates fits (memory.cpp) -> the pipeline (made once) and, for `reference`,
+// the tessellation -> frame uniforms and the slot's descriptor set -> record the draw and the copies
+// of the outputs asked for -> submit (and wait only when something is read back) -> read back into
+// the caller's Frame.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -141,6 +142,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   }
   if (quadric) quadric::validate(view);
   require_maps(map_needs(method.method, view), info);
+  check_frame_memory(view, info, frame, outputs);
 
   // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
   const VkPipeline pipeline_handle = pipeline(info, view.surface);

@@ -1,8 +1,8 @@
 // render/map_upload.cpp - maps handed over by the caller (MapSet) to device images and buffers that
 // are kept between frames.
 //
-// Per map: validate what changed (sizes, then the values while they are packed) -> make the device
-// image again only if its shape changed -> pack the changed rectangles into the current slot's part
+// Per map: validate what changed (sizes, then the values while they are packed) -> check that what
+// is made again fits (memory.cpp) -> make the device image again only if its shape changed -> pack the changed rectangles into the current slot's part
 // of the staging ring -> record the copies (with layout barriers) into the slot's command buffer,
 // which the frame then submits with its draw. A copy overwrites an image an earlier frame may still
 // read: the barrier before it waits for the fragment and vertex shaders of every earlier submission
@@ -225,6 +225,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
                         " voxels a side (this device's 3D images) and one value per voxel");
     }
   }
+
+  check_map_memory(maps);
 
   // what changes, and device images of the right shape (made again only when the shape changed)
   bool drained = false;

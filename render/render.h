@@ -199,6 +199,11 @@ struct RendererOptions {
   // system (glfwGetPhysicalDevicePresentationSupport), asked before any surface exists, so that a
   // device that cannot show the window (a GPU under Xvfb) is passed over. Empty: not asked.
   std::function<bool(VkInstance, VkPhysicalDevice, std::uint32_t queue_family)> can_present;
+  // Bytes of memory the guards may count on, host and device alike, when below what the machine has
+  // (memory_limits()); 0: what the machine has. `memory_limit_source` names where it came from in
+  // the guards' messages ("DISPLACE_MEMORY_LIMIT_MB").
+  std::uint64_t memory_limit = 0;
+  std::string memory_limit_source;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,
@@ -301,6 +306,76 @@ enum Output : unsigned {
 };
 inline constexpr int frames_in_flight = 2;
 
+// ---- Memory guards (render/memory.cpp): what the renderer will allocate, estimated before it does,
+// against what the machine has, so that work that cannot fit is refused with one line (what needs
+// how much, what there is, what to lower) instead of running out of memory mid-way.
+//
+// The renderer checks itself: set_maps before it makes device maps and staging, render before it
+// makes targets, readback buffers, the reference's tessellation or grows the caller's Frame. A
+// caller can ask the same estimates up front (map_memory, frame_memory) and add its own (a bake's
+// working memory) to refuse before any work starts.
+
+enum class MemoryKind {
+  device_local,  // device images and buffers (Vulkan, one allocation each)
+  host_visible,  // staging, readback and vertex buffers the CPU writes or reads (Vulkan, one allocation each)
+  host,          // ordinary process memory: vectors, bakes
+};
+
+struct Allocation {
+  std::string what;  // the item, with its size: "the hit target of a 16384 x 16384 frame"
+  std::uint64_t bytes = 0;
+  MemoryKind kind = MemoryKind::host;
+  std::string lower;  // what to lower when it does not fit: "--size"
+};
+
+// What the machine offers. A CPU device (lavapipe) allocates from the process's own memory and
+// reports a nominal heap (2 GiB on Mesa 22.3, whatever the machine has): there every byte counts
+// against `host` and the heap sizes are not used.
+struct MemoryLimits {
+  std::string device;                // the device's name, for the messages; empty: no device (host work only)
+  std::uint64_t host = 0;            // bytes of host memory available now
+  std::uint64_t device_local = 0;    // bytes of the heap device-local memory comes from
+  std::uint64_t host_visible = 0;    // bytes of the heap host-visible memory comes from
+  bool shared_heap = false;          // both come from one heap
+  bool device_is_host = false;       // a CPU device: device memory is host memory
+  std::uint64_t max_allocation = 0;  // bytes of one Vulkan allocation at most (maxMemoryAllocationSize)
+  std::string limited_by;            // non-empty: the limit was lowered by this (named in the messages)
+};
+
+// Host memory available now (MemAvailable of /proc/meminfo, else the free physical pages), lowered
+// to `limit` bytes when that is not 0 (`source` names the limit in the messages); no device.
+MemoryLimits host_memory_limits(std::uint64_t limit = 0, const std::string& source = {});
+
+// Throws RenderError when `allocations` do not fit `limits`: one Vulkan allocation above the
+// device's largest, or a sum above the memory it comes from. The message names the largest item of
+// what does not fit, the bytes needed and available, and what to lower.
+void check_memory(std::span<const Allocation> allocations, const MemoryLimits& limits);
+
+// The shape of the maps handed to set_maps (MapSet's sizes; 0 sectors or depth: not given).
+struct MapShape {
+  int width = 0, height = 0;
+  int cone_sectors = 0;
+  bool relaxed = false;
+  std::uint64_t max_pyramid_values = 0;  // floats of bake::DualMaxPyramid::values; 0: none
+  int distance_width = 0, distance_height = 0, distance_depth = 0;
+  bool foam = false;
+};
+// What set_maps allocates for maps of this shape given for the first time: device images and
+// buffers, and the staging that carries them.
+std::vector<Allocation> map_memory(const MapShape& shape);
+
+// What render() allocates for its first frame of this view and method on a map_width x map_height
+// map: the render targets, a readback buffer per output read back, the caller's Frame vectors, and
+// for the reference its tessellation (on the CPU, then in buffers). `with_reference`: a frame of the
+// reference follows (--compare reference), in the other frame slot: its readback, Frame and
+// tessellation too. Throws RenderError when the reference's tessellation would have more vertices
+// than 32-bit indices address.
+std::vector<Allocation> frame_memory(const View& view, const MethodSettings& method, int map_width,
+                                     int map_height, unsigned outputs = output_all, bool with_reference = false);
+
+// Bytes as text: "812 MB", "4.3 GB" (decimal units).
+std::string memory_text(std::uint64_t bytes);
+
 class Renderer {
  public:
   // Creates the instance, device, layouts, render pass and the per-frame resources once, and loads
@@ -344,6 +419,8 @@ class Renderer {
   long long memory_allocations() const;
   // Graphics pipelines created so far (each method and surface once per renderer).
   long long pipelines_created() const;
+  // The memory this renderer's device and the host offer now (RendererOptions::memory_limit applied).
+  MemoryLimits memory_limits() const;
 
   struct Impl;
 

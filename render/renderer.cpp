@@ -159,6 +159,7 @@ const DeviceInfo& Renderer::device() const { return impl_->context.info(); }
 long long Renderer::validation_messages() const { return impl_->context.validation_messages(); }
 long long Renderer::memory_allocations() const { return impl_->context.memory_allocations(); }
 long long Renderer::pipelines_created() const { return impl_->pipelines_created; }
+MemoryLimits Renderer::memory_limits() const { return impl_->memory_limits(); }
 void Renderer::wait_idle() { impl_->drain(); }
 
 void Renderer::set_maps(const MapSet& maps) { impl_->take_maps(maps); }

@@ -42,6 +42,12 @@ inline constexpr std::array<float, 4> background = {0.08f, 0.08f, 0.10f, 1.0f};
 // step's start; with relaxed ratios one more layer holds (relaxed ratio, H_c).
 inline int cone_layer_count(int sectors, bool relaxed) { return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0); }
 
+// memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
+void add_target_memory(std::vector<Allocation>& list, int width, int height);
+void add_readback_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
+void add_frame_vector_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
+void add_reference_memory(std::vector<Allocation>& list, const View& view, int map_width, int map_height);
+
 void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from, VkImageLayout to,
                    VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags src_stage,
                    VkPipelineStageFlags dst_stage);
@@ -79,9 +85,13 @@ struct Targets {
 };
 
 struct Renderer::Impl {
-  explicit Impl(const RendererOptions& options) : context(options) {}
+  explicit Impl(const RendererOptions& options)
+      : context(options), memory_limit(options.memory_limit), memory_limit_source(options.memory_limit_source) {}
 
   Context context;
+  std::uint64_t memory_limit = 0;  // RendererOptions::memory_limit
+  std::string memory_limit_source;
+  MemoryLimits memory_limits() const { return context.memory_limits(memory_limit, memory_limit_source); }
 
   // pipelines.cpp
   OwnedDescriptorSetLayout set_layout;
@@ -128,6 +138,7 @@ struct Renderer::Impl {
   DeviceMap foam;
   std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
+  void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
 
   // frame.cpp: render targets and the reference geometry
@@ -143,6 +154,8 @@ struct Renderer::Impl {
   Buffer mesh_reference_vertices, mesh_reference_indices;
   std::uint32_t mesh_reference_index_count = 0;
   std::array<int, 3> mesh_reference_key{0, 0, 0};  // tile, map width, map height
+  // before a frame allocates anything (targets, readback, tessellation, the caller's Frame)
+  void check_frame_memory(const View& view, const MethodInfo& info, const Frame& frame, unsigned outputs) const;
   void ensure_targets(int width, int height);
   void ensure_reference(int tile);
   void ensure_mesh_reference(int tile);

@@ -266,6 +266,11 @@ Context::Context(const RendererOptions& options) {
     timestamp_period_ns_ = properties.limits.timestampPeriod;
     info_.max_image_dimension_3d = int(properties.limits.maxImageDimension3D);
     info_.max_storage_buffer_range = properties.limits.maxStorageBufferRange;
+    VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+    VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+    properties2.pNext = &maintenance3;
+    vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
+    max_allocation_ = maintenance3.maxMemoryAllocationSize;
 
     const float priority = 1.0f;
     VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -324,6 +329,29 @@ std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlag
     }
   }
   throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
+}
+
+MemoryLimits Context::memory_limits(std::uint64_t limit, const std::string& source) const {
+  MemoryLimits limits = host_memory_limits(limit, source);
+  limits.device = info_.name;
+  limits.device_is_host = info_.type == "cpu";
+  limits.max_allocation = max_allocation_;
+  // the heaps of the memory types allocate() picks for images and for mapped buffers
+  const std::uint32_t any_type = ~0u;
+  const std::uint32_t device_heap =
+      memory_properties_.memoryTypes[memory_type(any_type, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)].heapIndex;
+  const std::uint32_t visible_heap =
+      memory_properties_
+          .memoryTypes[memory_type(any_type, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT)]
+          .heapIndex;
+  limits.device_local = memory_properties_.memoryHeaps[device_heap].size;
+  limits.host_visible = memory_properties_.memoryHeaps[visible_heap].size;
+  limits.shared_heap = device_heap == visible_heap;
+  if (limit > 0) {
+    limits.device_local = std::min<std::uint64_t>(limits.device_local, limit);
+    limits.host_visible = std::min<std::uint64_t>(limits.host_visible, limit);
+  }
+  return limits;
 }
 
 VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const {

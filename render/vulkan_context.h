@@ -42,6 +42,9 @@ class Context {
   // vkAllocateMemory, counted (memory_allocations()).
   VkDeviceMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const;
   long long memory_allocations() const { return memory_allocations_->load(); }
+  // The device's heaps and largest allocation with the host's available memory (render.h's
+  // MemoryLimits), lowered to `limit` bytes when that is not 0 (`source` names it).
+  MemoryLimits memory_limits(std::uint64_t limit, const std::string& source) const;
   // A fence, signalled from the start when `signaled`; the caller destroys it (OwnedFence).
   VkFence create_fence(bool signaled) const;
   // A primary command buffer from the pool (resettable), owned by the caller until the pool goes.
@@ -73,6 +76,7 @@ class Context {
   float timestamp_period_ns_ = 0.0f;
   bool has_timestamps_ = false;
   VkPhysicalDeviceMemoryProperties memory_properties_{};
+  VkDeviceSize max_allocation_ = 0;  // maxMemoryAllocationSize
   std::unique_ptr<std::atomic<long long>> validation_messages_ = std::make_unique<std::atomic<long long>>(0);
   std::unique_ptr<std::atomic<long long>> memory_allocations_ = std::make_unique<std::atomic<long long>>(0);
 };

@@ -199,26 +199,60 @@ TEST(ImageIo, ChoosesAChannelByIndexOrName) {
   EXPECT_THROW(load_heights(dir / "c.png", beyond), AppError);
 }
 
-// A truncated JPEG (its first third) is refused: libjpeg fills the missing rows and leaves only a
-// warning, which the reader turns into one clear error instead of a silently wrong map.
-TEST(ImageIo, RefusesATruncatedJpeg) {
+// Random 8-bit samples: they do not compress, so half the file is about half the pixels.
+std::vector<std::uint8_t> noise_pixels(int width, int height, int channels, unsigned seed) {
+  std::mt19937 random(seed);
+  std::vector<std::uint8_t> pixels(std::size_t(width) * height * channels);
+  for (auto& p : pixels) p = std::uint8_t(random() >> 24);
+  return pixels;
+}
+
+// `file`'s first `fraction` of bytes, written as `cut`.
+void write_first_part(const fs::path& file, const fs::path& cut, double fraction) {
+  const std::string bytes = read_text(file);
+  write_bytes(cut, bytes.substr(0, std::size_t(double(bytes.size()) * fraction)));
+}
+
+std::size_t occurrences(const std::string& text, const std::string& part) {
+  std::size_t count = 0;
+  for (std::size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++count;
+  return count;
+}
+
+// A file cut short is refused in every format, never read with its missing rows filled in: libjpeg
+// and libtiff fill them and only leave a message behind, libpng and OpenEXR fail. The decoders'
+// messages come as one line without repeats (OpenImageIO repeats libpng's, libtiff gives one per strip).
+TEST(ImageIo, RefusesTruncatedFilesOfEveryFormat) {
   TempDir dir;
-  std::vector<std::uint8_t> pixels(64 * 64);
-  for (std::size_t i = 0; i < pixels.size(); ++i) pixels[i] = std::uint8_t(i % 251);
-  const fs::path whole = dir / "whole.jpg", cut = dir / "cut.jpg";
-  write_with_oiio(whole, 64, 64, 1, OIIO::TypeDesc::UINT8, pixels.data());
-  EXPECT_NO_THROW(load_heights(whole, {}));
-  const std::string bytes = read_text(whole);
-  {
-    std::ofstream out(cut, std::ios::binary);
-    out << bytes.substr(0, bytes.size() / 3);
-  }
-  try {
-    load_heights(cut, {});
-    ADD_FAILURE() << "a truncated JPEG was read";
-  } catch (const AppError& error) {
-    EXPECT_EQ(error.kind, ErrorKind::runtime);
-    EXPECT_NE(std::string(error.what()).find("truncated or corrupt"), std::string::npos) << error.what();
+  const std::vector<std::uint8_t> pixels = noise_pixels(128, 128, 1, 5);
+  for (const std::string extension : {"png", "jpg", "exr", "tif"}) {
+    const fs::path whole = dir / ("whole." + extension), cut = dir / ("cut." + extension);
+    write_with_oiio(whole, 128, 128, 1, OIIO::TypeDesc::UINT8, pixels.data());
+    EXPECT_NO_THROW(load_heights(whole, {})) << extension;
+    EXPECT_NO_THROW(read_color_image(whole)) << extension;
+    write_first_part(whole, cut, 0.5);
+    for (const bool albedo : {false, true}) {
+      try {
+        if (albedo) {
+          read_color_image(cut);
+        } else {
+          load_heights(cut, {});
+        }
+        ADD_FAILURE() << "a truncated ." << extension << " was read" << (albedo ? " as an albedo" : "");
+      } catch (const AppError& error) {
+        const std::string message = error.what();
+        EXPECT_EQ(error.kind, ErrorKind::runtime);
+        EXPECT_NE(message.find("truncated or corrupt"), std::string::npos) << message;
+        EXPECT_NE(message.find(cut.string()), std::string::npos) << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+        if (extension == "png") {
+          EXPECT_EQ(occurrences(message, "hit end of file"), 1u) << message;
+        }
+        if (extension == "tif") {
+          EXPECT_EQ(occurrences(message, "TIFFReadRawStrip"), 1u) << message;
+        }
+      }
+    }
   }
 }
 
@@ -801,7 +835,8 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
   } cases[] = {
       {"sim", "--map-size INT:[2, 16384]"},   {"bake", "--tolerance T:[0, 1)"},
       {"render", "--steps INT:[1, 4096]"},    {"sweep", "--repeat INT:[1, 100]"},
-      {"demo", "--map-size INT:[2, 16384]"},  {"scene", "--print " + scene_names},
+      {"demo", "--map-size INT:[2, 8192]"},   {"scene", "--print " + scene_names},
+      {"sim", "(ocean: even, at most 8192)"},
       {"play", "--frames N:[1, 1000000000]"},
   };
   for (const auto& test : cases) {
@@ -1309,10 +1344,11 @@ TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
     std::string arguments;
     int exit_code;
   } cases[] = {
-      {scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"), 2},
-      {scene("two.scene", "--source ocean\n--map-size 16 --time\n"), 2},
-      {scene("word.scene", "source ocean\n"), 2},
-      {scene("empty.scene", "# nothing\n"), 2},
+      // a scene file's content is a file's, not the command line's: exit status 1 like any bad file
+      {scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"), 1},
+      {scene("two.scene", "--source ocean\n--map-size 16 --time\n"), 1},
+      {scene("word.scene", "source ocean\n"), 1},
+      {scene("empty.scene", "# nothing\n"), 1},
       {"sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv", 1},  // a missing file
   };
   for (const auto& [arguments, exit_code] : cases) {
@@ -1320,6 +1356,7 @@ TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
     EXPECT_EQ(result.exit_code, exit_code) << arguments << "\n" << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
     EXPECT_NE(result.err.find("scene"), std::string::npos) << result.err;
+    EXPECT_EQ(result.err.find("--help"), std::string::npos) << result.err;
   }
   EXPECT_FALSE(fs::exists(dir / "s.csv"));
 }
@@ -1466,6 +1503,158 @@ std::map<std::string, std::string> frames_in(const fs::path& directory) {
 
 const char* const small_sequence = "--scene water --map-size 32 --size 48x32 --bake-work 800";
 
+
+// The whole of stderr is one line starting "displace: error: ".
+void expect_one_error_line(const RunResult& result, const std::string& arguments) {
+  EXPECT_EQ(result.err.find("displace: error: "), 0u) << arguments << "\n" << result.err;
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << "\n" << result.err;
+}
+
+// Truncated and corrupt images of every format: exit status 1 and exactly one line on stderr; what
+// libpng prints on its own ("libpng error: ...") is folded into that line, not left on stderr.
+TEST(Cli, TruncatedImagesGetOneErrorLineAndNoLibraryNoise) {
+  TempDir dir;
+  const std::vector<std::uint8_t> pixels = noise_pixels(128, 128, 1, 9);
+  std::vector<std::string> broken;
+  for (const std::string extension : {"png", "jpg", "exr", "tif"}) {
+    const fs::path whole = dir / ("whole." + extension);
+    write_with_oiio(whole, 128, 128, 1, OIIO::TypeDesc::UINT8, pixels.data());
+    write_first_part(whole, dir / ("cut." + extension), 0.5);
+    broken.push_back("cut." + extension);
+  }
+  write_first_part(dir / "whole.png", dir / "header.png", 0.01);  // cut inside its header
+  broken.push_back("header.png");
+  std::string flipped = read_text(dir / "whole.png");  // damaged inside the image data
+  for (std::size_t i = flipped.size() / 2; i < flipped.size() / 2 + 64; ++i) flipped[i] = char(flipped[i] ^ 0x5a);
+  write_bytes(dir / "flipped.png", flipped);
+  broken.push_back("flipped.png");
+
+  std::vector<std::string> commands;
+  for (const std::string& name : broken) {
+    commands.push_back("bake --input '" + (dir / name).string() + "' --sectors 4 --mode budgeted --output '" +
+                       (dir / "c.exr").string() + "'");
+  }
+  commands.push_back("render --source bricks --map-size 16 --method bump --size 16x16 --albedo '" +
+                     (dir / "cut.png").string() + "' --output '" + (dir / "f.png").string() + "'");
+  for (const std::string& arguments : commands) {
+    const RunResult result = run_displace(dir, arguments);
+    EXPECT_EQ(result.exit_code, 1) << arguments << "\n" << result.err;
+    expect_one_error_line(result, arguments);
+    EXPECT_EQ(result.err.find("libpng"), std::string::npos) << result.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+  EXPECT_FALSE(fs::exists(dir / "f.png"));
+}
+
+// One rule for the exit status: 2 when the command line is wrong (with a hint to the command's
+// --help), including a flag that does not fit its input; 1 when a file is missing or malformed,
+// whichever command reads it.
+TEST(Cli, ExitStatusIsTwoForTheCommandLineAndOneForFiles) {
+  TempDir dir;
+  const std::vector<std::uint16_t> deep(16 * 16, 1000);
+  write_with_oiio(dir / "h16.png", 16, 16, 1, OIIO::TypeDesc::UINT16, deep.data());
+  write_bytes(dir / "bad.toml", "name = \"x\"\nmap_size = \"big\"\n");
+  write_bytes(dir / "bad.scene", "--source ocean\n--map-size 15\n--time 0\n");
+  const std::string missing = (dir / "missing").string();
+  const std::string bake_to = " --sectors 4 --mode budgeted --output '" + (dir / "c.exr").string() + "'";
+  const std::string render_to = " --method bump --size 16x16 --output '" + (dir / "f.png").string() + "'";
+  const std::string frames = " --frames 0:0 --map-size 16 --size 16x16 --output '" + (dir / "o_#.png").string() + "'";
+  const std::string no_display = "env -u DISPLAY -u WAYLAND_DISPLAY ";
+  const struct {
+    std::string arguments;
+    int exit_code;
+    std::string prefix = "";
+  } cases[] = {
+      {"bake --input '" + (dir / "h16.png").string() + "' --height-range 0,1" + bake_to, 2},
+      {"bake --input '" + (dir / "h16.png").string() + "' --channel 3" + bake_to, 2},
+      {"bake --input '" + (dir / "h16.png").string() + "' --channel Z" + bake_to, 2},
+      {"render --source ocean --map-size 16 --time 0 --light 0,0,0" + render_to, 2},
+      {"render --source ocean --map-size 16 --time 0 --tile 65" + render_to, 2},
+      {"play --scene water --map-size 15 --frames 1", 2, no_display},
+      {"sequence --scene water --map-size 15 --frames 0:0 --output o_#.png", 2},
+      {"bake --input '" + missing + ".png'" + bake_to, 1},
+      {"render --input '" + missing + ".exr'" + render_to, 1},
+      {"render --source bricks --map-size 16 --albedo '" + missing + ".png'" + render_to, 1},
+      {"render --source bricks --map-size 16 --surface 'mesh:" + missing + ".obj'" + render_to, 1},
+      {"sweep --scene '" + missing + ".scene' --output s.csv", 1},
+      {"sweep --scene '" + (dir / "bad.scene").string() + "' --output s.csv", 1},
+      {"sequence --scene '" + missing + ".toml'" + frames, 1},
+      {"sequence --scene '" + (dir / "bad.toml").string() + "'" + frames, 1},
+      {"bench-frame --scene '" + missing + ".toml' --frames 1", 1},
+      {"bench-frame --scene '" + (dir / "bad.toml").string() + "' --frames 1", 1},
+      {"play --scene '" + missing + ".toml' --frames 1", 1, no_display},
+      {"play --scene '" + (dir / "bad.toml").string() + "' --frames 1", 1, no_display},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments, test.prefix);
+    EXPECT_EQ(result.exit_code, test.exit_code) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), 0u) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
+    EXPECT_EQ(result.err.find("--help' for usage") != std::string::npos, test.exit_code == 2)
+        << test.arguments << "\n" << result.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+  EXPECT_FALSE(fs::exists(dir / "f.png"));
+}
+
+// Work that cannot fit is refused before it starts, with one line naming what needs how much, what
+// there is and what to lower (exit status 1). DISPLACE_MEMORY_LIMIT_MB holds the guards to 1 GB so
+// that the refusals do not depend on this machine; the tessellation beyond 32-bit indices is refused
+// on any machine. Nothing of these sizes is allocated: the runs end in about a second.
+TEST(Cli, MemoryGuardsRefuseWorkThatCannotFitWithOneLine) {
+  TempDir dir;
+  const std::string limit = "env DISPLACE_MEMORY_LIMIT_MB=1000 ";
+  const std::string to_png = " --output '" + (dir / "f.png").string() + "'";
+  const struct {
+    std::string arguments, prefix, words;
+  } cases[] = {
+      {"render --source bricks --map-size 256 --method reference --tile 64" + to_png, limit,
+       "the reference's tessellation of a 256 x 256 map tiled 64 times"},
+      {"render --source bricks --map-size 256 --method acm4 --compare reference --tile 64" + to_png, limit, "--tile"},
+      {"render --source bricks --map-size 256 --method acm4 --size 16384x16384" + to_png, limit, "16384 x 16384"},
+      {"render --source bricks --map-size 16384 --method reference --tile 64 --size 16x16" + to_png, "",
+       "more than 32-bit indices address: lower --tile or --map-size"},
+      {"render --source bricks --map-size 8192 --method acm8 --size 16x16" + to_png, limit, "lower --map-size"},
+      {"bake --source bricks --map-size 16384 --sectors 8 --mode budgeted --output '" + (dir / "c.exr").string() + "'",
+       limit, "lower --map-size"},
+      {"sim --source ocean --map-size 8192 --time 0 --output '" + (dir / "h.exr").string() + "'", limit,
+       "lower --map-size"},
+      {"bench-frame --scene water --map-size 8192 --frames 1", limit, "lower --map-size"},
+  };
+  for (const auto& test : cases) {
+    const RunResult result = run_displace(dir, test.arguments, test.prefix);
+    EXPECT_EQ(result.exit_code, 1) << test.arguments << "\n" << result.err;
+    expect_one_error_line(result, test.arguments);
+    EXPECT_NE(result.err.find(test.words), std::string::npos) << test.arguments << "\n" << result.err;
+    EXPECT_EQ(result.out, "") << test.arguments;
+  }
+  EXPECT_FALSE(fs::exists(dir / "f.png"));
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
+  EXPECT_FALSE(fs::exists(dir / "h.exr"));
+  // a limit that is not a number of megabytes is a usage error
+  const RunResult bad = run_displace(dir, "sim --source bricks --map-size 16 --output h.exr", "env DISPLACE_MEMORY_LIMIT_MB=lots ");
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("DISPLACE_MEMORY_LIMIT_MB"), std::string::npos) << bad.err;
+}
+
+// An albedo image has its own limits (1 x 1 to 16384 pixels a side) and its own words.
+TEST(Cli, AlbedoImagesHaveTheirOwnLimitsAndWords) {
+  TempDir dir;
+  const std::vector<std::uint8_t> wide(100000 * 3, 128);
+  write_with_oiio(dir / "wide.png", 100000, 1, 3, OIIO::TypeDesc::UINT8, wide.data());
+  const std::uint8_t grey = 200;
+  write_with_oiio(dir / "one.png", 1, 1, 1, OIIO::TypeDesc::UINT8, &grey);
+  const std::string render = "render --source bricks --map-size 16 --method bump --size 16x16 --output '" +
+                             (dir / "f.png").string() + "' --albedo ";
+  const RunResult refused = run_displace(dir, render + "'" + (dir / "wide.png").string() + "'");
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  expect_one_error_line(refused, "--albedo wide.png");
+  EXPECT_NE(refused.err.find("an albedo image may have at most 16384"), std::string::npos) << refused.err;
+  EXPECT_EQ(refused.err.find("height map"), std::string::npos) << refused.err;
+  const RunResult one = run_displace(dir, render + "'" + (dir / "one.png").string() + "'");
+  EXPECT_EQ(one.exit_code, 0) << one.err;
+}
+
 }  // namespace
 
 // Frames are deterministic: one run, two round-robin shards, and a resumed run after losing a
@@ -1552,6 +1741,14 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_EQ(parsed["ffts_per_frame"], 6.0);
   EXPECT_EQ(parsed["effects"], nlohmann::json({"heights", "choppy", "foam"}));
   EXPECT_EQ(parsed["vulkan_allocations_after_warmup"], 0);
+  // every frame came back, and resident memory was sampled (the soak's figures, tests/soak.sh)
+  EXPECT_EQ(parsed["frames_rendered"], 6);
+  const nlohmann::json& rss = parsed["rss_kb"];
+  ASSERT_TRUE(rss.is_object()) << parsed.dump();
+  EXPECT_GT(rss["after_warmup"].get<long long>(), 0);
+  EXPECT_GE(rss["max"].get<long long>(), rss["end"].get<long long>());
+  EXPECT_GE(rss["max"].get<long long>(), rss["after_warmup"].get<long long>());
+  EXPECT_EQ(rss["growth"].get<long long>(), rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
 }
 
 // Flag limits agree with what the code accepts, and usage errors exit 2 with the project's words.
