@@ -3,7 +3,7 @@
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
 #   bash cmake/setup.sh test    # the whole test suite (ctest)
-#   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 20 minutes)
+#   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
 #   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ and command-line readers (clang, build-fuzz/)
 #   bash cmake/setup.sh build   # only install + configure + build

@@ -796,8 +796,8 @@ usage:
       against their tightness and the acm4 fetches it buys, the water frame loop's budget against
       its error, and iteration heatmaps. Writes the CSV/JSON behind each figure, the figures (PNG,
       demos/report/plot_report.py with Debian's python3-matplotlib) and DIR/README.md (default
-      docs/report). --quick: fewer runs at 128 x 128 (about a minute); the full report takes about
-      20 minutes on 2 cores. An IMAGE scene is a height map (--invert: a depth map), clamped at its edges.
+      docs/report). --quick: fewer runs at 128 x 128 (under a minute); the full report takes about
+      6 minutes on 2 cores. An IMAGE scene is a height map (--invert: a depth map), clamped at its edges.
 
   displace demo [--map-size N] [--output-dir DIR]
       Default ocean (512 x 512, t = 0) to out/ocean_height.exr, out/ocean_cone4.exr and
