@@ -11,6 +11,7 @@
 
 #include "demos/error.h"
 #include "pipeline/maps.h"
+#include "pipeline/scene.h"
 
 namespace displace::app {
 namespace {
@@ -125,12 +126,8 @@ std::vector<render::Allocation> pipeline_memory(const pipeline::Scene& scene) {
   const int size = scene.map_size;
   list.push_back({"the frame pipeline's buffers and bakes for " + map_text(size, size),
                   texels_of(size, size) * pipeline_texel_bytes, render::MemoryKind::host, "--map-size"});
-  render::View view;
-  view.camera = scene.camera;
-  view.material = scene.material;
-  view.tile = scene.tile;
-  view.depth_scale = scene.depth_scale;
-  view.surface = scene.surface;
+  // the image size and what the method reads do not change over the frames: frame 0's view will do
+  const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, 0));
   const render::MapNeeds needs = render::map_needs(scene.method, view);
   append(list, render::map_memory(map_shape(needs, size, size, scene.foam)));
   append(list, render::frame_memory(view, {scene.method, scene.steps, scene.refine}, size, size,

@@ -150,15 +150,19 @@ def main():
         if seen != methods:
             problem(f"{name}: methods {sorted(methods ^ seen)} are missing or extra")
 
+    # per plane scene, from grazing.csv:
     # grazing:SCENE - fewest steps within the target per method and elevation
+    # decide:SCENE - per elevation and target, the fewest fetches of any method reaching the target
     for scene in info["scenes"]:
         rows = [r for r in grazing if r["scene"] == scene]
-        name = f"grazing:{scene}"
         if not rows:
             continue
-        if name not in tables:
+        missing = [n for n in (f"grazing:{scene}", f"decide:{scene}") if n not in tables]
+        for name in missing:
             problem(f"README.md has no table {name}")
+        if missing:
             continue
+        name = f"grazing:{scene}"
         elevations = sorted({float(r["elevation_deg"]) for r in rows})
         for cells in tables[name]:
             method = cells[0]
@@ -168,16 +172,7 @@ def main():
                 expected = str(min(steps)) if steps else "-"
                 if cell != expected:
                     problem(f"{name}: {method} at {elevation:g} degrees says {cell}, grazing.csv gives {expected}")
-
-    # decide:SCENE - per elevation and target, the fewest fetches of any method reaching the target
-    for scene in info["scenes"]:
-        rows = [r for r in grazing if r["scene"] == scene]
         name = f"decide:{scene}"
-        if not rows:
-            continue
-        if name not in tables:
-            problem(f"README.md has no table {name}")
-            continue
         for elevation_cell, goal_cell, method, steps, fetches, ms in tables[name]:
             at = [r for r in rows if float(r["elevation_deg"]) == float(elevation_cell)
                   and float(r["rmse"]) <= float(goal_cell)]
