@@ -2,10 +2,11 @@
 # One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
-#   bash cmake/setup.sh test    # the whole test suite (ctest)
-#   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
+#   bash cmake/setup.sh test    # everything CI runs: suite, then sanitize, then fuzz (about 45 minutes)
+#   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 3 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
-#   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ and command-line readers (clang, build-fuzz/)
+#   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ, command-line and height-image readers (clang, build-fuzz/)
+#   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
 #   bash cmake/setup.sh build   # only install + configure + build
 set -euo pipefail
 mode="${1:-build}"
@@ -33,6 +34,53 @@ jobs="$(nproc 2>/dev/null || echo 2)"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" -j "$jobs"
 
+# The test suite on the Release build.
+run_suite() {
+  (cd "$build" && ctest --output-on-failure -j "$jobs")
+}
+
+# The suite under ASan + UBSan in build-asan/: any report fails it (-fno-sanitize-recover, abort).
+run_sanitize() {
+  # library leaks that are not ours are suppressed by library name (tests/sanitizers/lsan.supp)
+  export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
+  export LSAN_OPTIONS="suppressions=$root/tests/sanitizers/lsan.supp:print_suppressions=0"
+  export UBSAN_OPTIONS="print_stacktrace=1"
+  cmake -S "$root" -B "$root/build-asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_SANITIZE=ON \
+    -DDISPLACE_BENCHMARKS=OFF >/dev/null
+  cmake --build "$root/build-asan" -j "$jobs"
+  # leaks are checked where no Vulkan instance is made: the loader unloads lavapipe when the
+  # instance goes, and what lavapipe keeps until then can no longer be named (or suppressed)
+  local leak_checked='^(sim|bake|budgeted|bilinear|app|fuzz_.*_replay)$'
+  (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R "$leak_checked")
+  (cd "$root/build-asan" && ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
+    ctest --output-on-failure -j "$jobs" -E "$leak_checked|^report\$|^soak\$")
+}
+
+# libFuzzer (clang) over the four readers in build-fuzz/, a fixed number of inputs each.
+run_fuzz() {
+  local fuzz_packages=(clang libclang-rt-14-dev) p
+  for p in "${fuzz_packages[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+      local sudo_cmd=()
+      if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+      DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${fuzz_packages[@]}" >/dev/null
+      break
+    fi
+  done
+  local fuzz_build="$root/build-fuzz"
+  CXX=clang++ cmake -S "$root" -B "$fuzz_build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_FUZZ=ON \
+    -DDISPLACE_BENCHMARKS=OFF >/dev/null
+  cmake --build "$fuzz_build" -j "$jobs" --target fuzz_scene fuzz_obj fuzz_cli fuzz_image
+  (cd "$fuzz_build" && ctest --output-on-failure -R '^fuzz_(scene|obj|cli|image)$')
+}
+
+# how long a part took, for the README's account of the CI run
+timed() {
+  local started=$SECONDS
+  "$@"
+  echo "setup: $1 took $(( (SECONDS - started) / 60 )) min $(( (SECONDS - started) % 60 )) s"
+}
+
 case "$mode" in
   build) ;;
   main)
@@ -49,40 +97,14 @@ case "$mode" in
   report)
     cd "$root"
     "$build/displace" report --output docs/report ;;
-  sanitize)
-    # library leaks and races that are not ours are suppressed by name (tests/sanitizers/*.supp)
-    export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
-    export LSAN_OPTIONS="suppressions=$root/tests/sanitizers/lsan.supp:print_suppressions=0"
-    export UBSAN_OPTIONS="print_stacktrace=1"
-    cmake -S "$root" -B "$root/build-asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_SANITIZE=ON \
-      -DDISPLACE_BENCHMARKS=OFF >/dev/null
-    cmake --build "$root/build-asan" -j "$jobs"
-    # leaks are checked where no Vulkan instance is made: the loader unloads lavapipe when the
-    # instance goes, and what lavapipe keeps until then can no longer be named (or suppressed)
-    leak_checked='^(sim|bake|budgeted|bilinear|app|fuzz_.*_replay)$'
-    (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R "$leak_checked")
-    (cd "$root/build-asan" && ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
-      ctest --output-on-failure -j "$jobs" -E "$leak_checked|^report\$|^soak\$") ;;
-  fuzz)
-    fuzz_packages=(clang libclang-rt-14-dev)
-    for p in "${fuzz_packages[@]}"; do
-      if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
-        sudo_cmd=()
-        if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
-        DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${fuzz_packages[@]}" >/dev/null
-        break
-      fi
-    done
-    fuzz_build="$root/build-fuzz"
-    CXX=clang++ cmake -S "$root" -B "$fuzz_build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_FUZZ=ON \
-      -DDISPLACE_BENCHMARKS=OFF >/dev/null
-    cmake --build "$fuzz_build" -j "$jobs" --target fuzz_scene fuzz_obj fuzz_cli
-    cd "$fuzz_build"
-    ctest --output-on-failure -R '^fuzz_(scene|obj|cli)$' ;;
+  suite) timed run_suite ;;
+  sanitize) timed run_sanitize ;;
+  fuzz) timed run_fuzz ;;
   test)
-    cd "$build"
-    ctest --output-on-failure -j "$jobs" ;;
+    timed run_suite
+    timed run_sanitize
+    timed run_fuzz ;;
   *)
-    echo "setup: unknown mode '$mode' (use main, test, report, fuzz or build)" >&2
+    echo "setup: unknown mode '$mode' (use main, test, suite, sanitize, fuzz, report or build)" >&2
     exit 2 ;;
 esac

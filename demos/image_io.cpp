@@ -17,6 +17,7 @@
 // a pipe: a pipe nobody drains during the read would fill up and block the library's write.
 #include "demos/image_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
 #include <unistd.h>
@@ -199,21 +200,28 @@ std::string one_line(std::string_view error, const std::vector<std::string>& lib
 struct ImageUse {
   const char* noun;  // "a height map"
   int min_side;      // pixels
+  int max_side = max_image_side;
 };
 constexpr ImageUse height_map_use{"a height map", 2};  // a single texel (or row) has no relief to displace
 constexpr ImageUse albedo_use{"an albedo image", 1};
 constexpr ImageUse data_use{"an image", 1};  // cone maps and float images read back
 
-std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file, const ImageUse& use) {
+// Opens `file`, or the bytes of `memory` (then `file` only names the image and its extension
+// picks the format).
+std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file, const ImageUse& use,
+                                             oiio::Filesystem::IOProxy* memory = nullptr) {
   std::error_code error;
-  if (!std::filesystem::exists(file, error))
+  if (!memory && !std::filesystem::exists(file, error))
     throw runtime_error("cannot read " + quoted(file) + ": no such file");
-  if (std::filesystem::is_directory(file, error))
+  if (!memory && std::filesystem::is_directory(file, error))
     throw runtime_error("cannot read " + quoted(file) + ": it is a directory");
   oiio::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
+  // the readers of OpenImageIO 2.4 take the proxy from the configuration hints (a proxy passed only
+  // as open()'s argument is dropped when hints are given)
+  if (memory) config.attribute("oiio:ioproxy", oiio::TypeDesc::PTR, &memory);
   StderrCapture capture;
-  auto input = oiio::ImageInput::open(file.string(), &config);
+  auto input = oiio::ImageInput::open(file.string(), &config, memory);
   const std::vector<std::string> library = capture.finish();
   if (!input) {
     throw runtime_error("cannot read " + quoted(file) + " as an image: " + one_line(oiio::geterror(), library));
@@ -225,9 +233,9 @@ std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file, 
     throw runtime_error(fmt::format("{} is {}: {} needs at least {} x {} texels to displace anything", quoted(file),
                                     size, use.noun, use.min_side, use.min_side));
   }
-  if (spec.width > max_image_side || spec.height > max_image_side) {
+  if (spec.width > use.max_side || spec.height > use.max_side) {
     throw runtime_error(fmt::format("{} is {} pixels; {} may have at most {} a side", quoted(file), size, use.noun,
-                                    max_image_side));
+                                    use.max_side));
   }
   if (spec.depth > 1) throw runtime_error(quoted(file) + " is a volume image; " + use.noun + " is 2D");
   if (spec.deep) throw runtime_error(quoted(file) + " is a deep image; " + use.noun + " is flat");
@@ -377,10 +385,9 @@ void check_size(const std::filesystem::path& file, int width, int height) {
   }
 }
 
-}  // namespace
-
-LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings) {
-  auto input = open_input(file, height_map_use);
+// The heights of an opened image (load_heights from a file or from memory).
+LoadedHeights read_heights(std::unique_ptr<oiio::ImageInput> input, const std::filesystem::path& file,
+                           const HeightLoadSettings& settings) {
   const oiio::ImageSpec& spec = input->spec();
 
   LoadedHeights loaded;
@@ -458,6 +465,24 @@ LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSe
     loaded.heights[k] = settings.invert ? 1.0f - h01 : h01;
   }
   return loaded;
+}
+
+}  // namespace
+
+ImageUse height_use(const HeightLoadSettings& settings) {
+  ImageUse use = height_map_use;
+  use.max_side = std::min(settings.max_side, max_image_side);
+  return use;
+}
+
+LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings) {
+  return read_heights(open_input(file, height_use(settings)), file, settings);
+}
+
+LoadedHeights load_heights(std::span<const std::uint8_t> bytes, const std::filesystem::path& name,
+                           const HeightLoadSettings& settings) {
+  oiio::Filesystem::IOMemReader memory(bytes.data(), bytes.size());
+  return read_heights(open_input(name, height_use(settings), &memory), name, settings);
 }
 
 const Attribute* find_attribute(const Metadata& metadata, std::string_view name) {

@@ -27,6 +27,10 @@
 
 namespace displace::app {
 
+// The largest width or height the application layer accepts (texels, pixels); a height map needs at
+// least 2 x 2 texels, other images 1 x 1.
+inline constexpr int max_image_side = 16384;
+
 // Which channel holds the heights. Neither set: the channel named `height` if there is one, else
 // the only channel (or the grey channel of grey + alpha).
 struct ChannelChoice {
@@ -44,6 +48,7 @@ struct HeightLoadSettings {
   ChannelChoice channel;
   bool invert = false;               // the file stores depth: 1 = deepest
   std::optional<HeightRange> range;  // float images only
+  int max_side = max_image_side;     // a larger image is refused before its pixels are read
 };
 
 enum class SampleFormat { uint8, uint16, floating };
@@ -64,11 +69,11 @@ struct LoadedHeights {
   std::size_t clamped = 0;  // samples outside the mapped range, clamped to 0 or 1
 };
 
-// The largest width or height the application layer accepts (texels, pixels); a height map needs at
-// least 2 x 2 texels, other images 1 x 1.
-inline constexpr int max_image_side = 16384;
-
 LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings);
+// The same from an image in memory: `name` stands for the file in messages, and its extension picks
+// the decoder (PNG, JPEG, OpenEXR, TIFF, ... as OpenImageIO reads them from memory).
+LoadedHeights load_heights(std::span<const std::uint8_t> bytes, const std::filesystem::path& name,
+                           const HeightLoadSettings& settings);
 
 // Image attributes: EXR header attributes or PNG text chunks.
 using AttributeValue = std::variant<std::string, float, int>;

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <span>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -252,6 +253,49 @@ TEST(ImageIo, RefusesTruncatedFilesOfEveryFormat) {
           EXPECT_EQ(occurrences(message, "TIFFReadRawStrip"), 1u) << message;
         }
       }
+    }
+  }
+}
+
+// From memory (the fuzz target's way in) the loader gives what it gives from the file, in every
+// format the fuzz target picks, refuses the same truncated bytes, and refuses an image larger than
+// the caller's max_side before reading it.
+TEST(ImageIo, LoadsFromMemoryWhatItLoadsFromTheFile) {
+  TempDir dir;
+  const std::vector<std::uint8_t> pixels = noise_pixels(64, 48, 1, 9);
+  for (const std::string extension : {"png", "jpg", "exr", "tif", "bmp", "hdr"}) {
+    const fs::path whole = dir / ("whole." + extension);
+    HeightLoadSettings settings;
+    if (extension == "hdr") {  // Radiance images are RGB
+      std::vector<std::uint8_t> rgb;
+      for (const std::uint8_t p : pixels) rgb.insert(rgb.end(), {p, p, p});
+      write_with_oiio(whole, 64, 48, 3, OIIO::TypeDesc::UINT8, rgb.data());
+      settings.channel.index = 1;
+    } else {
+      write_with_oiio(whole, 64, 48, 1, OIIO::TypeDesc::UINT8, pixels.data());
+    }
+    const std::string bytes = read_text(whole);
+    const std::span<const std::uint8_t> memory(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    const LoadedHeights from_file = load_heights(whole, settings);
+    const LoadedHeights from_memory = load_heights(memory, "memory." + extension, settings);
+    EXPECT_EQ(from_memory.width, 64) << extension;
+    EXPECT_EQ(from_memory.height, 48) << extension;
+    EXPECT_EQ(from_memory.heights, from_file.heights) << extension;
+    EXPECT_EQ(from_memory.format, from_file.format) << extension;
+
+    HeightLoadSettings small = settings;
+    small.max_side = 32;
+    try {
+      load_heights(memory, "memory." + extension, small);
+      ADD_FAILURE() << "a 64 x 48 ." << extension << " passed a limit of 32";
+    } catch (const AppError& error) {
+      EXPECT_NE(std::string(error.what()).find("at most 32 a side"), std::string::npos) << error.what();
+    }
+    try {
+      load_heights(memory.first(memory.size() / 2), "cut." + extension, settings);
+      ADD_FAILURE() << "half of a ." << extension << " in memory was read";
+    } catch (const AppError& error) {
+      EXPECT_NE(std::string(error.what()).find("'cut." + extension + "'"), std::string::npos) << error.what();
     }
   }
 }
