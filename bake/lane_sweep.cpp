@@ -165,8 +165,19 @@ struct ChamferMove {
 
 // The plan's moves by angle from the v axis - (1, 0), (column_reach, 1) .. (2, 1), (1, 1) ..
 // (1, row_reach), (0, 1) - and their uv lengths.
-std::vector<ChamferMove> chamfer_moves(const LanePlan& plan, double (&length)[lane_move_limit]) {
-  std::vector<ChamferMove> moves;
+// (a fixed array: planned every frame, never allocated)
+struct ChamferMoves {
+  std::array<ChamferMove, lane_move_limit> move;
+  std::size_t count = 0;
+  void push_back(const ChamferMove& m) { move[count++] = m; }
+  const ChamferMove* begin() const { return move.data(); }
+  const ChamferMove* end() const { return move.data() + count; }
+  std::size_t size() const { return count; }
+  const ChamferMove& operator[](std::size_t m) const { return move[m]; }
+};
+
+ChamferMoves chamfer_moves(const LanePlan& plan, double (&length)[lane_move_limit]) {
+  ChamferMoves moves;
   moves.push_back({lane_move_row, 1, 0});
   for (int k = plan.column_reach; k >= 2; --k) moves.push_back({lane_move_column + k - 2, k, 1});
   for (int k = 1; k <= plan.row_reach; ++k) moves.push_back({lane_move_row + k, 1, k});
@@ -178,9 +189,20 @@ std::vector<ChamferMove> chamfer_moves(const LanePlan& plan, double (&length)[la
 
 }  // namespace
 
+void AlignedScratch::Free::operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
+
+std::uint16_t* AlignedScratch::get(std::size_t values) {
+  if (values > size_ || !data_) {
+    data_.reset(static_cast<std::uint16_t*>(
+        ::operator new[](std::max<std::size_t>(values, 1) * sizeof(std::uint16_t), std::align_val_t(64))));
+    size_ = values;
+  }
+  return data_.get();
+}
+
 void set_lane_ratios(LanePlan& plan, const double (&ratios)[lane_count]) {
   double length[lane_move_limit] = {};
-  const std::vector<ChamferMove> moves = chamfer_moves(plan, length);
+  const ChamferMoves moves = chamfer_moves(plan, length);
   const double scale = plan.scale;
   double slope[lane_count];
   plan.lane_ratio[0] = 0.0f;
@@ -286,7 +308,7 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
 
   // the chamfer scale: the cosine of half the widest angle (in uv) between neighbouring moves
   double length[lane_move_limit] = {};
-  const std::vector<ChamferMove> moves = chamfer_moves(plan, length);
+  const ChamferMoves moves = chamfer_moves(plan, length);
   double scale = 1.0;
   for (std::size_t m = 1; m < moves.size(); ++m) {
     auto angle = [&](const ChamferMove& move) {  // from the v axis
@@ -352,9 +374,6 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   const bool tall = plan.height > plan.width;
   long long works[8] = {};
   tbb::parallel_for(0, jobs, [&](int n) {
-    struct Free {
-      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
-    };
     const int quadrant = octants ? n / 2 : n;
     // quadrant q holds the blockers of sector q: 0 = +u +v, 1 = -u +v, 2 = -u -v, 3 = +u -v
     LaneSweepJob job;
@@ -382,15 +401,14 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
     const int sector = !octants ? quadrant : 2 * quadrant + (next_to_v == (quadrant % 2 == 0) ? 1 : 0);
     job.width = plan.width;
     job.height = plan.height;
-    std::unique_ptr<std::uint16_t[], Free> scratch(static_cast<std::uint16_t*>(
-        ::operator new[](lane_sweep_scratch(job) * sizeof(std::uint16_t), std::align_val_t(64))));
-    std::vector<long long> row_sums(job.height / 2 + 2);
+    LaneScratch& kept = plan.scratch[std::size_t(n)];
+    kept.row_sums.assign(std::size_t(job.height / 2 + 2), 0);
     job.wrap = plan.wrap;
     job.top = plan.top.data();
     job.bottom = plan.bottom.data();
     job.steps = plan.steps;
-    job.scratch = scratch.get();
-    job.row_sums = row_sums.data();
+    job.scratch = kept.rows.get(lane_sweep_scratch(job));
+    job.row_sums = kept.row_sums.data();
     job.masks = masks[sector];
     job.stop_early = options.stop_early;
     switch (level) {
@@ -441,13 +459,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(0, 4, [&](int quadrant) {
-    struct Free {
-      void operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
-    };
-    auto aligned = [](std::size_t values) {
-      return std::unique_ptr<std::uint16_t[], Free>(
-          static_cast<std::uint16_t*>(::operator new[](values * sizeof(std::uint16_t), std::align_val_t(64))));
-    };
+    LaneScratch& kept = cells.scratch[std::size_t(quadrant)];
     LaneSweepJob job;
     job.width = cells.width;
     job.height = cells.height;
@@ -456,16 +468,16 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.row_count = cells.row_reach + 1;
     job.column_first = 2;
     job.column_count = cells.column_reach - 1;
-    const auto scratch = aligned(lane_sweep_scratch(job));
-    const auto bilinear_scratch = aligned(bilinear_sweep_scratch(job.width, width));
-    std::vector<long long> row_sums(job.height / 2 + 2);
+    std::uint16_t* const scratch = kept.rows.get(lane_sweep_scratch(job));
+    std::uint16_t* const bilinear_scratch = kept.bilinear.get(bilinear_sweep_scratch(job.width, width));
+    kept.row_sums.assign(std::size_t(job.height / 2 + 2), 0);
     job.wrap = cells.wrap;
     job.flip_x = quadrant == 1 || quadrant == 2;
     job.flip_y = quadrant >= 2;
     job.top = cells.top.data();
     job.steps = cells.steps;
-    job.scratch = scratch.get();
-    job.row_sums = row_sums.data();
+    job.scratch = scratch;
+    job.row_sums = kept.row_sums.data();
     job.passed = passed[quadrant];
     job.bilinear = true;
     job.texel_width = width;
@@ -476,7 +488,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.cell_offset_y = cells.wrap && job.flip_y ? -1 : 0;
     job.texel_bottom = texel_bottom;
     job.bonus = bonus;
-    job.bilinear_scratch = bilinear_scratch.get();
+    job.bilinear_scratch = bilinear_scratch;
     job.passed3 = passed3[quadrant];
     job.bonus3 = bonus3;
     switch (level) {

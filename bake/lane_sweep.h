@@ -3,7 +3,10 @@
 // lane_sweep.cpp).
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace displace::bake::detail {
@@ -106,6 +109,26 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last);
 // 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run.
 int lane_sweep_best_level();
 
+// 64-byte aligned 16-bit values, kept between calls: grows to the largest size asked for.
+class AlignedScratch {
+ public:
+  std::uint16_t* get(std::size_t values);
+
+ private:
+  struct Free {
+    void operator()(std::uint16_t* p) const;
+  };
+  std::unique_ptr<std::uint16_t[], Free> data_;
+  std::size_t size_ = 0;
+};
+
+// The buffers of one sweep job (a quadrant or octant), kept with its plan so that a plan kept from
+// frame to frame sweeps again without allocating.
+struct LaneScratch {
+  AlignedScratch rows, bilinear;
+  std::vector<long long> row_sums;
+};
+
 // Lane ratios, steps and 16-bit heights for a map; built once per frame, shared by the sweeps.
 struct LanePlan {
   int width = 0, height = 0;
@@ -124,6 +147,9 @@ struct LanePlan {
   float lane_ratio[lane_count + 1];  // [count]: the ratio that count passing lanes prove (0 for none)
   // [count]: when lane `count` failed on a real blocker, the exact ratio is below this (1 for all)
   float lane_upper[lane_count + 1];
+  // job n of a sweep of this plan uses scratch[n] (a sweep's jobs never share one); so two sweeps
+  // of one plan must not run at the same time
+  mutable std::array<LaneScratch, 8> scratch;
 };
 // Geometric lanes to just above 1, from min(lowest_ratio, the smallest ratio the map can have).
 // knights: the moves fitted to the map's aspect (else only (0, 1), (1, 0), (1, 1)); octants: plan
