@@ -13,22 +13,96 @@
 namespace displace::sim {
 namespace {
 
-// Bilinear sample of a periodic size x size grid at (x, y) in texels (texel centres at integers).
-inline float periodic_bilinear(const float* grid, int size, float x, float y) {
+// Texels are resampled in blocks of one row's `block` neighbours, each fixed-point step over the
+// whole block: the steps of one texel depend on each other, those of neighbours do not, so the
+// block's loop vectorises (gathers; one clone per x86-64 level, as in fft_ocean.cpp) where a texel
+// at a time waits on each step's loads. The arithmetic is the scalar bilinear sample's, in the same
+// order, so the heights and the extra channel are the same bit for bit (tests/sim_test.cpp checks
+// them against one); the residual is summed in float.
+constexpr int block = 64;
+
+// Not under ThreadSanitizer: it instruments the clones' resolvers, which the dynamic loader runs
+// before TSan's runtime is up (the program dies at load).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
+#define DISPLACE_CHOPPY_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define DISPLACE_CHOPPY_CLONES
+#endif
+
+// The lattice index of the floor fx (an integer-valued float, |fx| < 2^24) wrapped into [0, size),
+// without a branch or an integer division (so that it vectorises): the float quotient can be one
+// off, which the two selects put right. A non-finite or huge coordinate (not from a real ocean)
+// still reads inside the grid: the last select.
+inline int wrap_index(float fx, int size, float inverse_size) {
+  int i = int(fx - std::floor(fx * inverse_size) * float(size));
+  i += i < 0 ? size : 0;
+  i -= i >= size ? size : 0;
+  return unsigned(i) < unsigned(size) ? i : 0;
+}
+
+// Where a bilinear sample at (x, y) in texels (texel centres at integers) reads in a periodic
+// size x size grid, and with which weights.
+struct Tap {
+  int i00, i01, i10, i11;
+  float tx, ty;
+};
+
+inline Tap tap_at(float x, float y, int size, float inverse_size) {
   const float fx = std::floor(x), fy = std::floor(y);
-  const float tx = x - fx, ty = y - fy;
-  auto wrap = [size](int i) {
-    if (unsigned(i) < unsigned(size)) return i;  // the common case: no division
-    i %= size;
-    return i < 0 ? i + size : i;
-  };
-  const int x0 = wrap(int(fx)), x1 = wrap(int(fx) + 1);
-  const int y0 = wrap(int(fy)), y1 = wrap(int(fy) + 1);
-  const float* row0 = grid + std::size_t(y0) * size;
-  const float* row1 = grid + std::size_t(y1) * size;
-  const float top = row0[x0] + (row0[x1] - row0[x0]) * tx;
-  const float bottom = row1[x0] + (row1[x1] - row1[x0]) * tx;
-  return top + (bottom - top) * ty;
+  const int x0 = wrap_index(fx, size, inverse_size), y0 = wrap_index(fy, size, inverse_size);
+  const int x1 = x0 + 1 == size ? 0 : x0 + 1, y1 = y0 + 1 == size ? 0 : y0 + 1;
+  return {y0 * size + x0, y0 * size + x1, y1 * size + x0, y1 * size + x1, x - fx, y - fy};
+}
+
+inline float sample(const float* grid, const Tap& t) {
+  const float top = grid[t.i00] + (grid[t.i01] - grid[t.i00]) * t.tx;
+  const float bottom = grid[t.i10] + (grid[t.i11] - grid[t.i10]) * t.tx;
+  return top + (bottom - top) * t.ty;
+}
+
+struct BlockJob {
+  int size = 0;
+  float texels_per_metre = 0.0f;
+  int iterations = 0;
+  const float* dx = nullptr;
+  const float* dy = nullptr;
+  const float* height = nullptr;
+  const float* extra = nullptr;  // may be null
+  float* out = nullptr;          // the block's first output texel
+  float* extra_out = nullptr;    // the same in extra_out, when extra is given
+};
+
+// Texels j0 .. j0 + count - 1 of row i; returns the largest squared residual in texels.
+DISPLACE_CHOPPY_CLONES
+float resample_block(const BlockJob& job, int i, int j0, int count) {
+  const int size = job.size;
+  const float inverse_size = 1.0f / float(size);
+  const float scale = job.texels_per_metre;
+  float px[block], py[block];
+  for (int b = 0; b < count; ++b) {
+    px[b] = float(j0 + b);
+    py[b] = float(i);
+  }
+  // p <- x - D(p), in texels, from p = x
+  for (int step = 0; step < job.iterations; ++step) {
+    for (int b = 0; b < count; ++b) {
+      const Tap t = tap_at(px[b], py[b], size, inverse_size);
+      const float next_x = float(j0 + b) - sample(job.dx, t) * scale;
+      const float next_y = float(i) - sample(job.dy, t) * scale;
+      px[b] = next_x;
+      py[b] = next_y;
+    }
+  }
+  float worst = 0.0f;
+  for (int b = 0; b < count; ++b) {
+    const Tap t = tap_at(px[b], py[b], size, inverse_size);
+    const float rx = px[b] + sample(job.dx, t) * scale - float(j0 + b);
+    const float ry = py[b] + sample(job.dy, t) * scale - float(i);
+    worst = std::max(worst, rx * rx + ry * ry);
+    job.out[b] = sample(job.height, t);
+    if (job.extra) job.extra_out[b] = sample(job.extra, t);
+  }
+  return worst;
 }
 
 }  // namespace
@@ -43,32 +117,31 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
       !(extra.empty() || extra.size() == texels)) {
     throw std::invalid_argument("resample_displaced: size x size heights, displacements and output, patch_size > 0");
   }
-  const float texels_per_metre = float(size) / patch_size;
-  const float* dx = displacement_x.data();
-  const float* dy = displacement_y.data();
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(0, size), 0.0,
-      [&](const tbb::blocked_range<int>& rows, double worst) {
+  if (size >= (1 << 24)) throw std::invalid_argument("resample_displaced: size below 2^24");
+  BlockJob job;
+  job.size = size;
+  job.texels_per_metre = float(size) / patch_size;
+  job.iterations = iterations;
+  job.dx = displacement_x.data();
+  job.dy = displacement_y.data();
+  job.height = height.data();
+  job.extra = extra.empty() ? nullptr : extra.data();
+  const float worst_squared = tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, size), 0.0f,
+      [&](const tbb::blocked_range<int>& rows, float worst) {
+        BlockJob mine = job;
         for (int i = rows.begin(); i != rows.end(); ++i) {
-          for (int j = 0; j < size; ++j) {
-            // p <- x - D(p), in texels, from p = x
-            float px = float(j), py = float(i);
-            for (int step = 0; step < iterations; ++step) {
-              const float next_x = float(j) - periodic_bilinear(dx, size, px, py) * texels_per_metre;
-              const float next_y = float(i) - periodic_bilinear(dy, size, px, py) * texels_per_metre;
-              px = next_x;
-              py = next_y;
-            }
-            const float rx = px + periodic_bilinear(dx, size, px, py) * texels_per_metre - float(j);
-            const float ry = py + periodic_bilinear(dy, size, px, py) * texels_per_metre - float(i);
-            worst = std::max(worst, double(std::hypot(rx, ry)) / texels_per_metre);
-            out[std::size_t(i) * size + j] = periodic_bilinear(height.data(), size, px, py);
-            if (!extra.empty()) extra_out[std::size_t(i) * size + j] = periodic_bilinear(extra.data(), size, px, py);
+          for (int j0 = 0; j0 < size; j0 += block) {
+            const std::size_t first = std::size_t(i) * std::size_t(size) + std::size_t(j0);
+            mine.out = out.data() + first;
+            mine.extra_out = extra.empty() ? nullptr : extra_out.data() + first;
+            worst = std::max(worst, resample_block(mine, i, j0, std::min(block, size - j0)));
           }
         }
         return worst;
       },
-      [](double a, double b) { return std::max(a, b); });
+      [](float a, float b) { return std::max(a, b); });
+  return std::sqrt(double(worst_squared)) / job.texels_per_metre;
 }
 
 }  // namespace displace::sim
