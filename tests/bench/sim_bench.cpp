@@ -61,6 +61,28 @@ BENCHMARK(BM_OceanAllOutputs)
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 
+// The choppy ocean back on the grid (the water scene's sim after the FFTs): heights and the foam's
+// Jacobian resampled through 6 fixed-point steps, as the frame pipeline runs it; accuracy = the
+// largest residual |p + D(p) - x| in texels.
+void BM_ChoppyResample(benchmark::State& state) {
+  OceanParams params;
+  params.size = static_cast<int>(state.range(0));
+  params.choppiness = 1.5f;  // the water scene's
+  Ocean ocean(params);
+  OceanFrame frame;
+  ocean.evaluate(1.0, ocean_heights | ocean_displacement | ocean_foam, frame);
+  std::vector<float> heights(frame.height.size()), jacobian(frame.height.size());
+  double residual = 0.0;
+  for (auto _ : state) {
+    residual = resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
+                                  frame.displacement_y, 6, heights, frame.jacobian, jacobian);
+    benchmark::DoNotOptimize(heights.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["residual_texels"] = residual * params.size / params.patch_size;
+}
+BENCHMARK(BM_ChoppyResample)->RangeMultiplier(2)->Range(256, 1024)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
 void BM_SinusoidHeights(benchmark::State& state) {
   const int size = static_cast<int>(state.range(0));
   SinusoidParams params;
