@@ -225,6 +225,8 @@ struct MaxPyramid {
   std::vector<std::vector<float>> levels;
 };
 MaxPyramid build_max_pyramid(HeightView heights);
+// The same into `pyramid`, reusing its buffers (no allocation when the size is the one it had).
+void build_max_pyramid(HeightView heights, MaxPyramid& pyramid);
 
 // Max pyramid of the BILINEAR surface, on the dual grid (Tevs, Ihrke & Seidel, "Maximum Mipmaps for
 // Fast, Accurate, and Scalable Dynamic Height Field Rendering"), for the renderer's maxmip and qdm.

@@ -14,6 +14,9 @@ class BilinearSearch {
  public:
   BilinearSearch(HeightView heights, Address address, int sector_count, int slope_window);
   ~BilinearSearch();
+  // New heights of the same size (they must outlive it): the same as a new search, without
+  // allocating.
+  void update(HeightView heights);
   // Texel (i, j): its apex and its sector ratios, exactly as bake_bilinear_cones stores them.
   // Returns the work done (cells and pyramid nodes examined).
   long long texel(int i, int j, float& apex, float* ratios) const;

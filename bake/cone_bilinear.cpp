@@ -49,6 +49,7 @@
 #include <atomic>
 #include <chrono>
 #include <limits>
+#include <stdexcept>
 
 #include "bake/bilinear_search.h"
 #include "bake/progress.h"
@@ -130,6 +131,7 @@ struct Context {
   detail::Grid grid;
   Axis along_u, along_v;
   int window = 0;                      // slope window radius in cells
+  std::vector<float> cell_max;         // per cell: the pyramid's base
   std::vector<Derivatives> cell_rise;  // per cell (n_u + n_v * cells_u)
   detail::Pyramid pyramid;             // max pyramid over the cells' maxima
   detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
@@ -416,7 +418,8 @@ void prepare(Context& context) {
   context.half_texel_v = 0.5 / heights.height;
   const Axis& U = context.along_u;
   const Axis& V = context.along_v;
-  std::vector<float> cell_max(std::size_t(U.cells) * V.cells);
+  std::vector<float>& cell_max = context.cell_max;
+  cell_max.resize(std::size_t(U.cells) * V.cells);
   context.cell_rise.resize(cell_max.size());
   tbb::parallel_for(tbb::blocked_range<int>(0, V.cells), [&](const tbb::blocked_range<int>& rows) {
     for (int nv = rows.begin(); nv < rows.end(); ++nv)
@@ -427,7 +430,7 @@ void prepare(Context& context) {
         context.cell_rise[n] = patch.derivatives(0.0, 1.0, 0.0, 1.0, heights.width, heights.height);
       }
   });
-  context.pyramid.max = build_max_pyramid({cell_max.data(), U.cells, V.cells});
+  build_max_pyramid({cell_max.data(), U.cells, V.cells}, context.pyramid.max);
   context.pyramid.levels = int(context.pyramid.max.levels.size());
   // open half-planes as boxes of directions strictly on their side, long enough to reach every sector
   // they meet (sector edges lie at multiples of 45 degrees in uv)
@@ -444,6 +447,7 @@ Context make_context(HeightView heights, Address address, int sectors, int windo
                   Axis(heights.width, address),
                   Axis(heights.height, address),
                   window,
+                  {},
                   {},
                   {},
                   {}};
@@ -512,6 +516,14 @@ struct BilinearSearch::Context {
 BilinearSearch::BilinearSearch(HeightView heights, Address address, int sector_count, int slope_window)
     : context_(std::make_unique<Context>(Context{make_context(heights, address, sector_count, slope_window)})) {}
 BilinearSearch::~BilinearSearch() = default;
+
+void BilinearSearch::update(HeightView heights) {
+  bake::Context& context = context_->context;
+  if (heights.width != context.heights.width || heights.height != context.heights.height)
+    throw std::invalid_argument("BilinearSearch::update: heights of another size");
+  context.heights = heights;
+  prepare(context);
+}
 
 long long BilinearSearch::texel(int i, int j, float& apex, float* ratios) const {
   thread_local std::vector<double> best, hull;

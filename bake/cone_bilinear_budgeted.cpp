@@ -107,7 +107,8 @@ struct BilinearBaker::State {
   std::vector<int> queue;  // texels still to search, in order
   std::size_t next = 0;    // queue position
   float tolerance = 0.25f;
-  std::unique_ptr<detail::BilinearSearch> search;  // for the current heights, made on first use
+  std::unique_ptr<detail::BilinearSearch> search;  // made on first use, kept for the next heights
+  bool search_current = false;                     // search is for the current heights
   // stage L scratch, kept between frames
   std::vector<float> cell_max;
   std::vector<std::uint16_t> apex_bottom;
@@ -706,11 +707,14 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
     state.queue.resize(kept);
     if (state.next >= state.queue.size()) return work;
   }
+  const HeightView current{state.heights.data(), state.width, state.height};
   if (!state.search) {
-    state.search = std::make_unique<detail::BilinearSearch>(HeightView{state.heights.data(), state.width, state.height},
-                                                           state.address, state.sector_count,
+    state.search = std::make_unique<detail::BilinearSearch>(current, state.address, state.sector_count,
                                                            BilinearConeSettings{}.slope_window);
+  } else if (!state.search_current) {
+    state.search->update(current);
   }
+  state.search_current = true;
   const int sectors = state.sector_count;
   const std::size_t batch = std::size_t(refine_chunk) * 2;
   const std::size_t first_queued = state.next;
@@ -826,7 +830,7 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   const std::size_t texels = std::size_t(state.width) * state.height;
   state.heights.assign(heights.data, heights.data + texels);
   state.has_frame = true;
-  state.search.reset();
+  state.search_current = false;
   state.tolerance = budget.tolerance;
   long long work = run_stage_l(state);
   state.searched_flag.assign(texels, 0);
@@ -881,7 +885,7 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
     }
   const std::vector<float> old_apex = state.apex;
   state.heights.assign(heights.data, heights.data + texels);
-  state.search.reset();
+  state.search_current = false;
   state.tolerance = budget.tolerance;
   long long work = run_stage_l(state);
   // the raised texels' cells lie within [i0 - 1, i1 + 1] x [j0 - 1, j1 + 1] (texel-centre

@@ -157,6 +157,20 @@ TEST(MaxPyramid, ParentsAreMaximaOfChildrenForOddSizes) {
   EXPECT_EQ(pyramid.levels.back()[0], *std::max_element(map.values.begin(), map.values.end()));
 }
 
+// Built into a kept pyramid (the bakers' frame loop), the pyramid is the fresh one, whatever size the
+// kept one had before.
+TEST(MaxPyramid, RebuiltIntoAKeptPyramidEqualsAFreshOne) {
+  MaxPyramid kept;
+  for (const auto [w, h] : {std::pair{13, 7}, std::pair{33, 20}, std::pair{5, 9}, std::pair{5, 9}}) {
+    const Map map = test::make_fractal_cliff(w, h);
+    build_max_pyramid(view_of(map), kept);
+    const MaxPyramid fresh = build_max_pyramid(view_of(map));
+    EXPECT_EQ(kept.widths, fresh.widths) << w << " x " << h;
+    EXPECT_EQ(kept.heights, fresh.heights) << w << " x " << h;
+    EXPECT_EQ(kept.levels, fresh.levels) << w << " x " << h;
+  }
+}
+
 // The bilinear surface, written here from the convention in bake.h (texel centres at (j + 0.5) / W,
 // wrap or clamp addressing), in double: x = u W - 0.5, y = v H - 0.5.
 double bilinear_at(const Map& map, Address address, double x, double y) {
