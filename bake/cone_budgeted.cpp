@@ -38,6 +38,7 @@
 #include "bake/budget_clock.h"
 #include "bake/lane_sweep.h"
 #include "bake/search.h"
+#include "displace/simd_clones.h"
 
 namespace displace::bake {
 
@@ -263,7 +264,7 @@ void prepare_stage0(BudgetedBaker::State& state) {
 // Stage 0 over texel rows [i0, i1] and columns [j0, j1] (inclusive), a row at a time so that the
 // column loops vectorise. Works with slopes (gap / distance) and divides once per sector, with a
 // margin that covers the rounding of that reciprocal, so the ratios stay below exact bit for bit.
-DISPLACE_BAKE_SIMD_CLONES
+DISPLACE_SIMD_CLONES
 void stage0_rect(BudgetedBaker::State& state, int i0, int i1, int j0, int j1, float* out) {
   const Grid& grid = state.grid;
   const Pyramid& pyramid = state.pyramid;

@@ -14,15 +14,6 @@
 
 #include "bake/bake.h"
 
-// Hot loops that vectorise get one clone per x86-64 level (AVX-512, AVX2, SSE2), picked at load time.
-// Not under ThreadSanitizer: it instruments the clones' resolvers, which the dynamic loader runs
-// before TSan's runtime is up (the program dies at load).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
-#define DISPLACE_BAKE_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define DISPLACE_BAKE_SIMD_CLONES
-#endif
-
 namespace displace::bake::detail {
 
 // uv geometry of a W x H map. Directions are tested on the integer vector (dx * H, dy * W), which

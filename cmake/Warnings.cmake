@@ -26,3 +26,5 @@ endif()
 
 add_library(displace_options INTERFACE)
 target_link_libraries(displace_options INTERFACE displace_warnings displace_sanitizers)
+# the build's own headers (displace/simd_clones.h)
+target_include_directories(displace_options INTERFACE ${PROJECT_SOURCE_DIR}/cmake/include)

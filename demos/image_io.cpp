@@ -467,13 +467,13 @@ LoadedHeights read_heights(std::unique_ptr<oiio::ImageInput> input, const std::f
   return loaded;
 }
 
-}  // namespace
-
 ImageUse height_use(const HeightLoadSettings& settings) {
   ImageUse use = height_map_use;
   use.max_side = std::min(settings.max_side, max_image_side);
   return use;
 }
+
+}  // namespace
 
 LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSettings& settings) {
   return read_heights(open_input(file, height_use(settings)), file, settings);

@@ -8,6 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include "displace/simd_clones.h"
 #include "sim/sim.h"
 
 namespace displace::sim {
@@ -21,13 +22,6 @@ namespace {
 // them against one); the residual is summed in float.
 constexpr int block = 64;
 
-// Not under ThreadSanitizer: it instruments the clones' resolvers, which the dynamic loader runs
-// before TSan's runtime is up (the program dies at load).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
-#define DISPLACE_CHOPPY_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define DISPLACE_CHOPPY_CLONES
-#endif
 
 // The lattice index of the floor fx (an integer-valued float, |fx| < 2^24) wrapped into [0, size),
 // without a branch or an integer division (so that it vectorises): the float quotient can be one
@@ -73,7 +67,7 @@ struct BlockJob {
 };
 
 // Texels j0 .. j0 + count - 1 of row i; returns the largest squared residual in texels.
-DISPLACE_CHOPPY_CLONES
+DISPLACE_SIMD_CLONES
 float resample_block(const BlockJob& job, int i, int j0, int count) {
   const int size = job.size;
   const float inverse_size = 1.0f / float(size);
@@ -117,7 +111,8 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
       !(extra.empty() || extra.size() == texels)) {
     throw std::invalid_argument("resample_displaced: size x size heights, displacements and output, patch_size > 0");
   }
-  if (size >= (1 << 24)) throw std::invalid_argument("resample_displaced: size below 2^24");
+  // the taps index size^2 texels with int (and the coordinates stay exact floats, below 2^24)
+  if (size > 46340) throw std::invalid_argument("resample_displaced: size at most 46340 (size^2 texels indexed with int)");
   BlockJob job;
   job.size = size;
   job.texels_per_metre = float(size) / patch_size;

@@ -31,6 +31,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "displace/simd_clones.h"
 #include "sim/sim.h"
 
 namespace displace::sim {
@@ -227,13 +228,6 @@ struct RowCoefficients {
 };
 
 // One clone per x86-64 level (AVX-512, AVX2, SSE2), picked at load time: the sincos is the cost here.
-// Not under ThreadSanitizer: it instruments the clones' resolvers, which the dynamic loader runs
-// before TSan's runtime is up (the program dies at load).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
-#define DISPLACE_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define DISPLACE_SIMD_CLONES
-#endif
 
 DISPLACE_SIMD_CLONES
 void build_row_fast(const RowCoefficients& row, SplitFloat split_time, int count, float* __restrict out) {

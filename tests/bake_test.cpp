@@ -161,7 +161,7 @@ TEST(MaxPyramid, ParentsAreMaximaOfChildrenForOddSizes) {
 // kept one had before.
 TEST(MaxPyramid, RebuiltIntoAKeptPyramidEqualsAFreshOne) {
   MaxPyramid kept;
-  for (const auto [w, h] : {std::pair{13, 7}, std::pair{33, 20}, std::pair{5, 9}, std::pair{5, 9}}) {
+  for (const auto& [w, h] : {std::pair{13, 7}, std::pair{33, 20}, std::pair{5, 9}, std::pair{5, 9}}) {
     const Map map = test::make_fractal_cliff(w, h);
     build_max_pyramid(view_of(map), kept);
     const MaxPyramid fresh = build_max_pyramid(view_of(map));
@@ -735,7 +735,9 @@ TEST(LaneSweep, ChamferPathsAreNeverLongerThanTheStraightLine) {
     detail::LanePlan plan;
     detail::make_lane_plan(flat.data(), w, h, true, 0.02f, true, true, plan);
     const std::string where = std::to_string(w) + "x" + std::to_string(h);
-    if (std::max(w, h) <= 32 * std::min(w, h)) EXPECT_GT(plan.scale, 0.97) << where;
+    if (std::max(w, h) <= 32 * std::min(w, h)) {
+      EXPECT_GT(plan.scale, 0.97) << where;
+    }
     // octants where one side is a multiple n of the other and the move (1, n) or (n, 1) exists
     const int multiple = w % h == 0 ? w / h : h % w == 0 ? h / w : 0;
     EXPECT_EQ(plan.octant_split, multiple <= detail::lane_reach_limit ? multiple : 0) << where;
@@ -778,9 +780,10 @@ TEST(LaneSweep, ChamferPathsAreNeverLongerThanTheStraightLine) {
           const bool in_set = set == 0 || (set == 1 ? next_to_v : next_to_u);
           ASSERT_EQ(path < std::numeric_limits<double>::infinity(), in_set)
               << where << " move set " << set << " point " << a << "," << b;
-          if (in_set)
+          if (in_set) {
             ASSERT_LE(path, straight * (1.0 + 1e-12))
                 << where << " move set " << set << " point " << a << "," << b;
+          }
         }
     }
   }
@@ -866,11 +869,14 @@ TEST(BudgetedBaker, NonSquareMapsConservativeAtEveryBudget) {
           for (float r : cones.ratios) ASSERT_GT(r, 0.0f) << where;
           if (budget_kind == 2) {
             EXPECT_EQ(stats.texels_fallback, 0) << where;
-            for (std::size_t n = 0; n < cones.ratios.size(); ++n)
+            for (std::size_t n = 0; n < cones.ratios.size(); ++n) {
               ASSERT_GE(cones.ratios[n], (1.0f - budget.tolerance) * exact.ratios[n] * (1.0f - 1e-6f))
                   << where;
+            }
           }
-          if (budget_kind == 3) ASSERT_EQ(cones.ratios, exact.ratios) << where;
+          if (budget_kind == 3) {
+            ASSERT_EQ(cones.ratios, exact.ratios) << where;
+          }
         }
       }
 }
