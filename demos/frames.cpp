@@ -256,30 +256,37 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   long long rss_after_warm_up = -1, rss_max = -1;
   double last_done = 0.0;
   long long seen = 0;
+  auto take = [&](const pipeline::FrameRecord& record) {
+    const double now = seconds_now() * 1e3;
+    if (seen == settings.warm_up) {
+      allocations_after_warm_up = renderer.memory_allocations();
+      rss_after_warm_up = resident_kilobytes();
+    }
+    if (seen >= settings.warm_up) {
+      rss_max = std::max(rss_max, resident_kilobytes());
+      sim.push_back(record.sim_ms);
+      bake.push_back(record.bake_ms);
+      upload.push_back(record.upload_ms);
+      draw.push_back(record.render_ms);
+      frame_ms.push_back(record.frame_ms);
+      if (seen > settings.warm_up) interval.push_back(now - last_done);
+      ffts += record.ffts;
+      effects |= record.effects;
+      within += std::isfinite(scene.frame_ms) ? (now - last_done <= scene.frame_ms) : 1;
+    }
+    last_done = now;
+    ++seen;
+  };
   // colour read back: a frame's render stage then ends when the device has drawn it (with no
   // readback the submission returns at once and the wait shows up in the next upload instead)
-  pipeline.run_frames(0, settings.warm_up + settings.frames, render::output_color,
-                      [&](const pipeline::FrameRecord& record, const render::Frame&) {
-                        const double now = seconds_now() * 1e3;
-                        if (seen == settings.warm_up) {
-                          allocations_after_warm_up = renderer.memory_allocations();
-                          rss_after_warm_up = resident_kilobytes();
-                        }
-                        if (seen >= settings.warm_up) {
-                          rss_max = std::max(rss_max, resident_kilobytes());
-                          sim.push_back(record.sim_ms);
-                          bake.push_back(record.bake_ms);
-                          upload.push_back(record.upload_ms);
-                          draw.push_back(record.render_ms);
-                          frame_ms.push_back(record.frame_ms);
-                          if (seen > settings.warm_up) interval.push_back(now - last_done);
-                          ffts += record.ffts;
-                          effects |= record.effects;
-                          within += std::isfinite(scene.frame_ms) ? (now - last_done <= scene.frame_ms) : 1;
-                        }
-                        last_done = now;
-                        ++seen;
-                      });
+  const long long total = settings.warm_up + settings.frames;
+  if (settings.serial) {
+    render::Frame frame;
+    for (long long index = 0; index < total; ++index) take(pipeline.run(index, frame, render::output_color));
+  } else {
+    pipeline.run_frames(0, total, render::output_color,
+                        [&](const pipeline::FrameRecord& record, const render::Frame&) { take(record); });
+  }
   renderer.wait_idle();
   const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
   const long long rss_end = resident_kilobytes();
@@ -293,12 +300,12 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   const Row rows[] = {{"sim", &sim},       {"bake", &bake},         {"upload", &upload},
                       {"render", &draw},   {"frame", &interval},    {"latency", &frame_ms}};
   out << fmt::format("displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
-                     "budget {}, on {}\n",
+                     "budget {}, {}, on {}\n",
                      scene.name, scene.source == pipeline::SourceKind::image ? "image" : "a",
                      scene.map_size, scene.map_size, scene.camera.width, scene.camera.height,
                      render::method_info(scene.method).name, scene.steps, settings.frames, settings.warm_up,
                      std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
-                     renderer.device().name);
+                     settings.serial ? "stages in series" : "stages overlapped", renderer.device().name);
   out << "  stage     p50 ms   p95 ms   p99 ms\n";
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
   for (const Row& row : rows) {
@@ -308,8 +315,13 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
     stages[row.name] = {{"p50_ms", p50}, {"p95_ms", p95}, {"p99_ms", p99}};
   }
   const double within_budget = double(within) / double(settings.frames);
-  out << fmt::format("  frame = the time between finished frames (stages overlap: the next frame's sim and bake run\n"
-                     "  while this one renders); latency = from a frame's sim to its render's end\n");
+  if (settings.serial) {
+    out << fmt::format("  frame = the time between finished frames (the stages one after another, each with the\n"
+                       "  whole machine); latency = from a frame's sim to its render's end\n");
+  } else {
+    out << fmt::format("  frame = the time between finished frames (stages overlap: the next frame's sim and bake run\n"
+                       "  while this one renders); latency = from a frame's sim to its render's end\n");
+  }
   out << fmt::format("  within budget: {:.1f}% of frames; FFTs per frame: {:.2f}; effects: {}; Vulkan allocations "
                      "after warm-up: {}\n",
                      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
@@ -329,6 +341,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                                    {"effects", effect_names(effects)},
                                    {"vulkan_allocations_after_warmup", allocations},
                                    {"frames_rendered", frames_rendered},
+                                   {"overlapped", !settings.serial},
                                    {"rss_kb",
                                     rss_end < 0 ? nlohmann::ordered_json(nullptr)
                                                 : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},

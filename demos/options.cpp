@@ -1224,6 +1224,8 @@ CommandSettings parse_bench_frame(std::span<const std::string_view> args) {
   add_value(app, "--frames", settings.frames, "frames timed (default 120)", "F", integer_in(1, 1000000));
   add_value(app, "--warm-up", settings.warm_up, "frames run first, not timed (default 5)", "N",
             integer_in(2, 10000));
+  add_switch(app, "--serial", settings.serial,
+             "run the stages one after another, none overlapped: what each costs with the whole machine");
   add_value(app, "--json", json, "also write the table as JSON", "FILE.json", output_file({".json"}));
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);

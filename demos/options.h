@@ -155,6 +155,7 @@ struct BenchFrameSettings {
   pipeline::Scene scene;
   int frames = 120;
   int warm_up = 5;
+  bool serial = false;         // --serial: the stages one after another (FramePipeline::run), none overlapped
   std::filesystem::path json;  // empty: none
   render::RendererOptions renderer;
 };

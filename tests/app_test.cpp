@@ -1793,6 +1793,18 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_GE(rss["max"].get<long long>(), rss["end"].get<long long>());
   EXPECT_GE(rss["max"].get<long long>(), rss["after_warmup"].get<long long>());
   EXPECT_EQ(rss["growth"].get<long long>(), rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
+  EXPECT_EQ(parsed["overlapped"], true);
+  // --serial: the same table from the stages run one after another
+  const RunResult serial = run_displace(
+      dir, "bench-frame --scene water --map-size 32 --size 32x32 --frames 3 --warm-up 2 --serial --json '" + json + "'");
+  ASSERT_EQ(serial.exit_code, 0) << serial.err;
+  EXPECT_NE(serial.out.find("stages in series"), std::string::npos) << serial.out;
+  const nlohmann::json in_series = nlohmann::json::parse(read_text(json));
+  EXPECT_EQ(in_series["overlapped"], false);
+  EXPECT_EQ(in_series["frames_rendered"], 3);
+  EXPECT_EQ(in_series["ffts_per_frame"], 6.0);
+  EXPECT_EQ(in_series["vulkan_allocations_after_warmup"], 0);
+  EXPECT_GT(in_series["stages"]["render"]["p50_ms"].get<double>(), 0.0);
 }
 
 // Flag limits agree with what the code accepts, and usage errors exit 2 with the project's words.
