@@ -1926,6 +1926,49 @@ TEST(BilinearBaker, CheckCatchesStageLRatiosTenPercentTooLarge) {
   EXPECT_GE(caught, tried / 2);
 }
 
+// Stage L's floor from the surface's Lipschitz constant G (the largest rise of s per unit of uv
+// length): s(x) - H_c <= s(x) - s(p) <= G |x - p|, so no ratio is below 1 / G. On a clamped map
+// with a 4-texel ramp from 0.1 to 0.9 across its middle, the texels on the ramp have uphill ratios
+// of exactly 1 / G, and a 0 ms bake reaches 1 / G everywhere - within the floor's rounding - but
+// never passes the full bake; on a sinusoid field every ratio is at least 1 / G of its steepest cell.
+TEST(BilinearBaker, StageLHoldsTheLipschitzFloor) {
+  Budget zero;
+  zero.milliseconds = 0.0;
+  for (const auto& [w, h] : {std::pair{24, 9}, std::pair{9, 24}, std::pair{20, 20}}) {
+    Map ramp = test::make_flat(w, h, 0.1f);
+    const int start = w / 2 - 2;
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j) ramp.at(i, j) = 0.1f + 0.2f * float(std::clamp(j - start, 0, 4));
+    const double rise = 0.2 * double(w);  // per unit of u
+    const BudgetedBilinear b = bake_bilinear_budgeted(ramp, 4, Address::clamp, zero);
+    const std::string where = std::to_string(w) + "x" + std::to_string(h);
+    for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+      ASSERT_GE(b.cones.ratios[v], float(0.9999 / rise)) << where << " value " << v;
+    EXPECT_EQ(check_bilinear(ramp, Address::clamp, b.cones, b.apex).violations, 0) << where;
+    // the bound is tight here: 1% more is pierced (the full bake, itself a lower bound, stays below it)
+    ConeMap raised = b.cones;
+    for (float& r : raised.ratios) r = std::min(1.0f, std::max(r, float(1.01 / rise)));
+    EXPECT_GT(check_bilinear(ramp, Address::clamp, raised, b.apex).violations, 0) << where;
+  }
+  Map waves{"waves", 32, 20, std::vector<float>(32 * 20)};
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j)
+      waves.at(i, j) = float(0.5 + 0.3 * std::sin(0.7 * j + 0.2 * i) * std::cos(0.45 * i));
+  double steepest = 0.0;  // the largest gradient bound of a cell, in uv (wrap)
+  for (int i = 0; i < waves.height; ++i)
+    for (int j = 0; j < waves.width; ++j) {
+      const int i1 = (i + 1) % waves.height, j1 = (j + 1) % waves.width;
+      const double du = std::max(std::abs(double(waves.at(i, j1)) - waves.at(i, j)),
+                                 std::abs(double(waves.at(i1, j1)) - waves.at(i1, j))) * waves.width;
+      const double dv = std::max(std::abs(double(waves.at(i1, j)) - waves.at(i, j)),
+                                 std::abs(double(waves.at(i1, j1)) - waves.at(i, j1))) * waves.height;
+      steepest = std::max(steepest, std::hypot(du, dv));
+    }
+  const BudgetedBilinear b = bake_bilinear_budgeted(waves, 4, Address::wrap, zero);
+  for (float r : b.cones.ratios) ASSERT_GE(r, float(0.9999 / steepest));
+  EXPECT_EQ(check_bilinear(waves, Address::wrap, b.cones, b.apex).violations, 0);
+}
+
 TEST(BilinearBaker, RandomMapsNeverPierced) {
   Budget zero;
   zero.milliseconds = 0.0;
