@@ -112,6 +112,8 @@ struct BilinearBaker::State {
   std::vector<std::uint8_t> searched_flag;
   std::vector<int> queue;  // texels still to search, in order
   std::size_t next = 0;    // queue position
+  std::vector<std::uint8_t> uncertified;  // per texel, from the last emission: not certified, not searched
+  double emitted_sum = 0.0;               // of every ratio emitted (the stats' mean)
   float tolerance = 0.25f;
   std::unique_ptr<detail::BilinearSearch> search;  // made on first use, kept for the next heights
   bool search_current = false;                     // search is for the current heights
@@ -320,33 +322,67 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
 // edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
 // bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
 // file comment), infinity where nothing in the region exceeds H_c.
-void near_row(const SubCells& cells, const float* apex, int width, int height, int i, int q, float* near,
-              float* slope3) {
+// Where a quadrant's 45 sub-cells lie, fixed for a map: per offset its row (Y = 2 i + dy), its
+// parity and index k0 in its planes, and 1 / (its gap to Q_c), in near_row_kernel's group order.
+struct NearPlan {
+  struct Entry {
+    int dy = 0, parity = 0, k0 = 0;
+    int along_u = 1, along_v = 3;  // planes: rise +u (1) or -u (2), +v (3) or -v (4)
+    float inverse_gap = 0.0f;
+  };
+  Entry entries[45];
+  int group_counts[detail::near_groups] = {};
+};
+
+NearPlan make_near_plan(int width, int height, int q) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
-  detail::NearOffset grouped[detail::near_groups][45];
-  detail::NearRowJob job;
+  NearPlan::Entry grouped[detail::near_groups][45];
+  NearPlan plan;
   for (int y = 0; y < 7; ++y)
     for (int x = 0; x < 7; ++x) {
       if (x < 2 && y < 2) continue;
-      // sub-cell lower corner: X = 2 j - 1 + x (+u) or 2 j - x (-u); Y likewise
-      const int Y = sv > 0 ? 2 * i - 1 + y : 2 * i - y;
-      const int parity = su > 0 ? (x + 1) & 1 : x & 1;
-      // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
-      const int k0 = su > 0 ? (x - 1 + near_reach - parity) / 2 : (near_reach - x - parity) / 2;
       const bool box2 = x < 5 && y < 5, touching = x <= 2 && y <= 2;
       const int group = (box2 ? (touching ? 0 : 3) : 6) + (y < 2 ? 0 : x < 2 ? 1 : 2);  // beyond u, v, both
-      detail::NearOffset& offset = grouped[group][job.group_counts[group]++];
-      offset.top = cells.row(0, parity, Y) + k0;
-      offset.along_u = cells.row(su > 0 ? 1 : 2, parity, Y) + k0;
-      offset.along_v = cells.row(sv > 0 ? 3 : 4, parity, Y) + k0;
+      NearPlan::Entry& entry = grouped[group][plan.group_counts[group]++];
+      // sub-cell lower corner: X = 2 j - 1 + x (+u) or 2 j - x (-u); Y likewise
+      entry.dy = sv > 0 ? y - 1 : -y;
+      entry.parity = su > 0 ? (x + 1) & 1 : x & 1;
+      // index of texel 0's sub-cell in its plane (X = 2 k + parity - near_reach)
+      entry.k0 = su > 0 ? (x - 1 + near_reach - entry.parity) / 2 : (near_reach - x - entry.parity) / 2;
+      entry.along_u = su > 0 ? 1 : 2;
+      entry.along_v = sv > 0 ? 3 : 4;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      offset.inverse_gap =
+      entry.inverse_gap =
           touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
     }
-  detail::NearOffset offsets[45];
   int count = 0;
   for (int g = 0; g < detail::near_groups; ++g)
-    for (int n = 0; n < job.group_counts[g]; ++n) offsets[count++] = grouped[g][n];
+    for (int n = 0; n < plan.group_counts[g]; ++n) plan.entries[count++] = grouped[g][n];
+  return plan;
+}
+
+// The near bounds of texel row i, for quadrant q (0: +u +v, 1: -u +v, 2: -u -v, 3: +u -v), into
+// near[j]: the quadrant's L-shaped region beyond Q_c within 2 texels (sub-cells at offsets (x, y) in
+// [0, 5)^2 outside Q_c's own [0, 2)^2, counted from Q_c's first sub-cell towards the quadrant). Where
+// the surface at x exceeds H_c, the segment from y (x's nearest point of Q_c) to x ends inside
+// sub-cells whose maximum exceeds H_c after its last point at height H_c, so s(x) - H_c <= G |x - y|
+// with G = sqrt(rise_u^2 + rise_v^2) over those sub-cells - rise_u only over the ones beyond Q_c's
+// edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
+// bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
+// file comment), infinity where nothing in the region exceeds H_c. The plan is make_near_plan's for q.
+void near_row(const SubCells& cells, const NearPlan& plan, const float* apex, int width, int i, float* near,
+              float* slope3) {
+  detail::NearOffset offsets[45];
+  for (int n = 0; n < 45; ++n) {
+    const NearPlan::Entry& entry = plan.entries[n];
+    const int Y = 2 * i + entry.dy;
+    offsets[n].top = cells.row(0, entry.parity, Y) + entry.k0;
+    offsets[n].along_u = cells.row(entry.along_u, entry.parity, Y) + entry.k0;
+    offsets[n].along_v = cells.row(entry.along_v, entry.parity, Y) + entry.k0;
+    offsets[n].inverse_gap = entry.inverse_gap;
+  }
+  detail::NearRowJob job;
+  std::copy(std::begin(plan.group_counts), std::end(plan.group_counts), job.group_counts);
   job.offsets = offsets;
   job.apex = apex;
   job.width = width;
@@ -505,6 +541,8 @@ long long run_stage_l(State& state) {
   state.lanes.assign(lanes, lanes + stage_l_sweeps * detail::lane_count);
   state.upper_ready = false;
   state.stage_l.resize(texels * 4);
+  const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
+                                   make_near_plan(W, H, 3)};
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
     thread_local std::vector<float> near, slope3, floor;
@@ -518,7 +556,7 @@ long long run_stage_l(State& state) {
       // below the lowest lane: every far cell is at least half a texel away and at most `highest`
       for (int j = 0; j < W; ++j) floor[j] = floor_ratio(state.apex[row + j]);
       for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, state.apex.data() + row, W, H, i, q, near.data(), slope3.data());
+        near_row(sub_cells, near_plans[q], state.apex.data() + row, W, i, near.data(), slope3.data());
         for (int j = 0; j < W; ++j) {
           const std::size_t n = row + j;
           // the larger of the sweeps' passing lanes, as a ratio
@@ -537,15 +575,29 @@ long long run_stage_l(State& state) {
   return work + (long long)texels * 4;
 }
 
-// The emitted ratios of texel t: stage L's quadrants spread to the sectors, and the search's where it ran.
-void emit_texel(const State& state, std::size_t t, float* out) {
-  const int sectors = state.sector_count;
+// The emitted ratios of texel t: stage L's quadrants spread to the sectors, and the search's where it
+// ran; returns their sum.
+template <int sectors>
+float emit_texel_of(const State& state, std::size_t t, float* out) {
   const float* quadrant = state.stage_l.data() + t * 4;
+  const bool searched = state.searched_flag[t] != 0;
+  float sum = 0.0f;
   for (int k = 0; k < sectors; ++k) {
     const float from_l = sectors == 4   ? quadrant[k]
                          : sectors == 8 ? quadrant[k / 2]
                                         : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
-    out[t * sectors + k] = state.searched_flag[t] ? std::max(from_l, state.searched[t * sectors + k]) : from_l;
+    const float value = searched ? std::max(from_l, state.searched[t * sectors + k]) : from_l;
+    out[t * sectors + k] = value;
+    sum += value;
+  }
+  return sum;
+}
+
+float emit_texel(const State& state, std::size_t t, float* out) {
+  switch (state.sector_count) {
+    case 1: return emit_texel_of<1>(state, t, out);
+    case 4: return emit_texel_of<4>(state, t, out);
+    default: return emit_texel_of<8>(state, t, out);
   }
 }
 
@@ -708,12 +760,23 @@ bool certified(const State& state, std::size_t t) {
   }
 }
 
+// The texels to search, in order: neither searched nor certified.
 void make_queue(State& state) {
   state.queue.clear();
   state.next = 0;
   const std::size_t texels = std::size_t(state.width) * state.height;
   for (std::size_t t = 0; t < texels; ++t)
     if (!state.searched_flag[t] && !certified(state, t)) state.queue.push_back(int(t));
+}
+
+// The same from the flags emit_all left (the tolerance and upper bounds unchanged since).
+void make_queue_from_emission(State& state) {
+  state.queue.clear();
+  state.next = 0;
+  const std::size_t texels = std::size_t(state.width) * state.height;
+  const std::uint8_t* flags = state.uncertified.data();
+  for (std::size_t t = 0; t < texels; ++t)
+    if (flags[t]) state.queue.push_back(int(t));
 }
 
 // Searches queued texels while the budget lasts, writing their ratios to out.
@@ -748,20 +811,28 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   double next_report = 1.0 / max_progress_reports;
   while (state.next < state.queue.size() && !clock.exhausted()) {
     const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);
-    const long long batch_work = tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(first, last, refine_chunk), 0ll,
-        [&](const tbb::blocked_range<std::size_t>& range, long long sum) {
+    struct Done {
+      long long work = 0;
+      double raised = 0.0;  // the emitted sum's change
+    };
+    const Done batch_done = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(first, last, refine_chunk), Done{},
+        [&](const tbb::blocked_range<std::size_t>& range, Done done) {
           for (std::size_t n = range.begin(); n < range.end(); ++n) {
             const int t = state.queue[n];
             float apex;
-            sum += state.search->texel(t / state.width, t % state.width, apex,
-                                       state.searched.data() + std::size_t(t) * sectors);
+            done.work += state.search->texel(t / state.width, t % state.width, apex,
+                                             state.searched.data() + std::size_t(t) * sectors);
+            float before = 0.0f;
+            for (int k = 0; k < sectors; ++k) before += out.data[std::size_t(t) * sectors + k];
             state.searched_flag[t] = 1;
-            emit_texel(state, std::size_t(t), out.data);
+            done.raised += double(emit_texel(state, std::size_t(t), out.data)) - double(before);
           }
-          return sum;
+          return done;
         },
-        std::plus<long long>());
+        [](Done a, Done b) { return Done{a.work + b.work, a.raised + b.raised}; });
+    const long long batch_work = batch_done.work;
+    state.emitted_sum += batch_done.raised;
     refined += (long long)(last - first);
     work += batch_work;
     clock.work += batch_work;
@@ -775,7 +846,7 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   return work;
 }
 
-BakeStats finish(const State& state, const Clock& clock, ConeView out, long long work, long long refined) {
+BakeStats finish(const State& state, const Clock& clock, long long work, long long refined) {
   BakeStats stats;
   stats.mode = Mode::bilinear_budgeted;
   stats.width = state.width;
@@ -786,25 +857,36 @@ BakeStats finish(const State& state, const Clock& clock, ConeView out, long long
   stats.work = work;
   stats.milliseconds = clock.elapsed();
   const std::size_t values = std::size_t(state.width) * state.height * state.sector_count;
-  const double sum = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, values, 1 << 15), 0.0,
-      [&](const tbb::blocked_range<std::size_t>& range, double partial) {
-        for (std::size_t n = range.begin(); n < range.end(); ++n) partial += out.data[n];
-        return partial;
-      },
-      std::plus<double>());
-  stats.mean_ratio = values ? sum / double(values) : 0.0;
+  stats.mean_ratio = values ? state.emitted_sum / double(values) : 0.0;
   return stats;
 }
 
-void emit_all(const State& state, ConeView out, std::span<float> apex) {
+// Every texel's ratios and apex to the caller, in one pass that also sums them and flags the texels
+// refinement will want (make_queue_from_emission).
+template <int sectors>
+void emit_all_of(State& state, ConeView out, std::span<float> apex) {
   const std::size_t texels = std::size_t(state.width) * state.height;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t t = range.begin(); t < range.end(); ++t) {
-      emit_texel(state, t, out.data);
-      apex[t] = state.apex[t];
-    }
-  });
+  state.uncertified.resize(texels);
+  state.emitted_sum = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, texels, 4096), 0.0,
+      [&](const tbb::blocked_range<std::size_t>& range, double partial) {
+        float sum = 0.0f;
+        for (std::size_t t = range.begin(); t < range.end(); ++t) {
+          sum += emit_texel_of<sectors>(state, t, out.data);
+          apex[t] = state.apex[t];
+          state.uncertified[t] = !state.searched_flag[t] && !certified(state, t);
+        }
+        return partial + double(sum);
+      },
+      std::plus<double>());
+}
+
+void emit_all(State& state, ConeView out, std::span<float> apex) {
+  switch (state.sector_count) {
+    case 1: emit_all_of<1>(state, out, apex); break;
+    case 4: emit_all_of<4>(state, out, apex); break;
+    default: emit_all_of<8>(state, out, apex); break;
+  }
 }
 
 }  // namespace
@@ -863,10 +945,10 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   state.searched_flag.assign(texels, 0);
   state.searched.resize(texels * state.sector_count);
   emit_all(state, out, apex);
-  make_queue(state);
+  make_queue_from_emission(state);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
-  return finish(state, clock, out, work, refined);
+  return finish(state, clock, work, refined);
 }
 
 BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
@@ -948,10 +1030,10 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
     }
   });
   emit_all(state, out, apex);
-  make_queue(state);
+  make_queue_from_emission(state);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
-  return finish(state, clock, out, work, refined);
+  return finish(state, clock, work, refined);
 }
 
 BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<float> apex) {
@@ -966,7 +1048,7 @@ BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<fl
   }
   long long refined = 0;
   const long long work = run_refinement(state, clock, out, refined, budget.progress);
-  return finish(state, clock, out, work, refined);
+  return finish(state, clock, work, refined);
 }
 
 long long BilinearBaker::pending() const {

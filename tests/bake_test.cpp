@@ -2104,10 +2104,12 @@ TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
     some.tolerance = 0.0f;
     long long previous = first;
     for (int call = 0; call < 1000 && baker.pending() > 0; ++call) {
-      baker.refine(some, cones.view(), apex);
+      const BakeStats stats = baker.refine(some, cones.view(), apex);
       EXPECT_LT(baker.pending(), previous);
       previous = baker.pending();
       ASSERT_EQ(check_bilinear(map, address, cones, apex, 5).violations, 0);
+      // the stats' mean follows the ratios as refinement raises them
+      EXPECT_NEAR(stats.mean_ratio, mean_ratio(cones), 1e-6);
     }
     EXPECT_EQ(baker.pending(), 0);
     const BilinearCones full = bake_bilinear(map, 4, address);
