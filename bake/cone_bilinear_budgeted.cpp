@@ -64,6 +64,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -129,6 +130,7 @@ struct BilinearBaker::State {
   std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
   std::vector<double> lanes;  // stage L's lane ratios (stage_l_sweeps x 32)
+  std::vector<int> column_before, column_after;  // stage L: each column's neighbours, wrapped or clamped
 };
 
 namespace {
@@ -420,7 +422,10 @@ long long run_stage_l(State& state) {
   state.apex.resize(texels);
   state.apex_bottom.resize(texels);
   // the neighbouring columns of every column (wrapped or clamped)
-  std::vector<int> before(W), after(W);
+  std::vector<int>& before = state.column_before;
+  std::vector<int>& after = state.column_after;
+  before.resize(W);
+  after.resize(W);
   for (int j = 0; j < W; ++j) {
     before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
     after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
@@ -659,8 +664,8 @@ void make_witness_rows(const State& state, int first_row, int last_row, WitnessR
 
 long long witness_upper(State& state) {
   const int W = state.width, H = state.height;
-  const int side = witness_reach + 2;  // offsets -1 .. witness_reach per axis
-  std::vector<float> inverse_gap(std::size_t(side) * side, 0.0f);
+  constexpr int side = witness_reach + 2;  // offsets -1 .. witness_reach per axis
+  std::array<float, std::size_t(side) * side> inverse_gap{};
   for (int dy = -1; dy <= witness_reach; ++dy)
     for (int dx = -1; dx <= witness_reach; ++dx) {
       if (dx <= 1 && dy <= 1) continue;  // in Q_c: no higher than H_c
