@@ -17,7 +17,11 @@
 namespace displace::pipeline {
 namespace {
 
-constexpr int choppy_iterations = 6;  // fixed-point steps of resample_displaced (residual ~1e-4 texel on the ocean)
+// resample_displaced's fixed-point steps: at most 8, a block of texels stopping once none moves by
+// more than 0.003 texel in a step. On the water scene's ocean (choppiness 1.5) that leaves a largest
+// residual of 0.001 / 0.002 texel at 256 / 512 (six fixed steps: 0.004 / 0.012) in 10-20% less time.
+constexpr int choppy_iterations = 8;
+constexpr float choppy_settle = 0.003f;  // texels
 
 double steady_milliseconds() {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -201,7 +205,7 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
       record.choppy_residual = sim::resample_displaced(
           n, s.ocean->patch_size(), b.ocean_frame.height, b.ocean_frame.displacement_x, b.ocean_frame.displacement_y,
           choppy_iterations, b.raw, foam ? std::span<const float>(b.ocean_frame.jacobian) : std::span<const float>{},
-          foam ? std::span<float>(b.jacobian) : std::span<float>{});
+          foam ? std::span<float>(b.jacobian) : std::span<float>{}, choppy_settle);
       sim::apply_mapping(s.mapping, b.raw, b.field.heights);
     } else {
       if (foam) b.jacobian = b.ocean_frame.jacobian;

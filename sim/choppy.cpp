@@ -58,6 +58,7 @@ struct BlockJob {
   int size = 0;
   float texels_per_metre = 0.0f;
   int iterations = 0;
+  float settle = 0.0f;  // texels: a block stops once no texel moved more than this in a step (0: never)
   const float* dx = nullptr;
   const float* dy = nullptr;
   const float* height = nullptr;
@@ -79,13 +80,16 @@ float resample_block(const BlockJob& job, int i, int j0, int count) {
   }
   // p <- x - D(p), in texels, from p = x
   for (int step = 0; step < job.iterations; ++step) {
+    float moved = 0.0f;
     for (int b = 0; b < count; ++b) {
       const Tap t = tap_at(px[b], py[b], size, inverse_size);
       const float next_x = float(j0 + b) - sample(job.dx, t) * scale;
       const float next_y = float(i) - sample(job.dy, t) * scale;
+      moved = std::max(moved, std::max(std::abs(next_x - px[b]), std::abs(next_y - py[b])));
       px[b] = next_x;
       py[b] = next_y;
     }
+    if (moved <= job.settle) break;
   }
   float worst = 0.0f;
   for (int b = 0; b < count; ++b) {
@@ -104,12 +108,13 @@ float resample_block(const BlockJob& job, int i, int j0, int count) {
 double resample_displaced(int size, float patch_size, std::span<const float> height,
                           std::span<const float> displacement_x, std::span<const float> displacement_y,
                           int iterations, std::span<float> out, std::span<const float> extra,
-                          std::span<float> extra_out) {
+                          std::span<float> extra_out, float settle) {
   const std::size_t texels = std::size_t(size) * std::size_t(size);
   if (size < 2 || !(patch_size > 0.0f) || height.size() != texels || displacement_x.size() != texels ||
       displacement_y.size() != texels || out.size() != texels || iterations < 0 || extra.size() != extra_out.size() ||
-      !(extra.empty() || extra.size() == texels)) {
-    throw std::invalid_argument("resample_displaced: size x size heights, displacements and output, patch_size > 0");
+      !(extra.empty() || extra.size() == texels) || !(settle >= 0.0f)) {
+    throw std::invalid_argument(
+        "resample_displaced: size x size heights, displacements and output, patch_size > 0, settle >= 0");
   }
   // the taps index size^2 texels with int (and the coordinates stay exact floats, below 2^24)
   if (size > 46340) throw std::invalid_argument("resample_displaced: size at most 46340 (size^2 texels indexed with int)");
@@ -117,6 +122,7 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
   job.size = size;
   job.texels_per_metre = float(size) / patch_size;
   job.iterations = iterations;
+  job.settle = settle;
   job.dx = displacement_x.data();
   job.dy = displacement_y.data();
   job.height = height.data();

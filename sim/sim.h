@@ -157,12 +157,15 @@ void cliff_heights(int width, int height, std::uint64_t seed, std::span<float> o
 // needs the height above each grid position x instead: h(p) for the p with p + D(p) = x. Found per
 // texel centre by the fixed-point iteration p <- x - D(p) (D bilinear, periodic), which contracts
 // while the displacement's gradient stays below 1 (the Jacobian positive: no folded crest; where
-// it folds, the iteration's last p is used). `iterations` steps; the result stays periodic.
-// Returns the largest residual |p + D(p) - x| in metres after the last step. `extra` (optional, e.g.
-// the Jacobian for foam) is resampled through the same p into `extra_out`.
+// it folds, the iteration's last p is used). At most `iterations` steps; with `settle` > 0 (texels) a
+// block of neighbouring texels stops once no texel of it moved by more than `settle` along either
+// axis in a step (the iteration contracts, so it is then within about that of its limit: calm water
+// settles in 2-3 steps, steep crests take more); 0 runs every step. Deterministic either way; the
+// result stays periodic. Returns the largest residual |p + D(p) - x| in metres after the last step.
+// `extra` (optional, e.g. the Jacobian for foam) is resampled through the same p into `extra_out`.
 double resample_displaced(int size, float patch_size, std::span<const float> height,
                           std::span<const float> displacement_x, std::span<const float> displacement_y,
                           int iterations, std::span<float> out, std::span<const float> extra = {},
-                          std::span<float> extra_out = {});
+                          std::span<float> extra_out = {}, float settle = 0.0f);
 
 }  // namespace displace::sim

@@ -667,4 +667,45 @@ TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
   }
 }
 
+// Settling: a block of texels stops once no texel moved by more than `settle` texels in a step. On
+// the water scene's ocean the residual is then within the settle and the heights within 1e-4 of the
+// converged ones (the range's); a settle of 0 runs every step; bad settle values are refused.
+TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
+  for (const int n : {64, 160}) {
+    OceanParams params;
+    params.size = n;
+    params.choppiness = 1.5f;
+    Ocean ocean(params);
+    OceanFrame frame;
+    ocean.evaluate(1.0, ocean_heights | ocean_displacement | ocean_foam, frame);
+    const std::size_t texels = frame.height.size();
+    std::vector<float> converged(texels), settled(texels), fixed(texels), extra(texels), settled_extra(texels);
+    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 40, converged,
+                       frame.jacobian, extra);
+    const double six = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
+                                          frame.displacement_y, 6, fixed, frame.jacobian, extra);
+    const double residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
+                                               frame.displacement_y, 8, settled, frame.jacobian, settled_extra, 0.003f);
+    EXPECT_LT(residual * n / params.patch_size, 0.003) << n;  // texels: within the settle
+    std::vector<float> eight(texels);
+    const double eight_residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
+                                                     frame.displacement_y, 8, eight, frame.jacobian, extra);
+    EXPECT_GT(residual, eight_residual) << n;  // some block stopped before its eighth step
+    const auto [low, high] = std::minmax_element(converged.begin(), converged.end());
+    const double range = double(*high) - double(*low);
+    double worst = 0.0;
+    for (std::size_t t = 0; t < texels; ++t) worst = std::max(worst, std::abs(double(settled[t]) - converged[t]));
+    EXPECT_LT(worst, 1e-4 * range) << n;
+    // a settle of 0 runs every step
+    const double all = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
+                                          frame.displacement_y, 6, settled, frame.jacobian, settled_extra, 0.0f);
+    EXPECT_EQ(all, six);
+    EXPECT_EQ(settled, fixed);
+  }
+  std::vector<float> grid(16, 0.0f), out(16);
+  for (const float bad : {-1.0f, std::numeric_limits<float>::quiet_NaN()}) {
+    EXPECT_THROW(resample_displaced(4, 1.0f, grid, grid, grid, 4, out, {}, {}, bad), std::invalid_argument);
+  }
+}
+
 }  // namespace displace::sim

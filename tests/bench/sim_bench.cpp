@@ -62,9 +62,9 @@ BENCHMARK(BM_OceanAllOutputs)
     ->UseRealTime();
 
 // The choppy ocean back on the grid (the water scene's sim after the FFTs): heights and the foam's
-// Jacobian resampled through 6 fixed-point steps, as the frame pipeline runs it; accuracy = the
-// largest residual |p + D(p) - x| in texels.
-void BM_ChoppyResample(benchmark::State& state) {
+// Jacobian resampled through the fixed-point steps; accuracy = the largest residual |p + D(p) - x|
+// in texels.
+void run_choppy_resample(benchmark::State& state, int iterations, float settle) {
   OceanParams params;
   params.size = static_cast<int>(state.range(0));
   params.choppiness = 1.5f;  // the water scene's
@@ -75,13 +75,17 @@ void BM_ChoppyResample(benchmark::State& state) {
   double residual = 0.0;
   for (auto _ : state) {
     residual = resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
-                                  frame.displacement_y, 6, heights, frame.jacobian, jacobian);
+                                  frame.displacement_y, iterations, heights, frame.jacobian, jacobian, settle);
     benchmark::DoNotOptimize(heights.data());
     benchmark::ClobberMemory();
   }
   state.counters["residual_texels"] = residual * params.size / params.patch_size;
 }
+// six fixed steps (the frame pipeline's before), and the pipeline's: up to 8, settling at 0.003 texel
+void BM_ChoppyResample(benchmark::State& state) { run_choppy_resample(state, 6, 0.0f); }
+void BM_ChoppySettled(benchmark::State& state) { run_choppy_resample(state, 8, 0.003f); }
 BENCHMARK(BM_ChoppyResample)->RangeMultiplier(2)->Range(256, 1024)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_ChoppySettled)->RangeMultiplier(2)->Range(256, 1024)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 void BM_SinusoidHeights(benchmark::State& state) {
   const int size = static_cast<int>(state.range(0));
