@@ -2,6 +2,7 @@
 // (Tessendorf, "Simulating Ocean Water", sec. 4.6 displaces the grid; a height field wants the
 // inverse map). sim.h has the contract.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 
@@ -16,19 +17,33 @@ namespace {
 
 // Texels are resampled in blocks of one row's `block` neighbours, each fixed-point step over the
 // whole block: the steps of one texel depend on each other, those of neighbours do not, so the
-// block's loop vectorises (gathers; one clone per x86-64 level, as in fft_ocean.cpp) where a texel
-// at a time waits on each step's loads. The arithmetic is the scalar bilinear sample's, in the same
+// block's loop vectorises (one clone per x86-64 level, as in fft_ocean.cpp; the loads per lane,
+// which GCC's tuning prefers to gathers here) where a texel at a time waits on each step's loads.
+// GCC vectorises these loops only as written: floors by truncation, reductions of non-negative
+// floats as their bits, samples stored to a local array, and no trapping math (sim/CMakeLists.txt);
+// one thing missing and the loop stays scalar (-fopt-info-vec shows it). The arithmetic is the scalar bilinear sample's, in the same
 // order, so the heights and the extra channel are the same bit for bit (tests/sim_test.cpp checks
 // them against one); the residual is summed in float.
 constexpr int block = 64;
 
 
+// floor(x) for |x| < 2^30 through a truncating conversion, exact there as std::floor. GCC vectorises
+// neither std::floor nor a select between float expressions while trapping math is on (the default):
+// only selects between values, and arithmetic done either way.
+inline float floor_of(float x) {
+  const float t = float(int(x));
+  return t - float(t > x);
+}
+
+// Coordinates clamped to +-2^24 texels (NaN to the upper end: no real ocean moves a texel that
+// far), so that every conversion below stays defined; selects between values only.
+inline float tame(float x) { return std::max(-16777216.0f, std::min(16777216.0f, x)); }
+
 // The lattice index of the floor fx (an integer-valued float, |fx| < 2^24) wrapped into [0, size),
 // without a branch or an integer division (so that it vectorises): the float quotient can be one
-// off, which the two selects put right. A non-finite or huge coordinate (not from a real ocean)
-// still reads inside the grid: the last select.
+// off, which the two selects put right. The last select keeps any index inside the grid.
 inline int wrap_index(float fx, int size, float inverse_size) {
-  int i = int(fx - std::floor(fx * inverse_size) * float(size));
+  int i = int(fx - floor_of(fx * inverse_size) * float(size));
   i += i < 0 ? size : 0;
   i -= i >= size ? size : 0;
   return unsigned(i) < unsigned(size) ? i : 0;
@@ -42,7 +57,9 @@ struct Tap {
 };
 
 inline Tap tap_at(float x, float y, int size, float inverse_size) {
-  const float fx = std::floor(x), fy = std::floor(y);
+  x = tame(x);
+  y = tame(y);
+  const float fx = floor_of(x), fy = floor_of(y);
   const int x0 = wrap_index(fx, size, inverse_size), y0 = wrap_index(fy, size, inverse_size);
   const int x1 = x0 + 1 == size ? 0 : x0 + 1, y1 = y0 + 1 == size ? 0 : y0 + 1;
   return {y0 * size + x0, y0 * size + x1, y1 * size + x0, y1 * size + x1, x - fx, y - fy};
@@ -80,27 +97,34 @@ float resample_block(const BlockJob& job, int i, int j0, int count) {
   }
   // p <- x - D(p), in texels, from p = x
   for (int step = 0; step < job.iterations; ++step) {
-    float moved = 0.0f;
+    int moved = 0;  // the bits of the largest move: non-negative floats order as their bits do
     for (int b = 0; b < count; ++b) {
       const Tap t = tap_at(px[b], py[b], size, inverse_size);
       const float next_x = float(j0 + b) - sample(job.dx, t) * scale;
       const float next_y = float(i) - sample(job.dy, t) * scale;
-      moved = std::max(moved, std::max(std::abs(next_x - px[b]), std::abs(next_y - py[b])));
+      moved = std::max(moved, std::bit_cast<int>(std::max(std::abs(next_x - px[b]), std::abs(next_y - py[b]))));
       px[b] = next_x;
       py[b] = next_y;
     }
-    if (moved <= job.settle) break;
+    if (std::bit_cast<float>(moved) <= job.settle) break;
   }
-  float worst = 0.0f;
+  // the samples go to a local array first: a store through `out` could alias the gathered loads
+  // as far as the compiler knows, and the loops would not vectorise
+  float sampled[block];
+  int worst = 0;  // bits, as `moved`
   for (int b = 0; b < count; ++b) {
     const Tap t = tap_at(px[b], py[b], size, inverse_size);
     const float rx = px[b] + sample(job.dx, t) * scale - float(j0 + b);
     const float ry = py[b] + sample(job.dy, t) * scale - float(i);
-    worst = std::max(worst, rx * rx + ry * ry);
-    job.out[b] = sample(job.height, t);
-    if (job.extra) job.extra_out[b] = sample(job.extra, t);
+    worst = std::max(worst, std::bit_cast<int>(rx * rx + ry * ry));
+    sampled[b] = sample(job.height, t);
   }
-  return worst;
+  std::copy_n(sampled, count, job.out);
+  if (job.extra) {
+    for (int b = 0; b < count; ++b) sampled[b] = sample(job.extra, tap_at(px[b], py[b], size, inverse_size));
+    std::copy_n(sampled, count, job.extra_out);
+  }
+  return std::bit_cast<float>(worst);
 }
 
 }  // namespace
