@@ -633,6 +633,16 @@ double scalar_resample(int size, float patch_size, const std::vector<float>& hei
   return worst;
 }
 
+// The water scene's choppy ocean (choppiness 1.5) at `time`: heights, displacements and Jacobian.
+OceanFrame choppy_frame(int size, double time, OceanParams& params) {
+  params.size = size;
+  params.choppiness = 1.5f;
+  Ocean ocean(params);
+  OceanFrame frame;
+  ocean.evaluate(time, ocean_heights | ocean_displacement | ocean_foam, frame);
+  return frame;
+}
+
 }  // namespace
 
 // On the choppy ocean (a size that is not a multiple of the 64-texel block) and on displacements
@@ -640,11 +650,7 @@ double scalar_resample(int size, float patch_size, const std::vector<float>& hei
 TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
   for (const int n : {2, 96}) {
     OceanParams params;
-    params.size = n;
-    params.choppiness = 1.5f;
-    Ocean ocean(params);
-    OceanFrame frame;
-    ocean.evaluate(2.5, ocean_heights | ocean_displacement | ocean_foam, frame);
+    const OceanFrame frame = choppy_frame(n, 2.5, params);
     std::vector<std::vector<float>> dxs = {frame.displacement_x}, dys = {frame.displacement_y};
     // far: shifts of up to about 7 periods, either sign
     std::vector<float> far_x(frame.displacement_x.size()), far_y(far_x.size());
@@ -673,11 +679,7 @@ TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
 TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
   for (const int n : {64, 160}) {
     OceanParams params;
-    params.size = n;
-    params.choppiness = 1.5f;
-    Ocean ocean(params);
-    OceanFrame frame;
-    ocean.evaluate(1.0, ocean_heights | ocean_displacement | ocean_foam, frame);
+    const OceanFrame frame = choppy_frame(n, 1.0, params);
     const std::size_t texels = frame.height.size();
     std::vector<float> converged(texels), settled(texels), fixed(texels), extra(texels), settled_extra(texels);
     resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 40, converged,
