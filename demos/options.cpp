@@ -1155,7 +1155,8 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
 constexpr const char* play_keys = R"(Keys:
   M / Shift+M      next / previous method (those the scene's surface supports)
   Up / Down        search steps x2 / /2
-  Right / Left     frame budget up / down (unlimited, 100 .. 1 ms, 0: the bake's share is what is left)
+  Right / Left     frame budget up / down (unlimited, 100 .. 1 ms, 0: the bake's share is what is left);
+                   a scene without a budget starts at 33 ms (with --frames: the scene's, deterministic)
   Space            pause / resume
   N                one frame forward (while paused)
   S                screenshot: play_NNNNNN.png (the frame index) in the working directory

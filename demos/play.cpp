@@ -41,6 +41,7 @@ constexpr long long warm_up_frames = render::frames_in_flight + 1;
 // the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
 constexpr std::array<double, 10> budget_levels = {
     0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
+static_assert(std::find(budget_levels.begin(), budget_levels.end(), interactive_budget_ms) != budget_levels.end());
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -267,6 +268,13 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
       throw usage_error("--map-size must be even for the ocean");
     }
     scene.map_size = settings.map_size;
+  }
+  // Interactive play is real time: a scene that sets neither a frame budget nor a work limit (every
+  // built-in one) starts at interactive_budget_ms a frame, not at an unlimited bake (a 256 x 256
+  // ocean's unlimited bake is about 0.33 s, three frames a second). With --frames the scene's
+  // budget stays, so that the frames are the deterministic ones `displace sequence` renders.
+  if (settings.frames <= 0 && !std::isfinite(scene.frame_ms) && scene.bake_work < 0) {
+    scene.frame_ms = interactive_budget_ms;
   }
   return scene;
 }

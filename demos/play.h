@@ -13,7 +13,12 @@
 
 namespace displace::app {
 
-// The scene play animates: the built-in or the file's, with --size and --map-size applied. Throws
+// The frame budget interactive play starts at when the scene sets none (ms; one of the levels the
+// Right / Left keys step through).
+inline constexpr double interactive_budget_ms = 33.0;
+
+// The scene play animates: the built-in or the file's, with --size and --map-size applied, and
+// without --frames a scene with no frame budget and no work limit at interactive_budget_ms. Throws
 // pipeline::SceneError (a bad file) or AppError (an unknown name).
 pipeline::Scene play_scene(const PlaySettings& settings);
 

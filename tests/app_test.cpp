@@ -27,6 +27,7 @@
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
 #include "demos/options.h"
+#include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
@@ -745,6 +746,27 @@ TEST(Options, ParsesTheRenderBakeBudget) {
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                       "--method", "acm8", "--output", "f.png"}));
   EXPECT_TRUE(std::isinf(unlimited.bake_budget_milliseconds));
+}
+
+// Interactive play starts a scene that sets no budget at a real-time frame budget (an unlimited bake
+// is a third of a second a frame at 256); --frames keeps the scene's budget (deterministic frames,
+// as `displace sequence` renders them), and so does a scene that sets a frame budget or a work limit.
+TEST(Options, PlayStartsAtARealTimeBudgetUnlessTheSceneSetsOne) {
+  PlaySettings interactive;
+  EXPECT_EQ(play_scene(interactive).frame_ms, interactive_budget_ms);
+  PlaySettings fixed;
+  fixed.frames = 3;
+  EXPECT_TRUE(std::isinf(play_scene(fixed).frame_ms));
+  const TempDir dir;
+  const std::vector<std::pair<std::string, double>> files = {
+      {"[budget]\nframe_ms = 10\n", 10.0}, {"[budget]\nbake_work = 500\n", std::numeric_limits<double>::infinity()}};
+  for (const auto& [text, expected] : files) {
+    const fs::path file = dir / "scene.toml";
+    std::ofstream(file) << "[source]\nkind = \"sinusoids\"\n" << text;
+    PlaySettings from_file;
+    from_file.scene = file.string();
+    EXPECT_EQ(play_scene(from_file).frame_ms, expected) << text;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
