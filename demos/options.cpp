@@ -1134,13 +1134,21 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   reject_extras(app);
   settings.scene = finish_pipeline_scene(app, scene);
   settings.preview = preview;
-  if (!settings.preview.empty() && settings.shard_count > 1) {
-    throw usage_error("--preview shows one run's frames: not with --shard");
-  }
   long long step = 1;
   std::sscanf(frames.c_str(), "%lld:%lld:%lld", &settings.first, &settings.last, &step);
   settings.step = step;
   if (!shard.empty()) std::sscanf(shard.c_str(), "%d/%d", &settings.shard_index, &settings.shard_count);
+  if (!settings.preview.empty() && settings.shard_count > 1) {
+    throw usage_error("--preview shows one run's frames: not with --shard");
+  }
+  // shards and resumed runs give one run's files only when a frame depends on its index alone
+  if (std::isfinite(settings.scene.frame_ms) && (settings.shard_count > 1 || settings.resume)) {
+    throw usage_error(fmt::format(
+        "--shard and --resume need frames that depend on their index only, and a wall-clock frame budget "
+        "({:g} ms, from --budget-ms or the scene's [budget] frame_ms) makes them depend on timing: give a work "
+        "budget instead (--bake-work N)",
+        settings.scene.frame_ms));
+  }
   settings.output = output;
   settings.aovs = aov_outputs(aovs);
   settings.video = video;

@@ -664,13 +664,16 @@ TEST(Options, ParsesABakeCommandIntoTypedSettings) {
 }
 
 TEST(Options, RejectsWhatDoesNotApply) {
-  const auto usage = [](std::initializer_list<std::string_view> args) {
+  const auto usage_of = [](std::span<const std::string_view> args) {
     try {
-      parse(args);
+      parse_command_line(args);
     } catch (const AppError& error) {
       return error.kind == ErrorKind::usage;
     }
     return false;
+  };
+  const auto usage = [&](std::initializer_list<std::string_view> args) {
+    return usage_of(std::span<const std::string_view>(args.begin(), args.size()));
   };
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact"}));  // no output
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--map-size", "4", "--sectors", "4", "--mode", "exact",
@@ -693,6 +696,16 @@ TEST(Options, RejectsWhatDoesNotApply) {
                        "--output", "c.exr"}));
   }
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "full", "--output", "c.exr"}));
+  // shards and resumed runs need deterministic frames: no wall-clock budget; one run's preview
+  for (const char* flag : {"--shard", "--resume"}) {
+    std::vector<std::string_view> args = {"sequence", "--frames", "0:3", "--output", "f_#.png", "--budget-ms", "33",
+                                          flag};
+    if (std::string_view(flag) == "--shard") args.push_back("1/2");
+    EXPECT_TRUE(usage_of(args)) << flag;
+    args.erase(args.begin() + 5, args.begin() + 7);  // the same without the budget
+    EXPECT_FALSE(usage_of(args)) << flag;
+  }
+  EXPECT_TRUE(usage({"sequence", "--frames", "0:3", "--output", "f_#.png", "--shard", "1/2", "--preview", "p.gif"}));
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
                      "--budget-ms", "0", "--output", "c.exr"}));
 }
