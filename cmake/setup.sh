@@ -2,8 +2,8 @@
 # One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
-#   bash cmake/setup.sh test    # everything CI runs: suite, then sanitize, then fuzz (about 45 minutes)
-#   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 3 minutes)
+#   bash cmake/setup.sh test    # everything CI runs: suite, then sanitize, then fuzz (15-30 minutes)
+#   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 2 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
 #   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ, command-line and height-image readers (clang, build-fuzz/)
 #   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
