@@ -19,11 +19,11 @@ namespace {
 // whole block: the steps of one texel depend on each other, those of neighbours do not, so the
 // block's loop vectorises (one clone per x86-64 level, as in fft_ocean.cpp; the loads per lane,
 // which GCC's tuning prefers to gathers here) where a texel at a time waits on each step's loads.
-// GCC vectorises these loops only as written: floors by truncation, reductions of non-negative
-// floats as their bits, samples stored to a local array, and no trapping math (sim/CMakeLists.txt);
-// one thing missing and the loop stays scalar (-fopt-info-vec shows it). The arithmetic is the scalar bilinear sample's, in the same
-// order, so the heights and the extra channel are the same bit for bit (tests/sim_test.cpp checks
-// them against one); the residual is summed in float.
+// GCC vectorises these loops only as written: floors by truncation, maxima of non-negative floats
+// taken on their bits, samples stored to a local array, and no trapping math (sim/CMakeLists.txt);
+// one thing missing and the loop stays scalar (-fopt-info-vec shows it). The arithmetic is the
+// scalar bilinear sample's, in the same order, so the heights and the extra channel are the same
+// bit for bit (tests/sim_test.cpp checks them against one); the residual is the largest in float.
 constexpr int block = 64;
 
 
