@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "demos/memory.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/thread_pinning.h"
 
 namespace displace::app {
 namespace {
@@ -280,6 +282,9 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   // colour read back: a frame's render stage then ends when the device has drawn it (with no
   // readback the submission returns at once and the wait shows up in the next upload instead)
   const long long total = settings.warm_up + settings.frames;
+  // after the renderer: its rasterizer threads exist now
+  std::optional<pipeline::ThreadPinning> pinning;
+  if (settings.pin_threads) pinning.emplace();
   if (settings.serial) {
     render::Frame frame;
     for (long long index = 0; index < total; ++index) take(pipeline.run(index, frame, render::output_color));
@@ -288,6 +293,8 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                         [&](const pipeline::FrameRecord& record, const render::Frame&) { take(record); });
   }
   renderer.wait_idle();
+  const int pinned_threads = pinning ? pinning->pinned_threads() : 0, pinned_cpus = pinning ? pinning->cpu_count() : 0;
+  pinning.reset();
   const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
   const long long rss_end = resident_kilobytes();
   rss_max = std::max(rss_max, rss_end);
@@ -306,6 +313,10 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                      render::method_info(scene.method).name, scene.steps, settings.frames, settings.warm_up,
                      std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
                      settings.serial ? "stages in series" : "stages overlapped", renderer.device().name);
+  if (settings.pin_threads) {
+    out << (pinned_cpus > 0 ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", pinned_threads, pinned_cpus)
+                            : std::string("  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity here)\n"));
+  }
   out << "  stage     p50 ms   p95 ms   p99 ms\n";
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
   for (const Row& row : rows) {
@@ -342,6 +353,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                                    {"vulkan_allocations_after_warmup", allocations},
                                    {"frames_rendered", frames_rendered},
                                    {"overlapped", !settings.serial},
+                                   {"pinned_threads", pinned_threads},
                                    {"rss_kb",
                                     rss_end < 0 ? nlohmann::ordered_json(nullptr)
                                                 : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},

@@ -1205,6 +1205,8 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
             output_file({".png"}));
   add_switch(app, "--vsync", settings.vsync,
              "present at the display's rate (default: as fast as frames come)");
+  add_switch(app, "--pin-threads", settings.pin_threads,
+             "run TBB's threads and lavapipe's rasterizer threads one per CPU (Linux): steadier frame times");
   add_renderer_flags(app, settings.renderer);
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
@@ -1235,6 +1237,9 @@ CommandSettings parse_bench_frame(std::span<const std::string_view> args) {
             integer_in(2, 10000));
   add_switch(app, "--serial", settings.serial,
              "run the stages one after another, none overlapped: what each costs with the whole machine");
+  add_switch(app, "--pin-threads", settings.pin_threads,
+             "run TBB's threads and lavapipe's rasterizer threads one per CPU (Linux): frame times without the "
+             "stalls of a woken thread queued on a busy CPU");
   add_value(app, "--json", json, "also write the table as JSON", "FILE.json", output_file({".json"}));
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);

@@ -156,6 +156,7 @@ struct BenchFrameSettings {
   int frames = 120;
   int warm_up = 5;
   bool serial = false;         // --serial: the stages one after another (FramePipeline::run), none overlapped
+  bool pin_threads = false;    // --pin-threads: the loop's threads one per CPU (pipeline::ThreadPinning)
   std::filesystem::path json;  // empty: none
   render::RendererOptions renderer;
 };
@@ -168,6 +169,7 @@ struct PlaySettings {
   long long frames = -1;        // --frames N: exactly N fixed-step frames (0 .. N-1), then exit; -1: until closed
   std::filesystem::path screenshot;  // --screenshot F.png (with --frames): the last frame
   bool vsync = false;                // present with FIFO (the display's rate)
+  bool pin_threads = false;          // --pin-threads: the loop's threads one per CPU (pipeline::ThreadPinning)
   render::RendererOptions renderer;
 };
 

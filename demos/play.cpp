@@ -18,12 +18,14 @@
 #include <limits>
 #include <memory>
 #include <ostream>
+#include <optional>
 #include <string>
 
 #include "demos/error.h"
 #include "demos/image_io.h"
 #include "demos/memory.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/thread_pinning.h"
 #include "render/render.h"
 
 namespace displace::app {
@@ -311,6 +313,9 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
 
   auto pipeline =
       std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{}, image_loader());
+  // after the renderer and the swapchain: lavapipe's rasterizer threads exist now
+  std::optional<pipeline::ThreadPinning> pinning;
+  if (settings.pin_threads) pinning.emplace();
   render::Frame frame;
   pipeline::FrameRecord record;
   long long index = 0;  // the next frame

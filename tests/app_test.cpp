@@ -2,6 +2,7 @@
 // encoding, and the `displace` binary meeting bad input with one clear error, never a crash.
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,7 +19,6 @@
 #include <span>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "bake/bake.h"
@@ -1829,13 +1829,21 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_GE(rss["max"].get<long long>(), rss["after_warmup"].get<long long>());
   EXPECT_EQ(rss["growth"].get<long long>(), rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
   EXPECT_EQ(parsed["overlapped"], true);
-  // --serial: the same table from the stages run one after another
+  EXPECT_EQ(parsed["pinned_threads"], 0);
+  // --serial: the same table from the stages run one after another; --pin-threads: with the main
+  // thread, TBB's worker(s) and lavapipe's rasterizers each on one CPU (none pinned on one CPU)
   const RunResult serial = run_displace(
-      dir, "bench-frame --scene water --map-size 32 --size 32x32 --frames 3 --warm-up 2 --serial --json '" + json + "'");
+      dir, "bench-frame --scene water --map-size 32 --size 32x32 --frames 3 --warm-up 2 --serial --pin-threads --json '" +
+               json + "'");
   ASSERT_EQ(serial.exit_code, 0) << serial.err;
   EXPECT_NE(serial.out.find("stages in series"), std::string::npos) << serial.out;
   const nlohmann::json in_series = nlohmann::json::parse(read_text(json));
   EXPECT_EQ(in_series["overlapped"], false);
+  cpu_set_t cpus;
+  if (sched_getaffinity(0, sizeof cpus, &cpus) == 0 && CPU_COUNT(&cpus) >= 2) {
+    EXPECT_NE(serial.out.find("pinned one per CPU"), std::string::npos) << serial.out;
+    EXPECT_GE(in_series["pinned_threads"].get<int>(), 2);
+  }
   EXPECT_EQ(in_series["frames_rendered"], 3);
   EXPECT_EQ(in_series["ffts_per_frame"], 6.0);
   EXPECT_EQ(in_series["vulkan_allocations_after_warmup"], 0);
