@@ -29,6 +29,8 @@ bool pin(pid_t thread, int cpu) {
   return sched_setaffinity(thread, sizeof set, &set) == 0;
 }
 
+std::atomic<unsigned long long> generations{0};
+
 }  // namespace
 
 struct ThreadPinning::State : tbb::task_scheduler_observer {
@@ -43,11 +45,13 @@ struct ThreadPinning::State : tbb::task_scheduler_observer {
     pinned.push_back(thread);
   }
 
-  // Each worker once per pinning, on its first entry (workers leave and re-enter the arena when idle).
+  // Each worker once per pinning, on its first entry (workers leave and re-enter the arena when idle);
+  // pinnings are told apart by a number, not an address that a later one may reuse.
+  const unsigned long long generation = ++generations;
   void on_scheduler_entry(bool is_worker) override {
-    thread_local const State* pinned_by = nullptr;
-    if (!is_worker || pinned_by == this) return;
-    pinned_by = this;
+    thread_local unsigned long long pinned_by = 0;
+    if (!is_worker || pinned_by == generation) return;
+    pinned_by = generation;
     const int cpu = cpus[std::size_t(next_worker++) % cpus.size()];
     if (pin(0, cpu)) record(gettid());
   }

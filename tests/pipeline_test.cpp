@@ -612,6 +612,10 @@ TEST(ThreadPinning, GivesEachThreadItsOwnCpuAndGivesItBack) {
     const cpu_set_t now = affinity(thread);
     EXPECT_TRUE(CPU_EQUAL(&now, &original)) << thread;
   }
+  {  // a second pinning (perhaps at the first one's address) pins the same threads again
+    pipeline::ThreadPinning again;
+    for (const auto& [thread, set] : workers()) EXPECT_EQ(CPU_COUNT(&set), 1) << thread;
+  }
   for (const auto& [thread, index] : rasterizers()) {
     const cpu_set_t now = affinity(thread);
     EXPECT_TRUE(CPU_EQUAL(&now, &original)) << "llvmpipe-" << index;
