@@ -54,7 +54,8 @@ vec3 sky(vec3 direction) {
 vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   vec3 to_eye = -view_direction;
   float cosine = clamp(dot(n, to_eye), 0.0, 1.0);
-  float fresnel = water_f0 + (1.0 - water_f0) * pow(1.0 - cosine, 5.0);
+  float m = 1.0 - cosine, m2 = m * m;  // Schlick's (1 - cos)^5 by products: pow is exp2(log2) per pixel
+  float fresnel = water_f0 + (1.0 - water_f0) * (m2 * m2 * m);
   vec3 reflected = reflect(view_direction, n);
   vec3 reflection = sky(reflected);
   float glint = lit * sun_glint_strength * pow(max(dot(reflected, l), 0.0), sun_glint_exponent);
