@@ -78,15 +78,18 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkDescriptorBufferInfo uniform_info{frame_slot.uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
   const VkSampler linear = wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get());
   const VkSampler nearest = wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
-  const VkDescriptorImageInfo height_info{linear, heights.image.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo cone_info{nearest, cone_view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo height_info{linear, heights.image.view(), heights.read_layout()};
+  const VkDescriptorImageInfo cone_info{
+      nearest, cone_view,
+      info.cone_sectors > 0 ? cones[std::size_t(cone_slot(info.cone_sectors))].read_layout()
+                            : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo albedo_info{linear, has_albedo ? albedo_image.view() : dummy_albedo.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo foam_info{linear, foam.held ? foam.image.view() : dummy_foam.view(),
-                                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+                                        foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};

@@ -204,6 +204,11 @@ struct RendererOptions {
   // the guards' messages ("DISPLACE_MEMORY_LIMIT_MB").
   std::uint64_t memory_limit = 0;
   std::string memory_limit_source;
+  // On a device whose memory is the host's (lavapipe, an integrated GPU): heights, foam and cone maps
+  // are written by the host straight into linear images, with no staging copy (the renderer then
+  // waits for frames in flight before it writes a map). Off: every map goes through the staging ring
+  // and a device copy, as on a discrete GPU (the tests compare the two).
+  bool host_written_maps = true;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,
@@ -419,6 +424,8 @@ class Renderer {
   long long memory_allocations() const;
   // Graphics pipelines created so far (each method and surface once per renderer).
   long long pipelines_created() const;
+  // Whether the height map given last is written by the host into device memory (no staging copy).
+  bool host_written_maps() const;
   // The memory this renderer's device and the host offer now (RendererOptions::memory_limit applied).
   MemoryLimits memory_limits() const;
 

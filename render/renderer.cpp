@@ -106,6 +106,14 @@ void Renderer::Impl::submit_slot(bool wait) {
   slot = (slot + 1) % frames_in_flight;
 }
 
+void Renderer::Impl::wait_submitted() {
+  for (std::size_t index = 0; index < slots.size(); ++index) {
+    if (slots[index].recording) continue;  // nothing of it submitted since its fence was waited for
+    const VkFence fence = slots[index].fence.get();
+    DISPLACE_VK_CHECK(vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
+  }
+}
+
 void Renderer::Impl::drain() {
   submit_slot(false);
   DISPLACE_VK_CHECK(vkDeviceWaitIdle(context.device()));
@@ -159,6 +167,7 @@ const DeviceInfo& Renderer::device() const { return impl_->context.info(); }
 long long Renderer::validation_messages() const { return impl_->context.validation_messages(); }
 long long Renderer::memory_allocations() const { return impl_->context.memory_allocations(); }
 long long Renderer::pipelines_created() const { return impl_->pipelines_created; }
+bool Renderer::host_written_maps() const { return impl_->heights.host_written; }
 MemoryLimits Renderer::memory_limits() const { return impl_->memory_limits(); }
 void Renderer::wait_idle() { impl_->drain(); }
 

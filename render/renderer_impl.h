@@ -62,6 +62,11 @@ struct DeviceMap {
   bake::Address address = bake::Address::wrap;
   int sectors = 0;
   bool relaxed = false;
+  bool host_written = false;  // Image::host_written: the host writes it, shaders read it in GENERAL layout
+  bool general = false;       // host_written: its move to GENERAL layout is recorded
+  VkImageLayout read_layout() const {
+    return host_written ? VK_IMAGE_LAYOUT_GENERAL : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  }
 };
 
 // Per frame in flight: its command buffer, fence, descriptor set, uniforms, staging part of the
@@ -86,11 +91,15 @@ struct Targets {
 
 struct Renderer::Impl {
   explicit Impl(const RendererOptions& options)
-      : context(options), memory_limit(options.memory_limit), memory_limit_source(options.memory_limit_source) {}
+      : context(options),
+        memory_limit(options.memory_limit),
+        memory_limit_source(options.memory_limit_source),
+        host_written_maps(options.host_written_maps) {}
 
   Context context;
   std::uint64_t memory_limit = 0;  // RendererOptions::memory_limit
   std::string memory_limit_source;
+  bool host_written_maps = true;  // RendererOptions::host_written_maps
   MemoryLimits memory_limits() const { return context.memory_limits(memory_limit, memory_limit_source); }
 
   // pipelines.cpp
@@ -124,6 +133,7 @@ struct Renderer::Impl {
   FrameSlot& begin_slot();     // the current slot, recording (waits for its previous frame)
   void submit_slot(bool wait);  // ends, submits the current slot; moves on to the next slot
   void drain();                 // submits what is recorded, waits for every slot
+  void wait_submitted();        // waits for every frame submitted (what is recorded stays so)
   Image upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
                          const void* data, std::size_t bytes);
   template <typename T>

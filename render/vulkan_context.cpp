@@ -364,6 +364,29 @@ VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMem
   return memory;
 }
 
+namespace {
+constexpr VkMemoryPropertyFlags shared_memory =
+    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+}  // namespace
+
+bool Context::host_images(VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers) const {
+  // a discrete GPU's host-visible device memory sits across the bus, and it samples linear images
+  // slowly: only where device memory is the host's
+  if (info_.type != "cpu" && info_.type != "integrated-gpu") return false;
+  bool shared = false;
+  for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
+    shared |= (memory_properties_.memoryTypes[i].propertyFlags & shared_memory) == shared_memory;
+  }
+  if (!shared) return false;
+  VkImageFormatProperties properties{};
+  if (vkGetPhysicalDeviceImageFormatProperties(physical_device_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_LINEAR,
+                                               VK_IMAGE_USAGE_SAMPLED_BIT, 0, &properties) != VK_SUCCESS) {
+    return false;
+  }
+  return width <= properties.maxExtent.width && height <= properties.maxExtent.height &&
+         layers <= properties.maxArrayLayers;
+}
+
 VkFence Context::create_fence(bool signaled) const {
   VkFenceCreateInfo info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   info.flags = signaled ? VK_FENCE_CREATE_SIGNALED_BIT : 0;
@@ -449,6 +472,47 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
   view.format = format;
   view.subresourceRange = {aspect, 0, 1, 0, volume ? 1 : layers};
   DISPLACE_VK_CHECK(vkCreateImageView(device_, &view, nullptr, &view_));
+}
+
+Image Image::host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+                          std::uint32_t layers, VkImageViewType view_type) {
+  Image image;
+  image.device_ = context.device();
+  image.format_ = format;
+  image.width_ = width;
+  image.height_ = height;
+  image.layers_ = layers;
+  VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  info.imageType = VK_IMAGE_TYPE_2D;
+  info.format = format;
+  info.extent = {width, height, 1};
+  info.mipLevels = 1;
+  info.arrayLayers = layers;
+  info.samples = VK_SAMPLE_COUNT_1_BIT;
+  info.tiling = VK_IMAGE_TILING_LINEAR;
+  info.usage = VK_IMAGE_USAGE_SAMPLED_BIT;
+  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  info.initialLayout = VK_IMAGE_LAYOUT_PREINITIALIZED;
+  DISPLACE_VK_CHECK(vkCreateImage(image.device_, &info, nullptr, &image.image_));
+  VkMemoryRequirements requirements;
+  vkGetImageMemoryRequirements(image.device_, image.image_, &requirements);
+  image.memory_ = context.allocate(requirements, shared_memory);
+  DISPLACE_VK_CHECK(vkBindImageMemory(image.device_, image.image_, image.memory_, 0));
+  void* mapped = nullptr;
+  DISPLACE_VK_CHECK(vkMapMemory(image.device_, image.memory_, 0, VK_WHOLE_SIZE, 0, &mapped));
+  const VkImageSubresource first{VK_IMAGE_ASPECT_COLOR_BIT, 0, 0};
+  VkSubresourceLayout layout{};
+  vkGetImageSubresourceLayout(image.device_, image.image_, &first, &layout);
+  image.mapped_ = static_cast<std::byte*>(mapped) + layout.offset;
+  image.row_pitch_ = layout.rowPitch;
+  image.layer_pitch_ = layout.arrayPitch;
+  VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+  view.image = image.image_;
+  view.viewType = view_type;
+  view.format = format;
+  view.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, layers};
+  DISPLACE_VK_CHECK(vkCreateImageView(image.device_, &view, nullptr, &image.view_));
+  return image;
 }
 
 Image::~Image() {

@@ -7,6 +7,7 @@
 #include <vulkan/vulkan.h>
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -45,6 +46,10 @@ class Context {
   // The device's heaps and largest allocation with the host's available memory (render.h's
   // MemoryLimits), lowered to `limit` bytes when that is not 0 (`source` names it).
   MemoryLimits memory_limits(std::uint64_t limit, const std::string& source) const;
+  // Whether a 2D (array) image of `format` can be a host-written one (Image::host_written): the
+  // device shares its memory with the host (the CPU driver or an integrated GPU: a memory type that
+  // is device-local, host-visible and coherent) and samples linear images of that size and layer count.
+  bool host_images(VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers) const;
   // A fence, signalled from the start when `signaled`; the caller destroys it (OwnedFence).
   VkFence create_fence(bool signaled) const;
   // A primary command buffer from the pool (resettable), owned by the caller until the pool goes.
@@ -120,6 +125,12 @@ class Image {
   Image() = default;
   Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
         VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type);
+  // A sampled 2D (array) colour image in linear tiling, in host-visible coherent device-local memory
+  // mapped for as long as it lives: the host writes its texels (at row_pitch() and layer_pitch()
+  // bytes) and shaders sample it in VK_IMAGE_LAYOUT_GENERAL. Made in VK_IMAGE_LAYOUT_PREINITIALIZED.
+  // Only where Context::host_images says so.
+  static Image host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+                            std::uint32_t layers, VkImageViewType view_type);
   ~Image();
   Image(Image&& other) noexcept { swap(other); }
   Image& operator=(Image&& other) noexcept {
@@ -134,9 +145,16 @@ class Image {
   std::uint32_t width() const { return width_; }
   std::uint32_t height() const { return height_; }
   std::uint32_t layers() const { return layers_; }
+  // host_written images: texel (0, 0) of layer 0, and the bytes between rows and between layers
+  std::byte* mapped() const { return mapped_; }
+  VkDeviceSize row_pitch() const { return row_pitch_; }
+  VkDeviceSize layer_pitch() const { return layer_pitch_; }
 
  private:
   void swap(Image& other) noexcept {
+    std::swap(mapped_, other.mapped_);
+    std::swap(row_pitch_, other.row_pitch_);
+    std::swap(layer_pitch_, other.layer_pitch_);
     std::swap(device_, other.device_);
     std::swap(image_, other.image_);
     std::swap(memory_, other.memory_);
@@ -152,6 +170,8 @@ class Image {
   VkImageView view_ = VK_NULL_HANDLE;
   VkFormat format_ = VK_FORMAT_UNDEFINED;
   std::uint32_t width_ = 0, height_ = 0, layers_ = 0;
+  std::byte* mapped_ = nullptr;
+  VkDeviceSize row_pitch_ = 0, layer_pitch_ = 0;
 };
 
 // Move-only owner of one Vulkan handle destroyed with vkDestroy*(device, handle, nullptr).

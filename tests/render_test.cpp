@@ -1219,10 +1219,14 @@ TEST(MemoryGuard, ARendererRefusesBeforeItAllocates) {
 // for bit like a fresh renderer given the same maps. The fresh renderer of frame n draws one of the
 // methods (n modulo their count: each is compared on 3 or 4 frames), as a fresh device compiles
 // every pipeline again (about 0.5 s each here).
+// The fresh one copies every map through the staging ring (host_written_maps off), the kept one on
+// the CPU device writes them into linear images: the fast path against the slow one.
 TEST(Maps, AKeptRendererMatchesAFreshOneOnEveryFrame) {
   sim::Ocean ocean = small_ocean(32);
   const View view = oblique_view(24);
   render::Renderer& kept = shared_renderer();
+  render::RendererOptions staged = displace::testing::headless_options(false, "off");
+  staged.host_written_maps = false;
   pipeline::MapMaker maps(kept.device().max_image_dimension_3d);
   Frame frame;
   constexpr int method_count = int(std::size(kept_methods));
@@ -1233,8 +1237,12 @@ TEST(Maps, AKeptRendererMatchesAFreshOneOnEveryFrame) {
       kept.set_maps(maps.maps_for(method, view));
       kept.render(view, {method, 24, 6}, frame);
       if (m != n % method_count) continue;
-      render::Renderer fresh(displace::testing::headless_options(false, "off"));
+      render::Renderer fresh(staged);
       fresh.set_maps(maps.maps_for(method, view));
+      EXPECT_FALSE(fresh.host_written_maps());
+      if (kept.device().type == "cpu") {
+        EXPECT_TRUE(kept.host_written_maps());
+      }
       const Frame expected = fresh.render(view, {method, 24, 6});
       EXPECT_TRUE(same_frame(frame, expected)) << "frame " << n << " " << render::method_info(method).name;
     }
@@ -1285,26 +1293,33 @@ TEST(Maps, DirtyRectangleUploadsMatchWholeUploads) {
   };
   const View view = oblique_view(48);
   const render::MethodSettings settings{Method::acm4, 32, 6};
-  render::Renderer& renderer = shared_renderer();
-  auto render_partial = [&](const bake::Rect& height_rect, const bake::Rect& cones_rect) {
-    renderer.set_maps(map_set(before, ratios_before, apex_before, hand_made + 1001));
-    renderer.render(view, settings);
-    render::MapSet set = map_set(after, ratios_after, apex_after, hand_made + 1002);
-    set.heights_dirty_since = hand_made + 1001;
-    set.heights_dirty = std::span<const bake::Rect>(&height_rect, 1);
-    set.cones[1].dirty_since = hand_made + 1001;
-    set.cones[1].dirty = std::span<const bake::Rect>(&cones_rect, 1);
-    renderer.set_maps(set);
-    return renderer.render(view, settings);
-  };
-  const Frame partial = render_partial(changed, cone_rect);
-  renderer.set_maps(map_set(after, ratios_after, apex_after, hand_made + 1003));  // whole maps
-  const Frame whole = renderer.render(view, settings);
-  EXPECT_TRUE(same_frame(partial, whole));
-  const bake::Rect too_small{changed.x0, changed.y0, changed.x0 + 2, changed.y0 + 2};
-  const Frame stale = render_partial(too_small, too_small);
-  EXPECT_FALSE(same_frame(stale, whole));
-  EXPECT_EQ(renderer.validation_messages(), 0);
+  // maps written by the host (the shared renderer on the CPU device), then through the staging ring
+  render::RendererOptions staged_options = displace::testing::headless_options(true, "off");
+  staged_options.host_written_maps = false;
+  render::Renderer staged(staged_options);
+  for (render::Renderer* each : {&shared_renderer(), &staged}) {
+    render::Renderer& renderer = *each;
+    auto render_partial = [&](const bake::Rect& height_rect, const bake::Rect& cones_rect) {
+      renderer.set_maps(map_set(before, ratios_before, apex_before, hand_made + 1001));
+      renderer.render(view, settings);
+      render::MapSet set = map_set(after, ratios_after, apex_after, hand_made + 1002);
+      set.heights_dirty_since = hand_made + 1001;
+      set.heights_dirty = std::span<const bake::Rect>(&height_rect, 1);
+      set.cones[1].dirty_since = hand_made + 1001;
+      set.cones[1].dirty = std::span<const bake::Rect>(&cones_rect, 1);
+      renderer.set_maps(set);
+      return renderer.render(view, settings);
+    };
+    const Frame partial = render_partial(changed, cone_rect);
+    renderer.set_maps(map_set(after, ratios_after, apex_after, hand_made + 1003));  // whole maps
+    const Frame whole = renderer.render(view, settings);
+    EXPECT_TRUE(same_frame(partial, whole));
+    const bake::Rect too_small{changed.x0, changed.y0, changed.x0 + 2, changed.y0 + 2};
+    const Frame stale = render_partial(too_small, too_small);
+    EXPECT_FALSE(same_frame(stale, whole));
+    EXPECT_EQ(renderer.validation_messages(), 0);
+    EXPECT_EQ(renderer.host_written_maps(), each != &staged && renderer.device().type == "cpu");
+  }
 }
 
 // After two warm-up frames of the same sizes, a frame with new heights and new maps allocates no
