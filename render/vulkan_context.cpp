@@ -331,6 +331,15 @@ std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlag
   throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
 }
 
+bool Context::has_memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const {
+  for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
+    if ((type_bits & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
+      return true;
+    }
+  }
+  return false;
+}
+
 MemoryLimits Context::memory_limits(std::uint64_t limit, const std::string& source) const {
   MemoryLimits limits = host_memory_limits(limit, source);
   limits.device = info_.name;
@@ -373,11 +382,7 @@ bool Context::host_images(VkFormat format, std::uint32_t width, std::uint32_t he
   // a discrete GPU's host-visible device memory sits across the bus, and it samples linear images
   // slowly: only where device memory is the host's
   if (info_.type != "cpu" && info_.type != "integrated-gpu") return false;
-  bool shared = false;
-  for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
-    shared |= (memory_properties_.memoryTypes[i].propertyFlags & shared_memory) == shared_memory;
-  }
-  if (!shared) return false;
+  if (!has_memory_type(~0u, shared_memory)) return false;
   VkImageFormatProperties properties{};
   if (vkGetPhysicalDeviceImageFormatProperties(physical_device_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_LINEAR,
                                                VK_IMAGE_USAGE_SAMPLED_BIT, 0, &properties) != VK_SUCCESS) {
@@ -496,6 +501,9 @@ Image Image::host_written(const Context& context, VkFormat format, std::uint32_t
   DISPLACE_VK_CHECK(vkCreateImage(image.device_, &info, nullptr, &image.image_));
   VkMemoryRequirements requirements;
   vkGetImageMemoryRequirements(image.device_, image.image_, &requirements);
+  if (!context.has_memory_type(requirements.memoryTypeBits, shared_memory)) {
+    return Image();  // none it may live in: the caller makes an optimal one (`image` frees this one)
+  }
   image.memory_ = context.allocate(requirements, shared_memory);
   DISPLACE_VK_CHECK(vkBindImageMemory(image.device_, image.image_, image.memory_, 0));
   void* mapped = nullptr;

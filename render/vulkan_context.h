@@ -40,6 +40,7 @@ class Context {
   long long validation_messages() const { return validation_messages_->load(); }
 
   std::uint32_t memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const;
+  bool has_memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const;
   // vkAllocateMemory, counted (memory_allocations()).
   VkDeviceMemory allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const;
   long long memory_allocations() const { return memory_allocations_->load(); }
@@ -128,7 +129,8 @@ class Image {
   // A sampled 2D (array) colour image in linear tiling, in host-visible coherent device-local memory
   // mapped for as long as it lives: the host writes its texels (at row_pitch() and layer_pitch()
   // bytes) and shaders sample it in VK_IMAGE_LAYOUT_GENERAL. Made in VK_IMAGE_LAYOUT_PREINITIALIZED.
-  // Only where Context::host_images says so.
+  // Only where Context::host_images says so; an empty Image (no handle) where the image may not
+  // live in such memory after all.
   static Image host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
                             std::uint32_t layers, VkImageViewType view_type);
   ~Image();
