@@ -7,7 +7,7 @@
 // layout barriers) into the slot's command buffer, which the frame then submits with its draw. A copy
 // overwrites an image an earlier frame may still read: the barrier before it waits for the fragment
 // and vertex shaders of every earlier submission on the queue, so one image per map is enough.
-// Where the device's memory is the host's (lavapipe, integrated GPUs; Context::host_images), heights,
+// Where the device is the CPU driver (lavapipe; Context::host_images), heights,
 // foam and cone maps skip the staging and the device copy: they are linear images the host packs
 // its rectangles into directly, after waiting for the frames in flight (which may read them), and
 // shaders read them in GENERAL layout. On lavapipe that copy was a second pass over the bytes on the

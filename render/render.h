@@ -204,7 +204,7 @@ struct RendererOptions {
   // the guards' messages ("DISPLACE_MEMORY_LIMIT_MB").
   std::uint64_t memory_limit = 0;
   std::string memory_limit_source;
-  // On a device whose memory is the host's (lavapipe, an integrated GPU): heights, foam and cone maps
+  // On the CPU driver (lavapipe), whose device memory is the host's: heights, foam and cone maps
   // are written by the host straight into linear images, with no staging copy (the renderer then
   // waits for frames in flight before it writes a map). Off: every map goes through the staging ring
   // and a device copy, as on a discrete GPU (the tests compare the two).

@@ -48,8 +48,8 @@ class Context {
   // MemoryLimits), lowered to `limit` bytes when that is not 0 (`source` names it).
   MemoryLimits memory_limits(std::uint64_t limit, const std::string& source) const;
   // Whether a 2D (array) image of `format` can be a host-written one (Image::host_written): the
-  // device shares its memory with the host (the CPU driver or an integrated GPU: a memory type that
-  // is device-local, host-visible and coherent) and samples linear images of that size and layer count.
+  // device is the CPU driver (lavapipe), with a memory type that is device-local, host-visible and
+  // coherent, and samples linear images of that size and layer count.
   bool host_images(VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers) const;
   // A fence, signalled from the start when `signaled`; the caller destroys it (OwnedFence).
   VkFence create_fence(bool signaled) const;
