@@ -452,8 +452,22 @@ Buffer::~Buffer() {
 }
 
 Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
-             VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type)
-    : device_(context.device()), format_(format), width_(width), height_(height), layers_(layers) {
+             VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type) {
+  if (!make(context, format, width, height, layers, usage, aspect, view_type, VK_IMAGE_TILING_OPTIMAL,
+            VK_IMAGE_LAYOUT_UNDEFINED, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)) {
+    vkDestroyImage(device_, image_, nullptr);  // a constructor that throws runs no destructor
+    throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
+  }
+}
+
+bool Image::make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+                 std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type,
+                 VkImageTiling tiling, VkImageLayout initial_layout, VkMemoryPropertyFlags memory) {
+  device_ = context.device();
+  format_ = format;
+  width_ = width;
+  height_ = height;
+  layers_ = layers;
   const bool volume = view_type == VK_IMAGE_VIEW_TYPE_3D;  // `layers` is the depth of a 3D image
   VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
   info.imageType = volume ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D;
@@ -462,14 +476,15 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
   info.mipLevels = 1;
   info.arrayLayers = volume ? 1 : layers;
   info.samples = VK_SAMPLE_COUNT_1_BIT;
-  info.tiling = VK_IMAGE_TILING_OPTIMAL;
+  info.tiling = tiling;
   info.usage = usage;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  info.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  info.initialLayout = initial_layout;
   DISPLACE_VK_CHECK(vkCreateImage(device_, &info, nullptr, &image_));
   VkMemoryRequirements requirements;
   vkGetImageMemoryRequirements(device_, image_, &requirements);
-  memory_ = context.allocate(requirements, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  if (!context.has_memory_type(requirements.memoryTypeBits, memory)) return false;  // the destructor frees it
+  memory_ = context.allocate(requirements, memory);
   DISPLACE_VK_CHECK(vkBindImageMemory(device_, image_, memory_, 0));
   VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   view.image = image_;
@@ -477,35 +492,16 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
   view.format = format;
   view.subresourceRange = {aspect, 0, 1, 0, volume ? 1 : layers};
   DISPLACE_VK_CHECK(vkCreateImageView(device_, &view, nullptr, &view_));
+  return true;
 }
 
 Image Image::host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
                           std::uint32_t layers, VkImageViewType view_type) {
   Image image;
-  image.device_ = context.device();
-  image.format_ = format;
-  image.width_ = width;
-  image.height_ = height;
-  image.layers_ = layers;
-  VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  info.imageType = VK_IMAGE_TYPE_2D;
-  info.format = format;
-  info.extent = {width, height, 1};
-  info.mipLevels = 1;
-  info.arrayLayers = layers;
-  info.samples = VK_SAMPLE_COUNT_1_BIT;
-  info.tiling = VK_IMAGE_TILING_LINEAR;
-  info.usage = VK_IMAGE_USAGE_SAMPLED_BIT;
-  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  info.initialLayout = VK_IMAGE_LAYOUT_PREINITIALIZED;
-  DISPLACE_VK_CHECK(vkCreateImage(image.device_, &info, nullptr, &image.image_));
-  VkMemoryRequirements requirements;
-  vkGetImageMemoryRequirements(image.device_, image.image_, &requirements);
-  if (!context.has_memory_type(requirements.memoryTypeBits, shared_memory)) {
-    return Image();  // none it may live in: the caller makes an optimal one (`image` frees this one)
+  if (!image.make(context, format, width, height, layers, VK_IMAGE_USAGE_SAMPLED_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+                  view_type, VK_IMAGE_TILING_LINEAR, VK_IMAGE_LAYOUT_PREINITIALIZED, shared_memory)) {
+    return Image();  // no shared memory type it may live in: the caller makes an optimal one
   }
-  image.memory_ = context.allocate(requirements, shared_memory);
-  DISPLACE_VK_CHECK(vkBindImageMemory(image.device_, image.image_, image.memory_, 0));
   void* mapped = nullptr;
   DISPLACE_VK_CHECK(vkMapMemory(image.device_, image.memory_, 0, VK_WHOLE_SIZE, 0, &mapped));
   const VkImageSubresource first{VK_IMAGE_ASPECT_COLOR_BIT, 0, 0};
@@ -514,12 +510,6 @@ Image Image::host_written(const Context& context, VkFormat format, std::uint32_t
   image.mapped_ = static_cast<std::byte*>(mapped) + layout.offset;
   image.row_pitch_ = layout.rowPitch;
   image.layer_pitch_ = layout.arrayPitch;
-  VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
-  view.image = image.image_;
-  view.viewType = view_type;
-  view.format = format;
-  view.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, layers};
-  DISPLACE_VK_CHECK(vkCreateImageView(image.device_, &view, nullptr, &image.view_));
   return image;
 }
 

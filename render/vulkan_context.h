@@ -153,6 +153,11 @@ class Image {
   VkDeviceSize layer_pitch() const { return layer_pitch_; }
 
  private:
+  // Creates the image, its memory (of `memory` properties) and its view; false, with only the image
+  // made, when none of the device's memory types with those properties may hold it.
+  bool make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
+            VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type, VkImageTiling tiling,
+            VkImageLayout initial_layout, VkMemoryPropertyFlags memory);
   void swap(Image& other) noexcept {
     std::swap(mapped_, other.mapped_);
     std::swap(row_pitch_, other.row_pitch_);
