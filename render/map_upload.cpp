@@ -20,6 +20,9 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
@@ -28,7 +31,7 @@ namespace displace::render {
 namespace {
 
 constexpr VkDeviceSize staging_alignment = 16;  // bytes; a multiple of every texel size copied
-constexpr VkDeviceSize parallel_pack_texels = 1 << 16;  // cone rectangles at least this large pack on every core
+constexpr VkDeviceSize parallel_pack_texels = 1 << 16;  // rectangles at least this large pack on every core
 
 VkDeviceSize align_up(VkDeviceSize bytes) { return (bytes + staging_alignment - 1) / staging_alignment * staging_alignment; }
 
@@ -65,18 +68,75 @@ VkDeviceSize rect_texels(const bake::Rect& rect) { return VkDeviceSize(rect.x1 -
 // or outside [0, 1].
 bool pack_heights(std::span<const float> heights, int width, const bake::Rect& rect, float* out,
                   std::size_t row_floats) {
-  bool valid = true;
   const int columns = rect.x1 - rect.x0;
-  for (int y = rect.y0; y < rect.y1; ++y) {
-    const float* row = heights.data() + std::size_t(y) * width + rect.x0;
-    bool ok = true;
-    for (int x = 0; x < columns; ++x) ok &= (row[x] >= 0.0f) & (row[x] <= 1.0f);  // false for NaN
-    valid &= ok;
-    std::memcpy(out, row, std::size_t(columns) * sizeof(float));
-    out += row_floats;
-  }
-  return valid;
+  auto pack_rows = [&](int first_row, int end_row) {
+    bool valid = true;
+    float* to = out + std::size_t(first_row - rect.y0) * row_floats;
+    for (int y = first_row; y < end_row; ++y, to += row_floats) {
+      const float* row = heights.data() + std::size_t(y) * width + rect.x0;
+      int x = 0;
+#if defined(__SSE2__)
+      // checked while copied: one read of the row
+      __m128 ok4 = _mm_castsi128_ps(_mm_set1_epi32(-1));
+      const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+      for (; x + 4 <= columns; x += 4) {
+        const __m128 value = _mm_loadu_ps(row + x);
+        ok4 = _mm_and_ps(ok4, _mm_and_ps(_mm_cmpge_ps(value, zero), _mm_cmple_ps(value, one)));  // false for NaN
+        _mm_storeu_ps(to + x, value);
+      }
+      valid &= _mm_movemask_ps(ok4) == 0xf;
+#endif
+      bool ok = true;
+      for (; x < columns; ++x) {
+        ok &= (row[x] >= 0.0f) & (row[x] <= 1.0f);  // false for NaN
+        to[x] = row[x];
+      }
+      valid &= ok;
+    }
+    return valid;
+  };
+  if (rect_texels(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
+  return tbb::parallel_reduce(
+      tbb::blocked_range<int>(rect.y0, rect.y1), true,
+      [&](const tbb::blocked_range<int>& rows, bool valid) { return pack_rows(rows.begin(), rows.end()) && valid; },
+      [](bool a, bool b) { return a && b; });
 }
+
+#if defined(__SSE2__)
+// pack_cones_of<4>'s texels [x, x + 4) of a row: the four texels' sector ratios transposed into one
+// vector per sector and interleaved with the apexes, as the scalar loop writes them. ok4 gathers
+// the same checks.
+inline void pack_four_cones(const float* ratios, const float* apex, const float* relaxed, float* out,
+                            std::size_t layer_floats, __m128& ok4) {
+  __m128 sector0 = _mm_loadu_ps(ratios), sector1 = _mm_loadu_ps(ratios + 4), sector2 = _mm_loadu_ps(ratios + 8),
+         sector3 = _mm_loadu_ps(ratios + 12);
+  _MM_TRANSPOSE4_PS(sector0, sector1, sector2, sector3);
+  const __m128 apexes = _mm_loadu_ps(apex);
+  const __m128 zero = _mm_setzero_ps(), largest = _mm_set1_ps(1e30f);
+  auto check = [&](__m128 value, __m128 high) {  // false for NaN
+    ok4 = _mm_and_ps(ok4, _mm_and_ps(_mm_cmpge_ps(value, zero), _mm_cmple_ps(value, high)));
+  };
+  auto store = [&](float* layer, __m128 value) {
+    _mm_storeu_ps(layer, _mm_unpacklo_ps(value, apexes));
+    _mm_storeu_ps(layer + 4, _mm_unpackhi_ps(value, apexes));
+  };
+  check(apexes, _mm_set1_ps(1.0f));
+  check(sector0, largest);
+  check(sector1, largest);
+  check(sector2, largest);
+  check(sector3, largest);
+  store(out, sector0);
+  store(out + layer_floats, sector1);
+  store(out + 2 * layer_floats, sector2);
+  store(out + 3 * layer_floats, sector3);
+  store(out + 4 * layer_floats, _mm_min_ps(_mm_min_ps(sector0, sector1), _mm_min_ps(sector2, sector3)));
+  if (relaxed) {
+    const __m128 ratio = _mm_loadu_ps(relaxed);
+    check(ratio, largest);
+    store(out + 5 * layer_floats, ratio);
+  }
+}
+#endif
 
 // The cone image's layers of `rect` (cone_layer_count): (ratio, apex) pairs, rows `row_floats` and
 // layers `layer_floats` apart from `out` on, written in one pass over the texels (the sector count a
@@ -93,7 +153,19 @@ bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, 
     for (int y = first_row; y < end_row; ++y) {
       const std::size_t row = std::size_t(y) * width;
       std::size_t at = std::size_t(y - rect.y0) * row_floats;  // floats into each layer
-      for (int x = rect.x0; x < rect.x1; ++x, at += 2) {
+      int x = rect.x0;
+#if defined(__SSE2__)
+      if constexpr (sectors == 4) {
+        __m128 ok4 = _mm_castsi128_ps(_mm_set1_epi32(-1));
+        for (; x + 4 <= rect.x1; x += 4, at += 8) {
+          const std::size_t t = row + std::size_t(x);
+          pack_four_cones(cones.ratios.data() + t * 4, cones.apex.data() + t,
+                          relaxed ? cones.relaxed.data() + t : nullptr, out + at, layer_floats, ok4);
+        }
+        valid &= _mm_movemask_ps(ok4) == 0xf;
+      }
+#endif
+      for (; x < rect.x1; ++x, at += 2) {
         const std::size_t t = row + std::size_t(x);
         const float* ratios = cones.ratios.data() + t * sectors;
         const float apex = cones.apex[t];

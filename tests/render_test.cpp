@@ -1441,6 +1441,57 @@ TEST(Maps, AMethodWithoutItsMapsIsRefusedNamingTheMap) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
+// Every bad value is refused wherever it sits - in the four-texel blocks that are packed together
+// and in a row's tail (7 columns), in each sector, the apex, the relaxed layer and the heights - and
+// the same maps with the value put back are taken.
+TEST(Maps, EveryBadValueIsRefusedWhereverItSits) {
+  const int width = 7, height = 3;
+  const std::size_t texels = std::size_t(width) * height;
+  std::vector<float> heights(texels), ratios(texels * 4), apex(texels), relaxed(texels);
+  for (std::size_t t = 0; t < texels; ++t) {
+    heights[t] = 0.5f + 0.01f * float(t % 5);
+    apex[t] = heights[t] + 0.1f;
+    relaxed[t] = 0.3f;
+    for (int k = 0; k < 4; ++k) ratios[t * 4 + k] = 0.1f * float(k + 1);
+  }
+  render::Renderer& renderer = shared_renderer();
+  std::uint64_t version = hand_made + 3000;
+  auto hand_over = [&] {
+    render::MapSet set;
+    set.width = width;
+    set.height = height;
+    set.heights = heights;
+    set.heights_version = ++version;
+    set.cones[1] = {4, bake::Address::wrap, ratios, apex, relaxed, version, 0, {}};
+    renderer.set_maps(set);
+  };
+  ASSERT_NO_THROW(hand_over());
+  long long taken = 0, refused = 0;
+  auto try_bad = [&](float& value, float bad) {
+    const float good = value;
+    value = bad;
+    try {
+      hand_over();
+      ++taken;
+    } catch (const render::RenderError&) {
+      ++refused;
+    }
+    value = good;
+  };
+  const float nan = std::nanf(""), inf = std::numeric_limits<float>::infinity();
+  for (std::size_t t = 0; t < texels; ++t) {
+    for (int k = 0; k < 4; ++k)
+      for (float bad : {nan, -0.25f, inf}) try_bad(ratios[t * 4 + k], bad);
+    for (float bad : {nan, -0.25f, 1.5f}) try_bad(apex[t], bad);
+    for (float bad : {nan, -0.25f, inf}) try_bad(relaxed[t], bad);
+    for (float bad : {nan, -0.25f, 1.5f}) try_bad(heights[t], bad);
+  }
+  EXPECT_EQ(taken, 0);
+  EXPECT_EQ(refused, static_cast<long long>(texels) * (4 * 3 + 3 + 3 + 3));
+  EXPECT_NO_THROW(hand_over());
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 // The plane's reference grid, on the CPU: a vertex on every texel centre of the tiles plus the
 // patch border, each cell two triangles, every index in range.
 TEST(Mesh, PlaneReferenceHasAVertexOnEveryTexelCentreAndTheBorder) {
