@@ -18,12 +18,7 @@
 #include <cstring>
 #include <string>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
-#if defined(__SSE2__)
-#include <immintrin.h>
-#endif
-
+#include "render/map_pack.h"
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
 
@@ -31,7 +26,6 @@ namespace displace::render {
 namespace {
 
 constexpr VkDeviceSize staging_alignment = 16;  // bytes; a multiple of every texel size copied
-constexpr VkDeviceSize parallel_pack_texels = 1 << 16;  // rectangles at least this large pack on every core
 
 VkDeviceSize align_up(VkDeviceSize bytes) { return (bytes + staging_alignment - 1) / staging_alignment * staging_alignment; }
 
@@ -63,151 +57,6 @@ void check_rects(std::span<const bake::Rect> rects, int width, int height, const
 }
 
 VkDeviceSize rect_texels(const bake::Rect& rect) { return VkDeviceSize(rect.x1 - rect.x0) * VkDeviceSize(rect.y1 - rect.y0); }
-
-// Heights of `rect`, row after row, `row_floats` apart from `out` on; false when one is not finite
-// or outside [0, 1].
-bool pack_heights(std::span<const float> heights, int width, const bake::Rect& rect, float* out,
-                  std::size_t row_floats) {
-  const int columns = rect.x1 - rect.x0;
-  auto pack_rows = [&](int first_row, int end_row) {
-    bool valid = true;
-    float* to = out + std::size_t(first_row - rect.y0) * row_floats;
-    for (int y = first_row; y < end_row; ++y, to += row_floats) {
-      const float* row = heights.data() + std::size_t(y) * width + rect.x0;
-      int x = 0;
-#if defined(__SSE2__)
-      // checked while copied: one read of the row
-      __m128 ok4 = _mm_castsi128_ps(_mm_set1_epi32(-1));
-      const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
-      for (; x + 4 <= columns; x += 4) {
-        const __m128 value = _mm_loadu_ps(row + x);
-        ok4 = _mm_and_ps(ok4, _mm_and_ps(_mm_cmpge_ps(value, zero), _mm_cmple_ps(value, one)));  // false for NaN
-        _mm_storeu_ps(to + x, value);
-      }
-      valid &= _mm_movemask_ps(ok4) == 0xf;
-#endif
-      bool ok = true;
-      for (; x < columns; ++x) {
-        ok &= (row[x] >= 0.0f) & (row[x] <= 1.0f);  // false for NaN
-        to[x] = row[x];
-      }
-      valid &= ok;
-    }
-    return valid;
-  };
-  if (rect_texels(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(rect.y0, rect.y1), true,
-      [&](const tbb::blocked_range<int>& rows, bool valid) { return pack_rows(rows.begin(), rows.end()) && valid; },
-      [](bool a, bool b) { return a && b; });
-}
-
-#if defined(__SSE2__)
-// pack_cones_of<4>'s texels [x, x + 4) of a row: the four texels' sector ratios transposed into one
-// vector per sector and interleaved with the apexes, as the scalar loop writes them. ok4 gathers
-// the same checks.
-inline void pack_four_cones(const float* ratios, const float* apex, const float* relaxed, float* out,
-                            std::size_t layer_floats, __m128& ok4) {
-  __m128 sector0 = _mm_loadu_ps(ratios), sector1 = _mm_loadu_ps(ratios + 4), sector2 = _mm_loadu_ps(ratios + 8),
-         sector3 = _mm_loadu_ps(ratios + 12);
-  _MM_TRANSPOSE4_PS(sector0, sector1, sector2, sector3);
-  const __m128 apexes = _mm_loadu_ps(apex);
-  const __m128 zero = _mm_setzero_ps(), largest = _mm_set1_ps(1e30f);
-  auto check = [&](__m128 value, __m128 high) {  // false for NaN
-    ok4 = _mm_and_ps(ok4, _mm_and_ps(_mm_cmpge_ps(value, zero), _mm_cmple_ps(value, high)));
-  };
-  auto store = [&](float* layer, __m128 value) {
-    _mm_storeu_ps(layer, _mm_unpacklo_ps(value, apexes));
-    _mm_storeu_ps(layer + 4, _mm_unpackhi_ps(value, apexes));
-  };
-  check(apexes, _mm_set1_ps(1.0f));
-  check(sector0, largest);
-  check(sector1, largest);
-  check(sector2, largest);
-  check(sector3, largest);
-  store(out, sector0);
-  store(out + layer_floats, sector1);
-  store(out + 2 * layer_floats, sector2);
-  store(out + 3 * layer_floats, sector3);
-  store(out + 4 * layer_floats, _mm_min_ps(_mm_min_ps(sector0, sector1), _mm_min_ps(sector2, sector3)));
-  if (relaxed) {
-    const __m128 ratio = _mm_loadu_ps(relaxed);
-    check(ratio, largest);
-    store(out + 5 * layer_floats, ratio);
-  }
-}
-#endif
-
-// The cone image's layers of `rect` (cone_layer_count): (ratio, apex) pairs, rows `row_floats` and
-// layers `layer_floats` apart from `out` on, written in one pass over the texels (the sector count a
-// template argument, so that the loop unrolls). False when a ratio is negative or not finite, or an
-// apex is outside [0, 1].
-template <int sectors>
-bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, float* out, std::size_t row_floats,
-                   std::size_t layer_floats) {
-  const bool relaxed = !cones.relaxed.empty();
-  constexpr bool has_min_layer = sectors > 1;
-  float* relaxed_out = out + layer_floats * std::size_t(sectors + (has_min_layer ? 1 : 0));
-  auto pack_rows = [&](int first_row, int end_row) {
-    bool valid = true;
-    for (int y = first_row; y < end_row; ++y) {
-      const std::size_t row = std::size_t(y) * width;
-      std::size_t at = std::size_t(y - rect.y0) * row_floats;  // floats into each layer
-      int x = rect.x0;
-#if defined(__SSE2__)
-      if constexpr (sectors == 4) {
-        __m128 ok4 = _mm_castsi128_ps(_mm_set1_epi32(-1));
-        for (; x + 4 <= rect.x1; x += 4, at += 8) {
-          const std::size_t t = row + std::size_t(x);
-          pack_four_cones(cones.ratios.data() + t * 4, cones.apex.data() + t,
-                          relaxed ? cones.relaxed.data() + t : nullptr, out + at, layer_floats, ok4);
-        }
-        valid &= _mm_movemask_ps(ok4) == 0xf;
-      }
-#endif
-      for (; x < rect.x1; ++x, at += 2) {
-        const std::size_t t = row + std::size_t(x);
-        const float* ratios = cones.ratios.data() + t * sectors;
-        const float apex = cones.apex[t];
-        float smallest = ratios[0];
-        bool ok = (apex >= 0.0f) & (apex <= 1.0f);
-        for (int k = 0; k < sectors; ++k) {
-          const float ratio = ratios[k];
-          ok &= (ratio >= 0.0f) & (ratio <= 1e30f);  // false for NaN
-          smallest = std::min(smallest, ratio);
-          out[layer_floats * std::size_t(k) + at] = ratio;
-          out[layer_floats * std::size_t(k) + at + 1] = apex;
-        }
-        if constexpr (has_min_layer) {
-          out[layer_floats * sectors + at] = smallest;
-          out[layer_floats * sectors + at + 1] = apex;
-        }
-        if (relaxed) {
-          const float ratio = cones.relaxed[t];
-          ok &= (ratio >= 0.0f) & (ratio <= 1e30f);
-          relaxed_out[at] = ratio;
-          relaxed_out[at + 1] = apex;
-        }
-        valid &= ok;
-      }
-    }
-    return valid;
-  };
-  if (rect_texels(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(rect.y0, rect.y1), true,
-      [&](const tbb::blocked_range<int>& rows, bool valid) { return pack_rows(rows.begin(), rows.end()) && valid; },
-      [](bool a, bool b) { return a && b; });
-}
-
-bool pack_cones(const ConeMapView& cones, int width, const bake::Rect& rect, float* out, std::size_t row_floats,
-                std::size_t layer_floats) {
-  switch (cones.sector_count) {
-    case 1: return pack_cones_of<1>(cones, width, rect, out, row_floats, layer_floats);
-    case 4: return pack_cones_of<4>(cones, width, rect, out, row_floats, layer_floats);
-    default: return pack_cones_of<8>(cones, width, rect, out, row_floats, layer_floats);
-  }
-}
 
 // A host-written image's float at texel (x, y) of layer 0.
 float* texel_of(const DeviceMap& map, int x, int y, std::size_t texel_bytes) {
@@ -483,7 +332,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (map.host_written) {
       for (const bake::Rect& rect : rects_of(copy, dirty)) {
         if (rect_texels(rect) == 0) continue;
-        if (!pack_heights(values, width, rect, texel_of(map, rect.x0, rect.y0, 4), map.image.row_pitch() / 4)) {
+        if (!detail::pack_heights(values, width, rect, texel_of(map, rect.x0, rect.y0, 4), map.image.row_pitch() / 4)) {
           throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
         }
       }
@@ -496,7 +345,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     for (const bake::Rect& rect : rects_of(copy, dirty)) {
       if (rect_texels(rect) == 0) continue;
       const VkDeviceSize offset = reserve(rect_texels(rect) * 4);
-      if (!pack_heights(values, width, rect, reinterpret_cast<float*>(staging + offset),
+      if (!detail::pack_heights(values, width, rect, reinterpret_cast<float*>(staging + offset),
                         std::size_t(rect.x1 - rect.x0))) {
         throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
       }
@@ -535,7 +384,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (map.host_written) {
       for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
         if (rect_texels(rect) == 0) continue;
-        if (!pack_cones(view, width, rect, texel_of(map, rect.x0, rect.y0, 8), map.image.row_pitch() / 4,
+        if (!detail::pack_cones(view, width, rect, texel_of(map, rect.x0, rect.y0, 8), map.image.row_pitch() / 4,
                         map.image.layer_pitch() / 4)) {
           throw invalid();
         }
@@ -549,7 +398,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
       if (rect_texels(rect) == 0) continue;
       const VkDeviceSize offset = reserve(rect_texels(rect) * 8 * VkDeviceSize(map.layers));
-      if (!pack_cones(view, width, rect, reinterpret_cast<float*>(staging + offset), std::size_t(rect.x1 - rect.x0) * 2,
+      if (!detail::pack_cones(view, width, rect, reinterpret_cast<float*>(staging + offset), std::size_t(rect.x1 - rect.x0) * 2,
                       std::size_t(rect_texels(rect)) * 2)) {
         throw invalid();
       }
