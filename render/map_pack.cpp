@@ -1,8 +1,7 @@
 // render/map_pack.cpp - maps packed into an image's layout (map_pack.h). The SSE2 path packs four
 // texels at a time - a 4 x 4 transpose turns four texels' sector ratios into one vector per sector,
-// interleaved with the apexes as they are stored - and checks the values while it copies them: the
-// 512 map set's upload 0.92 -> 0.26 ms (BM_UploadMaps/512/whole), bit for bit the scalar loop's
-// output (MapPack.VectorisedEqualsScalar).
+// encoded and joined with the apexes as they are stored - and checks the values while it copies
+// them, bit for bit the scalar loop's output (MapPack.VectorisedEqualsScalar).
 #include "render/map_pack.h"
 
 #include <tbb/blocked_range.h>
@@ -69,20 +68,33 @@ bool pack_heights(std::span<const float> heights, int width, const bake::Rect& r
 namespace {
 
 #if defined(__SSE2__)
+// encode_ratio and encode_apex on four values, with the same operations (float min, product, sum
+// and truncation round alike in SSE and in scalar code).
+inline __m128i encode_ratios(__m128 ratio) {
+  const __m128 clamped = _mm_min_ps(ratio, _mm_set1_ps(1.0f));
+  const __m128i half = _mm_sub_epi32(_mm_srli_epi32(_mm_castps_si128(clamped), 13), _mm_set1_epi32((127 - 15) << 10));
+  return _mm_andnot_si128(_mm_castps_si128(_mm_cmplt_ps(clamped, _mm_set1_ps(smallest_half_ratio))), half);
+}
+inline __m128i encode_apexes(__m128 apex) {
+  const __m128 scaled = _mm_add_ps(_mm_mul_ps(apex, _mm_set1_ps(65535.0f)), _mm_set1_ps(2.0f));
+  return _mm_cvttps_epi32(_mm_min_ps(scaled, _mm_set1_ps(65535.0f)));
+}
+
 // pack_cones_of's texels [x, x + 4) of a row, 4 or 8 sectors: each group of four sectors of the four
-// texels transposed into one vector per sector and interleaved with the apexes, as the scalar loop
-// writes them. ok4 gathers the same checks.
+// texels transposed into one vector per sector, encoded, and joined with the encoded apexes into
+// (ratio, apex) pairs - one 32-bit word per texel, R in the low half as the image stores it on this
+// little-endian CPU. ok4 gathers the scalar loop's checks.
 template <int sectors>
-inline void pack_four_cones(const float* ratios, const float* apex, const float* relaxed, float* out,
-                            std::size_t layer_floats, __m128& ok4) {
+inline void pack_four_cones(const float* ratios, const float* apex, const float* relaxed, std::uint16_t* out,
+                            std::size_t layer_values, __m128& ok4) {
   const __m128 apexes = _mm_loadu_ps(apex);
+  const __m128i apex_high = _mm_slli_epi32(encode_apexes(apexes), 16);
   const __m128 zero = _mm_setzero_ps(), largest = _mm_set1_ps(1e30f);
   auto check = [&](__m128 value, __m128 high) {  // false for NaN
     ok4 = _mm_and_ps(ok4, _mm_and_ps(_mm_cmpge_ps(value, zero), _mm_cmple_ps(value, high)));
   };
-  auto store = [&](float* layer, __m128 value) {
-    _mm_storeu_ps(layer, _mm_unpacklo_ps(value, apexes));
-    _mm_storeu_ps(layer + 4, _mm_unpackhi_ps(value, apexes));
+  auto store = [&](std::uint16_t* layer, __m128 ratio) {
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(layer), _mm_or_si128(encode_ratios(ratio), apex_high));
   };
   check(apexes, _mm_set1_ps(1.0f));
   __m128 smallest = largest;
@@ -95,17 +107,17 @@ inline void pack_four_cones(const float* ratios, const float* apex, const float*
     check(sector1, largest);
     check(sector2, largest);
     check(sector3, largest);
-    store(out + std::size_t(group) * layer_floats, sector0);
-    store(out + std::size_t(group + 1) * layer_floats, sector1);
-    store(out + std::size_t(group + 2) * layer_floats, sector2);
-    store(out + std::size_t(group + 3) * layer_floats, sector3);
+    store(out + std::size_t(group) * layer_values, sector0);
+    store(out + std::size_t(group + 1) * layer_values, sector1);
+    store(out + std::size_t(group + 2) * layer_values, sector2);
+    store(out + std::size_t(group + 3) * layer_values, sector3);
     smallest = _mm_min_ps(smallest, _mm_min_ps(_mm_min_ps(sector0, sector1), _mm_min_ps(sector2, sector3)));
   }
-  store(out + std::size_t(sectors) * layer_floats, smallest);
+  store(out + std::size_t(sectors) * layer_values, smallest);
   if (relaxed) {
     const __m128 ratio = _mm_loadu_ps(relaxed);
     check(ratio, largest);
-    store(out + std::size_t(sectors + 1) * layer_floats, ratio);
+    store(out + std::size_t(sectors + 1) * layer_values, ratio);
   }
 }
 #endif
@@ -113,16 +125,16 @@ inline void pack_four_cones(const float* ratios, const float* apex, const float*
 // pack_cones in one pass over the texels (the sector count a template argument, so that the loop
 // unrolls).
 template <int sectors>
-bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, float* out,
-                   std::size_t row_floats, std::size_t layer_floats, bool vectorised) {
+bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, std::uint16_t* out,
+                   std::size_t row_values, std::size_t layer_values, bool vectorised) {
   const bool relaxed = !cones.relaxed.empty();
   constexpr bool has_min_layer = sectors > 1;
-  float* relaxed_out = out + layer_floats * std::size_t(sectors + (has_min_layer ? 1 : 0));
+  std::uint16_t* relaxed_out = out + layer_values * std::size_t(sectors + (has_min_layer ? 1 : 0));
   auto pack_rows = [&](int first_row, int end_row) {
     bool valid = true;
     for (int y = first_row; y < end_row; ++y) {
       const std::size_t row = std::size_t(y) * width;
-      std::size_t at = std::size_t(y - rect.y0) * row_floats;  // floats into each layer
+      std::size_t at = std::size_t(y - rect.y0) * row_values;  // values into each layer
       int x = rect.x0;
 #if defined(__SSE2__)
       if (sectors % 4 == 0 && vectorised) {
@@ -130,7 +142,7 @@ bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, 
         for (; x + 4 <= rect.x1; x += 4, at += 8) {
           const std::size_t t = row + std::size_t(x);
           pack_four_cones<sectors>(cones.ratios.data() + t * sectors, cones.apex.data() + t,
-                                   relaxed ? cones.relaxed.data() + t : nullptr, out + at, layer_floats, ok4);
+                                   relaxed ? cones.relaxed.data() + t : nullptr, out + at, layer_values, ok4);
         }
         valid &= _mm_movemask_ps(ok4) == 0xf;
       }
@@ -139,24 +151,25 @@ bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, 
         const std::size_t t = row + std::size_t(x);
         const float* ratios = cones.ratios.data() + t * sectors;
         const float apex = cones.apex[t];
+        const std::uint16_t apex_value = encode_apex(apex);
         float smallest = ratios[0];
         bool ok = (apex >= 0.0f) & (apex <= 1.0f);
         for (int k = 0; k < sectors; ++k) {
           const float ratio = ratios[k];
           ok &= (ratio >= 0.0f) & (ratio <= 1e30f);  // false for NaN
           smallest = std::min(smallest, ratio);
-          out[layer_floats * std::size_t(k) + at] = ratio;
-          out[layer_floats * std::size_t(k) + at + 1] = apex;
+          out[layer_values * std::size_t(k) + at] = encode_ratio(ratio);
+          out[layer_values * std::size_t(k) + at + 1] = apex_value;
         }
         if constexpr (has_min_layer) {
-          out[layer_floats * sectors + at] = smallest;
-          out[layer_floats * sectors + at + 1] = apex;
+          out[layer_values * sectors + at] = encode_ratio(smallest);
+          out[layer_values * sectors + at + 1] = apex_value;
         }
         if (relaxed) {
           const float ratio = cones.relaxed[t];
           ok &= (ratio >= 0.0f) & (ratio <= 1e30f);
-          relaxed_out[at] = ratio;
-          relaxed_out[at + 1] = apex;
+          relaxed_out[at] = encode_ratio(ratio);
+          relaxed_out[at + 1] = apex_value;
         }
         valid &= ok;
       }
@@ -174,12 +187,12 @@ bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, 
 
 }  // namespace
 
-bool pack_cones(const ConeMapView& cones, int width, const bake::Rect& rect, float* out,
-                std::size_t row_floats, std::size_t layer_floats, bool vectorised) {
+bool pack_cones(const ConeMapView& cones, int width, const bake::Rect& rect, std::uint16_t* out,
+                std::size_t row_values, std::size_t layer_values, bool vectorised) {
   switch (cones.sector_count) {
-    case 1: return pack_cones_of<1>(cones, width, rect, out, row_floats, layer_floats, vectorised);
-    case 4: return pack_cones_of<4>(cones, width, rect, out, row_floats, layer_floats, vectorised);
-    default: return pack_cones_of<8>(cones, width, rect, out, row_floats, layer_floats, vectorised);
+    case 1: return pack_cones_of<1>(cones, width, rect, out, row_values, layer_values, vectorised);
+    case 4: return pack_cones_of<4>(cones, width, rect, out, row_values, layer_values, vectorised);
+    default: return pack_cones_of<8>(cones, width, rect, out, row_values, layer_values, vectorised);
   }
 }
 

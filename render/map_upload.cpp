@@ -219,7 +219,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
                       map.sectors == view.sector_count && map.relaxed == relaxed && map.address == view.address;
     cone_copies[index] = copy_kind(map, same, view.version, view.dirty_since, view.dirty.size());
     if (reshape(map, width, height, layers)) {
-      make_image(map, VK_FORMAT_R32G32_SFLOAT, width, height, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
+      make_image(map, cone_format, width, height, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
     }
     if (cone_copies[index] == Copy::whole) map.held = false;
     map.sectors = view.sector_count;
@@ -289,7 +289,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
       continue;
     }
     for (const bake::Rect& rect : rects_of(cone_copies[index], maps.cones[index].dirty)) {
-      bytes += align_up(rect_texels(rect) * 8 * VkDeviceSize(cones[index].layers));
+      bytes += align_up(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(cones[index].layers));
     }
   }
   if (pyramid_copy != Copy::none) bytes += align_up(pyramid_bytes);
@@ -384,8 +384,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (map.host_written) {
       for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
         if (rect_texels(rect) == 0) continue;
-        if (!detail::pack_cones(view, width, rect, texel_of(map, rect.x0, rect.y0, 8), map.image.row_pitch() / 4,
-                        map.image.layer_pitch() / 4)) {
+        auto* origin = reinterpret_cast<std::uint16_t*>(texel_of(map, rect.x0, rect.y0, cone_texel_bytes));
+        if (!detail::pack_cones(view, width, rect, origin, map.image.row_pitch() / 2, map.image.layer_pitch() / 2)) {
           throw invalid();
         }
       }
@@ -397,9 +397,9 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     regions.clear();
     for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
       if (rect_texels(rect) == 0) continue;
-      const VkDeviceSize offset = reserve(rect_texels(rect) * 8 * VkDeviceSize(map.layers));
-      if (!detail::pack_cones(view, width, rect, reinterpret_cast<float*>(staging + offset), std::size_t(rect.x1 - rect.x0) * 2,
-                      std::size_t(rect_texels(rect)) * 2)) {
+      const VkDeviceSize offset = reserve(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(map.layers));
+      if (!detail::pack_cones(view, width, rect, reinterpret_cast<std::uint16_t*>(staging + offset),
+                              std::size_t(rect.x1 - rect.x0) * 2, std::size_t(rect_texels(rect)) * 2)) {
         throw invalid();
       }
       VkBufferImageCopy region{};

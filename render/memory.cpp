@@ -27,7 +27,7 @@ constexpr std::uint64_t counters_bytes = 8;  // RG32F: iterations, fetches
 constexpr std::uint64_t depth_bytes = 4;     // D32F
 // bytes per texel of each map on the device
 constexpr std::uint64_t height_texel_bytes = 4;      // R32F
-constexpr std::uint64_t cone_layer_texel_bytes = 8;  // RG32F: (ratio, apex) per layer
+constexpr std::uint64_t cone_layer_texel_bytes = cone_texel_bytes;  // RG16UI: (ratio, apex) per layer
 constexpr std::uint64_t plane_vertex_bytes = 8;      // (u, v) floats
 constexpr std::uint64_t triangle_bytes = 12;         // three 32-bit indices
 // a mesh reference's triangles per vertex at most (n^2 triangles over (n + 1)(n + 2) / 2 vertices)

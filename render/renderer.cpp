@@ -62,8 +62,8 @@ void Renderer::Impl::create_frame_slots() {
   }
 
   // stand-ins bound where a method reads no map of that kind
-  const std::array<float, 2> one = {1.0f, 1.0f};
-  dummy_cones = upload_image_now(VK_FORMAT_R32G32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, one.data(), sizeof one);
+  const std::array<std::uint16_t, 2> cone_one = {0x3c00, 65535};  // ratio 1 (half float), apex 1
+  dummy_cones = upload_image_now(cone_format, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, cone_one.data(), sizeof cone_one);
   const std::array<std::uint8_t, 4> white = {255, 255, 255, 255};
   dummy_albedo = upload_image_now(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
   const float zero = 0.0f;

@@ -37,10 +37,14 @@ inline constexpr VkFormat counters_format = VK_FORMAT_R32G32_SFLOAT;
 inline constexpr VkFormat depth_format = VK_FORMAT_D32_SFLOAT;
 inline constexpr std::array<float, 4> background = {0.08f, 0.08f, 0.10f, 1.0f};
 
-// Layers of the cone image (BINDING_CONES, RG32F): layer k < n holds (r_k, H_c); with n > 1 sectors
+// Layers of the cone image (BINDING_CONES, cone_format): layer k < n holds (r_k, H_c); with n > 1 sectors
 // layer n holds (min over k of r_k, H_c), the isotropic bound the quadric cone march needs near a
 // step's start; with relaxed ratios one more layer holds (relaxed ratio, H_c).
 inline int cone_layer_count(int sectors, bool relaxed) { return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0); }
+// The cone image: per layer and texel (the ratio as a half float rounded down, the apex in 1 / 65535
+// rounded up) in 16 bits each (map_pack.h), read back by the shaders' cone_value
+constexpr VkFormat cone_format = VK_FORMAT_R16G16_UINT;
+constexpr std::size_t cone_texel_bytes = 4;
 
 // memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
 void add_target_memory(std::vector<Allocation>& list, int width, int height);

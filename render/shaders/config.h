@@ -44,7 +44,7 @@ using mat4 = glm::mat4;
 // descriptor bindings (set 0)
 #define BINDING_FRAME 0    // read-only storage buffer: FrameUniforms (frame_block.inc.glsl)
 #define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
-#define BINDING_CONES 2    // sampler2DArray, RG32F: layer k = (ratio of sector k, apex height), nearest
+#define BINDING_CONES 2    // usampler2DArray, RG16UI: layer k = (ratio of sector k, apex height) encoded, nearest
 #define RELAXED_CONE_SECTORS 4  // relaxed: layers 0-3 its bilinear cones, 4 their minimum, 5 (relaxed ratio, apex)
 #define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)

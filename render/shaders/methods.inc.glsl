@@ -180,7 +180,7 @@ ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
     g_iterations += 1u;
     vec3 p = origin + m.s * descent;
     g_fetches += 1u;
-    vec2 cone = texelFetch(cone_map, ivec3(cone_texel(p.xy), sector), 0).rg;  // (r_k, H_c)
+    vec2 cone = cone_value(ivec3(cone_texel(p.xy), sector));  // (r_k, H_c)
     float step = max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
     if (step >= fallback) {
       m.s = min(m.s + step, 1.0);

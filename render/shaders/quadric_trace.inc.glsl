@@ -247,14 +247,14 @@ QuadricMarch quadric_cone_march(QuadricRay ray, int steps, int sectors) {
     // (min over k of r_k, H_c); no offset slack is needed
     ivec2 texel_index = cone_texel(p.xy);
     g_fetches += 1u;
-    vec2 isotropic = texelFetch(cone_map, ivec3(texel_index, sectors > 1 ? sectors : 0), 0).rg;
+    vec2 isotropic = cone_value(ivec3(texel_index, sectors > 1 ? sectors : 0));
     float apex_gap = p.z - isotropic.y;
     float slack = 0.0;
     int sector = sectors > 1 ? cone_sector(quadric_uv_velocity(ray, m.t), sectors) : 0;
     float ratio = isotropic.x, smallest = isotropic.x;
     if (sectors > 1) {
       g_fetches += 1u;
-      ratio = texelFetch(cone_map, ivec3(texel_index, sector), 0).r;
+      ratio = cone_value(ivec3(texel_index, sector)).x;
     }
     // isotropic: every direction; the speed at the start, then the worst over that step
     float descent = quadric_descent_rate(ray, m.t);

@@ -47,7 +47,7 @@ const int relaxed_ratio_layer = RELAXED_CONE_SECTORS + 1;
 // (ratio, apex height) of the cone map texel holding uv, in `layer`: one counted fetch.
 vec2 fetch_cone_texel(vec2 uv, int layer) {
   g_fetches += 1u;
-  return texelFetch(cone_map, ivec3(cone_texel(uv), layer), 0).rg;
+  return cone_value(ivec3(cone_texel(uv), layer));
 }
 
 // How far back along the ray (in s) from p the bilinear cone (ratio, apex) read at p in the

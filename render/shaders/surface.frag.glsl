@@ -10,7 +10,7 @@ layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
-layout(binding = BINDING_CONES) uniform sampler2DArray cone_map;
+layout(binding = BINDING_CONES) uniform usampler2DArray cone_map;
 layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
 layout(binding = BINDING_DISTANCE) uniform sampler3D distance_map;
 layout(binding = BINDING_FOAM) uniform sampler2D foam_map;
@@ -29,6 +29,14 @@ layout(location = ATTACHMENT_COUNTERS) out vec4 out_counters;
 
 uint g_iterations = 0u;
 uint g_fetches = 0u;
+
+// (ratio, apex height) of cone map texel `texel` (x, y, layer). The image is R16G16_UINT: the ratio
+// as a half float rounded down and the apex in units of 1 / 65535 rounded up (render/map_pack.h), so
+// the values read claim no more empty space than the baked ones.
+vec2 cone_value(ivec3 texel) {
+  uvec2 stored = texelFetch(cone_map, texel, 0).rg;
+  return vec2(unpackHalf2x16(stored.x).x, float(stored.y) / 65535.0);
+}
 
 #include "bilinear_cell.inc.glsl"
 #include "methods.inc.glsl"
