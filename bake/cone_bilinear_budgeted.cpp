@@ -73,6 +73,7 @@
 #include <string>
 #include <vector>
 
+#include "bake/apex_kernel.h"
 #include "bake/geometry.h"
 #include "bake/lane_sweep.h"
 
@@ -397,21 +398,6 @@ void near_row(const SubCells& cells, const NearPlan& plan, const float* apex, in
   }
 }
 
-// bake_bilinear_cones' apex arithmetic, term for term, over the heights h[r][c] around a texel (rows
-// before, at and after it, columns likewise): the largest of s at Q_c's corners, edge midpoints and
-// centre, 0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2} - for one texel (double) or several (a
-// vector of doubles).
-template <class D>
-D highest_sample(const D (&h)[3][3]) {
-  D highest = h[1][1] * 0.0;
-  for (int b = 0; b < 3; ++b)
-    for (int a = 0; a < 3; ++a) {
-      const D value = 0.25 * (h[1][1] + h[1][a] + h[b][1] + h[b][a]);
-      highest = highest < value ? value : highest;
-    }
-  return highest;
-}
-
 // Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
 long long run_stage_l(State& state) {
   const int W = state.width, H = state.height;
@@ -430,10 +416,11 @@ long long run_stage_l(State& state) {
     before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
     after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
   }
+  const int level = detail::lane_sweep_best_level(), block_texels = detail::apex_block_texels(level);
   tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
-      const float* rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
+      const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
       float* apex_row = state.apex.data() + std::size_t(i) * W;
       std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
       // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
@@ -444,7 +431,7 @@ long long run_stage_l(State& state) {
         double h[3][3];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
-        const double highest = highest_sample(h);
+        const double highest = detail::highest_sample(h);
         const float nearest = float(highest);
         std::uint32_t bits;
         std::memcpy(&bits, &nearest, sizeof bits);
@@ -456,36 +443,14 @@ long long run_stage_l(State& state) {
         bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
       };
       apex_at(0, before[0], after[0]);
-      // the columns next to j in place: two texels at a time in SSE vectors, the same arithmetic
-      int j = 1;
-      for (; j + 2 < W; j += 2) {
-        typedef float F2 __attribute__((vector_size(8)));
-        typedef double D2 __attribute__((vector_size(16)));
-        typedef std::int32_t I2 __attribute__((vector_size(8)));
-        typedef std::uint16_t U2 __attribute__((vector_size(4)));
-        D2 h[3][3];
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) {
-            F2 f;
-            std::memcpy(&f, rows3[r] + j - 1 + c, sizeof f);
-            h[r][c] = __builtin_convertvector(f, D2);
-          }
-        const D2 highest = highest_sample(h);
-        const F2 nearest = __builtin_convertvector(highest, F2);
-        const I2 below =
-            __builtin_convertvector(__builtin_convertvector(nearest, D2) < highest, I2);  // -1 where below
-        I2 bits;
-        std::memcpy(&bits, &nearest, sizeof bits);
-        bits -= below;
-        F2 apex;
-        std::memcpy(&apex, &bits, sizeof apex);
-        std::memcpy(apex_row + j, &apex, sizeof apex);
-        I2 floor_scaled = __builtin_convertvector(apex * float(detail::height_scale) - 0x1p-7f, I2);
-        floor_scaled = floor_scaled < 0 ? 0 : floor_scaled;
-        floor_scaled = floor_scaled > 65535 ? 65535 : floor_scaled;
-        const U2 bottom = __builtin_convertvector(floor_scaled, U2);
-        std::memcpy(bottom_row + j, &bottom, sizeof bottom);
+      // the columns whose neighbours lie in the row: a vector of texels at a time, the same arithmetic
+      const int blocks = std::max(W - 2, 0) / block_texels;
+      switch (level) {
+        case 0: detail::apex_blocks_generic(rows3, 1, blocks, apex_row, bottom_row); break;
+        case 3: detail::apex_blocks_avx2(rows3, 1, blocks, apex_row, bottom_row); break;
+        default: detail::apex_blocks_avx512(rows3, 1, blocks, apex_row, bottom_row); break;
       }
+      int j = 1 + blocks * block_texels;
       for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
       if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
     }

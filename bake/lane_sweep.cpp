@@ -146,6 +146,12 @@ int lane_sweep_best_level() {
 #if !defined(DISPLACE_LANE_SWEEP_X86)
 void near_row_avx2(const NearRowJob& job) { near_row_generic(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_generic(job); }
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+  apex_blocks_generic(rows, first, 2 * blocks, apex, bottom);
+}
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+  apex_blocks_generic(rows, first, 4 * blocks, apex, bottom);
+}
 void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_sweep_avx512(LaneSweepJob& job) { lane_sweep_generic(job); }
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) {

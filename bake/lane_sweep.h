@@ -237,4 +237,12 @@ void near_row_generic(const NearRowJob& job);
 void near_row_avx2(const NearRowJob& job);
 void near_row_avx512(const NearRowJob& job);
 
+// The bilinear baker's apexes (apex_kernel.h's apex_blocks) for `blocks` blocks of texels from
+// `first` on, whose neighbours both lie in the row: 2 texels a block in any CPU's build, 4 with AVX2,
+// 8 with AVX-512 (apex_block_texels).
+void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
+inline int apex_block_texels(int level) { return level >= 4 ? 8 : level == 3 ? 4 : 2; }
+
 }  // namespace displace::bake::detail

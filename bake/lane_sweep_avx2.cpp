@@ -4,6 +4,7 @@
 #pragma GCC diagnostic ignored "-Wpsabi"
 #include <immintrin.h>
 
+#include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 
@@ -69,6 +70,14 @@ namespace displace::bake::detail {
 
 void lane_sweep_avx2(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_avx2(const NearRowJob& job) { near_row_kernel(job); }
+
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+  typedef float F __attribute__((vector_size(16)));
+  typedef double D __attribute__((vector_size(32)));
+  typedef std::int32_t I __attribute__((vector_size(16)));
+  typedef std::uint16_t U __attribute__((vector_size(8)));
+  apex_blocks<F, D, I, U>(rows, first, blocks, apex, bottom);
+}
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
 
 }  // namespace displace::bake::detail

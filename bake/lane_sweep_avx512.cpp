@@ -5,6 +5,7 @@
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
+#include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 
@@ -49,6 +50,14 @@ namespace displace::bake::detail {
 
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_kernel(job); }
+
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+  typedef float F __attribute__((vector_size(32)));
+  typedef double D __attribute__((vector_size(64)));
+  typedef std::int32_t I __attribute__((vector_size(32)));
+  typedef std::uint16_t U __attribute__((vector_size(16)));
+  apex_blocks<F, D, I, U>(rows, first, blocks, apex, bottom);
+}
 
 // Sixteen texels at a time: the count from the mask's leading zeros (the mask is 2^count - 1), the
 // ratio from a 32-entry table in two registers (count 32 blended in), and the four quadrants'

@@ -3,6 +3,7 @@
 // the vector type never crosses a function boundary that another translation unit sees
 #pragma GCC diagnostic ignored "-Wpsabi"
 
+#include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 
@@ -43,6 +44,14 @@ namespace displace::bake::detail {
 
 void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_generic(const NearRowJob& job) { near_row_kernel(job); }
+
+void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+  typedef float F __attribute__((vector_size(8)));
+  typedef double D __attribute__((vector_size(16)));
+  typedef std::int32_t I __attribute__((vector_size(8)));
+  typedef std::uint16_t U __attribute__((vector_size(4)));
+  apex_blocks<F, D, I, U>(rows, first, blocks, apex, bottom);
+}
 void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) {
   emit_texels(job, first, last);
 }

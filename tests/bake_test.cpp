@@ -694,6 +694,46 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
 
 // The second lap stops where its rows meet the first lap's; what it leaves is what a whole second
 // lap gives, and on a smooth periodic map it does stop early.
+// The apex kernels of every instruction set the CPU runs give bake_bilinear_cones' apexes bit for
+// bit (rounded up to float) and their 16-bit floors, on rows of every length that fills 0 to 3
+// blocks with a remainder, with heights whose samples round in both directions.
+TEST(LaneSweep, ApexKernelsGiveTheFullBakesApexes) {
+  const int best = detail::lane_sweep_best_level();
+  long long compared = 0;
+  for (int width = 3; width <= 30; ++width) {
+    std::vector<float> heights(std::size_t(width) * 3);
+    for (std::size_t n = 0; n < heights.size(); ++n) heights[n] = test::hash01(71, n, std::uint64_t(width));
+    heights[std::size_t(width) + 1] = 1.0f;  // a peak: the apex at its largest
+    std::vector<float> cones(heights.size() * 4), expected(heights.size());
+    bake_bilinear_cones({heights.data(), width, 3}, Address::clamp, {cones.data(), width, 3, 4}, expected);
+    const float* const rows[3] = {heights.data(), heights.data() + width, heights.data() + 2 * width};
+    for (int level : {0, 3, 4}) {
+      if (level > best) continue;
+      const int block = detail::apex_block_texels(level), blocks = (width - 2) / block;
+      std::vector<float> apex(std::size_t(width), -1.0f);
+      std::vector<std::uint16_t> bottom(std::size_t(width), 7);
+      switch (level) {
+        case 0: detail::apex_blocks_generic(rows, 1, blocks, apex.data(), bottom.data()); break;
+        case 3: detail::apex_blocks_avx2(rows, 1, blocks, apex.data(), bottom.data()); break;
+        default: detail::apex_blocks_avx512(rows, 1, blocks, apex.data(), bottom.data()); break;
+      }
+      for (int j = 0; j < width; ++j) {
+        const bool written = j >= 1 && j < 1 + blocks * block;
+        if (!written) {  // nothing outside the blocks
+          EXPECT_EQ(apex[std::size_t(j)], -1.0f) << width << " " << j;
+          continue;
+        }
+        const float want = expected[std::size_t(width) + std::size_t(j)];
+        EXPECT_EQ(apex[std::size_t(j)], want) << "level " << level << " width " << width << " texel " << j;
+        const int floor_scaled = std::clamp(int(want * 65535.0f - 0x1p-7f), 0, 65535);
+        EXPECT_EQ(bottom[std::size_t(j)], floor_scaled) << "level " << level << " width " << width << " texel " << j;
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GT(compared, 300);
+}
+
 TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
   Map waves{"waves", 96, 80, std::vector<float>(96 * 80)};
   for (int i = 0; i < waves.height; ++i)
