@@ -28,7 +28,8 @@ inline D highest_sample(const D (&h)[3][3]) {
 // nearest is below) into apex[j], and floor(apex * 65535) a little below, clamped, into bottom[j].
 // F, D, I, U: vectors of N floats, doubles, 32-bit and 16-bit integers.
 template <class F, class D, class I, class U>
-inline void apex_blocks(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+inline void apex_blocks(const float* const (&rows)[3], int first, int blocks, float* apex,
+                        std::uint16_t* bottom) {
   constexpr int N = int(sizeof(F) / sizeof(float));
   for (int j = first; j < first + N * blocks; j += N) {
     D h[3][3];
@@ -40,7 +41,8 @@ inline void apex_blocks(const float* const (&rows)[3], int first, int blocks, fl
       }
     const D highest = highest_sample(h);
     const F nearest = __builtin_convertvector(highest, F);
-    const I below = __builtin_convertvector(__builtin_convertvector(nearest, D) < highest, I);  // -1 where below
+    const I below =
+        __builtin_convertvector(__builtin_convertvector(nearest, D) < highest, I);  // -1 where below
     I bits;
     std::memcpy(&bits, &nearest, sizeof bits);
     bits -= below;
