@@ -505,40 +505,42 @@ long long run_stage_l(State& state) {
     std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
   }
   const float highest = state.plan.highest;
-  auto floor_ratio = [&](float apex) {
-    return highest > apex ? float(0.5 * t / (double(highest) - double(apex)) * (1.0 - 1e-6)) : 1.0f;
-  };
   state.lanes.assign(lanes, lanes + stage_l_sweeps * detail::lane_count);
   state.upper_ready = false;
   state.stage_l.resize(texels * 4);
   const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
                                    make_near_plan(W, H, 3)};
+  static_assert(stage_l_sweeps == 1, "stage_l_combine_kernel takes one sweep's lanes");
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
-    thread_local std::vector<float> near, slope3, floor;
+    thread_local std::vector<float> near[4], slope3[4];
     thread_local SubCells sub_cells;
-    near.resize(W);
-    slope3.resize(W);
-    floor.resize(W);
+    for (int q = 0; q < 4; ++q) {
+      near[q].resize(W);
+      slope3[q].resize(W);
+    }
     make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, sub_cells);
+    detail::StageLCombineJob job;
+    job.width = W;
+    job.highest = highest;
+    job.half_texel = 0.5 * t;
+    job.lane_ratio = state.lane_ratio[0];
+    job.lipschitz = lipschitz;
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const std::size_t row = std::size_t(i) * W;
-      // below the lowest lane: every far cell is at least half a texel away and at most `highest`
-      for (int j = 0; j < W; ++j) floor[j] = floor_ratio(state.apex[row + j]);
       for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, near_plans[q], state.apex.data() + row, W, i, near.data(), slope3.data());
-        for (int j = 0; j < W; ++j) {
-          const std::size_t n = row + j;
-          // the larger of the sweeps' passing lanes, as a ratio
-          float beyond2 = floor[j], beyond3 = floor[j];
-          for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
-            beyond2 = std::max(beyond2, state.lane_ratio[sweep][state.passed[sweep][q][n]]);
-            beyond3 = std::max(beyond3, state.lane_ratio[sweep][state.passed3[sweep][q][n]]);
-          }
-          // cells beyond box 3: the lanes; between the boxes: the lanes or the slope; box 2: near
-          // (and the Lipschitz bound holds for every cell, near and far)
-          state.stage_l[n * 4 + q] = std::max(std::min({beyond3, std::max(beyond2, slope3[j]), near[j], 1.0f}), lipschitz);
-        }
+        near_row(sub_cells, near_plans[q], state.apex.data() + row, W, i, near[q].data(), slope3[q].data());
+        job.passed[q] = state.passed[0][q].data() + row;
+        job.passed3[q] = state.passed3[0][q].data() + row;
+        job.near[q] = near[q].data();
+        job.slope3[q] = slope3[q].data();
+      }
+      job.apex = state.apex.data() + row;
+      job.out = state.stage_l.data() + row * 4;
+      switch (level) {
+        case 0: detail::stage_l_combine_generic(job); break;
+        case 3: detail::stage_l_combine_avx2(job); break;
+        default: detail::stage_l_combine_avx512(job); break;
       }
     }
   });

@@ -146,6 +146,8 @@ int lane_sweep_best_level() {
 #if !defined(DISPLACE_LANE_SWEEP_X86)
 void near_row_avx2(const NearRowJob& job) { near_row_generic(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_generic(job); }
+void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_generic(job); }
+void stage_l_combine_avx512(const StageLCombineJob& job) { stage_l_combine_generic(job); }
 void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
   apex_blocks_generic(rows, first, 2 * blocks, apex, bottom);
 }

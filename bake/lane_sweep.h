@@ -245,4 +245,23 @@ void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, floa
 void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
 inline int apex_block_texels(int level) { return level >= 4 ? 8 : level == 3 ? 4 : 2; }
 
+// The bilinear baker's stage L ratios of a row of texels from one sweep's lanes
+// (stage_l_combine_kernel.h): per quadrant q, out[4 j + q].
+struct StageLCombineJob {
+  int width = 0;
+  const float* apex = nullptr;
+  float highest = 0.0f;     // the map's highest cell
+  double half_texel = 0.0;  // half the smaller texel side, in uv
+  const float* lane_ratio = nullptr;  // lane_count + 1 entries: the ratio a count of passing lanes proves
+  const std::uint8_t* passed[4] = {};   // per quadrant: lanes passed beyond box 2
+  const std::uint8_t* passed3[4] = {};  // beyond box 3
+  const float* near[4] = {};
+  const float* slope3[4] = {};
+  float lipschitz = 0.0f;
+  float* out = nullptr;
+};
+void stage_l_combine_generic(const StageLCombineJob& job);
+void stage_l_combine_avx2(const StageLCombineJob& job);
+void stage_l_combine_avx512(const StageLCombineJob& job);
+
 }  // namespace displace::bake::detail

@@ -7,6 +7,7 @@
 #include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
+#include "bake/stage_l_combine_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -79,5 +80,7 @@ void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, floa
   apex_blocks<F, D, I, U>(rows, first, blocks, apex, bottom);
 }
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
+
+void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_kernel(job, 0, job.width); }
 
 }  // namespace displace::bake::detail

@@ -8,6 +8,7 @@
 #include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
+#include "bake/stage_l_combine_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -51,7 +52,8 @@ namespace displace::bake::detail {
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_kernel(job); }
 
-void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex,
+                        std::uint16_t* bottom) {
   typedef float F __attribute__((vector_size(32)));
   typedef double D __attribute__((vector_size(64)));
   typedef std::int32_t I __attribute__((vector_size(32)));
@@ -117,6 +119,64 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
   job.ratio_sum += ratio_sum + _mm512_reduce_add_ps(sum);
   job.pending += _mm512_reduce_add_epi32(pending);
   emit_texels(job, t, last);
+}
+
+// Sixteen texels at a time: the floor's quotient in two vectors of 8 doubles (the scalar loop's
+// operations: a difference of floats, exact in double, a quotient, a product, a rounding to float),
+// the lane table in two registers (count 32 blended in), and the quadrants interleaved as
+// lane_emit_avx512 does. The rest of the row goes to the scalar loop.
+void stage_l_combine_avx512(const StageLCombineJob& job) {
+  const __m512 ratios_low = _mm512_loadu_ps(job.lane_ratio),
+               ratios_high = _mm512_loadu_ps(job.lane_ratio + 16);
+  const __m512 top_ratio = _mm512_set1_ps(job.lane_ratio[32]), one = _mm512_set1_ps(1.0f);
+  const __m512 lipschitz = _mm512_set1_ps(job.lipschitz), highest = _mm512_set1_ps(job.highest);
+  const __m512d highest_double = _mm512_set1_pd(double(job.highest)),
+                half_texel = _mm512_set1_pd(job.half_texel);
+  const __m512d shrink = _mm512_set1_pd(1.0 - 1e-6), one_double = _mm512_set1_pd(1.0);
+  const __m512i all_lanes = _mm512_set1_epi32(32);
+  int j = 0;
+  for (; j + 16 <= job.width; j += 16) {
+    const __m512 apex = _mm512_loadu_ps(job.apex + j);
+    const __mmask16 below = _mm512_cmp_ps_mask(apex, highest, _CMP_LT_OQ);  // highest > apex
+    __m256 quotient[2];
+    for (int half = 0; half < 2; ++half) {
+      const __m512d apex_double =
+          _mm512_cvtps_pd(half == 0 ? _mm512_castps512_ps256(apex) : _mm512_extractf32x8_ps(apex, 1));
+      const __m512d gap = _mm512_sub_pd(highest_double, apex_double);
+      const __mmask8 used = __mmask8(half == 0 ? below : below >> 8);
+      const __m512d divisor = _mm512_mask_blend_pd(used, one_double, gap);  // 1 where not used
+      quotient[half] = _mm512_cvtpd_ps(_mm512_mul_pd(_mm512_div_pd(half_texel, divisor), shrink));
+    }
+    const __m512 floor = _mm512_mask_blend_ps(
+        below, one, _mm512_insertf32x8(_mm512_castps256_ps512(quotient[0]), quotient[1], 1));
+    __m512 ratio[4];
+    for (int q = 0; q < 4; ++q) {
+      auto lanes = [&](const std::uint8_t* counts) {
+        const __m512i count =
+            _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(counts + j)));
+        const __mmask16 full = _mm512_cmpeq_epi32_mask(count, all_lanes);
+        return _mm512_mask_blend_ps(full, _mm512_permutex2var_ps(ratios_low, count, ratios_high), top_ratio);
+      };
+      const __m512 beyond2 = _mm512_max_ps(floor, lanes(job.passed[q]));
+      const __m512 beyond3 = _mm512_max_ps(floor, lanes(job.passed3[q]));
+      const __m512 slope3 = _mm512_loadu_ps(job.slope3[q] + j), near = _mm512_loadu_ps(job.near[q] + j);
+      ratio[q] = _mm512_max_ps(
+          _mm512_min_ps(_mm512_min_ps(beyond3, _mm512_max_ps(beyond2, slope3)), _mm512_min_ps(near, one)),
+          lipschitz);
+    }
+    const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);
+    const __m512 t2 = _mm512_unpacklo_ps(ratio[2], ratio[3]), t3 = _mm512_unpackhi_ps(ratio[2], ratio[3]);
+    const __m512 u0 = _mm512_shuffle_ps(t0, t2, 0x44), u1 = _mm512_shuffle_ps(t0, t2, 0xEE);
+    const __m512 u2 = _mm512_shuffle_ps(t1, t3, 0x44), u3 = _mm512_shuffle_ps(t1, t3, 0xEE);
+    const __m512 v0 = _mm512_shuffle_f32x4(u0, u1, 0x44), v1 = _mm512_shuffle_f32x4(u2, u3, 0x44);
+    const __m512 v2 = _mm512_shuffle_f32x4(u0, u1, 0xEE), v3 = _mm512_shuffle_f32x4(u2, u3, 0xEE);
+    float* out = job.out + std::size_t(j) * 4;
+    _mm512_storeu_ps(out, _mm512_shuffle_f32x4(v0, v1, 0x88));
+    _mm512_storeu_ps(out + 16, _mm512_shuffle_f32x4(v0, v1, 0xDD));
+    _mm512_storeu_ps(out + 32, _mm512_shuffle_f32x4(v2, v3, 0x88));
+    _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
+  }
+  stage_l_combine_kernel(job, j, job.width);
 }
 
 }  // namespace displace::bake::detail

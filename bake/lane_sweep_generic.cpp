@@ -6,6 +6,7 @@
 #include "bake/apex_kernel.h"
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
+#include "bake/stage_l_combine_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -55,5 +56,7 @@ void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, f
 void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) {
   emit_texels(job, first, last);
 }
+
+void stage_l_combine_generic(const StageLCombineJob& job) { stage_l_combine_kernel(job, 0, job.width); }
 
 }  // namespace displace::bake::detail

@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -732,6 +733,70 @@ TEST(LaneSweep, ApexKernelsGiveTheFullBakesApexes) {
     }
   }
   EXPECT_GT(compared, 300);
+}
+
+// Stage L's last step gives the same bits in every instruction set the CPU runs: rows of 1 to 40
+// texels (the vector blocks and the scalar rest), every lane count 0 to 32, apexes at, below and far
+// below the highest cell, near and slope bounds from 0 to infinity.
+TEST(LaneSweep, StageLCombineKernelsAgree) {
+  const int best = detail::lane_sweep_best_level();
+  float lane_ratio[detail::lane_count + 1];
+  for (int l = 0; l <= detail::lane_count; ++l) lane_ratio[l] = 0.01f * std::pow(1.15f, float(l));
+  long long compared = 0;
+  for (int width = 1; width <= 40; ++width) {
+    std::vector<float> apex(static_cast<std::size_t>(width)), near(static_cast<std::size_t>(width) * 4), slope3(near.size());
+    std::vector<std::uint8_t> passed(near.size()), passed3(near.size());
+    for (int j = 0; j < width; ++j) {
+      const float r = test::hash01(73, std::uint64_t(width), std::uint64_t(j));
+      apex[std::size_t(j)] = j % 7 == 0 ? 0.75f : 0.75f * r;  // some at the highest cell
+    }
+    for (std::size_t n = 0; n < near.size(); ++n) {
+      const float a = test::hash01(79, std::uint64_t(width), n), b = test::hash01(83, std::uint64_t(width), n);
+      near[n] = n % 5 == 0 ? std::numeric_limits<float>::infinity() : 2.0f * a;
+      slope3[n] = n % 3 == 0 ? std::numeric_limits<float>::infinity() : (n % 11 == 0 ? 0.0f : b);
+      passed[n] = std::uint8_t((n * 7 + std::size_t(width)) % 33);
+      passed3[n] = std::uint8_t((n * 13 + 5) % 33);
+    }
+    detail::StageLCombineJob job;
+    job.width = width;
+    job.apex = apex.data();
+    job.highest = 0.75f;
+    job.half_texel = 0.5 / 512.0;
+    job.lane_ratio = lane_ratio;
+    job.lipschitz = 0.03f;
+    for (int q = 0; q < 4; ++q) {
+      job.passed[q] = passed.data() + std::size_t(q) * width;
+      job.passed3[q] = passed3.data() + std::size_t(q) * width;
+      job.near[q] = near.data() + std::size_t(q) * width;
+      job.slope3[q] = slope3.data() + std::size_t(q) * width;
+    }
+    std::vector<float> expected(std::size_t(width) * 4, -1.0f);
+    job.out = expected.data();
+    detail::stage_l_combine_generic(job);
+    for (int level : {3, 4}) {
+      if (level > best) continue;
+      std::vector<float> out(expected.size(), -2.0f);
+      job.out = out.data();
+      if (level == 3)
+        detail::stage_l_combine_avx2(job);
+      else
+        detail::stage_l_combine_avx512(job);
+      for (std::size_t n = 0; n < out.size(); ++n) {
+        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[n]), std::bit_cast<std::uint32_t>(expected[n]))
+            << "level " << level << " width " << width << " value " << n << ": " << out[n] << " against " << expected[n];
+        ++compared;
+      }
+    }
+    // and the definition, for one texel and quadrant
+    const int j = width - 1, q = width % 4;
+    const float floor = apex[std::size_t(j)] < 0.75f ? float(0.5 / 512.0 / (0.75 - double(apex[std::size_t(j)])) * (1.0 - 1e-6)) : 1.0f;
+    const float beyond2 = std::max(floor, lane_ratio[job.passed[q][j]]), beyond3 = std::max(floor, lane_ratio[job.passed3[q][j]]);
+    const float want = std::max(std::min({beyond3, std::max(beyond2, job.slope3[q][j]), job.near[q][j], 1.0f}), 0.03f);
+    EXPECT_EQ(expected[std::size_t(j) * 4 + std::size_t(q)], want) << width;
+  }
+  if (best >= 3) {
+    EXPECT_GT(compared, 1000);
+  }
 }
 
 TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
