@@ -214,58 +214,10 @@ float make_cells(State& state) {
 constexpr float top_slack = 2.4e-7f;  // heights: over a sample's error (2^-24) and the sum's rounding
 constexpr double rate_slack = 4e-7;   // heights per half texel: two samples' errors and their difference's
 
-// One row of sub-cells from the samples of rows Y and Y + 1, split by parity: even[k] at
-// X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach.
-void sub_cell_row(const float* even0, const float* odd0, const float* even1, const float* odd1, int count,
-                  float per_u, float per_v, float slack_u, float slack_v, float* const out[5][2],
-                  std::size_t at) {
-  constexpr float raise = 1.0f + 0x1p-20f;
-  for (int parity = 0; parity < 2; ++parity) {
-    // corners X and X + 1 of the sub-cells of this parity
-    const float* __restrict left0 = parity ? odd0 : even0;
-    const float* __restrict right0 = parity ? even0 + 1 : odd0;
-    const float* __restrict left1 = parity ? odd1 : even1;
-    const float* __restrict right1 = parity ? even1 + 1 : odd1;
-    float* __restrict top = out[0][parity] + at;
-    float* __restrict plus_u = out[1][parity] + at;
-    float* __restrict minus_u = out[2][parity] + at;
-    float* __restrict plus_v = out[3][parity] + at;
-    float* __restrict minus_v = out[4][parity] + at;
-    // four sub-cells at a time in SSE registers (the generic build's width), then the tail
-    typedef float Four __attribute__((vector_size(16)));
-    auto larger = [](auto a, auto b) { return a > b ? a : b; };
-    auto load = [](const float* p) {
-      Four v;
-      std::memcpy(&v, p, sizeof v);
-      return v;
-    };
-    auto store = [](float* p, Four v) { std::memcpy(p, &v, sizeof v); };
-    const Four zero = Four{} + 0.0f;
-    int k = 0;
-    for (; k + 4 <= count; k += 4) {
-      const Four a = load(left0 + k), b = load(right0 + k), c = load(left1 + k), d = load(right1 + k);
-      const Four du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
-      store(top + k, larger(larger(a, b), larger(c, d)) + top_slack);
-      store(plus_u + k, larger(zero, larger(du0, du1)) * raise + slack_u);
-      store(minus_u + k, larger(zero, larger(-du0, -du1)) * raise + slack_u);
-      store(plus_v + k, larger(zero, larger(dv0, dv1)) * raise + slack_v);
-      store(minus_v + k, larger(zero, larger(-dv0, -dv1)) * raise + slack_v);
-    }
-    for (; k < count; ++k) {
-      const float a = left0[k], b = right0[k], c = left1[k], d = right1[k];
-      const float du0 = (b - a) * per_u, du1 = (d - c) * per_u, dv0 = (c - a) * per_v, dv1 = (d - b) * per_v;
-      top[k] = larger(larger(a, b), larger(c, d)) + top_slack;
-      plus_u[k] = larger(0.0f, larger(du0, du1)) * raise + slack_u;
-      minus_u[k] = larger(0.0f, larger(-du0, -du1)) * raise + slack_u;
-      plus_v[k] = larger(0.0f, larger(dv0, dv1)) * raise + slack_v;
-      minus_v[k] = larger(0.0f, larger(-dv0, -dv1)) * raise + slack_v;
-    }
-  }
-}
-
 // Sub-cell rows Y in [first_row, last_row) (within [-near_reach, 2 H + near_reach)).
 void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
+  const int level = detail::lane_sweep_best_level();
   const int W = state.width, H = state.height, pad = near_reach;
   cells.columns = std::max(W, detail::near_block) + pad;  // X from -pad to 2 W + pad - 1 (or on)
   cells.rows = last_row - first_row;
@@ -309,9 +261,24 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   sample_row(first_row, rows[lower]);
   for (int Y = first_row; Y < last_row; ++Y) {
     sample_row(Y + 1, rows[1 - lower]);
-    sub_cell_row(rows[lower][0].data(), rows[lower][1].data(), rows[1 - lower][0].data(),
-                 rows[1 - lower][1].data(), cells.columns, per_u, per_v, slack_u, slack_v, out,
-                 std::size_t(Y - first_row) * cells.columns);
+    detail::SubCellRowJob job;
+    job.even0 = rows[lower][0].data();
+    job.odd0 = rows[lower][1].data();
+    job.even1 = rows[1 - lower][0].data();
+    job.odd1 = rows[1 - lower][1].data();
+    job.count = cells.columns;
+    job.per_u = per_u;
+    job.per_v = per_v;
+    job.slack_u = slack_u;
+    job.slack_v = slack_v;
+    job.top_slack = top_slack;
+    for (int f = 0; f < 5; ++f)
+      for (int p = 0; p < 2; ++p) job.out[f][p] = out[f][p] + std::size_t(Y - first_row) * cells.columns;
+    switch (level) {
+      case 0: detail::sub_cell_row_generic(job); break;
+      case 3: detail::sub_cell_row_avx2(job); break;
+      default: detail::sub_cell_row_avx512(job); break;
+    }
     lower = 1 - lower;
   }
 }

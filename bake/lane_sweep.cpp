@@ -147,6 +147,8 @@ int lane_sweep_best_level() {
 void near_row_avx2(const NearRowJob& job) { near_row_generic(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_generic(job); }
 void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_generic(job); }
+void sub_cell_row_avx2(const SubCellRowJob& job) { sub_cell_row_generic(job); }
+void sub_cell_row_avx512(const SubCellRowJob& job) { sub_cell_row_generic(job); }
 void stage_l_combine_avx512(const StageLCombineJob& job) { stage_l_combine_generic(job); }
 void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
   apex_blocks_generic(rows, first, 2 * blocks, apex, bottom);

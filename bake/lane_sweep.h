@@ -260,6 +260,24 @@ struct StageLCombineJob {
   float lipschitz = 0.0f;
   float* out = nullptr;
 };
+// One row of the bilinear baker's sub-cells (sub_cell_kernel.h) from the samples of rows Y and Y + 1
+// split by parity (even[k] at X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach), into
+// out[field][parity] (fields: maximum, rise +u, -u, +v, -v), count sub-cells per parity.
+struct SubCellRowJob {
+  const float* even0 = nullptr;
+  const float* odd0 = nullptr;
+  const float* even1 = nullptr;
+  const float* odd1 = nullptr;
+  int count = 0;
+  float per_u = 0.0f, per_v = 0.0f;      // 1 / (half a texel) in uv
+  float slack_u = 0.0f, slack_v = 0.0f;  // added to the rates
+  float top_slack = 0.0f;                // added to the maxima
+  float* out[5][2] = {};
+};
+void sub_cell_row_generic(const SubCellRowJob& job);
+void sub_cell_row_avx2(const SubCellRowJob& job);
+void sub_cell_row_avx512(const SubCellRowJob& job);
+
 void stage_l_combine_generic(const StageLCombineJob& job);
 void stage_l_combine_avx2(const StageLCombineJob& job);
 void stage_l_combine_avx512(const StageLCombineJob& job);

@@ -8,6 +8,7 @@
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 #include "bake/stage_l_combine_kernel.h"
+#include "bake/sub_cell_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -82,5 +83,10 @@ void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, floa
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last) { emit_texels(job, first, last); }
 
 void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_kernel(job, 0, job.width); }
+
+void sub_cell_row_avx2(const SubCellRowJob& job) {
+  typedef float V __attribute__((vector_size(32)));
+  sub_cell_row_kernel<V>(job);
+}
 
 }  // namespace displace::bake::detail

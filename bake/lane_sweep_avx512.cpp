@@ -9,6 +9,7 @@
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 #include "bake/stage_l_combine_kernel.h"
+#include "bake/sub_cell_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -177,6 +178,11 @@ void stage_l_combine_avx512(const StageLCombineJob& job) {
     _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
   }
   stage_l_combine_kernel(job, j, job.width);
+}
+
+void sub_cell_row_avx512(const SubCellRowJob& job) {
+  typedef float V __attribute__((vector_size(64)));
+  sub_cell_row_kernel<V>(job);
 }
 
 }  // namespace displace::bake::detail

@@ -7,6 +7,7 @@
 #include "bake/lane_sweep.h"
 #include "bake/near_field_kernel.h"
 #include "bake/stage_l_combine_kernel.h"
+#include "bake/sub_cell_kernel.h"
 
 namespace displace::bake::detail {
 namespace {
@@ -58,5 +59,10 @@ void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last) {
 }
 
 void stage_l_combine_generic(const StageLCombineJob& job) { stage_l_combine_kernel(job, 0, job.width); }
+
+void sub_cell_row_generic(const SubCellRowJob& job) {
+  typedef float V __attribute__((vector_size(16)));
+  sub_cell_row_kernel<V>(job);
+}
 
 }  // namespace displace::bake::detail

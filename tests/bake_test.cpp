@@ -799,6 +799,61 @@ TEST(LaneSweep, StageLCombineKernelsAgree) {
   }
 }
 
+// The sub-cell rows of every instruction set the CPU runs are the generic build's bit for bit, for
+// counts that fill the vectors and leave rests, and the generic build's values are the definition:
+// a sub-cell's largest corner plus the slack, its rates the corner differences raised.
+TEST(LaneSweep, SubCellKernelsAgree) {
+  const int best = detail::lane_sweep_best_level();
+  long long compared = 0;
+  for (int count = 1; count <= 45; count += 4) {
+    std::vector<float> samples[4];
+    for (int r = 0; r < 4; ++r) {
+      samples[r].resize(std::size_t(count) + 2);
+      for (std::size_t k = 0; k < samples[r].size(); ++k) samples[r][k] = test::hash01(89, std::uint64_t(r), k);
+    }
+    detail::SubCellRowJob job;
+    job.even0 = samples[0].data();
+    job.odd0 = samples[1].data();
+    job.even1 = samples[2].data();
+    job.odd1 = samples[3].data();
+    job.count = count;
+    job.per_u = 1024.0f;
+    job.per_v = 512.0f;
+    job.slack_u = 4e-4f;
+    job.slack_v = 2e-4f;
+    job.top_slack = 2.4e-7f;
+    auto run = [&](int level) {
+      std::vector<float> out(std::size_t(count) * 10, -1.0f);
+      for (int f = 0; f < 5; ++f)
+        for (int p = 0; p < 2; ++p) job.out[f][p] = out.data() + std::size_t(f * 2 + p) * count;
+      if (level == 0) detail::sub_cell_row_generic(job);
+      if (level == 3) detail::sub_cell_row_avx2(job);
+      if (level == 4) detail::sub_cell_row_avx512(job);
+      return out;
+    };
+    const std::vector<float> expected = run(0);
+    // the definition at the last even sub-cell: corners even0[k], odd0[k], even1[k], odd1[k]
+    const int k = count - 1;
+    const float a = samples[0][std::size_t(k)], b = samples[1][std::size_t(k)], c = samples[2][std::size_t(k)],
+                d = samples[3][std::size_t(k)];
+    EXPECT_EQ(expected[std::size_t(k)], std::max({a, b, c, d}) + 2.4e-7f);
+    const float du0 = (b - a) * 1024.0f, du1 = (d - c) * 1024.0f;
+    EXPECT_EQ(expected[std::size_t(2 * count + k)], std::max({0.0f, du0, du1}) * (1.0f + 0x1p-20f) + 4e-4f);
+    for (int level : {3, 4}) {
+      if (level > best) continue;
+      const std::vector<float> out = run(level);
+      for (std::size_t n = 0; n < out.size(); ++n) {
+        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[n]), std::bit_cast<std::uint32_t>(expected[n]))
+            << "level " << level << " count " << count << " value " << n;
+        ++compared;
+      }
+    }
+  }
+  if (best >= 3) {
+    EXPECT_GT(compared, 1000);
+  }
+}
+
 TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
   Map waves{"waves", 96, 80, std::vector<float>(96 * 80)};
   for (int i = 0; i < waves.height; ++i)
