@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "bake/lane_sweep.h"
+
 namespace displace::bake::detail {
 
 // The largest of s at Q_c's corners, edge midpoints and centre over the heights h[r][c] around a
@@ -49,7 +51,7 @@ inline void apex_blocks(const float* const (&rows)[3], int first, int blocks, fl
     F rounded;
     std::memcpy(&rounded, &bits, sizeof rounded);
     std::memcpy(apex + j, &rounded, sizeof rounded);
-    I floor_scaled = __builtin_convertvector(rounded * 65535.0f - 0x1p-7f, I);
+    I floor_scaled = __builtin_convertvector(rounded * float(height_scale) - 0x1p-7f, I);
     floor_scaled = floor_scaled < 0 ? 0 : floor_scaled;
     floor_scaled = floor_scaled > 65535 ? 65535 : floor_scaled;
     const U low = __builtin_convertvector(floor_scaled, U);

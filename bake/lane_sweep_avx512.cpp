@@ -50,6 +50,25 @@ struct Ops {
 
 namespace displace::bake::detail {
 
+namespace {
+
+// Four vectors of 16 values, one per quadrant, stored texel by texel: out[4 t + q] = ratio[q][t] (a
+// 4 x 4 transpose per 128-bit lane and one across them).
+void store_interleaved(const __m512 (&ratio)[4], float* out) {
+  const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);
+  const __m512 t2 = _mm512_unpacklo_ps(ratio[2], ratio[3]), t3 = _mm512_unpackhi_ps(ratio[2], ratio[3]);
+  const __m512 u0 = _mm512_shuffle_ps(t0, t2, 0x44), u1 = _mm512_shuffle_ps(t0, t2, 0xEE);
+  const __m512 u2 = _mm512_shuffle_ps(t1, t3, 0x44), u3 = _mm512_shuffle_ps(t1, t3, 0xEE);
+  const __m512 v0 = _mm512_shuffle_f32x4(u0, u1, 0x44), v1 = _mm512_shuffle_f32x4(u2, u3, 0x44);
+  const __m512 v2 = _mm512_shuffle_f32x4(u0, u1, 0xEE), v3 = _mm512_shuffle_f32x4(u2, u3, 0xEE);
+  _mm512_storeu_ps(out, _mm512_shuffle_f32x4(v0, v1, 0x88));
+  _mm512_storeu_ps(out + 16, _mm512_shuffle_f32x4(v0, v1, 0xDD));
+  _mm512_storeu_ps(out + 32, _mm512_shuffle_f32x4(v2, v3, 0x88));
+  _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
+}
+
+}  // namespace
+
 void lane_sweep_avx512(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_avx512(const NearRowJob& job) { near_row_kernel(job); }
 
@@ -101,17 +120,7 @@ void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last) {
       const __m512i p = _mm512_permutex2var_epi32(pending_low, count[q], pending_high);
       pending = _mm512_add_epi32(pending, _mm512_mask_blend_epi32(full, p, pending_all));
     }
-    const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);
-    const __m512 t2 = _mm512_unpacklo_ps(ratio[2], ratio[3]), t3 = _mm512_unpackhi_ps(ratio[2], ratio[3]);
-    const __m512 u0 = _mm512_shuffle_ps(t0, t2, 0x44), u1 = _mm512_shuffle_ps(t0, t2, 0xEE);
-    const __m512 u2 = _mm512_shuffle_ps(t1, t3, 0x44), u3 = _mm512_shuffle_ps(t1, t3, 0xEE);
-    const __m512 v0 = _mm512_shuffle_f32x4(u0, u1, 0x44), v1 = _mm512_shuffle_f32x4(u2, u3, 0x44);
-    const __m512 v2 = _mm512_shuffle_f32x4(u0, u1, 0xEE), v3 = _mm512_shuffle_f32x4(u2, u3, 0xEE);
-    float* out = job.out + t * 4;
-    _mm512_storeu_ps(out, _mm512_shuffle_f32x4(v0, v1, 0x88));
-    _mm512_storeu_ps(out + 16, _mm512_shuffle_f32x4(v0, v1, 0xDD));
-    _mm512_storeu_ps(out + 32, _mm512_shuffle_f32x4(v2, v3, 0x88));
-    _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
+    store_interleaved(ratio, job.out + t * 4);
     if (((t - first) & 1023) == 1008) {  // every 64 steps, into double before float sums drift
       ratio_sum += _mm512_reduce_add_ps(sum);
       sum = _mm512_setzero_ps();
@@ -165,17 +174,7 @@ void stage_l_combine_avx512(const StageLCombineJob& job) {
           _mm512_min_ps(_mm512_min_ps(beyond3, _mm512_max_ps(beyond2, slope3)), _mm512_min_ps(near, one)),
           lipschitz);
     }
-    const __m512 t0 = _mm512_unpacklo_ps(ratio[0], ratio[1]), t1 = _mm512_unpackhi_ps(ratio[0], ratio[1]);
-    const __m512 t2 = _mm512_unpacklo_ps(ratio[2], ratio[3]), t3 = _mm512_unpackhi_ps(ratio[2], ratio[3]);
-    const __m512 u0 = _mm512_shuffle_ps(t0, t2, 0x44), u1 = _mm512_shuffle_ps(t0, t2, 0xEE);
-    const __m512 u2 = _mm512_shuffle_ps(t1, t3, 0x44), u3 = _mm512_shuffle_ps(t1, t3, 0xEE);
-    const __m512 v0 = _mm512_shuffle_f32x4(u0, u1, 0x44), v1 = _mm512_shuffle_f32x4(u2, u3, 0x44);
-    const __m512 v2 = _mm512_shuffle_f32x4(u0, u1, 0xEE), v3 = _mm512_shuffle_f32x4(u2, u3, 0xEE);
-    float* out = job.out + std::size_t(j) * 4;
-    _mm512_storeu_ps(out, _mm512_shuffle_f32x4(v0, v1, 0x88));
-    _mm512_storeu_ps(out + 16, _mm512_shuffle_f32x4(v0, v1, 0xDD));
-    _mm512_storeu_ps(out + 32, _mm512_shuffle_f32x4(v2, v3, 0x88));
-    _mm512_storeu_ps(out + 48, _mm512_shuffle_f32x4(v2, v3, 0xDD));
+    store_interleaved(ratio, job.out + std::size_t(j) * 4);
   }
   stage_l_combine_kernel(job, j, job.width);
 }

@@ -23,6 +23,19 @@ std::size_t texel_count(const bake::Rect& rect) {
   return std::size_t(rect.x1 - rect.x0) * std::size_t(rect.y1 - rect.y0);
 }
 
+// pack_rows(first_row, end_row) over the rectangle's rows - in bands on every core when it is large -
+// and whether every band's values were valid.
+template <class PackRows>
+bool pack_in_bands(const bake::Rect& rect, const PackRows& pack_rows) {
+  if (texel_count(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
+  return tbb::parallel_reduce(
+      tbb::blocked_range<int>(rect.y0, rect.y1), true,
+      [&](const tbb::blocked_range<int>& rows, bool valid) {
+        return pack_rows(rows.begin(), rows.end()) && valid;
+      },
+      [](bool a, bool b) { return a && b; });
+}
+
 }  // namespace
 
 bool pack_heights(std::span<const float> heights, int width, const bake::Rect& rect, float* out,
@@ -56,13 +69,7 @@ bool pack_heights(std::span<const float> heights, int width, const bake::Rect& r
     }
     return valid;
   };
-  if (texel_count(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(rect.y0, rect.y1), true,
-      [&](const tbb::blocked_range<int>& rows, bool valid) {
-        return pack_rows(rows.begin(), rows.end()) && valid;
-      },
-      [](bool a, bool b) { return a && b; });
+  return pack_in_bands(rect, pack_rows);
 }
 
 namespace {
@@ -72,7 +79,8 @@ namespace {
 // and truncation round alike in SSE and in scalar code).
 inline __m128i encode_ratios(__m128 ratio) {
   const __m128 clamped = _mm_min_ps(ratio, _mm_set1_ps(1.0f));
-  const __m128i half = _mm_sub_epi32(_mm_srli_epi32(_mm_castps_si128(clamped), 13), _mm_set1_epi32((127 - 15) << 10));
+  const __m128i half =
+      _mm_sub_epi32(_mm_srli_epi32(_mm_castps_si128(clamped), 13), _mm_set1_epi32((127 - 15) << 10));
   return _mm_andnot_si128(_mm_castps_si128(_mm_cmplt_ps(clamped, _mm_set1_ps(smallest_half_ratio))), half);
 }
 inline __m128i encode_apexes(__m128 apex) {
@@ -176,13 +184,7 @@ bool pack_cones_of(const ConeMapView& cones, int width, const bake::Rect& rect, 
     }
     return valid;
   };
-  if (texel_count(rect) < parallel_pack_texels) return pack_rows(rect.y0, rect.y1);
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(rect.y0, rect.y1), true,
-      [&](const tbb::blocked_range<int>& rows, bool valid) {
-        return pack_rows(rows.begin(), rows.end()) && valid;
-      },
-      [](bool a, bool b) { return a && b; });
+  return pack_in_bands(rect, pack_rows);
 }
 
 }  // namespace
