@@ -155,13 +155,15 @@ void cliff_heights(int width, int height, std::uint64_t seed, std::span<float> o
 // Choppy waves back onto the grid (sim/choppy.cpp). The choppy ocean moves the surface point of
 // grid position p to p + D(p) (D = OceanFrame::displacement, metres) at height h(p); a height field
 // needs the height above each grid position x instead: h(p) for the p with p + D(p) = x. Found per
-// texel centre by the fixed-point iteration p <- x - D(p) (D bilinear, periodic), which contracts
-// while the displacement's gradient stays below 1 (the Jacobian positive: no folded crest; where
-// it folds, the iteration's last p is used). At most `iterations` steps; with `settle` > 0 (texels) a
-// block of neighbouring texels stops once no texel of it moved by more than `settle` along either
-// axis in a step (the iteration contracts, so it is then within about that of its limit: calm water
-// settles in 2-3 steps, steep crests take more); 0 runs every step. Deterministic either way; the
-// result stays periodic. Returns the largest residual |p + D(p) - x| in metres after the last step.
+// texel centre by Newton's method on p + D(p) - x (D bilinear, periodic; its Jacobian from the same
+// four texels), with the fixed-point step p <- x - D(p) where the map's Jacobian determinant is below
+// 0.2 (a folding crest, or near one; where it folds, the last p is used). Rows go in fixed groups
+// of 16: the first row starts from p = x, each next one from the row before's p moved by its
+// predicted change (J^-1 (0, 1)). At most `iterations` steps; with `settle` > 0 (texels) a block of
+// neighbouring texels stops once every texel's residual |p + D(p) - x| is within `settle` (on the
+// water scene's ocean most blocks after one step); 0 runs every step. Deterministic either way (the
+// groups do not depend on the threads); the result stays periodic. Returns the largest residual in
+// metres at the p used.
 // `extra` (optional, e.g. the Jacobian for foam) is resampled through the same p into `extra_out`.
 double resample_displaced(int size, float patch_size, std::span<const float> height,
                           std::span<const float> displacement_x, std::span<const float> displacement_y,

@@ -596,9 +596,15 @@ TEST(Choppy, ResamplingInvertsTheDisplacement) {
 namespace displace::sim {
 namespace {
 
-// The resampling as first written: one texel at a time, the scalar periodic bilinear sample with an
-// integer modulo. The library's blocked, vectorised version must give the same bits.
-float scalar_bilinear(const std::vector<float>& grid, int size, float x, float y) {
+// The resampling one texel at a time, with the scalar periodic bilinear sample and an integer
+// modulo: Newton steps (the fixed-point step where det J < 0.2), each row of a group of 16 started
+// from the row before's solution moved by J^-1 (0, 1). The library's blocked, vectorised version
+// must give the same bits.
+struct ScalarSample {
+  float value, along_x, along_y;
+};
+
+ScalarSample scalar_bilinear(const std::vector<float>& grid, int size, float x, float y) {
   const float fx = std::floor(x), fy = std::floor(y);
   const float tx = x - fx, ty = y - fy;
   auto wrap = [size](int i) { return ((i % size) + size) % size; };
@@ -607,28 +613,47 @@ float scalar_bilinear(const std::vector<float>& grid, int size, float x, float y
   const float* row1 = grid.data() + std::size_t(y1) * size;
   const float top = row0[x0] + (row0[x1] - row0[x0]) * tx;
   const float bottom = row1[x0] + (row1[x1] - row1[x0]) * tx;
-  return top + (bottom - top) * ty;
+  return {top + (bottom - top) * ty, (row0[x1] - row0[x0]) + ((row1[x1] - row1[x0]) - (row0[x1] - row0[x0])) * ty,
+          bottom - top};
 }
 
 double scalar_resample(int size, float patch_size, const std::vector<float>& height, const std::vector<float>& dx,
                        const std::vector<float>& dy, int iterations, std::vector<float>& out,
                        const std::vector<float>& extra, std::vector<float>& extra_out) {
   const float texels_per_metre = float(size) / patch_size;
+  auto tame = [](float v) { return std::max(-16777216.0f, std::min(16777216.0f, v)); };
+  std::vector<float> last_x(size), last_y(size), move_x(size), move_y(size);
   double worst = 0.0;
   for (int i = 0; i < size; ++i)
     for (int j = 0; j < size; ++j) {
-      float px = float(j), py = float(i);
-      for (int step = 0; step < iterations; ++step) {
-        const float next_x = float(j) - scalar_bilinear(dx, size, px, py) * texels_per_metre;
-        const float next_y = float(i) - scalar_bilinear(dy, size, px, py) * texels_per_metre;
-        px = next_x;
-        py = next_y;
+      const bool cold = i % 16 == 0;
+      float px = cold ? float(j) : tame(last_x[j] + move_x[j]);
+      float py = cold ? float(i) : tame(last_y[j] + move_y[j]);
+      for (int step = 0;; ++step) {
+        const ScalarSample sx = scalar_bilinear(dx, size, tame(px), tame(py));
+        const ScalarSample sy = scalar_bilinear(dy, size, tame(px), tame(py));
+        const float fx = px + sx.value * texels_per_metre - float(j);
+        const float fy = py + sy.value * texels_per_metre - float(i);
+        const float a = 1.0f + sx.along_x * texels_per_metre, c = sx.along_y * texels_per_metre;
+        const float e = sy.along_x * texels_per_metre, d = 1.0f + sy.along_y * texels_per_metre;
+        const float det = a * d - c * e;
+        const bool newton = det >= 0.2f;
+        const float inverse = 1.0f / (newton ? det : 1.0f);
+        move_x[j] = newton ? -c * inverse : 0.0f;
+        move_y[j] = newton ? a * inverse : 1.0f;
+        if (step == iterations) {
+          worst = std::max(worst, double(std::sqrt(fx * fx + fy * fy)) / texels_per_metre);
+          break;
+        }
+        const float step_x = newton ? (d * fx - c * fy) * inverse : fx;
+        const float step_y = newton ? (a * fy - e * fx) * inverse : fy;
+        px = tame(px - step_x);
+        py = tame(py - step_y);
       }
-      const float rx = px + scalar_bilinear(dx, size, px, py) * texels_per_metre - float(j);
-      const float ry = py + scalar_bilinear(dy, size, px, py) * texels_per_metre - float(i);
-      worst = std::max(worst, double(std::hypot(rx, ry)) / texels_per_metre);
-      out[std::size_t(i) * size + j] = scalar_bilinear(height, size, px, py);
-      extra_out[std::size_t(i) * size + j] = scalar_bilinear(extra, size, px, py);
+      last_x[j] = px;
+      last_y[j] = py;
+      out[std::size_t(i) * size + j] = scalar_bilinear(height, size, px, py).value;
+      extra_out[std::size_t(i) * size + j] = scalar_bilinear(extra, size, px, py).value;
     }
   return worst;
 }
@@ -645,10 +670,11 @@ OceanFrame choppy_frame(int size, double time, OceanParams& params) {
 
 }  // namespace
 
-// On the choppy ocean (a size that is not a multiple of the 64-texel block) and on displacements
+// On the choppy ocean (sizes that are not multiples of the 64-texel block or the 16-row group) and on
+// displacements
 // that reach many periods away in both directions, the library's resampling equals the scalar one.
 TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
-  for (const int n : {2, 96}) {
+  for (const int n : {2, 40, 96}) {
     OceanParams params;
     const OceanFrame frame = choppy_frame(n, 2.5, params);
     std::vector<std::vector<float>> dxs = {frame.displacement_x}, dys = {frame.displacement_y};
@@ -673,9 +699,11 @@ TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
   }
 }
 
-// Settling: a block of texels stops once no texel moved by more than `settle` texels in a step. On
-// the water scene's ocean the residual is then within the settle and the heights within 1e-4 of the
-// converged ones (the range's); a settle of 0 runs every step; bad settle values are refused.
+// Settling: a block of texels stops once every texel's residual is within `settle` texels. On the
+// water scene's ocean with the pipeline's settle (3e-4) the residual is then within it, some block
+// stopped early, and the heights are within 1e-4 of the converged ones (the range's); with 0.003 they
+// are not all (Newton's p is then up to J^-1 times the residual off); a settle of 0 runs every step;
+// bad settle values are refused.
 TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
   for (const int n : {64, 160}) {
     OceanParams params;
@@ -687,17 +715,24 @@ TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
     const double six = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
                                           frame.displacement_y, 6, fixed, frame.jacobian, extra);
     const double residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
-                                               frame.displacement_y, 8, settled, frame.jacobian, settled_extra, 0.003f);
-    EXPECT_LT(residual * n / params.patch_size, 0.003) << n;  // texels: within the settle
+                                               frame.displacement_y, 8, settled, frame.jacobian, settled_extra, 3e-4f);
+    EXPECT_LT(residual * n / params.patch_size, 3e-4) << n;  // texels: within the settle
     std::vector<float> eight(texels);
     const double eight_residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
                                                      frame.displacement_y, 8, eight, frame.jacobian, extra);
     EXPECT_GT(residual, eight_residual) << n;  // some block stopped before its eighth step
     const auto [low, high] = std::minmax_element(converged.begin(), converged.end());
     const double range = double(*high) - double(*low);
-    double worst = 0.0;
-    for (std::size_t t = 0; t < texels; ++t) worst = std::max(worst, std::abs(double(settled[t]) - converged[t]));
-    EXPECT_LT(worst, 1e-4 * range) << n;
+    auto farthest = [&](const std::vector<float>& heights) {
+      double worst = 0.0;
+      for (std::size_t t = 0; t < texels; ++t) worst = std::max(worst, std::abs(double(heights[t]) - converged[t]));
+      return worst;
+    };
+    EXPECT_LT(farthest(settled), 1e-4 * range) << n;
+    std::vector<float> loose(texels);
+    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 8, loose,
+                       frame.jacobian, settled_extra, 0.003f);
+    EXPECT_GT(farthest(loose), farthest(settled)) << n;
     // a settle of 0 runs every step
     const double all = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
                                           frame.displacement_y, 6, settled, frame.jacobian, settled_extra, 0.0f);
