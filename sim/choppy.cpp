@@ -27,7 +27,6 @@ namespace {
 constexpr int block = 64;
 constexpr int row_group = 16;  // rows resampled in order, the first from x, the others warm
 
-
 // floor(x) for |x| < 2^30 through a truncating conversion, exact there as std::floor. GCC vectorises
 // neither std::floor nor a select between float expressions while trapping math is on (the default):
 // only selects between values, and arithmetic done either way.
@@ -177,13 +176,14 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
                           std::span<float> extra_out, float settle) {
   const std::size_t texels = std::size_t(size) * std::size_t(size);
   if (size < 2 || !(patch_size > 0.0f) || height.size() != texels || displacement_x.size() != texels ||
-      displacement_y.size() != texels || out.size() != texels || iterations < 0 || extra.size() != extra_out.size() ||
-      !(extra.empty() || extra.size() == texels) || !(settle >= 0.0f)) {
+      displacement_y.size() != texels || out.size() != texels || iterations < 0 ||
+      extra.size() != extra_out.size() || !(extra.empty() || extra.size() == texels) || !(settle >= 0.0f)) {
     throw std::invalid_argument(
         "resample_displaced: size x size heights, displacements and output, patch_size > 0, settle >= 0");
   }
   // the taps index size^2 texels with int (and the coordinates stay exact floats, below 2^24)
-  if (size > 46340) throw std::invalid_argument("resample_displaced: size at most 46340 (size^2 texels indexed with int)");
+  if (size > 46340)
+    throw std::invalid_argument("resample_displaced: size at most 46340 (size^2 texels indexed with int)");
   BlockJob job;
   job.size = size;
   job.texels_per_metre = float(size) / patch_size;
@@ -208,7 +208,8 @@ double resample_displaced(int size, float patch_size, std::span<const float> hei
               const std::size_t first = std::size_t(i) * std::size_t(size) + std::size_t(j0);
               mine.out = out.data() + first;
               mine.extra_out = extra.empty() ? nullptr : extra_out.data() + first;
-              worst = std::max(worst, resample_block(mine, i, j0, std::min(block, size - j0), i == first_row, warm));
+              worst = std::max(worst,
+                               resample_block(mine, i, j0, std::min(block, size - j0), i == first_row, warm));
             }
           }
         }
