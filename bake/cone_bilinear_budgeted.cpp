@@ -34,7 +34,11 @@
 //    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over
 //    its rise above H_c, so the region's bound is max(smallest gap bound, 1 / G) (0 for the first
 //    term when a sub-cell touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels)
-//    this covers the near cells; box 3's G also bounds the ring between the boxes.
+//    this covers the near cells; box 3's G also bounds the ring between the boxes. The sub-cells are
+//    kept in 16 bits (maxima rounded up in units of 1 / 65535, rates rounded up in units of a scale
+//    above every rate the map has, 1 / gap rounded up) and the apexes rounded down one unit more, so
+//    every sub-cell above H_c counts and every rate, rise and quotient is only overstated: the bounds
+//    only fall (the 512 ocean's mean ratio 0.93017 -> 0.93010 of the full bake's).
 // 3. Everywhere, by the Lipschitz constant L of s (the largest gradient bound of a cell, make_cells):
 //    s(x) - H_c <= s(x) - s(p) <= L |x - p| for p in Q_c, so 1 / L holds in every direction. On a
 //    smooth map (the ocean: 1 / L about 0.05) it is where the lanes start, so none is spent below
@@ -94,9 +98,9 @@ constexpr float witness_slack = 2e-7f;      // heights: a witness's rounding and
 struct SubCells {
   int columns = 0, rows = 0;  // per plane
   int first_row = 0;          // Y of the planes' first row
-  // [field][parity]: 0 max, 1 rise +u, 2 rise -u, 3 rise +v, 4 rise -v
-  std::vector<float> planes[5][2];
-  const float* row(int field, int parity, int y) const {
+  // [field][parity]: 0 max, 1 rise +u, 2 rise -u, 3 rise +v, 4 rise -v, in 16 bits (SubCellRowJob)
+  std::vector<std::uint16_t> planes[5][2];
+  const std::uint16_t* row(int field, int parity, int y) const {
     return planes[field][parity].data() + std::size_t(y - first_row) * columns;
   }
 };
@@ -214,8 +218,9 @@ float make_cells(State& state) {
 constexpr float top_slack = 2.4e-7f;  // heights: over a sample's error (2^-24) and the sum's rounding
 constexpr double rate_slack = 4e-7;   // heights per half texel: two samples' errors and their difference's
 
-// Sub-cell rows Y in [first_row, last_row) (within [-near_reach, 2 H + near_reach)).
-void make_sub_cells(const State& state, int first_row, int last_row, SubCells& cells) {
+// Sub-cell rows Y in [first_row, last_row) (within [-near_reach, 2 H + near_reach)), the rates in
+// units of 1 / rate_scale (near_rate_scale).
+void make_sub_cells(const State& state, int first_row, int last_row, float rate_scale, SubCells& cells) {
   const bool wrap = state.address == Address::wrap;
   const int level = detail::lane_sweep_best_level();
   const int W = state.width, H = state.height, pad = near_reach;
@@ -235,7 +240,7 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
   const float per_u = float(2 * W), per_v = float(2 * H);  // 1 / (half a texel) in uv, exact
   const float slack_u = float(rate_slack * per_u * (1.0 + 1e-6)),
               slack_v = float(rate_slack * per_v * (1.0 + 1e-6));
-  float* out[5][2];
+  std::uint16_t* out[5][2];
   for (int f = 0; f < 5; ++f)
     for (int p = 0; p < 2; ++p) out[f][p] = cells.planes[f][p].data();
   thread_local std::vector<float> column_sum, rows[2][2];
@@ -272,6 +277,7 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
     job.slack_u = slack_u;
     job.slack_v = slack_v;
     job.top_slack = top_slack;
+    job.rate_scale = rate_scale;
     for (int f = 0; f < 5; ++f)
       for (int p = 0; p < 2; ++p) job.out[f][p] = out[f][p] + std::size_t(Y - first_row) * cells.columns;
     switch (level) {
@@ -294,19 +300,45 @@ void make_sub_cells(const State& state, int first_row, int last_row, SubCells& c
 // file comment), infinity where nothing in the region exceeds H_c.
 // Where a quadrant's 45 sub-cells lie, fixed for a map: per offset its row (Y = 2 i + dy), its
 // parity and index k0 in its planes, and 1 / (its gap to Q_c), in near_row_kernel's group order.
+// The gap term in 16 bits: 1 / gap in units of 1 / gap_scale rounded up, gap_scale putting the
+// largest 1 / gap (half a texel's) at 65535; then floor(rise * inverse_gap / 65536) + 1 (rise in
+// units of 1 / 65535, rounded up) exceeds (top - apex) / gap in units of steep_unit =
+// 65536 / (65535 gap_scale), rounded up.
 struct NearPlan {
   struct Entry {
     int dy = 0, parity = 0, k0 = 0;
     int along_u = 1, along_v = 3;  // planes: rise +u (1) or -u (2), +v (3) or -v (4)
-    float inverse_gap = 0.0f;
+    std::uint16_t inverse_gap = 0;
   };
   Entry entries[45];
   int group_counts[detail::near_groups] = {};
+  float steep_unit = 0.0f;
 };
+
+// A float at least x (x > 0, finite).
+float float_above(double x) {
+  float f = float(x);
+  if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// The 16-bit unit of the sub-cells' rates (make_sub_cells): 65533 units reach past every rate a
+// sub-cell can have, so that the stores (x 65533 / largest + 2, truncated) never clamp. A sub-cell's
+// rate along u is the rate of s along u on one of its cell's u edges (a difference of two samples
+// half a texel apart, times 2 W): at most W times the cell's largest texel difference along u,
+// which make_cells' Lipschitz bound (its 1 / lipschitz) exceeds; add the samples' float errors
+// (2^-24 each, times 2 W), the relative raise and the slack, and 1% on top.
+float near_rate_scale(float lipschitz, int W, int H) {
+  const double sides = double(std::max(W, H));
+  const double slack = rate_slack * 2.0 * sides * (1.0 + 1e-6);
+  const double largest = 1.01 / double(lipschitz) + 2.0 * slack + 8.0 * 0x1p-24 * sides + 1e-6;
+  return float(65533.0 / largest);
+}
 
 NearPlan make_near_plan(int width, int height, int q) {
   const int su = q == 0 || q == 3 ? 1 : -1, sv = q <= 1 ? 1 : -1;
   NearPlan::Entry grouped[detail::near_groups][45];
+  double inverse_gap[detail::near_groups][45] = {};
   NearPlan plan;
   for (int y = 0; y < 7; ++y)
     for (int x = 0; x < 7; ++x) {
@@ -322,12 +354,18 @@ NearPlan make_near_plan(int width, int height, int q) {
       entry.along_u = su > 0 ? 1 : 2;
       entry.along_v = sv > 0 ? 3 : 4;
       const double gap_u = std::max(0, x - 2) * 0.5 / width, gap_v = std::max(0, y - 2) * 0.5 / height;
-      entry.inverse_gap =
-          touching ? 0.0f : float(1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-7));
+      inverse_gap[group][plan.group_counts[group] - 1] =
+          touching ? 0.0 : 1.0 / std::sqrt(gap_u * gap_u + gap_v * gap_v) * (1.0 + 1e-12);
     }
+  // the largest 1 / gap is half a texel's, along the shorter texel side
+  const double gap_scale = 65535.0 / (2.0 * std::max(width, height) * (1.0 + 1e-9));
+  plan.steep_unit = float_above(65536.0 / (65535.0 * gap_scale) * (1.0 + 1e-12));
   int count = 0;
   for (int g = 0; g < detail::near_groups; ++g)
-    for (int n = 0; n < plan.group_counts[g]; ++n) plan.entries[count++] = grouped[g][n];
+    for (int n = 0; n < plan.group_counts[g]; ++n) {
+      plan.entries[count] = grouped[g][n];
+      plan.entries[count++].inverse_gap = std::uint16_t(std::ceil(inverse_gap[g][n] * gap_scale * (1.0 + 1e-12)));
+    }
   return plan;
 }
 
@@ -340,8 +378,8 @@ NearPlan make_near_plan(int width, int height, int q) {
 // edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
 // bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
 // file comment), infinity where nothing in the region exceeds H_c. The plan is make_near_plan's for q.
-void near_row(const SubCells& cells, const NearPlan& plan, const float* apex, int width, int i, float* near,
-              float* slope3) {
+void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* apex, float rate_unit, int width,
+              int i, float* near, float* slope3) {
   detail::NearOffset offsets[45];
   for (int n = 0; n < 45; ++n) {
     const NearPlan::Entry& entry = plan.entries[n];
@@ -355,6 +393,8 @@ void near_row(const SubCells& cells, const NearPlan& plan, const float* apex, in
   std::copy(std::begin(plan.group_counts), std::end(plan.group_counts), job.group_counts);
   job.offsets = offsets;
   job.apex = apex;
+  job.rate_unit = rate_unit;
+  job.steep_unit = plan.steep_unit;
   job.width = width;
   job.near = near;
   job.slope3 = slope3;
@@ -478,6 +518,8 @@ long long run_stage_l(State& state) {
   const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
                                    make_near_plan(W, H, 3)};
   static_assert(stage_l_sweeps == 1, "stage_l_combine_kernel takes one sweep's lanes");
+  const float rate_scale = near_rate_scale(lipschitz, W, H);
+  const float rate_unit = float_above(1.0 / double(rate_scale));
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
     thread_local std::vector<float> near[4], slope3[4];
@@ -486,7 +528,8 @@ long long run_stage_l(State& state) {
       near[q].resize(W);
       slope3[q].resize(W);
     }
-    make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, sub_cells);
+    make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, rate_scale,
+                   sub_cells);
     detail::StageLCombineJob job;
     job.width = W;
     job.highest = highest;
@@ -496,7 +539,8 @@ long long run_stage_l(State& state) {
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const std::size_t row = std::size_t(i) * W;
       for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, near_plans[q], state.apex.data() + row, W, i, near[q].data(), slope3[q].data());
+        near_row(sub_cells, near_plans[q], state.apex_bottom.data() + row, rate_unit, W, i, near[q].data(),
+                 slope3[q].data());
         job.passed[q] = state.passed[0][q].data() + row;
         job.passed3[q] = state.passed3[0][q].data() + row;
         job.near[q] = near[q].data();

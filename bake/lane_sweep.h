@@ -217,18 +217,25 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
 // near_groups groups of one kind each (no test per offset): box 2 touching Q_c, box 2 apart, box 3
 // only, each beyond Q_c's edge along u only, along v only, along both. A row narrower than
 // near_block reads near_block values of each plane from the texel's index on.
-constexpr int near_block = 16;
+// In unsigned 16-bit integers, 32 texels to an AVX-512 register: heights in units of 1 / 65535
+// (height_scale; the sub-cells' maxima rounded up, the apexes down, so that a sub-cell above the
+// apex always counts), rates in units of rate_unit (rounded up), the gap term as
+// floor(dtop * inverse_gap / 65536) + 1 in units of steep_unit (an upper bound: dtop and inverse_gap
+// are rounded up); the bounds are finished in float from these upper bounds.
+constexpr int near_block = 32;
 constexpr int near_groups = 9;
 struct NearOffset {
-  const float* top = nullptr;
-  const float* along_u = nullptr;
-  const float* along_v = nullptr;
-  float inverse_gap = 0.0f;  // 1 / (the uv gap to Q_c), rounded up (0 where touching)
+  const std::uint16_t* top = nullptr;
+  const std::uint16_t* along_u = nullptr;
+  const std::uint16_t* along_v = nullptr;
+  std::uint16_t inverse_gap = 0;  // 1 / (the uv gap to Q_c), scaled and rounded up (0 where touching)
 };
 struct NearRowJob {
   const NearOffset* offsets = nullptr;  // group by group
   int group_counts[near_groups] = {};
-  const float* apex = nullptr;
+  const std::uint16_t* apex = nullptr;  // floor(H_c * 65535), a little below
+  float rate_unit = 0.0f;               // a rate per unit of the planes' rates
+  float steep_unit = 0.0f;              // (top - apex) / gap per unit of the gap term
   int width = 0;
   float* near = nullptr;
   float* slope3 = nullptr;
@@ -262,7 +269,9 @@ struct StageLCombineJob {
 };
 // One row of the bilinear baker's sub-cells (sub_cell_kernel.h) from the samples of rows Y and Y + 1
 // split by parity (even[k] at X = 2 k - near_reach, odd[k] at X = 2 k + 1 - near_reach), into
-// out[field][parity] (fields: maximum, rise +u, -u, +v, -v), count sub-cells per parity.
+// out[field][parity] (fields: maximum, rise +u, -u, +v, -v), count sub-cells per parity; stored in
+// 16 bits for the near field: the maximum as floor(top * 65535 + 2), the rates as
+// floor(rate * rate_scale + 2), both at most 65535 (rate_scale is made so that no rate reaches it).
 struct SubCellRowJob {
   const float* even0 = nullptr;
   const float* odd0 = nullptr;
@@ -272,7 +281,8 @@ struct SubCellRowJob {
   float per_u = 0.0f, per_v = 0.0f;      // 1 / (half a texel) in uv
   float slack_u = 0.0f, slack_v = 0.0f;  // added to the rates
   float top_slack = 0.0f;                // added to the maxima
-  float* out[5][2] = {};
+  float rate_scale = 0.0f;               // 16-bit units of rate per unit of uv rate
+  std::uint16_t* out[5][2] = {};
 };
 void sub_cell_row_generic(const SubCellRowJob& job);
 void sub_cell_row_avx2(const SubCellRowJob& job);

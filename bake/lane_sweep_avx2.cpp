@@ -86,7 +86,9 @@ void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_kernel(
 
 void sub_cell_row_avx2(const SubCellRowJob& job) {
   typedef float V __attribute__((vector_size(32)));
-  sub_cell_row_kernel<V>(job);
+  typedef std::int32_t I __attribute__((vector_size(32)));
+  typedef std::uint16_t U __attribute__((vector_size(16)));
+  sub_cell_row_kernel<V, I, U>(job);
 }
 
 }  // namespace displace::bake::detail

@@ -181,7 +181,9 @@ void stage_l_combine_avx512(const StageLCombineJob& job) {
 
 void sub_cell_row_avx512(const SubCellRowJob& job) {
   typedef float V __attribute__((vector_size(64)));
-  sub_cell_row_kernel<V>(job);
+  typedef std::int32_t I __attribute__((vector_size(64)));
+  typedef std::uint16_t U __attribute__((vector_size(32)));
+  sub_cell_row_kernel<V, I, U>(job);
 }
 
 }  // namespace displace::bake::detail

@@ -62,7 +62,9 @@ void stage_l_combine_generic(const StageLCombineJob& job) { stage_l_combine_kern
 
 void sub_cell_row_generic(const SubCellRowJob& job) {
   typedef float V __attribute__((vector_size(16)));
-  sub_cell_row_kernel<V>(job);
+  typedef std::int32_t I __attribute__((vector_size(16)));
+  typedef std::uint16_t U __attribute__((vector_size(8)));
+  sub_cell_row_kernel<V, I, U>(job);
 }
 
 }  // namespace displace::bake::detail

@@ -591,15 +591,18 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
       }
 }
 
-// The bilinear baker's near-field kernel: every instruction set gives the generic kernel's bounds
-// (to a relative 1e-6: fused multiply-adds), and those are the definition's (computed here in double, one
-// offset at a time) shrunk by no more than a relative 1e-5, on rows narrower than a block and with a partial
-// last block.
+// The bilinear baker's near-field kernel (16-bit lanes): every instruction set gives the generic
+// kernel's bounds bit for bit, and those are the definition's (computed here in double from the same
+// 16-bit values, one offset at a time: a sub-cell counts where its maximum exceeds the apex less one
+// unit, the gap term is floor(rise * inverse_gap / 65536) + 1) shrunk by no more than a relative
+// 1e-5, on rows narrower than a block, a whole block, and with a partial last block; apexes of 0
+// and maxima of 65535 included.
 TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
   const int best = detail::lane_sweep_best_level();
-  for (int width : {1, 5, 16, 37}) {
+  int counted = 0;  // gap terms of sub-cells above the apex
+  for (int width : {1, 5, 32, 37, 70}) {
     const int columns = std::max(width, detail::near_block) + 8;
-    std::vector<std::vector<float>> planes;
+    std::vector<std::vector<std::uint16_t>> planes;
     std::vector<detail::NearOffset> offsets;
     detail::NearRowJob job;
     std::vector<int> group_of;
@@ -607,17 +610,17 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       job.group_counts[g] = 1 + (g * 7 + width) % 4;
       for (int n = 0; n < job.group_counts[g]; ++n) {
         for (int f = 0; f < 3; ++f) {
-          std::vector<float> plane(columns);
+          std::vector<std::uint16_t> plane(columns);
           for (int j = 0; j < columns; ++j) {
             const float r = test::hash01(61, std::uint64_t(planes.size()), std::uint64_t(j));
-            plane[j] = f == 0 ? r : 40.0f * r * r;
+            plane[j] = f == 0 ? (r > 0.97f ? 65535 : std::uint16_t(r * 65535.0f)) : std::uint16_t(1.0f + 60000.0f * r * r);
           }
           planes.push_back(std::move(plane));
         }
         detail::NearOffset offset;
         const bool touching = g < 3;
         offset.inverse_gap =
-            touching ? 0.0f : 20.0f + 100.0f * test::hash01(67, std::uint64_t(offsets.size()), 0);
+            touching ? 0 : std::uint16_t(20000.0f + 45535.0f * test::hash01(67, std::uint64_t(offsets.size()), 0));
         offsets.push_back(offset);
         group_of.push_back(g);
       }
@@ -627,12 +630,16 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       offsets[o].along_u = planes[3 * o + 1].data();
       offsets[o].along_v = planes[3 * o + 2].data();
     }
-    std::vector<float> apex(width);
-    for (int j = 0; j < width; ++j)
-      apex[j] = 0.55f + 0.45f * test::hash01(71, std::uint64_t(width), std::uint64_t(j));
+    std::vector<std::uint16_t> apex(width);
+    for (int j = 0; j < width; ++j) {
+      const float r = test::hash01(71, std::uint64_t(width), std::uint64_t(j));
+      apex[j] = r < 0.05f ? 0 : std::uint16_t((0.55f + 0.45f * r) * 65535.0f);
+    }
     job.offsets = offsets.data();
     job.apex = apex.data();
     job.width = width;
+    job.rate_unit = 1.7e-3f;
+    job.steep_unit = 3.1e-5f;
     auto run = [&](int level) {
       std::vector<float> near(width), slope3(width);
       job.near = near.data();
@@ -655,12 +662,13 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       }
     const double infinite = std::numeric_limits<double>::infinity();
     for (int j = 0; j < width; ++j) {
-      double ru = 0, rv = 0, ru3 = 0, rv3 = 0, far = infinite;
+      const int below = apex[j] > 0 ? apex[j] - 1 : 0;
+      double ru = 0, rv = 0, ru3 = 0, rv3 = 0, steep = 0;
       bool touch = false, any = false, any3 = false;
       for (std::size_t o = 0; o < offsets.size(); ++o) {
         const int g = group_of[o];
-        const double top = offsets[o].top[j];
-        if (!(top > apex[j])) continue;
+        const int top = offsets[o].top[j];
+        if (!(top > below)) continue;
         const bool box2 = g < 6, along_u = g % 3 != 1, along_v = g % 3 != 0;
         any3 = true;
         if (along_u) ru3 = std::max(ru3, double(offsets[o].along_u[j]));
@@ -669,13 +677,17 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
         any = true;
         if (along_u) ru = std::max(ru, double(offsets[o].along_u[j]));
         if (along_v) rv = std::max(rv, double(offsets[o].along_v[j]));
-        if (g < 3)
+        if (g < 3) {
           touch = true;
-        else
-          far = std::min(far, 1.0 / double(offsets[o].inverse_gap) / (top - apex[j]));
+        } else {
+          const long long term = (static_cast<long long>(top - below) * offsets[o].inverse_gap >> 16) + 1;
+          steep = std::max(steep, double(term));
+          ++counted;
+        }
       }
-      const double slope3 = any3 ? 1.0 / std::hypot(ru3, rv3) : infinite;
-      const double near = any ? std::max(touch ? 0.0 : far, 1.0 / std::hypot(ru, rv)) : infinite;
+      const double unit = job.rate_unit, far = steep > 0 ? 1.0 / (steep * job.steep_unit) : infinite;
+      const double slope3 = any3 ? 1.0 / (std::hypot(ru3, rv3) * unit) : infinite;
+      const double near = any ? std::max(touch ? 0.0 : far, 1.0 / (std::hypot(ru, rv) * unit)) : infinite;
       for (const auto& [got, want] :
            {std::pair{double(generic.first[j]), near}, std::pair{double(generic.second[j]), slope3}}) {
         if (std::isinf(want)) {
@@ -687,6 +699,7 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
       }
     }
   }
+  EXPECT_GT(counted, 50);
 }
 
 // The second lap stops where its rows meet the first lap's; what it leaves is what a whole second
@@ -807,6 +820,7 @@ TEST(LaneSweep, SubCellKernelsAgree) {
       samples[r].resize(std::size_t(count) + 2);
       for (std::size_t k = 0; k < samples[r].size(); ++k) samples[r][k] = test::hash01(89, std::uint64_t(r), k);
     }
+    samples[0][0] = 1.0f;  // a maximum above 1 by its slack: stored as 65535
     detail::SubCellRowJob job;
     job.even0 = samples[0].data();
     job.odd0 = samples[1].data();
@@ -818,8 +832,9 @@ TEST(LaneSweep, SubCellKernelsAgree) {
     job.slack_u = 4e-4f;
     job.slack_v = 2e-4f;
     job.top_slack = 2.4e-7f;
+    job.rate_scale = 60.0f;  // rates up to 1024 (a whole height over half a texel) below 65535 units
     auto run = [&](int level) {
-      std::vector<float> out(std::size_t(count) * 10, -1.0f);
+      std::vector<std::uint16_t> out(std::size_t(count) * 10, 7);
       for (int f = 0; f < 5; ++f)
         for (int p = 0; p < 2; ++p) job.out[f][p] = out.data() + std::size_t(f * 2 + p) * count;
       if (level == 0) detail::sub_cell_row_generic(job);
@@ -827,20 +842,26 @@ TEST(LaneSweep, SubCellKernelsAgree) {
       if (level == 4) detail::sub_cell_row_avx512(job);
       return out;
     };
-    const std::vector<float> expected = run(0);
-    // the definition at the last even sub-cell: corners even0[k], odd0[k], even1[k], odd1[k]
+    const std::vector<std::uint16_t> expected = run(0);
+    // the definition at the last even sub-cell: corners even0[k], odd0[k], even1[k], odd1[k], each
+    // value above its exact 16-bit scaling and by less than 3 units
     const int k = count - 1;
     const float a = samples[0][std::size_t(k)], b = samples[1][std::size_t(k)], c = samples[2][std::size_t(k)],
                 d = samples[3][std::size_t(k)];
-    EXPECT_EQ(expected[std::size_t(k)], std::max({a, b, c, d}) + 2.4e-7f);
-    const float du0 = (b - a) * 1024.0f, du1 = (d - c) * 1024.0f;
-    EXPECT_EQ(expected[std::size_t(2 * count + k)], std::max({0.0f, du0, du1}) * (1.0f + 0x1p-20f) + 4e-4f);
+    const double top = double(std::max({a, b, c, d}) + 2.4e-7f) * 65535.0;
+    if (top < 65533.0) {
+      EXPECT_GT(double(expected[std::size_t(k)]), top);
+      EXPECT_LT(double(expected[std::size_t(k)]), top + 3.0);
+    }
+    const double rate = double(std::max({0.0f, (b - a) * 1024.0f, (d - c) * 1024.0f}) * (1.0f + 0x1p-20f) + 4e-4f) * 60.0;
+    EXPECT_GT(double(expected[std::size_t(2 * count + k)]), rate);
+    EXPECT_LT(double(expected[std::size_t(2 * count + k)]), rate + 3.0);
+    EXPECT_EQ(expected[0], 65535);
     for (int level : {3, 4}) {
       if (level > best) continue;
-      const std::vector<float> out = run(level);
+      const std::vector<std::uint16_t> out = run(level);
       for (std::size_t n = 0; n < out.size(); ++n) {
-        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[n]), std::bit_cast<std::uint32_t>(expected[n]))
-            << "level " << level << " count " << count << " value " << n;
+        EXPECT_EQ(out[n], expected[n]) << "level " << level << " count " << count << " value " << n;
         ++compared;
       }
     }
