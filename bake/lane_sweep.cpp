@@ -465,7 +465,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level) {
+                                   std::uint8_t* const passed3[4], int level, bool stop_early) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(0, 4, [&](int quadrant) {
@@ -501,6 +501,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.bilinear_scratch = bilinear_scratch;
     job.passed3 = passed3[quadrant];
     job.bonus3 = bonus3;
+    job.stop_early = stop_early;
     switch (level) {
       case 0: lane_sweep_generic(job); break;
       case 3: lane_sweep_avx2(job); break;

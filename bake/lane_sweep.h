@@ -205,7 +205,7 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level = -1);
+                                   std::uint8_t* const passed3[4], int level = -1, bool stop_early = true);
 
 // The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
 // says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and

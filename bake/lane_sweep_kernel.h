@@ -82,6 +82,15 @@ void sweep_kernel(LaneSweepJob& job) {
   }
 
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
+  // Equal rows needed before the second lap stops. A row's dilations (with and without its own
+  // cells) depend on the `depth` rows swept before it, so after `depth` equal rows every later row
+  // is equal. In bilinear mode the box tests of the first row the second lap leaves also read the
+  // dilations of the three rows swept before it, which are equal only when the `depth` rows before
+  // each of them are: depth + 3 equal rows (with depth alone, 13 of 120 small maps had texels whose
+  // first-lap counts passed more lanes than a whole second lap's - LaneSweep.BilinearSecondLap...;
+  // it also makes the second lap re-test the first lap's first three rows, which read rows not
+  // swept yet).
+  const int stop_rows = bilinear ? depth + 3 : depth;
   long long* row_sums = job.row_sums;
   int equal_rows = 0;
   long long work = 0;
@@ -239,7 +248,7 @@ void sweep_kernel(LaneSweepJob& job) {
         row_sums[lap_row] = row_sum;
       } else {
         equal_rows = row_sum == row_sums[lap_row] ? equal_rows + 1 : 0;
-        if (equal_rows == depth && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
+        if (equal_rows == stop_rows && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
       }
     }
     for (int k = depth; k > 1; --k) below[k] = below[k - 1];  // row a is now the one below
