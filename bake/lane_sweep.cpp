@@ -502,12 +502,17 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.passed3 = passed3[quadrant];
     job.bonus3 = bonus3;
     job.stop_early = stop_early;
+    // the first lap's first three rows read rows not swept yet, and the second lap never stops
+    // before they are tested again: theirs are always left to it, and as many more as it took the
+    // last time (a map's next frame is much like it)
+    job.skip_tests = std::max(3, kept.second_lap_rows);
     switch (level) {
       case 0: lane_sweep_generic(job); break;
       case 3: lane_sweep_avx2(job); break;
       default: lane_sweep_avx512(job); break;
     }
     works[quadrant] = job.work;
+    kept.second_lap_rows = job.second_lap_rows;
   });
   return works[0] + works[1] + works[2] + works[3];
 }

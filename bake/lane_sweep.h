@@ -68,6 +68,11 @@ struct LaneSweepJob {
   std::uint8_t* passed = nullptr;
   std::uint8_t* passed3 = nullptr;
   const std::uint16_t* bonus3 = nullptr;
+  // With wrap: the first lap leaves the box tests of its first skip_tests rows to the second lap,
+  // which then sweeps at least that many rows (the caller's guess of where it stops: the same
+  // counts either way, only the work differs); out: second_lap_rows, the rows the second lap swept.
+  int skip_tests = 0;
+  int second_lap_rows = 0;
 };
 
 // Extra scratch of a bilinear sweep: a ring of four rows of dilations, each with one padding cell
@@ -127,6 +132,7 @@ class AlignedScratch {
 struct LaneScratch {
   AlignedScratch rows, bilinear;
   std::vector<long long> row_sums;
+  int second_lap_rows = 0;  // bilinear sweeps: rows the last sweep's second lap took (a prediction)
 };
 
 // Lane ratios, steps and 16-bit heights for a map; built once per frame, shared by the sweeps.

@@ -91,6 +91,11 @@ void sweep_kernel(LaneSweepJob& job) {
   // it also makes the second lap re-test the first lap's first three rows, which read rows not
   // swept yet).
   const int stop_rows = bilinear ? depth + 3 : depth;
+  // bilinear: first-lap rows whose box tests are left to the second lap (it stops only past them;
+  // it may not stop before tracked rows, so no more than those)
+  const int skip_tests =
+      bilinear && wrap && job.stop_early ? (job.skip_tests < tracked ? job.skip_tests : tracked) : 0;
+  job.second_lap_rows = wrap ? H : 0;  // unless it stops early
   long long* row_sums = job.row_sums;
   int equal_rows = 0;
   long long work = 0;
@@ -198,7 +203,8 @@ void sweep_kernel(LaneSweepJob& job) {
       // the texel row tested by cell row a (unrolled with wrap)
       auto texel_row = [&](int row) { return wrap ? ((row % texel_height) + texel_height) % texel_height : row; };
       const int tested = texel_row(a - job.cell_offset_y);
-      if (tested >= 0 && tested < texel_height) {
+      const bool left_to_second_lap = wrap && step < skip_tests;  // the second lap tests this row
+      if (tested >= 0 && tested < texel_height && !left_to_second_lap) {
         const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
         const std::uint16_t* apex_row = job.texel_bottom + std::size_t(physical_texel_row) * texel_width;
         std::uint8_t* texel_passed = job.passed + std::size_t(physical_texel_row) * texel_width;
@@ -248,7 +254,11 @@ void sweep_kernel(LaneSweepJob& job) {
         row_sums[lap_row] = row_sum;
       } else {
         equal_rows = row_sum == row_sums[lap_row] ? equal_rows + 1 : 0;
-        if (equal_rows == stop_rows && job.stop_early && (!bilinear || (step < 2 * H && a >= 3))) break;
+        if (equal_rows >= stop_rows && lap_row + 1 >= skip_tests && job.stop_early &&
+            (!bilinear || (step < 2 * H && a >= 3))) {
+          job.second_lap_rows = lap_row + 1;
+          break;
+        }
       }
     }
     for (int k = depth; k > 1; --k) below[k] = below[k - 1];  // row a is now the one below
