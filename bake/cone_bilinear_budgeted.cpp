@@ -119,6 +119,8 @@ struct BilinearBaker::State {
   std::vector<int> queue;  // texels still to search, in order
   std::size_t next = 0;    // queue position
   std::vector<std::uint8_t> uncertified;  // per texel, from the last emission: not certified, not searched
+  long long uncertified_count = 0;        // of them
+  bool queue_stale = false;  // the queue is still to be made from `uncertified` (when refinement runs)
   double emitted_sum = 0.0;               // of every ratio emitted (the stats' mean)
   float tolerance = 0.25f;
   std::unique_ptr<detail::BilinearSearch> search;  // made on first use, kept for the next heights
@@ -727,19 +729,31 @@ long long ensure_upper(State& state) {
 
 // Within the tolerance of the best ratio the contract allows: against the certified upper bounds
 // (1 and 4 sectors; an octant has none, so 8 sectors certify only what reaches the tolerance of 1).
+// `upper` is the texel's four bounds, or none (all 1) before they are made.
+template <int sectors>
+inline bool certified_of(const float* quadrant, const float* upper, float keep) {
+  const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+  switch (sectors) {
+    case 4: {
+      bool all = true;
+      for (int q = 0; q < 4; ++q) all &= !(quadrant[q] < keep * upper[q]);
+      return all;
+    }
+    case 1: return lowest >= keep * std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3]));
+    default: return lowest >= keep;
+  }
+}
+
+constexpr float no_upper_bounds[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+
 bool certified(const State& state, std::size_t t) {
   const float keep = 1.0f - state.tolerance;
   const float* quadrant = state.stage_l.data() + t * 4;
-  static const float none[4] = {1.0f, 1.0f, 1.0f, 1.0f};
-  const float* upper = state.upper_ready ? state.upper.data() + t * 4 : none;
-  const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+  const float* upper = state.upper_ready ? state.upper.data() + t * 4 : no_upper_bounds;
   switch (state.sector_count) {
-    case 4:
-      for (int q = 0; q < 4; ++q)
-        if (quadrant[q] < keep * upper[q]) return false;
-      return true;
-    case 1: return lowest >= keep * std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3]));
-    default: return lowest >= keep;
+    case 4: return certified_of<4>(quadrant, upper, keep);
+    case 1: return certified_of<1>(quadrant, upper, keep);
+    default: return certified_of<8>(quadrant, upper, keep);
   }
 }
 
@@ -747,6 +761,7 @@ bool certified(const State& state, std::size_t t) {
 void make_queue(State& state) {
   state.queue.clear();
   state.next = 0;
+  state.queue_stale = false;
   const std::size_t texels = std::size_t(state.width) * state.height;
   for (std::size_t t = 0; t < texels; ++t)
     if (!state.searched_flag[t] && !certified(state, t)) state.queue.push_back(int(t));
@@ -756,6 +771,7 @@ void make_queue(State& state) {
 void make_queue_from_emission(State& state) {
   state.queue.clear();
   state.next = 0;
+  state.queue_stale = false;
   const std::size_t texels = std::size_t(state.width) * state.height;
   const std::uint8_t* flags = state.uncertified.data();
   for (std::size_t t = 0; t < texels; ++t)
@@ -770,7 +786,9 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
       if (progress) progress(1.0);
     }
   } finish_report{progress};
-  if (state.next >= state.queue.size() || clock.exhausted()) return 0;
+  if (clock.exhausted()) return 0;
+  if (state.queue_stale) make_queue_from_emission(state);  // made only when a search can run (not at 0 ms)
+  if (state.next >= state.queue.size()) return 0;
   long long work = 0;
   if (!state.upper_ready) {  // certify with the upper bounds before searching: drop what they certify
     work += ensure_upper(state);
@@ -829,6 +847,11 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   return work;
 }
 
+// Texels still to search: the queue's rest, or the flags' count before the queue is made.
+long long pending_of(const State& state) {
+  return state.queue_stale ? state.uncertified_count : (long long)(state.queue.size() - state.next);
+}
+
 BakeStats finish(const State& state, const Clock& clock, long long work, long long refined) {
   BakeStats stats;
   stats.mode = Mode::bilinear_budgeted;
@@ -836,7 +859,7 @@ BakeStats finish(const State& state, const Clock& clock, long long work, long lo
   stats.height = state.height;
   stats.sector_count = state.sector_count;
   stats.texels_refined = refined;
-  stats.texels_fallback = (long long)(state.queue.size() - state.next);
+  stats.texels_fallback = pending_of(state);
   stats.work = work;
   stats.milliseconds = clock.elapsed();
   const std::size_t values = std::size_t(state.width) * state.height * state.sector_count;
@@ -850,18 +873,35 @@ template <int sectors>
 void emit_all_of(State& state, ConeView out, std::span<float> apex) {
   const std::size_t texels = std::size_t(state.width) * state.height;
   state.uncertified.resize(texels);
-  state.emitted_sum = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, texels, 4096), 0.0,
-      [&](const tbb::blocked_range<std::size_t>& range, double partial) {
+  struct Sums {
+    double ratios = 0.0;
+    long long uncertified = 0;
+  };
+  const Sums sums = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, texels, 4096), Sums{},
+      [&](const tbb::blocked_range<std::size_t>& range, Sums partial) {
         float sum = 0.0f;
+        long long count = 0;
+        const float keep = 1.0f - state.tolerance;
+        const bool bounds = state.upper_ready;
         for (std::size_t t = range.begin(); t < range.end(); ++t) {
           sum += emit_texel_of<sectors>(state, t, out.data);
           apex[t] = state.apex[t];
-          state.uncertified[t] = !state.searched_flag[t] && !certified(state, t);
+          const float* upper = bounds ? state.upper.data() + t * 4 : no_upper_bounds;
+          const bool flag =
+              !state.searched_flag[t] && !certified_of<sectors>(state.stage_l.data() + t * 4, upper, keep);
+          state.uncertified[t] = flag;
+          count += flag;
         }
-        return partial + double(sum);
+        return Sums{partial.ratios + double(sum), partial.uncertified + count};
       },
-      std::plus<double>());
+      [](Sums a, Sums b) { return Sums{a.ratios + b.ratios, a.uncertified + b.uncertified}; });
+  state.emitted_sum = sums.ratios;
+  state.uncertified_count = sums.uncertified;
+  // the queue is made from the flags when refinement runs (at 0 ms it never does)
+  state.queue.clear();
+  state.next = 0;
+  state.queue_stale = true;
 }
 
 void emit_all(State& state, ConeView out, std::span<float> apex) {
@@ -928,7 +968,6 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   state.searched_flag.assign(texels, 0);
   state.searched.resize(texels * state.sector_count);
   emit_all(state, out, apex);
-  make_queue_from_emission(state);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, work, refined);
@@ -1013,7 +1052,6 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
     }
   });
   emit_all(state, out, apex);
-  make_queue_from_emission(state);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, work, refined);
@@ -1034,9 +1072,6 @@ BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<fl
   return finish(state, clock, work, refined);
 }
 
-long long BilinearBaker::pending() const {
-  const State& state = *state_;
-  return (long long)(state.queue.size() - state.next);
-}
+long long BilinearBaker::pending() const { return pending_of(*state_); }
 
 }  // namespace displace::bake
