@@ -92,7 +92,7 @@ void sweep_kernel(LaneSweepJob& job) {
   // swept yet).
   const int stop_rows = bilinear ? depth + 3 : depth;
   // bilinear: first-lap rows whose box tests are left to the second lap (it stops only past them;
-  // it may not stop before tracked rows, so no more than those)
+  // it can stop only within the first `tracked` rows, whose sums are kept, so no more than those)
   const int skip_tests =
       bilinear && wrap && job.stop_early ? (job.skip_tests < tracked ? job.skip_tests : tracked) : 0;
   job.second_lap_rows = wrap ? H : 0;  // unless it stops early
