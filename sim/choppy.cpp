@@ -111,7 +111,8 @@ struct Warm {
 // (p <- x - D(p)), which was the whole iteration before. Measured on the water scene's ocean (512,
 // choppiness 1.5, three times, settle 0.003 texels): the fixed point needed all 8 steps somewhere;
 // Newton from x measures F 3.4 times a block, from the row before's solution alone 2.4 times, and
-// with its predicted change 2.1 times (2 is the least: a step, then the check).
+// with its predicted change 2.1 times (2 is the least: a step, then the check); 2.5 times at the
+// pipeline's settle of 3e-4 texels.
 DISPLACE_SIMD_CLONES
 float resample_block(const BlockJob& job, int i, int j0, int count, bool cold, Warm& warm) {
   constexpr float newton_floor = 0.2f;
