@@ -397,18 +397,13 @@ float apex_height(const double (&square)[3][3]) {
   double m = 0.0;
   for (const auto& row : square)
     for (double value : row) m = std::max(m, value);
-  float apex = float(m);
-  if (double(apex) < m) apex = std::nextafter(apex, 2.0f);
-  return apex;
+  return detail::float_at_least(m);
 }
 
 // A ratio for the map: clamped to 1, shrunk by the margin and rounded down.
 float stored_ratio(double ratio) {
   if (!(ratio < 1.0)) return 1.0f;
-  const double shrunk = ratio * (1.0 - ratio_margin);
-  float stored = float(shrunk);
-  if (double(stored) > shrunk) stored = std::nextafter(stored, 0.0f);
-  return stored;
+  return detail::float_at_most(ratio * (1.0 - ratio_margin));
 }
 
 // Cell maxima, slopes and their pyramid, and the half-plane sector masks: what every texel's search reads.

@@ -317,13 +317,6 @@ struct NearPlan {
   float steep_unit = 0.0f;
 };
 
-// A float at least x (x > 0, finite).
-float float_above(double x) {
-  float f = float(x);
-  if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
-}
-
 // The 16-bit unit of the sub-cells' rates (make_sub_cells): 65533 units reach past every rate a
 // sub-cell can have, so that the stores (x 65533 / largest + 2, truncated) never clamp. A sub-cell's
 // rate along u is the rate of s along u on one of its cell's u edges (a difference of two samples
@@ -361,7 +354,7 @@ NearPlan make_near_plan(int width, int height, int q) {
     }
   // the largest 1 / gap is half a texel's, along the shorter texel side
   const double gap_scale = 65535.0 / (2.0 * std::max(width, height) * (1.0 + 1e-9));
-  plan.steep_unit = float_above(65536.0 / (65535.0 * gap_scale) * (1.0 + 1e-12));
+  plan.steep_unit = detail::float_at_least(65536.0 / (65535.0 * gap_scale) * (1.0 + 1e-12));
   int count = 0;
   for (int g = 0; g < detail::near_groups; ++g)
     for (int n = 0; n < plan.group_counts[g]; ++n) {
@@ -521,7 +514,7 @@ long long run_stage_l(State& state) {
                                    make_near_plan(W, H, 3)};
   static_assert(stage_l_sweeps == 1, "stage_l_combine_kernel takes one sweep's lanes");
   const float rate_scale = near_rate_scale(lipschitz, W, H);
-  const float rate_unit = float_above(1.0 / double(rate_scale));
+  const float rate_unit = detail::float_at_least(1.0 / double(rate_scale));
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
   tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
     thread_local std::vector<float> near[4], slope3[4];

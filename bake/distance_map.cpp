@@ -125,9 +125,7 @@ std::vector<float> footprint_maxima(HeightView heights, Address address, int wid
           }
         }
         // rounded up, so that it stays an upper bound of s
-        float bound = float(m);
-        if (double(bound) < m) bound = std::nextafter(bound, 2.0f);
-        maxima[std::size_t(i) * width + j] = bound;
+        maxima[std::size_t(i) * width + j] = detail::float_at_least(m);
       }
     }
   });
@@ -219,14 +217,6 @@ struct LineTransform {
   }
 };
 
-// Largest float <= max(0, value).
-float float_at_most(double value) {
-  if (!(value > 0.0)) return 0.0f;
-  float rounded = float(value);
-  if (double(rounded) > value) rounded = std::nextafter(rounded, 0.0f);
-  return rounded;
-}
-
 // Step 1: half the extent of a voxel's support box along an axis of `count` voxels.
 double tap_reach(int count) { return (count == 1 ? 0.5 : 1.0) / count; }
 
@@ -270,7 +260,7 @@ BakeStats bake_distance_map(HeightView heights, Address address, DistanceView ou
       for (int i = 0; i < height; ++i) line.input[i] = column[std::size_t(i) * width];
       line.run(height, spacing_v, periodic);
       for (int i = 0; i < height; ++i)
-        column[std::size_t(i) * width] = float_at_most(std::sqrt(line.output[i]) - rounding_margin);
+        column[std::size_t(i) * width] = detail::float_at_most(std::sqrt(line.output[i]) - rounding_margin);
     }
   });
 

@@ -10,11 +10,26 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "bake/bake.h"
 
 namespace displace::bake::detail {
+
+// The smallest float at least x, and the largest float at most max(0, x): a double bound kept as a
+// float on its safe side.
+inline float float_at_least(double x) {
+  float rounded = float(x);
+  if (double(rounded) < x) rounded = std::nextafter(rounded, std::numeric_limits<float>::infinity());
+  return rounded;
+}
+inline float float_at_most(double x) {
+  if (!(x > 0.0)) return 0.0f;
+  float rounded = float(x);
+  if (double(rounded) > x) rounded = std::nextafter(rounded, 0.0f);
+  return rounded;
+}
 
 // uv geometry of a W x H map. Directions are tested on the integer vector (dx * H, dy * W), which
 // points the same way as the uv offset (dx / W, dy / H), so sector tests are exact.

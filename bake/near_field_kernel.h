@@ -32,48 +32,42 @@ inline Shorts larger(Shorts a, Shorts b) { return a > b ? a : b; }
 inline Floats larger(Floats a, Floats b) { return a > b ? a : b; }
 inline Shorts bits(Shorts a, Shorts b) { return (Shorts)(a > b); }  // 0xffff where a > b, else 0
 
+// An instruction on native registers applied across a 64-byte vector: the vector is split into as
+// many registers as it holds (memcpy in and out; GCC keeps them in registers).
+template <class Register, class Vector, class Op>
+__attribute__((always_inline)) inline Vector by_registers(Vector a, Vector b, Op op) {
+  constexpr int count = int(sizeof(Vector) / sizeof(Register));
+  Register x[count], y[count];
+  std::memcpy(x, &a, sizeof x);
+  std::memcpy(y, &b, sizeof y);
+  for (int h = 0; h < count; ++h) x[h] = op(x[h], y[h]);
+  std::memcpy(&a, x, sizeof a);
+  return a;
+}
+
 // floor(a * b / 65536) per lane.
 __attribute__((always_inline)) inline Shorts high_product(Shorts a, Shorts b) {
 #if defined(__AVX512BW__)
-  __m512i x, y;
-  std::memcpy(&x, &a, sizeof x);
-  std::memcpy(&y, &b, sizeof y);
-  x = _mm512_mulhi_epu16(x, y);
-  std::memcpy(&a, &x, sizeof a);
+  return by_registers<__m512i>(a, b, [](__m512i x, __m512i y) { return _mm512_mulhi_epu16(x, y); });
 #elif defined(__AVX2__)
-  __m256i x[2], y[2];
-  std::memcpy(x, &a, sizeof x);
-  std::memcpy(y, &b, sizeof y);
-  for (int h = 0; h < 2; ++h) x[h] = _mm256_mulhi_epu16(x[h], y[h]);
-  std::memcpy(&a, x, sizeof a);
+  return by_registers<__m256i>(a, b, [](__m256i x, __m256i y) { return _mm256_mulhi_epu16(x, y); });
 #elif defined(__SSE2__)
-  __m128i x[4], y[4];
-  std::memcpy(x, &a, sizeof x);
-  std::memcpy(y, &b, sizeof y);
-  for (int h = 0; h < 4; ++h) x[h] = _mm_mulhi_epu16(x[h], y[h]);
-  std::memcpy(&a, x, sizeof a);
+  return by_registers<__m128i>(a, b, [](__m128i x, __m128i y) { return _mm_mulhi_epu16(x, y); });
 #else
   for (int l = 0; l < near_lanes; ++l) a[l] = std::uint16_t((std::uint32_t(a[l]) * b[l]) >> 16);
-#endif
   return a;
+#endif
 }
 
 inline Floats square_root(Floats x) {
 #if defined(__AVX512F__)
-  __m512 v;
-  std::memcpy(&v, &x, sizeof v);
-  v = _mm512_sqrt_ps(v);
-  std::memcpy(&x, &v, sizeof v);
+  return by_registers<__m512>(x, x, [](__m512 v, __m512) { return _mm512_sqrt_ps(v); });
 #elif defined(__AVX__)
-  __m256 halves[2];
-  std::memcpy(halves, &x, sizeof halves);
-  halves[0] = _mm256_sqrt_ps(halves[0]);
-  halves[1] = _mm256_sqrt_ps(halves[1]);
-  std::memcpy(&x, halves, sizeof halves);
+  return by_registers<__m256>(x, x, [](__m256 v, __m256) { return _mm256_sqrt_ps(v); });
 #else
   for (int l = 0; l < float_lanes; ++l) x[l] = std::sqrt(x[l]);
-#endif
   return x;
+#endif
 }
 
 // The accumulators of 32 texels: the largest rates along u and v over box 2 and over box 3 (of the
