@@ -54,13 +54,18 @@ glm::mat4 Camera::view_projection(float near_plane, float far_plane) const {
   return projection * glm::lookAt(eye, eye + glm::vec3(b.forward), glm::vec3(b.up));
 }
 
-Ray Camera::pixel_ray(double px, double py) const {
+// forward + x right + y up with x = (2 px / W - 1) tan(fov / 2) aspect, y = (1 - 2 py / H) tan(fov / 2)
+Camera::PixelRays Camera::pixel_rays() const {
   const Basis b = basis(*this);
   const double tan_half = std::tan(glm::radians(double(fov_y_degrees)) * 0.5);
   const double aspect = double(width) / double(height);
-  const double x = (2.0 * px / width - 1.0) * tan_half * aspect;
-  const double y = (1.0 - 2.0 * py / height) * tan_half;
-  return {glm::dvec3(eye), glm::normalize(b.forward + x * b.right + y * b.up)};
+  return {b.forward - tan_half * aspect * b.right + tan_half * b.up, (2.0 * tan_half * aspect / width) * b.right,
+          (-2.0 * tan_half / height) * b.up};
+}
+
+Ray Camera::pixel_ray(double px, double py) const {
+  const PixelRays rays = pixel_rays();
+  return {glm::dvec3(eye), glm::normalize(rays.corner + px * rays.along_x + py * rays.along_y)};
 }
 
 }  // namespace displace::render

@@ -178,7 +178,10 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   uniforms.view_projection = camera.view_projection(float(near_plane), float(far_plane));
   uniforms.eye = glm::vec4(camera.eye, 1.0f);
   uniforms.light = glm::vec4(glm::normalize(view.light_direction), 0.0f);
-  uniforms.surface = glm::vec4(float(view.tile), view.depth_scale, 1.0f / float(view.tile), 0.0f);
+  // a weight step above 1/16 (a device reporting fewer than the 4 bits Vulkan requires) counts as 1/16
+  const int sub_texel_bits = std::max(context.info().sub_texel_precision_bits, 4);
+  uniforms.surface = glm::vec4(float(view.tile), view.depth_scale, 1.0f / float(view.tile),
+                               std::ldexp(1.0f, -sub_texel_bits));
   uniforms.map_size =
       glm::vec4(float(map_width), float(map_height), 1.0f / float(map_width), 1.0f / float(map_height));
   const bool water = view.material == Material::water;
@@ -189,6 +192,10 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
       water ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f} : background;
   uniforms.background = glm::vec4(clear_colour[0], clear_colour[1], clear_colour[2], clear_colour[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
+  const Camera::PixelRays rays = camera.pixel_rays();
+  uniforms.ray_corner = glm::vec4(glm::vec3(rays.corner), 0.0f);
+  uniforms.ray_along_x = glm::vec4(glm::vec3(rays.along_x), 0.0f);
+  uniforms.ray_along_y = glm::vec4(glm::vec3(rays.along_y), 0.0f);
 
   FrameSlot& frame_slot = begin_slot();
   const int slot_index = slot;

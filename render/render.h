@@ -138,6 +138,14 @@ struct Camera {
   glm::mat4 view_projection(float near_plane, float far_plane) const;
   // The world-space ray through pixel (px, py) (pixel centres at +0.5).
   Ray pixel_ray(double px, double py) const;
+  // That ray's direction before normalisation is corner + px * along_x + py * along_y. The plane's
+  // fragment shader builds its ray from the same three vectors and gl_FragCoord, so that a pixel
+  // traces this ray and not one from interpolated vertex attributes (on an NVIDIA H200 those were
+  // off by about 1e-5, which moved grazing hits by a thousandth of a texel and more).
+  struct PixelRays {
+    glm::dvec3 corner, along_x, along_y;
+  };
+  PixelRays pixel_rays() const;
 };
 
 // How a hit is shaded: the procedural grid (or the albedo image, Renderer::set_albedo), or water:
@@ -181,6 +189,10 @@ struct DeviceInfo {
   std::string type;  // "discrete-gpu", "integrated-gpu", "virtual-gpu", "cpu", "other"
   int max_image_dimension_3d = 0;            // texels a side of a 3D image (the distance map)
   std::uint64_t max_storage_buffer_range = 0;  // bytes of one storage buffer (the max pyramid)
+  // Linear filtering's weights are fixed point with this many fraction bits (subTexelPrecisionBits;
+  // Vulkan asks for 4 at least, NVIDIA has 8): where a filtered read may be off (the distance map's
+  // trilinear reads), the shaders allow for it.
+  int sub_texel_precision_bits = 4;
 };
 
 struct RendererOptions {

@@ -266,6 +266,7 @@ Context::Context(const RendererOptions& options) {
     timestamp_period_ns_ = properties.limits.timestampPeriod;
     info_.max_image_dimension_3d = int(properties.limits.maxImageDimension3D);
     info_.max_storage_buffer_range = properties.limits.maxStorageBufferRange;
+    info_.sub_texel_precision_bits = int(properties.limits.subTexelPrecisionBits);
     VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
     VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     properties2.pNext = &maintenance3;

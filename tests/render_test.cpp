@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <iterator>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -173,7 +174,34 @@ TEST(CpuTrace, FindsAClipFarThinnerThanAnyMarchStep) {
 TEST(Renderer, ReportsItsDevice) {
   const render::DeviceInfo& device = shared_renderer().device();
   EXPECT_FALSE(device.name.empty());
-  std::printf("device: %s (%s)\n", device.name.c_str(), device.type.c_str());
+  EXPECT_GE(device.sub_texel_precision_bits, 4);  // Vulkan's least
+  std::printf("device: %s (%s), %d sub-texel bits\n", device.name.c_str(), device.type.c_str(),
+              device.sub_texel_precision_bits);
+}
+
+// The bakers and the exact traces define the surface as the texels' bilinear interpolation with exact
+// weights; a linear sampler's weights are fixed point on GPUs (8 bits on NVIDIA), and reads through it
+// let rays end past the first crossing on an H200 (render/shaders/height_fetch.inc.glsl). lavapipe
+// filters float images exactly, so no picture made here can show such a read: the shaders are read
+// instead. Every height read is a gather (bilinear_height_of, the cell walks) or a texel fetch.
+TEST(Renderer, ShadersReadHeightsOnlyWithExactWeights) {
+  const std::filesystem::path shaders = std::filesystem::path(DISPLACE_SOURCE_DIR) / "render" / "shaders";
+  int files = 0, gathers = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(shaders)) {
+    if (entry.path().extension() != ".glsl") continue;
+    ++files;
+    std::ifstream in(entry.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const char* filtered : {"texture(height_map", "textureLod(height_map", "textureGrad(height_map",
+                                 "textureProj(height_map", "textureOffset(height_map", "textureLodOffset(height_map"}) {
+      EXPECT_EQ(text.find(filtered), std::string::npos) << entry.path().filename() << " reads " << filtered << ")";
+    }
+    for (std::size_t at = text.find("textureGather("); at != std::string::npos; at = text.find("textureGather(", at + 1)) {
+      ++gathers;
+    }
+  }
+  EXPECT_GT(files, 10);
+  EXPECT_GE(gathers, 3);  // bilinear_height_of, the cell step, the pyramid's cell corners
 }
 
 TEST(Renderer, ExactClassMethodsHitWithinHalfATexelOfTheTruth) {

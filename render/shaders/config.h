@@ -72,11 +72,16 @@ struct FrameUniforms {
   mat4 view_projection;
   vec4 eye;          // xyz: world position of the eye
   vec4 light;        // xyz: unit direction towards the light
-  vec4 surface;      // x: tile K, y: depth scale D, z: 1 / K, w: unused
+  vec4 surface;      // x: tile K, y: depth scale D, z: 1 / K, w: linear filtering's weight step 2^-subTexelPrecisionBits
   vec4 map_size;     // x: W, y: H, z: 1 / W, w: 1 / H
   ivec4 counts;      // x: steps, y: refine, z: flags, w: cone sectors
   vec4 background;   // rgba of pixels off the relief
   vec4 quadric;      // x: radius R of the quadric's outer surface, yzw: unused (quadric surfaces only)
+  // the camera's pixel rays (Camera::pixel_rays): the direction through gl_FragCoord (x, y) is
+  // ray_corner + x ray_along_x + y ray_along_y, unnormalised (xyz; w unused)
+  vec4 ray_corner;
+  vec4 ray_along_x;
+  vec4 ray_along_y;
 };
 
 // The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this

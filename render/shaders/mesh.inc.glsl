@@ -12,16 +12,23 @@
 // the planar trace's: what the bend changes is only whether the ray gets there.
 // The reference on a mesh is its tessellation, displaced along the interpolated normal; no exact
 // bilinear walk (that is for the plane).
+// The methods trace the pixel's own ray (pixel_direction) from where it meets the fragment's tangent
+// plane (tangent_plane_entry), as on the plane.
 
 void mesh_fragment() {
-  vec3 d = normalize(in_world - frame.eye.xyz);
+  vec3 d = METHOD == METHOD_REFERENCE ? normalize(in_world - frame.eye.xyz) : pixel_direction();
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
   vec3 hit = vec3(in_uv, in_h);
+  Entry entry;
+  entry.world = in_world;
+  entry.texture = vec3(in_uv, in_h);
   if (METHOD != METHOD_REFERENCE) {
     if (dot(d, normal) >= 0.0) discard;  // seen from outside only
-    vec3 direction = inverse(tangent_frame) * d;
-    Trace traced = trace(vec3(in_uv, 1.0), direction, -dot(d, normal));
+    mat3 to_texture = inverse(tangent_frame);
+    entry = tangent_plane_entry(d, normal, to_texture);
+    vec3 direction = to_texture * d;
+    Trace traced = trace(vec3(entry.texture.xy, 1.0), direction, -dot(d, normal));
     hit = traced.p;
     float dz = min(direction.z, -min_descent);
     // world travel per unit of s in the basis of the curvature fit: t1 along dP/du, t2 = n x t1
@@ -33,5 +40,5 @@ void mesh_fragment() {
     bool outside = any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)));
     if ((frame.counts.z & FLAG_WRAP) == 0 && outside) discard;
   }
-  write_hit(hit, tangent_frame, d, normal);
+  write_hit(hit, tangent_frame, d, normal, entry.world, entry.texture);
 }

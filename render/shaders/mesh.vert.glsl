@@ -10,6 +10,7 @@ layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
+#include "height_fetch.inc.glsl"
 
 layout(location = 0) in vec4 in_position_u;   // xyz: position, w: u
 layout(location = 1) in vec4 in_dp_du_v;      // xyz: dP/du, w: v
@@ -25,7 +26,7 @@ void main() {
   vec3 world = in_position_u.xyz;
   float h = 1.0;
   if (METHOD == METHOD_REFERENCE) {
-    h = textureLod(height_map, uv, 0.0).r;
+    h = bilinear_height_of(height_map, uv);
     world -= (1.0 - h) * frame.surface.y * normal;
   }
   out_world = world;

@@ -21,7 +21,7 @@ const int bracket_max_steps = 32;       // bracketing steps; the last one always
 
 float fetch_height(vec2 uv) {
   g_fetches += 1u;
-  return textureLod(height_map, uv, 0.0).r;
+  return bilinear_height_of(height_map, uv);
 }
 
 // The sector of an n-sector cone map holding horizontal direction d (azimuth atan(dv, du) in [0, 2 pi)).

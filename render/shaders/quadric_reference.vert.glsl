@@ -12,6 +12,7 @@ layout(constant_id = 1) const int SURFACE = SURFACE_SPHERE;
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
+#include "height_fetch.inc.glsl"
 
 #include "quadric.inc.glsl"
 
@@ -23,7 +24,7 @@ void main() {
   float tile = frame.surface.x;
   vec2 placed = vec2(in_uv.x >= tile ? 0.0 : in_uv.x, in_uv.y);
   if (SURFACE == SURFACE_SPHERE && (in_uv.y <= 0.0 || in_uv.y >= tile)) placed.x = 0.0;
-  float h = textureLod(height_map, placed, 0.0).r;
+  float h = bilinear_height_of(height_map, placed);
   QuadricFrame f = quadric_frame(placed, h);
   out_world = f.position;
   out_uv = in_uv;

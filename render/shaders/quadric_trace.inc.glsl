@@ -451,7 +451,7 @@ const int quadric_reference_shadow_bisections = 24;   // bisection steps after t
 // The ray-minus-surface height at t, read without counting (the reference's probe).
 float quadric_reference_gap(QuadricRay ray, float t) {
   vec3 p = quadric_point(ray, t);
-  return p.z - textureLod(height_map, p.xy, 0.0).r;
+  return p.z - bilinear_height_of(height_map, p.xy);
 }
 
 // The reference's light probe: the first t in [t_in, t_end] at or below the bilinear surface.
@@ -516,16 +516,20 @@ float quadric_light_visibility(vec3 point, vec3 normal) {
 }
 
 // The fragment shader on a quadric: the rasterized proxy (the relief's box, or the tessellated
-// relief for the reference) only supplies the pixel's ray.
+// relief for the reference) only supplies the pixel, whose own ray (pixel_direction) is traced. The
+// reference's point is where that ray meets the fragment's triangle: its plane through the
+// interpolated point, its normal from the point's screen derivatives (taken before any discard).
 void quadric_fragment() {
-  vec3 d = normalize(in_world - frame.eye.xyz);
+  vec3 d = pixel_direction();
+  vec3 face = METHOD == METHOD_REFERENCE ? cross(dFdx(in_world), dFdy(in_world)) : vec3(0.0);
   QuadricRay ray;
   if (!quadric_setup(d, ray)) discard;
   float t;
   vec3 hit;
   if (METHOD == METHOD_REFERENCE) {
     // the tessellated surface's own point; the range allows for its chords (half a texel of v)
-    t = length(in_world - frame.eye.xyz);
+    float facing = dot(d, face);
+    t = abs(facing) > 1e-20 ? dot(in_world - frame.eye.xyz, face) / facing : length(in_world - frame.eye.xyz);
     hit = vec3(in_uv, in_h);
     if (!quadric_range_kept(ray, t, hit.y, 0.5 * frame.map_size.w)) discard;
   } else {
@@ -542,7 +546,7 @@ void quadric_fragment() {
   if ((frame.counts.z & FLAG_SHADOWS) != 0) {
     // the reference's light ray starts on the bilinear surface at its (u, v), not on its triangle
     vec3 shadow_point = METHOD == METHOD_REFERENCE
-                            ? quadric_frame(hit.xy, textureLod(height_map, hit.xy, 0.0).r).position
+                            ? quadric_frame(hit.xy, bilinear_height_of(height_map, hit.xy)).position
                             : world_hit;
     lit = quadric_light_visibility(shadow_point, f.normal);
   }

@@ -6,13 +6,14 @@
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
+#include "height_fetch.inc.glsl"
 
 layout(location = 0) in vec2 in_uv;  // texture coordinates in [0, tile]
 
 #include "surface_varyings.inc.glsl"
 
 void main() {
-  float h = textureLod(height_map, in_uv, 0.0).r;
+  float h = bilinear_height_of(height_map, in_uv);
   vec3 world = vec3(in_uv * frame.surface.z, (h - 1.0) * frame.surface.y);
   out_world = world;
   out_uv = in_uv;

@@ -8,7 +8,7 @@ const float ambient = 0.15;
 const float specular_strength = 0.25;
 const float specular_exponent = 48.0;
 
-float shading_height(vec2 uv) { return textureLod(height_map, uv, 0.0).r; }
+float shading_height(vec2 uv) { return bilinear_height_of(height_map, uv); }
 
 // World normal of the displaced surface at texture point uv, from central differences one texel apart.
 vec3 surface_normal(vec2 uv, mat3 tangent_frame) {

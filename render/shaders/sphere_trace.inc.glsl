@@ -27,9 +27,16 @@ const float sphere_resume_cells = 4.0;  // cells: sphere steps resume when one m
 const float sphere_stall_slices = 2.0;  // voxels along h: where the map may read 0 above the surface
 const float sphere_edge_nudge = 1e-3;   // texels: a ray on a cell edge starts its walk in the cell it enters
 
-float fetch_distance(vec3 p) {
+// The map's trilinear read at p, made safe for the sampler's fixed-point weights. With weights in
+// steps of w = 2^-subTexelPrecisionBits (frame.surface.w) a device returns the exact interpolation at
+// some point p' of the same voxel cell no more than one step w of a voxel from p along each axis
+// (a convex combination of the same eight voxels); the map is conservative at p', and the distance
+// is 1-Lipschitz, so the read less |p' - p| <= w |voxel| is conservative at p. (What the argument
+// needs; on an NVIDIA H200, w = 1/256, no failure was traced to it: the sphere rays that ended past
+// the crossing there came from rays built from interpolated attributes, see surface.frag.glsl.)
+float fetch_distance(vec3 p, float filter_margin) {
   g_fetches += 1u;
-  return textureLod(distance_map, p, 0.0).r;
+  return max(textureLod(distance_map, p, 0.0).r - filter_margin, 0.0);
 }
 
 float sphere_trace(vec3 origin, vec3 descent, int steps) {
@@ -37,7 +44,9 @@ float sphere_trace(vec3 origin, vec3 descent, int steps) {
   vec2 a = descent.xy * frame.map_size.xy;
   // s the ray needs to cross one cell along its faster axis (huge for a vertical ray)
   float cell_s = 1.0 / max(max(abs(a.x), abs(a.y)), min_denominator);
-  float stall_band = sphere_stall_slices / float(textureSize(distance_map, 0).z);
+  vec3 voxels = vec3(textureSize(distance_map, 0));
+  float stall_band = sphere_stall_slices / voxels.z;
+  float filter_margin = frame.surface.w * length(1.0 / voxels);
   vec2 toward = sign(a);
   float s = 0.0;
   bool walking = false, resumed = false;
@@ -47,7 +56,7 @@ float sphere_trace(vec3 origin, vec3 descent, int steps) {
     g_iterations += 1u;
     if (!walking) {
       vec3 p = origin + s * descent;
-      float step = fetch_distance(p) / ray_length;
+      float step = fetch_distance(p, filter_margin) / ray_length;
       if (step >= sphere_walk_cells * cell_s) {
         resumed = false;
         s = min(s + step, 1.0);

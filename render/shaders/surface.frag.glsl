@@ -10,6 +10,7 @@ layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
+#include "height_fetch.inc.glsl"
 layout(binding = BINDING_CONES) uniform usampler2DArray cone_map;
 layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
 layout(binding = BINDING_DISTANCE) uniform sampler3D distance_map;
@@ -81,10 +82,32 @@ float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
   return s < s_hit - bias ? 0.0 : 1.0;
 }
 
+// The unit direction of the pixel's own ray (Camera::pixel_rays), not one from interpolated vertex
+// attributes: the ray the CPU's exact traces follow, to float rounding.
+vec3 pixel_direction() {
+  return normalize(frame.ray_corner.xyz + gl_FragCoord.x * frame.ray_along_x.xyz + gl_FragCoord.y * frame.ray_along_y.xyz);
+}
+
+// Where the pixel's ray (direction d) meets the fragment's tangent plane (through the interpolated
+// point, with the interpolated normal), in world space and in texture space (u, v, h): the
+// interpolated attributes moved along the tangent frame by their interpolation error. On the plane
+// this is the ray's exact entry into z = 0.
+struct Entry {
+  vec3 world;
+  vec3 texture;
+};
+Entry tangent_plane_entry(vec3 d, vec3 normal, mat3 to_texture) {
+  Entry e;
+  e.world = frame.eye.xyz + (dot(in_world - frame.eye.xyz, normal) / dot(d, normal)) * d;
+  e.texture = vec3(in_uv + (to_texture * (e.world - in_world)).xy, in_h);
+  return e;
+}
+
 // Writes a hit found in the fragment's tangent frame (plane and meshes): depth, the shaded colour
-// (with the light's visibility under --shadows), the hit AOV and the counters.
-void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal) {
-  vec3 world_hit = in_world + tangent_frame * (hit - vec3(in_uv, in_h));
+// (with the light's visibility under --shadows), the hit AOV and the counters. base_world and
+// base_texture: where the ray entered the base surface, in world and texture space (u, v, h).
+void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_world, vec3 base_texture) {
+  vec3 world_hit = base_world + tangent_frame * (hit - base_texture);
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
   gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
   float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
@@ -105,30 +128,33 @@ void main() {
     quadric_fragment();
     return;
   }
-  vec3 to_point = in_world - frame.eye.xyz;
-  vec3 d = normalize(to_point);
+  vec3 d = pixel_direction();
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
-  vec3 hit = vec3(in_uv, in_h);
+  mat3 to_texture = inverse(tangent_frame);
+  if (frame.eye.z <= 0.0 || d.z >= 0.0) discard;  // the relief is seen from above only
+  // Only what is seen through the base polygon: a ray that enters the relief box through one of its
+  // sides has no fragment there (nor has a fragment on the polygon's edge whose ray misses it). The
+  // reference's fragments lie on the displaced surface (reference.vert.glsl), not on the base plane.
+  Entry entry;
   if (METHOD == METHOD_REFERENCE) {
-    // Only what is seen through the base polygon, as for the per-pixel methods: a ray that enters
-    // the relief box through one of its sides has no fragment on the polygon.
-    float t_entry = -frame.eye.z / d.z;
-    vec2 entry = frame.eye.xy + t_entry * d.xy;
-    if (frame.eye.z <= 0.0 || d.z >= 0.0 || any(lessThan(entry, vec2(0.0))) || any(greaterThan(entry, vec2(1.0)))) {
-      discard;
-    }
-    vec3 origin = vec3(entry * frame.surface.x, 1.0);
-    vec3 direction = inverse(tangent_frame) * d;
+    entry.world = frame.eye.xyz - (frame.eye.z / d.z) * d;
+    entry.texture = vec3(entry.world.xy * frame.surface.x, 1.0);
+  } else {
+    entry = tangent_plane_entry(d, normal, to_texture);
+  }
+  if (any(lessThan(entry.world.xy, vec2(0.0))) || any(greaterThan(entry.world.xy, vec2(1.0)))) discard;
+  vec3 direction = to_texture * d;
+  vec3 origin = vec3(entry.texture.xy, 1.0);
+  vec3 hit;
+  if (METHOD == METHOD_REFERENCE) {
     vec3 descent = vec3(direction.xy / max(-direction.z, min_descent), -1.0);
     hit = origin + reference_first_crossing(origin, descent, 1.0, true) * descent;
   } else {
-    if (dot(d, normal) >= 0.0) discard;  // the relief is seen from above only
-    vec3 origin = vec3(in_uv, 1.0);
-    Trace traced = trace(origin, inverse(tangent_frame) * d, -dot(d, normal));
+    Trace traced = trace(origin, direction, -dot(d, normal));
     hit = traced.p;
   }
   // the ray left the relief volume through a side of the patch
   if (any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)))) discard;
-  write_hit(hit, tangent_frame, d, normal);
+  write_hit(hit, tangent_frame, d, normal, entry.world, entry.texture);
 }

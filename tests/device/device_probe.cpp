@@ -1,0 +1,179 @@
+// tests/device/device_probe.cpp - what the renderer costs and how close it comes, on whatever device
+// render::Renderer picks (a GPU when there is one), without the application layer: it links only
+// pipeline/, render/, bake/ and sim/, so that it runs on a machine that has a Vulkan driver but not
+// this project's packages (tests/device/pack.sh carries it there with displace_device_tests).
+//
+//   displace_device_probe [OUTPUT_DIR]
+//
+// 1. Every method at 8, 16, 32 and 64 steps on the built-in water (512 map), bricks and cliff scenes
+//    at 1920 x 1080: the median GPU milliseconds of 9 draws (timestamps), rmse and the share of
+//    pixels off by more than 10 against the reference, and mean fetches per pixel. The reference of
+//    each scene and acm4 at 32 steps on water are written to OUTPUT_DIR as binary PPM.
+// 2. The frame loop of `displace bench-frame`: water, acm4 at 32 steps, bake budget 0 ms, map and
+//    image sizes 256, 512 and 1024, 150 frames after 10 of warm-up, in series and overlapped: p50 of
+//    each stage and the frame's p50 and p95 in milliseconds, and Vulkan allocations after warm-up.
+// DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
+// test suite runs it that way so that it keeps working.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "pipeline/frame_pipeline.h"
+#include "pipeline/maps.h"
+#include "pipeline/scene.h"
+
+namespace {
+
+using namespace displace;
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  return values[std::min(values.size() - 1, std::size_t(p * double(values.size())))];
+}
+
+void write_ppm(const render::Frame& frame, const std::string& path) {
+  std::ofstream out(path, std::ios::binary);
+  out << "P6\n" << frame.width << " " << frame.height << "\n255\n";
+  for (std::size_t p = 0; p < std::size_t(frame.width) * frame.height; ++p) {
+    out.write(reinterpret_cast<const char*>(&frame.color[4 * p]), 3);
+  }
+}
+
+double mean_positive(const std::vector<float>& values) {
+  double sum = 0.0;
+  long long count = 0;
+  for (float v : values) {
+    if (v > 0.0f) {
+      sum += v;
+      ++count;
+    }
+  }
+  return count ? sum / double(count) : 0.0;
+}
+
+struct Plan {
+  std::vector<const char*> scenes{"water", "bricks", "cliff"};
+  int width = 1920, height = 1080, water_map = 512, repeats = 9;
+  std::vector<int> steps{8, 16, 32, 64};
+  std::vector<int> frame_sizes{256, 512, 1024};
+  int warm_up = 10, frames = 150;
+};
+
+Plan quick_plan() {
+  Plan plan;
+  plan.scenes = {"water"};
+  plan.width = 64;
+  plan.height = 36;
+  plan.water_map = 64;
+  plan.repeats = 1;
+  plan.steps = {8};
+  plan.frame_sizes = {64};
+  plan.warm_up = 2;
+  plan.frames = 5;
+  return plan;
+}
+
+void method_table(render::Renderer& renderer, const Plan& plan, const std::string& directory) {
+  for (const char* name : plan.scenes) {
+    pipeline::Scene scene = pipeline::builtin_scene(name);
+    if (std::string(name) == "water") scene.map_size = plan.water_map;
+    scene.camera.width = plan.width;
+    scene.camera.height = plan.height;
+    pipeline::FramePipeline frames(scene, renderer);
+    pipeline::FrameRecord record;
+    frames.simulate(0.0, record);
+    pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
+    maps.set_heights(frames.heights());
+    const render::View view = pipeline::scene_view(scene, 0.0);
+    const render::Frame reference =
+        pipeline::render_with_maps(renderer, maps, view, {render::Method::reference, 1, 0});
+    write_ppm(reference, directory + "/" + name + "_reference.ppm");
+    std::printf("scene %s, map %d x %d, %d x %d pixels; reference %.3f ms\n", name, frames.heights().width,
+                frames.heights().height, plan.width, plan.height, reference.gpu_milliseconds);
+    std::printf("%-16s %5s %9s %9s %8s %8s\n", "method", "steps", "median_ms", "rmse", "over10%", "fetches");
+    render::Frame frame;
+    for (const render::MethodInfo& info : render::method_table()) {
+      if (info.method == render::Method::reference || !render::supports_surface(info.method, view.surface)) continue;
+      for (int steps : plan.steps) {
+        const render::MethodSettings settings{info.method, steps, 8};
+        frame = pipeline::render_with_maps(renderer, maps, view, settings);
+        const render::ImageError error = render::compare(frame, reference);
+        const double fetches = mean_positive(frame.fetches);
+        std::vector<double> times;
+        for (int r = 0; r < plan.repeats; ++r) {
+          renderer.render(view, settings, frame, render::output_color);
+          times.push_back(frame.gpu_milliseconds);
+        }
+        std::printf("%-16s %5d %9.4f %9.3f %8.3f %8.2f\n", info.name, steps, percentile(times, 0.5), error.rmse,
+                    100.0 * error.fraction_over_10, fetches);
+        if (std::string(name) == "water" && info.method == render::Method::acm4 && steps == 32) {
+          write_ppm(frame, directory + "/water_acm4.ppm");
+        }
+        if (info.family == render::MethodFamily::surface) break;  // no steps to give
+      }
+    }
+    std::fflush(stdout);
+  }
+}
+
+void frame_loop(render::Renderer& renderer, const Plan& plan) {
+  for (int size : plan.frame_sizes) {
+    for (bool overlapped : {false, true}) {
+      pipeline::Scene scene = pipeline::builtin_scene("water");
+      scene.map_size = size;
+      scene.camera.width = scene.camera.height = size;
+      scene.method = render::Method::acm4;
+      scene.steps = 32;
+      scene.frame_ms = 0.0;
+      pipeline::FramePipeline frames(scene, renderer);
+      render::Frame frame;
+      for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
+      const long long allocations = renderer.memory_allocations();
+      std::vector<double> sim, bake, upload, draw, total;
+      auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
+        sim.push_back(r.sim_ms);
+        bake.push_back(r.bake_ms);
+        upload.push_back(r.upload_ms);
+        draw.push_back(r.render_ms);
+        total.push_back(r.frame_ms);
+      };
+      if (overlapped) {
+        frames.run_frames(plan.warm_up, plan.frames, render::output_color, keep);
+      } else {
+        for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
+      }
+      std::printf(
+          "frame: water, map %d, %d x %d pixels, %s: p50 sim %.3f bake %.3f upload %.3f render %.3f frame %.3f ms, "
+          "frame p95 %.3f ms, %lld allocations after warm-up\n",
+          size, size, size, overlapped ? "overlapped" : "in series", percentile(sim, 0.5), percentile(bake, 0.5),
+          percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
+          renderer.memory_allocations() - allocations);
+      std::fflush(stdout);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::string directory = argc > 1 ? argv[1] : ".";
+    const char* quick = std::getenv("DISPLACE_PROBE_QUICK");
+    const Plan plan = quick && *quick && std::string(quick) != "0" ? quick_plan() : Plan{};
+    render::RendererOptions options;
+    options.pipeline_cache = "off";
+    render::Renderer renderer(options);
+    std::printf("device: %s (%s), %d sub-texel bits\n", renderer.device().name.c_str(),
+                renderer.device().type.c_str(), renderer.device().sub_texel_precision_bits);
+    method_table(renderer, plan, directory);
+    frame_loop(renderer, plan);
+    return 0;
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "displace_device_probe: error: %s\n", error.what());
+    return 1;
+  }
+}
