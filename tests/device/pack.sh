@@ -40,6 +40,17 @@ for library in libdl.so.2 libpthread.so.0 librt.so.1; do
 done
 cp -L "$(ldd "$pack/displace_device_tests" | awk '/ld-linux/ {print $1}')" "$pack/glibc/"
 
+# glvnd's libraries: the NVIDIA driver's Vulkan ICD (libGLX_nvidia) needs libGLdispatch and libEGL,
+# and a bare machine may have the driver without them (on an H200 without libEGL the loader said
+# "Could not get 'vkCreateInstance' via 'vk_icdGetInstanceProcAddr'" and found no driver)
+for library in libGLdispatch.so.0 libGLX.so.0 libEGL.so.1; do
+  if [ -e "/lib/x86_64-linux-gnu/$library" ]; then
+    cp -L "/lib/x86_64-linux-gnu/$library" "$pack/lib/"
+  else
+    echo "$0: warning: no $library here; an NVIDIA driver without it will not load" >&2
+  fi
+done
+
 # the validation layer (the tests assert zero messages), found by the loader through VK_LAYER_PATH
 layer=/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
 layer_library=/usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so
