@@ -51,13 +51,13 @@ render::MapSet map_set(const Maps& maps, std::uint64_t version, std::uint64_t si
 }
 
 render::Renderer& renderer_of(bool host_written) {
-  auto options = [](bool host_written_maps) {
+  auto options_of = [](bool host_written_maps) {
     render::RendererOptions options;
     options.pipeline_cache = "off";
     options.host_written_maps = host_written_maps;
     return options;
   };
-  static render::Renderer host(options(true)), staged(options(false));
+  static render::Renderer host(options_of(true)), staged(options_of(false));
   return host_written ? host : staged;
 }
 
