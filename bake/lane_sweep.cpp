@@ -70,10 +70,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <new>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "bake/geometry.h"
@@ -132,15 +134,26 @@ LaneFloor lane_floor(const LanePlan& plan, const float* heights, std::size_t n, 
   return result;
 }
 
+int lane_sweep_level_for(const char* setting, int cpu_level) {
+  if (!setting || !*setting) return cpu_level;
+  const std::string word = setting;
+  const int asked = word == "avx512" ? 4 : word == "avx2" ? 3 : word == "generic" ? 0 : -1;
+  if (asked < 0) {
+    throw std::invalid_argument("DISPLACE_BAKE_ISA must be avx512, avx2 or generic, not '" + word + "'");
+  }
+  return std::min(asked, cpu_level);
+}
+
 int lane_sweep_best_level() {
 #if defined(DISPLACE_LANE_SWEEP_X86)
-  static const int level = __builtin_cpu_supports("x86-64-v4")   ? 4
-                           : __builtin_cpu_supports("x86-64-v3") ? 3
-                                                                 : 0;
-  return level;
+  static const int cpu = __builtin_cpu_supports("x86-64-v4")   ? 4
+                         : __builtin_cpu_supports("x86-64-v3") ? 3
+                                                               : 0;
 #else
-  return 0;
+  static const int cpu = 0;
 #endif
+  static const int level = lane_sweep_level_for(std::getenv("DISPLACE_BAKE_ISA"), cpu);
+  return level;
 }
 
 #if !defined(DISPLACE_LANE_SWEEP_X86)

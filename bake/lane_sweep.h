@@ -111,8 +111,13 @@ void lane_sweep_avx512(LaneSweepJob& job);
 void lane_emit_generic(LaneEmitJob& job, std::size_t first, std::size_t last);
 void lane_emit_avx2(LaneEmitJob& job, std::size_t first, std::size_t last);
 void lane_emit_avx512(LaneEmitJob& job, std::size_t first, std::size_t last);
-// 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run.
+// 0: generic, 3: x86-64-v3 (AVX2), 4: x86-64-v4 (AVX-512): what this build and CPU can run, or
+// lower where $DISPLACE_BAKE_ISA asks for it (lane_sweep_level_for; read once per process).
 int lane_sweep_best_level();
+// The level for a $DISPLACE_BAKE_ISA setting ("avx512", "avx2" or "generic"; null or empty: the
+// CPU's) on a CPU that runs `cpu_level` at most: never above it, so that a benchmark can time the
+// kernels an AVX2 or an older CPU would run. Throws std::invalid_argument for any other word.
+int lane_sweep_level_for(const char* setting, int cpu_level);
 
 // 64-byte aligned 16-bit values, kept between calls: grows to the largest size asked for.
 class AlignedScratch {

@@ -1,7 +1,12 @@
 // bake/near_field_kernel.h - the bilinear baker's near field for a row of texels (lane_sweep.h,
-// NearRowJob), written once over vectors of 32 16-bit integers and 16 floats and built per
+// NearRowJob), written once over vectors of 16-bit integers and of 16 floats and built per
 // instruction set by the lane sweep's translation units. A flag is 0xffff or 0, so rate & flag
 // selects a rate.
+//
+// A block is as many texels as one register holds in 16-bit lanes: 32 with AVX-512, 16 with AVX2
+// and below. Its eight accumulators and their temporaries then stay in registers; 32-texel blocks
+// on AVX2 (each vector two ymm registers, 16 of them) spilled the accumulators at every offset,
+// and stage L took 34.9 ms at 512 x 512 against 8.0 with AVX-512 on the same machine.
 #pragma once
 
 #include <cmath>
@@ -17,10 +22,16 @@
 namespace displace::bake::detail {
 namespace {
 
+#if defined(__AVX512BW__)
+#define DISPLACE_NEAR_LANES 32  // texels a block: one zmm register of 16-bit lanes
+#else
+#define DISPLACE_NEAR_LANES 16  // one ymm register (two xmm, or what the target has)
+#endif
+constexpr int near_lanes = DISPLACE_NEAR_LANES;
+static_assert(near_lanes <= near_block, "the planes are padded for near_block values past a texel");
 typedef float Floats __attribute__((vector_size(64)));
-typedef std::uint16_t Shorts __attribute__((vector_size(64)));
+typedef std::uint16_t Shorts __attribute__((vector_size(2 * near_lanes)));
 typedef std::uint16_t HalfShorts __attribute__((vector_size(32)));
-constexpr int near_lanes = near_block;  // 32 texels: 16-bit lanes
 constexpr int float_lanes = 16;
 
 inline Shorts load_shorts(const std::uint16_t* p) {
@@ -32,8 +43,8 @@ inline Shorts larger(Shorts a, Shorts b) { return a > b ? a : b; }
 inline Floats larger(Floats a, Floats b) { return a > b ? a : b; }
 inline Shorts bits(Shorts a, Shorts b) { return (Shorts)(a > b); }  // 0xffff where a > b, else 0
 
-// An instruction on native registers applied across a 64-byte vector: the vector is split into as
-// many registers as it holds (memcpy in and out; GCC keeps them in registers).
+// An instruction on native registers applied across a vector: the vector is split into as many
+// registers as it holds (memcpy in and out; GCC keeps them in registers).
 template <class Register, class Vector, class Op>
 __attribute__((always_inline)) inline Vector by_registers(Vector a, Vector b, Op op) {
   constexpr int count = int(sizeof(Vector) / sizeof(Register));
@@ -70,7 +81,7 @@ inline Floats square_root(Floats x) {
 #endif
 }
 
-// The accumulators of 32 texels: the largest rates along u and v over box 2 and over box 3 (of the
+// The accumulators of a block's texels: the largest rates along u and v over box 2 and over box 3 (of the
 // sub-cells above the apex and beyond Q_c's edge along that axis), the largest gap term of box 2
 // (floor((top - apex) * inverse_gap / 65536) + 1, 0 where nothing apart from Q_c is above the apex),
 // and flags (0xffff or 0): a box-2 sub-cell touching Q_c above the apex, anything above the apex in
@@ -115,22 +126,26 @@ __attribute__((always_inline)) inline void near_group(const NearOffset* offsets,
   sums = {ru, rv, ru3, rv3, steep, touch, any, any3};
 }
 
-// Lanes [16 h, 16 h + 16) of a 32-lane accumulator as floats (exact: below 2^16). A shuffle, not a
-// copy through memory: taking the accumulators' addresses kept them on the stack in the loops.
-inline Floats half_floats(Shorts v, int h) {
-  const HalfShorts half = h == 0 ? __builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
-                                 : __builtin_shufflevector(v, v, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28,
-                                                           29, 30, 31);
+// Lanes [16 h, 16 h + 16) of an accumulator as floats (exact: below 2^16). A shuffle, not a copy
+// through memory: taking the accumulators' addresses kept them on the stack in the loops.
+inline Floats half_floats(Shorts v, [[maybe_unused]] int h) {
+#if DISPLACE_NEAR_LANES == 16
+  return __builtin_convertvector(v, Floats);
+#else
+  const HalfShorts half =
+      h == 0 ? __builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
+             : __builtin_shufflevector(v, v, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31);
   return __builtin_convertvector(half, Floats);
+#endif
 }
 
-// The bounds of 32 texels from their accumulators, in float, 16 at a time: 1 / G and 1 / (the gap
+// The bounds of a block's texels from their accumulators, in float, 16 at a time: 1 / G and 1 / (the gap
 // term) carry a few roundings of 2^-24 each (squares, sum, root, the products with the units,
 // quotient), all within near_shrink; the units are rounded up.
 inline void finish_texels(const NearSums& sums, float rate_unit, float steep_unit, float* near, float* slope3) {
   constexpr float infinite = std::numeric_limits<float>::infinity();
   const Floats zero = Floats{} + 0.0f, inf = Floats{} + infinite, shrink = Floats{} + (1.0f - 4e-6f);
-  for (int h = 0; h < 2; ++h) {
+  for (int h = 0; h < near_lanes / float_lanes; ++h) {
     const Floats ru = half_floats(sums.ru, h), rv = half_floats(sums.rv, h);
     const Floats ru3 = half_floats(sums.ru3, h), rv3 = half_floats(sums.rv3, h);
     const Floats g3 = square_root(ru3 * ru3 + rv3 * rv3) * rate_unit;
@@ -174,7 +189,7 @@ void near_row_kernel(const NearRowJob& job) {
   int j0 = 0;
   for (; j0 + near_lanes <= width; j0 += near_lanes) block(j0, job.apex, job.near + j0, job.slope3 + j0);
   if (j0 < width) {
-    // the tail: 32 texels ending at the row's end where the row has them (recomputing a few),
+    // the tail: a block ending at the row's end where the row has them (recomputing a few),
     // else through a padded copy (the planes hold near_lanes values past every texel they serve)
     if (width >= near_lanes) {
       block(width - near_lanes, job.apex, job.near + width - near_lanes, job.slope3 + width - near_lanes);

@@ -591,6 +591,20 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
       }
 }
 
+// $DISPLACE_BAKE_ISA picks a lower instruction set for benchmarks, never one the CPU lacks, and any
+// other word is refused.
+TEST(LaneSweep, BakeIsaSettingPicksALevelTheCpuRuns) {
+  EXPECT_EQ(detail::lane_sweep_level_for(nullptr, 4), 4);
+  EXPECT_EQ(detail::lane_sweep_level_for("", 3), 3);
+  EXPECT_EQ(detail::lane_sweep_level_for("avx2", 4), 3);
+  EXPECT_EQ(detail::lane_sweep_level_for("generic", 4), 0);
+  EXPECT_EQ(detail::lane_sweep_level_for("avx512", 4), 4);
+  EXPECT_EQ(detail::lane_sweep_level_for("avx512", 3), 3);  // not above the CPU
+  EXPECT_EQ(detail::lane_sweep_level_for("avx2", 0), 0);
+  EXPECT_THROW(detail::lane_sweep_level_for("AVX2", 4), std::invalid_argument);
+  EXPECT_THROW(detail::lane_sweep_level_for("sse9", 4), std::invalid_argument);
+}
+
 // The bilinear baker's near-field kernel (16-bit lanes): every instruction set gives the generic
 // kernel's bounds bit for bit, and those are the definition's (computed here in double from the same
 // 16-bit values, one offset at a time: a sub-cell counts where its maximum exceeds the apex less one
@@ -600,7 +614,7 @@ TEST(LaneSweep, EveryInstructionSetGivesTheSameCounts) {
 TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
   const int best = detail::lane_sweep_best_level();
   int counted = 0;  // gap terms of sub-cells above the apex
-  for (int width : {1, 5, 32, 37, 70}) {
+  for (int width : {1, 5, 16, 21, 32, 37, 70}) {  // blocks are 16 texels (AVX2, generic) or 32 (AVX-512)
     const int columns = std::max(width, detail::near_block) + 8;
     std::vector<std::vector<std::uint16_t>> planes;
     std::vector<detail::NearOffset> offsets;
