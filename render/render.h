@@ -138,8 +138,8 @@ struct Camera {
   glm::mat4 view_projection(float near_plane, float far_plane) const;
   // The world-space ray through pixel (px, py) (pixel centres at +0.5).
   Ray pixel_ray(double px, double py) const;
-  // That ray's direction before normalisation is corner + px * along_x + py * along_y. The plane's
-  // fragment shader builds its ray from the same three vectors and gl_FragCoord, so that a pixel
+  // That ray's direction before normalisation is corner + px * along_x + py * along_y. The fragment
+  // shader builds every method's ray from the same three vectors and gl_FragCoord, so that a pixel
   // traces this ray and not one from interpolated vertex attributes (on an NVIDIA H200 those were
   // off by about 1e-5, which moved grazing hits by a thousandth of a texel and more).
   struct PixelRays {

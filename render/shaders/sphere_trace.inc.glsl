@@ -28,10 +28,10 @@ const float sphere_stall_slices = 2.0;  // voxels along h: where the map may rea
 const float sphere_edge_nudge = 1e-3;   // texels: a ray on a cell edge starts its walk in the cell it enters
 
 // The map's trilinear read at p, made safe for the sampler's fixed-point weights. With weights in
-// steps of w = 2^-subTexelPrecisionBits (frame.surface.w) a device returns the exact interpolation at
-// some point p' of the same voxel cell no more than one step w of a voxel from p along each axis
-// (a convex combination of the same eight voxels); the map is conservative at p', and the distance
-// is 1-Lipschitz, so the read less |p' - p| <= w |voxel| is conservative at p. (What the argument
+// steps of w = 2^-subTexelPrecisionBits (frame.surface.w) a device returns the exact trilinear
+// interpolation at some point p' no more than one step w of a voxel from p along each axis; the map
+// is conservative at p' (for any point, bake_distance_map), and the distance is 1-Lipschitz, so the
+// read less |p' - p| <= w |voxel| is conservative at p. (What the argument
 // needs; on an NVIDIA H200, w = 1/256, no failure was traced to it: the sphere rays that ended past
 // the crossing there came from rays built from interpolated attributes, see surface.frag.glsl.)
 float fetch_distance(vec3 p, float filter_margin) {
