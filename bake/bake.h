@@ -212,6 +212,18 @@ class BilinearBaker {
   // Texels whose ratios refinement would still look at (not certified within the last tolerance).
   long long pending() const;
 
+  // The first stage over several calls, for a caller that serves its last map while the next one is
+  // made (the pipeline's lagged maps, pipeline/frame_pipeline.h): begin() copies the heights and
+  // drops any stage under way; each advance() runs at least one of the first stage's steps and more
+  // while the budget lasts, and after the last one emits what bake() would (bit for bit) - the
+  // stage's ratios, refined within what is left of the budget - into `out`, `apex_heights` and
+  // `stats`, and returns true. Until then it leaves them alone and returns false. While a stage is
+  // under way refine() throws, update() rebakes everything and pending() counts the last emission.
+  void begin(HeightView heights);
+  bool advance(const Budget& budget, ConeView out, std::span<float> apex_heights, BakeStats& stats);
+  bool in_progress() const;
+  static int first_stage_steps();
+
   struct State;
 
  private:

@@ -90,6 +90,9 @@ constexpr int stage_l_sweeps = 1;           // stage L: sweeps of detail::lane_c
 constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
 constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
+constexpr int apex_parts = 2;               // stage L's steps (run_stage_l_step): the apexes in 2 parts,
+constexpr int near_parts = 4;               // the cells, two sweeps, the near field in 4 parts
+constexpr int stage_l_steps = apex_parts + 3 + near_parts;
 constexpr int witness_reach = 4;            // half texels: how far the upper bounds' near witnesses reach
 constexpr int witness_pad = 6;              // half texels of witness rows past the map (even, > reach)
 constexpr float witness_slack = 2e-7f;      // heights: a witness's rounding and its difference to H_c
@@ -138,6 +141,11 @@ struct BilinearBaker::State {
   bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
   std::vector<double> lanes;  // stage L's lane ratios (stage_l_sweeps x 32)
   std::vector<int> column_before, column_after;  // stage L: each column's neighbours, wrapped or clamped
+  // stage L in steps: the next one (stage_l_steps: none under way) and what the steps hand on
+  int stage_l_next = stage_l_steps;
+  long long stage_l_work = 0;
+  float lipschitz = 1.0f;
+  alignas(64) std::uint16_t bonus[detail::lane_count], bonus3[detail::lane_count];
 };
 
 namespace {
@@ -401,73 +409,94 @@ void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* 
 }
 
 // Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
-long long run_stage_l(State& state) {
+// Stage L runs in steps (BilinearBaker::advance spreads them over calls; bake() runs them all at
+// once): the apexes, in apex_parts parts of the rows; the cells, the Lipschitz bound and the lanes;
+// the sweeps of quadrants 0 and 1, then of 2 and 3 (two at a time, in parallel); the near field and
+// the last step that joins it all, in near_parts parts of the rows. A step's result does not depend
+// on when it runs: the steps read only the heights copied at the start and what the steps before
+// wrote into the state, so any spread gives bit for bit the same map.
+int near_part_first_row(int height, int part) {
+  const int bands = (height + near_band - 1) / near_band;
+  return std::min(height, bands * part / near_parts * near_band);
+}
+
+void run_stage_l_step(State& state, int step) {
   const int W = state.width, H = state.height;
   const bool wrap = state.address == Address::wrap;
   const std::size_t texels = std::size_t(W) * H;
-  const HeightView view{state.heights.data(), W, H};
-  // apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below
-  state.apex.resize(texels);
-  state.apex_bottom.resize(texels);
-  // the neighbouring columns of every column (wrapped or clamped)
-  std::vector<int>& before = state.column_before;
-  std::vector<int>& after = state.column_after;
-  before.resize(W);
-  after.resize(W);
-  for (int j = 0; j < W; ++j) {
-    before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
-    after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
-  }
-  const int level = detail::lane_sweep_best_level(), block_texels = detail::apex_block_texels(level);
-  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
-      const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
-      float* apex_row = state.apex.data() + std::size_t(i) * W;
-      std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
-      // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
-      // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
-      // rounded up to float (to the next float's bits where the nearest is below)
-      auto apex_at = [&](int j, int left, int right) {
-        const int columns[3] = {left, j, right};
-        double h[3][3];
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
-        const double highest = detail::highest_sample(h);
-        const float nearest = float(highest);
-        std::uint32_t bits;
-        std::memcpy(&bits, &nearest, sizeof bits);
-        bits += double(nearest) < highest ? 1u : 0u;
-        float apex;
-        std::memcpy(&apex, &bits, sizeof apex);
-        apex_row[j] = apex;
-        const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
-        bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
-      };
-      apex_at(0, before[0], after[0]);
-      // the columns whose neighbours lie in the row: a vector of texels at a time, the same arithmetic
-      const int blocks = std::max(W - 2, 0) / block_texels;
-      switch (level) {
-        case 0: detail::apex_blocks_generic(rows3, 1, blocks, apex_row, bottom_row); break;
-        case 3: detail::apex_blocks_avx2(rows3, 1, blocks, apex_row, bottom_row); break;
-        default: detail::apex_blocks_avx512(rows3, 1, blocks, apex_row, bottom_row); break;
+  const int level = detail::lane_sweep_best_level();
+  static_assert(stage_l_sweeps == 1, "the steps and stage_l_combine_kernel take one sweep's lanes");
+  if (step < apex_parts) {
+    if (step == 0) {
+      // apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below
+      state.apex.resize(texels);
+      state.apex_bottom.resize(texels);
+      // the neighbouring columns of every column (wrapped or clamped)
+      state.column_before.resize(W);
+      state.column_after.resize(W);
+      for (int j = 0; j < W; ++j) {
+        state.column_before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
+        state.column_after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
       }
-      int j = 1 + blocks * block_texels;
-      for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
-      if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
     }
-  });
-  const float lipschitz = make_cells(state);
-  const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
-  detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
-  // the lanes (of every sweep, interleaved): from the smallest ratio a map can have (one texel over
-  // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
-  // above 1, 1.3x apart below lane_knee and evenly geometric above
-  double lanes[stage_l_sweeps * detail::lane_count];
-  {
+    const std::vector<int>& before = state.column_before;
+    const std::vector<int>& after = state.column_after;
+    const HeightView view{state.heights.data(), W, H};
+    const int block_texels = detail::apex_block_texels(level);
+    const int first = int(std::int64_t(H) * step / apex_parts), last = int(std::int64_t(H) * (step + 1) / apex_parts);
+    tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
+      for (int i = rows.begin(); i < rows.end(); ++i) {
+        const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
+        const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
+        float* apex_row = state.apex.data() + std::size_t(i) * W;
+        std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
+        // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
+        // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
+        // rounded up to float (to the next float's bits where the nearest is below)
+        auto apex_at = [&](int j, int left, int right) {
+          const int columns[3] = {left, j, right};
+          double h[3][3];
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
+          const double highest = detail::highest_sample(h);
+          const float nearest = float(highest);
+          std::uint32_t bits;
+          std::memcpy(&bits, &nearest, sizeof bits);
+          bits += double(nearest) < highest ? 1u : 0u;
+          float apex;
+          std::memcpy(&apex, &bits, sizeof apex);
+          apex_row[j] = apex;
+          const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
+          bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
+        };
+        apex_at(0, before[0], after[0]);
+        // the columns whose neighbours lie in the row: a vector of texels at a time, the same arithmetic
+        const int blocks = std::max(W - 2, 0) / block_texels;
+        switch (level) {
+          case 0: detail::apex_blocks_generic(rows3, 1, blocks, apex_row, bottom_row); break;
+          case 3: detail::apex_blocks_avx2(rows3, 1, blocks, apex_row, bottom_row); break;
+          default: detail::apex_blocks_avx512(rows3, 1, blocks, apex_row, bottom_row); break;
+        }
+        int j = 1 + blocks * block_texels;
+        for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
+        if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
+      }
+    });
+    return;
+  }
+  step -= apex_parts;
+  const double t = 1.0 / double(std::max(W, H));
+  if (step == 0) {
+    state.lipschitz = make_cells(state);
+    const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
+    detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
+    // the lanes (of every sweep, interleaved): from the smallest ratio a map can have (one texel over
+    // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
+    // above 1, 1.3x apart below lane_knee and evenly geometric above
+    double lanes[stage_l_sweeps * detail::lane_count];
     const double range = double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
     const double smallest = std::clamp(
-        std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(lipschitz)), 1.0 / 8192.0, 0.5);
+        std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)), 1.0 / 8192.0, 0.5);
     const int total = stage_l_sweeps * detail::lane_count;
     const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
     const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
@@ -475,48 +504,49 @@ long long run_stage_l(State& state) {
       lanes[l] = l <= low ? lowest * std::pow(1.3, l)
                           : lowest * std::pow(1.3, low) *
                                 std::pow(1.0001 / (lowest * std::pow(1.3, low)), double(l - low) / (total - 1 - low));
-  }
-  const double t = 1.0 / double(std::max(W, H));
-  long long work = 0;
-  for (int sweep = 0; sweep < stage_l_sweeps; ++sweep) {
+    state.lanes.assign(lanes, lanes + total);
     double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l + sweep];
+    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l];
     detail::set_lane_ratios(state.plan, ratios);
-    // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down
-    alignas(64) std::uint16_t bonus[detail::lane_count];
     for (int l = 0; l < detail::lane_count; ++l) {
+      // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down; for the
+      // box {0, ..., 3}^2 the gap beyond its far faces is at least 1.5 texels more
       const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
-      bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+      state.bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+      state.bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
     }
-    // the box {0, ..., 3}^2: the gap beyond its far faces is at least 1.5 texels more
-    alignas(64) std::uint16_t bonus3[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) {
-      const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
-      bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+    for (int q = 0; q < 4; ++q) {
+      state.passed[0][q].resize(texels);
+      state.passed3[0][q].resize(texels);
     }
+    return;
+  }
+  if (step <= 2) {
+    const int first_quadrant = 2 * (step - 1);
     std::uint8_t* passed[4];
     std::uint8_t* passed3[4];
     for (int q = 0; q < 4; ++q) {
-      state.passed[sweep][q].resize(texels);
-      passed[q] = state.passed[sweep][q].data();
-      state.passed3[sweep][q].resize(texels);
-      passed3[q] = state.passed3[sweep][q].data();
+      passed[q] = state.passed[0][q].data();
+      passed3[q] = state.passed3[0][q].data();
     }
-    work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), bonus, passed,
-                                             bonus3, passed3);
-    std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[sweep]);
+    state.stage_l_work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus,
+                                                           passed, state.bonus3, passed3, -1, true, first_quadrant, 2);
+    if (step == 2) {
+      std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
+      state.upper_ready = false;
+      state.stage_l.resize(texels * 4);
+    }
+    return;
   }
+  const int part = step - 3;
+  const int first = near_part_first_row(H, part), last = near_part_first_row(H, part + 1);
   const float highest = state.plan.highest;
-  state.lanes.assign(lanes, lanes + stage_l_sweeps * detail::lane_count);
-  state.upper_ready = false;
-  state.stage_l.resize(texels * 4);
   const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
                                    make_near_plan(W, H, 3)};
-  static_assert(stage_l_sweeps == 1, "stage_l_combine_kernel takes one sweep's lanes");
-  const float rate_scale = near_rate_scale(lipschitz, W, H);
+  const float rate_scale = near_rate_scale(state.lipschitz, W, H);
   const float rate_unit = detail::float_at_least(1.0 / double(rate_scale));
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, near_band), [&](const tbb::blocked_range<int>& rows) {
+  tbb::parallel_for(tbb::blocked_range<int>(first, last, near_band), [&](const tbb::blocked_range<int>& rows) {
     thread_local std::vector<float> near[4], slope3[4];
     thread_local SubCells sub_cells;
     for (int q = 0; q < 4; ++q) {
@@ -530,7 +560,7 @@ long long run_stage_l(State& state) {
     job.highest = highest;
     job.half_texel = 0.5 * t;
     job.lane_ratio = state.lane_ratio[0];
-    job.lipschitz = lipschitz;
+    job.lipschitz = state.lipschitz;
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const std::size_t row = std::size_t(i) * W;
       for (int q = 0; q < 4; ++q) {
@@ -550,7 +580,21 @@ long long run_stage_l(State& state) {
       }
     }
   });
-  return work + (long long)texels * 4;
+  state.stage_l_work += (long long)(last - first) * W * 4;
+}
+
+// Whether a step has anything to do (the near field's last parts have no rows on a small map).
+bool stage_l_step_works(const State& state, int step) {
+  const int part = step - apex_parts - 3;
+  return part < 0 || near_part_first_row(state.height, part) < near_part_first_row(state.height, part + 1);
+}
+
+// Every step at once; returns the work.
+long long run_stage_l(State& state) {
+  state.stage_l_work = 0;
+  for (int step = 0; step < stage_l_steps; ++step) run_stage_l_step(state, step);
+  state.stage_l_next = stage_l_steps;
+  return state.stage_l_work;
 }
 
 // The emitted ratios of texel t: stage L's quadrants spread to the sectors, and the search's where it
@@ -969,7 +1013,8 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
 BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
                                 std::span<float> apex) {
   State& state = *state_;
-  if (!state.has_frame) return bake(heights, budget, out, apex);
+  // with a stage under way the heights held are not the emitted ones: nothing to compare against
+  if (!state.has_frame || in_progress()) return bake(heights, budget, out, apex);
   check_view(state, heights, out, apex);
   check_tolerance(budget);
   Clock clock(budget);
@@ -1053,6 +1098,7 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
 BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<float> apex) {
   State& state = *state_;
   if (!state.has_frame) throw BakeError("bilinear baker: refine() before the first bake()");
+  if (in_progress()) throw BakeError("bilinear baker: refine() while a staged first stage is under way (advance() it)");
   check_view(state, {state.heights.data(), state.width, state.height}, out, apex);
   check_tolerance(budget);
   Clock clock(budget);
@@ -1066,5 +1112,49 @@ BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<fl
 }
 
 long long BilinearBaker::pending() const { return pending_of(*state_); }
+
+void BilinearBaker::begin(HeightView heights) {
+  State& state = *state_;
+  validate_heights(heights, "a cone map");
+  if (heights.width != state.width || heights.height != state.height) {
+    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " + std::to_string(state.height) +
+                    " map, given " + std::to_string(heights.width) + " x " + std::to_string(heights.height));
+  }
+  state.heights.assign(heights.data, heights.data + std::size_t(state.width) * state.height);
+  state.search_current = false;
+  state.stage_l_work = 0;
+  state.stage_l_next = 0;
+}
+
+bool BilinearBaker::advance(const Budget& budget, ConeView out, std::span<float> apex, BakeStats& stats) {
+  State& state = *state_;
+  if (!in_progress()) throw BakeError("bilinear baker: advance() without begin()");
+  check_view(state, {state.heights.data(), state.width, state.height}, out, apex);
+  check_tolerance(budget);
+  Clock clock(budget);
+  // at least one step that does something, then more while the budget lasts
+  bool worked = false;
+  while (state.stage_l_next < stage_l_steps && !(worked && clock.exhausted())) {
+    const int step = state.stage_l_next++;
+    if (!stage_l_step_works(state, step)) continue;
+    run_stage_l_step(state, step);
+    worked = true;
+  }
+  if (state.stage_l_next < stage_l_steps) return false;
+  const std::size_t texels = std::size_t(state.width) * state.height;
+  state.has_frame = true;
+  state.tolerance = budget.tolerance;
+  state.searched_flag.assign(texels, 0);
+  state.searched.resize(texels * state.sector_count);
+  emit_all(state, out, apex);
+  long long refined = 0;
+  const long long work = state.stage_l_work + run_refinement(state, clock, out, refined, budget.progress);
+  stats = finish(state, clock, work, refined);
+  return true;
+}
+
+bool BilinearBaker::in_progress() const { return state_->stage_l_next < stage_l_steps; }
+
+int BilinearBaker::first_stage_steps() { return stage_l_steps; }
 
 }  // namespace displace::bake

@@ -478,10 +478,11 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level, bool stop_early) {
+                                   std::uint8_t* const passed3[4], int level, bool stop_early, int first_quadrant,
+                                   int quadrant_count) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
-  tbb::parallel_for(0, 4, [&](int quadrant) {
+  tbb::parallel_for(first_quadrant, first_quadrant + quadrant_count, [&](int quadrant) {
     LaneScratch& kept = cells.scratch[std::size_t(quadrant)];
     LaneSweepJob job;
     job.width = cells.width;

@@ -212,11 +212,13 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // for the cell grid (make_lane_plan on the cell maxima: W x H cells with wrap, (W + 1) x (H + 1) with
 // clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
 // quadrant q's counts of passing lanes (per texel) to passed[q] and passed3[q]. bonus, bonus3:
-// lane_count values (see LaneSweepJob).
+// lane_count values (see LaneSweepJob). Only quadrants first_quadrant .. + quadrant_count - 1 when
+// asked (stage L in steps).
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level = -1, bool stop_early = true);
+                                   std::uint8_t* const passed3[4], int level = -1, bool stop_early = true,
+                                   int first_quadrant = 0, int quadrant_count = 4);
 
 // The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
 // says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and

@@ -2368,6 +2368,67 @@ TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
   }
 }
 
+// The first stage in steps (begin / advance: the pipeline's lagged maps). With the budget spent,
+// each advance() runs one step; however the steps are spread, the map is bake()'s bit for bit; `out`
+// and the apexes are left alone until the last step, the stage works on the heights begin() copied,
+// an unlimited budget finishes in one call with bake()'s refinement, and bake() mid-stage ends it.
+TEST(BilinearBaker, StagedFirstStageEqualsTheWholeBake) {
+  std::vector<Map> maps = hard_maps();
+  maps.push_back(test::make_fractal_cliff(96, 130));  // rows for every part of the near field
+  maps.push_back(test::make_bricks(140, 40));
+  Budget spent;
+  spent.milliseconds = 0.0;
+  for (const Map& map : maps)
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        const std::string what = map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) +
+                                 " sectors " + std::to_string(sectors) + " " + address_name(address);
+        const BudgetedBilinear expected = bake_bilinear_budgeted(map, sectors, address, spent);
+        BilinearBaker baker(map.width, map.height, sectors, address);
+        ConeMap cones = make_cone_map(map, sectors);
+        std::vector<float> apex(map.values.size(), -1.0f);
+        std::fill(cones.ratios.begin(), cones.ratios.end(), -1.0f);
+        Map input = map;
+        baker.begin(view_of(input));
+        std::fill(input.values.begin(), input.values.end(), 0.5f);  // the stage has its own copy
+        EXPECT_THROW(baker.refine(spent, cones.view(), apex), BakeError) << what;
+        BakeStats stats;
+        int calls = 1;
+        for (; !baker.advance(spent, cones.view(), apex, stats); ++calls) {
+          ASSERT_TRUE(baker.in_progress()) << what;
+          ASSERT_LT(calls, BilinearBaker::first_stage_steps()) << what;
+          for (float r : cones.ratios) ASSERT_EQ(r, -1.0f) << what;
+          for (float a : apex) ASSERT_EQ(a, -1.0f) << what;
+        }
+        EXPECT_FALSE(baker.in_progress()) << what;
+        EXPECT_GE(calls, 6) << what;  // the apexes in 2 parts, the cells, 2 sweeps, the near field
+        if (map.height > 96) {
+          EXPECT_EQ(calls, BilinearBaker::first_stage_steps()) << what;
+        }
+        EXPECT_EQ(cones.ratios, expected.cones.ratios) << what;
+        EXPECT_EQ(apex, expected.apex) << what;
+        EXPECT_EQ(stats.work, expected.stats.work) << what;
+        EXPECT_EQ(stats.texels_fallback, expected.stats.texels_fallback) << what;
+        EXPECT_EQ(baker.pending(), expected.stats.texels_fallback) << what;
+        EXPECT_THROW(baker.advance(spent, cones.view(), apex, stats), BakeError) << what;  // nothing begun
+        if (sectors != 4) continue;
+        // an unlimited budget: one call, refined as bake() refines
+        Budget unlimited;
+        unlimited.tolerance = 0.0f;
+        const BudgetedBilinear refined = bake_bilinear_budgeted(map, sectors, address, unlimited);
+        baker.begin(view_of(map));
+        ASSERT_TRUE(baker.advance(unlimited, cones.view(), apex, stats)) << what;
+        EXPECT_EQ(cones.ratios, refined.cones.ratios) << what;
+        EXPECT_EQ(stats.texels_refined, refined.stats.texels_refined) << what;
+        // bake() in the middle of a stage ends it
+        baker.begin(view_of(input));
+        EXPECT_FALSE(baker.advance(spent, cones.view(), apex, stats)) << what;
+        baker.bake(view_of(map), spent, cones.view(), apex);
+        EXPECT_FALSE(baker.in_progress()) << what;
+        EXPECT_EQ(cones.ratios, expected.cones.ratios) << what;
+      }
+}
+
 TEST(BilinearBaker, RejectsBadInput) {
   EXPECT_THROW(BilinearBaker(0, 4, 4, Address::wrap), BakeError);
   EXPECT_THROW(BilinearBaker(4, 4, 3, Address::wrap), BakeError);
