@@ -1126,19 +1126,20 @@ void BilinearBaker::begin(HeightView heights) {
   state.stage_l_next = 0;
 }
 
-bool BilinearBaker::advance(const Budget& budget, ConeView out, std::span<float> apex, BakeStats& stats) {
+bool BilinearBaker::advance(const Budget& budget, ConeView out, std::span<float> apex, BakeStats& stats,
+                            int min_steps) {
   State& state = *state_;
   if (!in_progress()) throw BakeError("bilinear baker: advance() without begin()");
   check_view(state, {state.heights.data(), state.width, state.height}, out, apex);
   check_tolerance(budget);
   Clock clock(budget);
-  // at least one step that does something, then more while the budget lasts
-  bool worked = false;
-  while (state.stage_l_next < stage_l_steps && !(worked && clock.exhausted())) {
+  // at least min_steps (and one) steps that do something, then more while the budget lasts
+  int worked = 0;
+  while (state.stage_l_next < stage_l_steps && !(worked >= std::max(min_steps, 1) && clock.exhausted())) {
     const int step = state.stage_l_next++;
     if (!stage_l_step_works(state, step)) continue;
     run_stage_l_step(state, step);
-    worked = true;
+    ++worked;
   }
   if (state.stage_l_next < stage_l_steps) return false;
   const std::size_t texels = std::size_t(state.width) * state.height;
@@ -1154,6 +1155,8 @@ bool BilinearBaker::advance(const Budget& budget, ConeView out, std::span<float>
 }
 
 bool BilinearBaker::in_progress() const { return state_->stage_l_next < stage_l_steps; }
+
+int BilinearBaker::first_stage_steps_left() const { return stage_l_steps - state_->stage_l_next; }
 
 int BilinearBaker::first_stage_steps() { return stage_l_steps; }
 

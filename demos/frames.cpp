@@ -162,7 +162,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   const std::filesystem::path csv_path = csv_file(settings);
   std::string csv =
       "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_mean_ratio,"
-      "pending_texels\n";
+      "pending_texels,cone_lag_frames,cone_lift\n";
   const bool terminal = stderr_is_terminal();
   const double start = seconds_now();
   render::Frame frame;
@@ -193,11 +193,11 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
       ::pclose(video);
       throw runtime_error("ffmpeg stopped taking frames for --video");
     }
-    csv += fmt::format("{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{}\n", n, record.time,
+    csv += fmt::format("{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
                        record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
                        std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
                        record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
-                       record.cones.mean_ratio, record.pending);
+                       record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
     ++done;
     const double elapsed = seconds_now() - start;
     const double rate = double(done) / std::max(elapsed, 1e-9);
@@ -247,8 +247,8 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
-  std::vector<double> sim, bake, upload, draw, frame_ms, interval;
-  for (std::vector<double>* times : {&sim, &bake, &upload, &draw, &frame_ms, &interval}) {
+  std::vector<double> sim, bake, upload, draw, frame_ms, interval, lag, lift;
+  for (std::vector<double>* times : {&sim, &bake, &upload, &draw, &frame_ms, &interval, &lag, &lift}) {
     times->reserve(std::size_t(settings.frames));  // made before the loop: not counted as growth
   }
   long long ffts = 0, within = 0;
@@ -271,6 +271,8 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
       upload.push_back(record.upload_ms);
       draw.push_back(record.render_ms);
       frame_ms.push_back(record.frame_ms);
+      lag.push_back(double(record.cone_lag));
+      lift.push_back(double(record.cone_lift));
       if (seen > settings.warm_up) interval.push_back(now - last_done);
       ffts += record.ffts;
       effects |= record.effects;
@@ -337,6 +339,14 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                      "after warm-up: {}\n",
                      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
                      allocations);
+  const bool cones = render::map_needs(scene.method, pipeline::scene_view(scene, scene.start)).cone_sectors > 0;
+  const double lag_p50 = percentile(lag, 0.50), lag_max = lag.empty() ? 0.0 : *std::max_element(lag.begin(), lag.end());
+  const double lift_p50 = percentile(lift, 0.50), lift_max = lift.empty() ? 0.0 : *std::max_element(lift.begin(), lift.end());
+  if (cones) {
+    out << fmt::format("  cone maps: made from the heights of {:g} frames before (p50; at most {:g}), apexes raised by "
+                       "{:.4f} (p50; at most {:.4f}) of the height range\n",
+                       lag_p50, lag_max, lift_p50, lift_max);
+  }
   if (rss_end >= 0) {
     out << fmt::format("  {} of {} frames rendered; resident memory {} kB after warm-up, {} kB at the end ({:+} kB), "
                        "at most {} kB\n",
@@ -352,6 +362,10 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                                    {"effects", effect_names(effects)},
                                    {"vulkan_allocations_after_warmup", allocations},
                                    {"frames_rendered", frames_rendered},
+                                   {"cone_lag_frames", cones ? nlohmann::ordered_json{{"p50", lag_p50}, {"max", lag_max}}
+                                                             : nlohmann::ordered_json(nullptr)},
+                                   {"cone_lift", cones ? nlohmann::ordered_json{{"p50", lift_p50}, {"max", lift_max}}
+                                                       : nlohmann::ordered_json(nullptr)},
                                    {"overlapped", !settings.serial},
                                    {"pinned_threads", pinned_threads},
                                    {"rss_kb",

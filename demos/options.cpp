@@ -1023,6 +1023,7 @@ struct PipelineSceneDraft {
   int steps = 0;
   double budget_ms = 0.0;
   long long bake_work = 0;
+  int cone_lag = 0;
 };
 
 void add_pipeline_scene_flags(CLI::App& app, PipelineSceneDraft& draft) {
@@ -1044,6 +1045,10 @@ void add_pipeline_scene_flags(CLI::App& app, PipelineSceneDraft& draft) {
             "MS", number_in(budget_range));
   add_value(app, "--bake-work", draft.bake_work, "texels the cone bake may search a frame (default: the scene's)",
             "N", integer_in(0, 1ll << 40));
+  add_value(app, "--cone-lag", draft.cone_lag,
+            "with --budget-ms and moving heights: frames a cone map may take to make while the last one is served "
+            "with raised apexes (default: the scene's; 0: every frame makes its own)",
+            "N", integer_in(0, pipeline::max_cone_lag_frames));
 }
 
 pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDraft& draft) {
@@ -1076,6 +1081,7 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
   if (given(app, "--steps")) scene.steps = draft.steps;
   if (given(app, "--budget-ms")) scene.frame_ms = draft.budget_ms;
   if (given(app, "--bake-work")) scene.bake_work = draft.bake_work;
+  if (given(app, "--cone-lag")) scene.cone_lag_frames = draft.cone_lag;
   if (!render::supports_surface(scene.method, scene.surface)) {
     throw usage_error(fmt::format("--method {} does not support the scene's surface {}",
                                   render::method_info(scene.method).name, render::surface_name(scene.surface)));

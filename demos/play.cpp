@@ -227,10 +227,11 @@ std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecor
                         double frames_per_second, bool paused) {
   return fmt::format(
       "{} {} {} steps | frame {} t {:.2f} s | {:.1f} ms ({:.0f} fps): sim {:.1f} bake {:.1f} upload {:.1f} "
-      "render {:.1f} | budget {} (bake {}) | pending {}{}",
+      "render {:.1f} | budget {} (bake {}) | pending {}{}{}",
       scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time,
       record.frame_ms, frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
       budget_text(scene.frame_ms), budget_text(record.bake_budget_ms), record.pending,
+      record.cone_lag > 0 ? fmt::format(" | cones {} frames old, +{:.3f}", record.cone_lag, record.cone_lift) : "",
       paused ? " | paused" : "");
 }
 

@@ -49,6 +49,7 @@ struct FrameBuffers {
   bool heights_changed = false;
   bool maps_made = false;  // for the current heights
   std::vector<float> ratios, apex, relaxed;
+  std::span<const float> cone_ratios;  // what upload hands over: `ratios`, or a lagged map's
   std::uint64_t cones_version = 0;
   bake::DualMaxPyramid pyramid;
   std::uint64_t pyramid_version = 0;
@@ -58,6 +59,17 @@ struct FrameBuffers {
   render::MapSet set;
 
   bake::HeightView heights_view() const { return {field.heights.data(), field.width, field.height}; }
+};
+
+// The lagged cone maps of a real-time scene whose heights change: the map made last is served with
+// its apexes raised by the most any texel rose since its heights, while the baker makes the next one
+// over as many frames as the budget needs (frame_pipeline.h). Two slots, the one served and the one
+// the baker emits into, so that a frame still uploading a map never sees it change.
+struct LaggedCones {
+  std::vector<float> ratios, apex;  // as emitted (apexes not raised)
+  std::vector<float> heights;       // the heights they were made from
+  bake::BakeStats stats;
+  long long frame = 0;  // whose heights
 };
 
 struct FramePipeline::State {
@@ -82,6 +94,9 @@ struct FramePipeline::State {
   sim::HeightMapping mapping;
   std::optional<bake::BilinearBaker> baker;
   int baker_width = 0, baker_height = 0;
+  std::array<LaggedCones, 2> lagged;
+  int served = -1, building = 0;  // lagged slots: served (-1: none yet) and the one being made
+  int build_frames = 0;           // frames the map being made has had so far
 
   // frames in flight (run_frames overlaps two; run uses the first)
   std::array<FrameBuffers, 2> buffers;
@@ -226,6 +241,55 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
   b.heights_version = next_map_version();
 }
 
+// A lagged frame (see LaggedCones): the stage under way advances within the budget (a new one starts
+// on this frame's heights when none is), and the map made last is served. Conservative for these
+// heights: the bilinear surface rose by at most lift = max over texels of (h - h_made) anywhere (it
+// interpolates the texels' differences), so s(x) <= s_made(x) + lift <= (H_c + lift) + |x - p| / r_k
+// for every p in Q_c and x in sector k - the same ratios hold from the raised apex (rounded up past
+// both roundings; 1 is above every height).
+void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& budget, FrameRecord& record) {
+  const int width = b.field.width, height = b.field.height;
+  const std::size_t texels = b.field.heights.size();
+  const int sectors = s.needs.cone_sectors;
+  if (s.served >= 0 && s.lagged[std::size_t(s.served)].heights.size() != texels) s.served = -1;  // a new size
+  if (!s.baker->in_progress()) {
+    s.building = s.served < 0 ? 0 : 1 - s.served;
+    LaggedCones& next = s.lagged[std::size_t(s.building)];
+    next.heights.assign(b.field.heights.begin(), b.field.heights.end());
+    next.frame = record.index;
+    next.ratios.resize(texels * std::size_t(sectors));
+    next.apex.resize(texels);
+    s.baker->begin(b.heights_view());
+    s.build_frames = 0;
+  }
+  LaggedCones& next = s.lagged[std::size_t(s.building)];
+  const bake::ConeView cones{next.ratios.data(), width, height, sectors};
+  // the steps left shared among the frames left (the map is made by its begin frame + lag frames),
+  // more while the budget lasts; with no map to serve yet the first is made whole
+  const int frames_left = std::max(1, s.scene.cone_lag_frames + 1 - s.build_frames);
+  const int min_steps = s.served < 0 ? bake::BilinearBaker::first_stage_steps()
+                                     : (s.baker->first_stage_steps_left() + frames_left - 1) / frames_left;
+  const bool made = s.baker->advance(budget, cones, next.apex, next.stats, min_steps);
+  ++s.build_frames;
+  if (made) s.served = s.building;
+  const LaggedCones& served = s.lagged[std::size_t(s.served)];
+  const float* now = b.field.heights.data();
+  const float* then = served.heights.data();
+  float lift = 0.0f;
+  for (std::size_t t = 0; t < texels; ++t) lift = std::max(lift, now[t] - then[t]);
+  b.apex.resize(texels);
+  if (lift > 0.0f) {
+    for (std::size_t t = 0; t < texels; ++t) b.apex[t] = std::min(1.0f, std::nextafter(served.apex[t] + lift, 2.0f));
+  } else {
+    std::copy(served.apex.begin(), served.apex.end(), b.apex.begin());
+  }
+  b.cone_ratios = served.ratios;
+  b.cone_stats = served.stats;
+  b.cones_version = next_map_version();
+  record.cone_lag = record.index - served.frame;
+  record.cone_lift = lift;
+}
+
 void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, FrameRecord& record) {
   record.bake_budget_ms = budget_ms;
   bool remake = b.heights_changed || !b.maps_made;
@@ -253,10 +317,16 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     budget.clock = s.clock;
     budget.max_work = s.scene.bake_work;
     budget.tolerance = s.scene.tolerance;
-    b.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
-    b.apex.resize(texels);
+    const bool lagged = !s.deterministic && !s.static_source && !s.needs.relaxed && s.scene.cone_lag_frames > 0;
+    if (!lagged) {
+      b.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
+      b.apex.resize(texels);
+      b.cone_ratios = b.ratios;
+    }
     const bake::ConeView cones{b.ratios.data(), width, height, s.needs.cone_sectors};
-    if (remake) {
+    if (lagged) {
+      bake_lagged(s, b, budget, record);
+    } else if (remake) {
       b.cone_stats = s.baker->bake(b.heights_view(), budget, cones, b.apex);
       b.cones_version = next_map_version();
     } else if (!s.deterministic && s.baker->pending() > 0) {
@@ -300,7 +370,7 @@ void upload_from(FramePipeline::State& s, FrameBuffers& b) {
     render::ConeMapView& cones = set.cones[std::size_t(render::cone_slot(s.needs.cone_sectors))];
     cones.sector_count = s.needs.cone_sectors;
     cones.address = s.needs.cone_address;
-    cones.ratios = b.ratios;
+    cones.ratios = b.cone_ratios;
     cones.apex = b.apex;
     if (s.needs.relaxed) cones.relaxed = b.relaxed;
     cones.version = b.cones_version;

@@ -7,11 +7,21 @@
 // State made once and kept for the whole run: the source (sim::Ocean with its FFT plans, or the
 // waves), the height and map buffers, the budgeted bilinear baker, the renderer's device maps.
 //
-// Budget: the bake gets what the frame budget leaves after the other stages of the previous frame
-// (never below its always-completed first stage: the maps stay conservative, only looser), through
-// the scene's clock; a work budget (scene.bake_work) or none keeps every frame reproducible from
-// its index alone, so frames can be rendered in any order and on any machine. Only a wall-clock
-// budget on a static source carries refinement over from frame to frame (real-time use).
+// Budget: the bake gets what the frame budget leaves after the other stages of the previous frame,
+// through the scene's clock; a work budget (scene.bake_work) or none keeps every frame reproducible
+// from its index alone (each frame's first stage completed, refined within the work), so frames can
+// be rendered in any order and on any machine. A wall-clock budget is real-time use:
+// - a static source carries refinement over from frame to frame;
+// - heights that change make each frame's cone map whole (its first stage always completes), or,
+//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed): the baker's
+//   first stage runs in steps (bake::BilinearBaker::begin / advance) on the heights of the frame it
+//   began on, spread over at most N + 1 frames - each frame runs its share of the steps left and more
+//   while the bake's share of the budget lasts - and each frame serves the map made last with every
+//   apex raised by the most any texel rose since (FrameRecord::cone_lag, cone_lift), which keeps
+//   every cone conservative for the frame's own heights. A share that fits the whole stage still
+//   gives each frame its own map; a smaller one costs the renderer steps instead of the bake time
+//   (raised apexes are looser cones): a map is at most 2N frames old. The first frame makes its map
+//   whole.
 #pragma once
 
 #include <cstdint>
@@ -48,6 +58,8 @@ struct FrameRecord {
   bool overrun = false;         // the frame took longer than the scene's frame budget
   bake::BakeStats cones;        // the cone bake (sector_count 0 when the method reads no cone map)
   long long pending = 0;        // texels the cone baker would still refine
+  long long cone_lag = 0;       // frames since the heights the cone map was made from (lagged maps)
+  float cone_lift = 0.0f;       // how far its apexes were raised for this frame's heights
   double choppy_residual = 0.0; // metres: the resampling's largest |p + D(p) - x|
 };
 

@@ -414,10 +414,11 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   scene.start = read.number(time, "time", "start", scene.start, -max_abs_time, max_abs_time);
   scene.fps = read.number(time, "time", "fps", scene.fps, 1e-3, max_fps);
   const toml::table* budget = read.section(root, "budget");
-  if (budget) read.known_keys(*budget, "budget", {"frame_ms", "bake_work", "tolerance"});
+  if (budget) read.known_keys(*budget, "budget", {"frame_ms", "bake_work", "tolerance", "cone_lag_frames"});
   scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, 1e7);
   scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, std::int64_t(1) << 40);
   scene.tolerance = float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, 1.0));
+  scene.cone_lag_frames = int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
 
   try {
     scene_view(scene, scene.start).camera.validate();
@@ -495,7 +496,9 @@ std::string scene_toml(const Scene& scene) {
                                     {"depth_scale", tidy(scene.depth_scale)},
                                     {"tile", scene.tile}});
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});
-  toml::table budget{{"bake_work", std::int64_t(scene.bake_work)}, {"tolerance", tidy(scene.tolerance)}};
+  toml::table budget{{"bake_work", std::int64_t(scene.bake_work)},
+                     {"tolerance", tidy(scene.tolerance)},
+                     {"cone_lag_frames", std::int64_t(scene.cone_lag_frames)}};
   if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
   root.insert("budget", budget);
   std::ostringstream out;

@@ -76,7 +76,13 @@ struct Scene {
   double frame_ms = std::numeric_limits<double>::infinity();
   long long bake_work = -1;
   float tolerance = 0.25f;  // the bake's refinement tolerance
+  // With a frame budget (real time) and heights that change: frames a cone map's first stage may
+  // spread over after the one it begins on, while the last map is served with raised apexes
+  // (FramePipeline's lagged maps); 0: every frame makes its own.
+  int cone_lag_frames = 0;  // 0 .. max_cone_lag_frames
 };
+
+inline constexpr int max_cone_lag_frames = 64;  // Scene::cone_lag_frames
 
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.
 std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);

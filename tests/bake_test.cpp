@@ -2381,8 +2381,10 @@ TEST(BilinearBaker, StagedFirstStageEqualsTheWholeBake) {
   for (const Map& map : maps)
     for (int sectors : {1, 4, 8})
       for (Address address : {Address::wrap, Address::clamp}) {
-        const std::string what = map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) +
-                                 " sectors " + std::to_string(sectors) + " " + address_name(address);
+        std::ostringstream described;
+        described << map.name << " " << map.width << "x" << map.height << " sectors " << sectors << " "
+                  << address_name(address);
+        const std::string what = described.str();
         const BudgetedBilinear expected = bake_bilinear_budgeted(map, sectors, address, spent);
         BilinearBaker baker(map.width, map.height, sectors, address);
         ConeMap cones = make_cone_map(map, sectors);

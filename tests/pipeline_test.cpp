@@ -70,6 +70,7 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
     scene.keyframes = {{0.0, {0.5f, -0.4f, 0.5f}, {0.5f, 0.5f, 0.0f}}, {2.0, {0.2f, -0.4f, 0.6f}, {0.5f, 0.4f, 0.0f}}};
     scene.frame_ms = 16.0;
     scene.bake_work = 5000;
+    scene.cone_lag_frames = 3;
     const std::string text = pipeline::scene_toml(scene);
     const Scene back = pipeline::parse_scene(text, name);
     EXPECT_EQ(pipeline::scene_toml(back), text) << name;
@@ -126,6 +127,7 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"render.tile", {"0", "65"}},                 {"time.start", {"\"now\"", "1e13"}},
       {"time.fps", {"0", "1e5"}},                   {"budget.frame_ms", {"-1", "\"fast\""}},
       {"budget.bake_work", {"-2", "0.5"}},          {"budget.tolerance", {"2", "\"loose\""}},
+      {"budget.cone_lag_frames", {"-1", "65", "1.5"}},
       {"name", {"1"}}};
   for (const auto& [key, values] : keys) {
     const std::string path = key;
@@ -343,17 +345,21 @@ void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames, pipel
 
 }  // namespace
 
-// An animated sequence whose bake budget is 0 (every frame over budget, maps from the first stage
-// only): no ray of any cone method ends past its exact first crossing, on every frame, on the
-// cliff's spikes and ledges, the bricks, the ripples and the ocean.
+// An animated sequence whose bake budget is 0 (every frame over budget: static maps from the first
+// stage only, moving ones lagged by up to 4 frames - the last map served with raised apexes, over
+// enough frames that lagged maps are made and served): no ray of any cone method ends
+// past its exact first crossing, on every frame, on the cliff's spikes and ledges, the bricks, the
+// ripples, the ocean and animated checkers and terraces.
 TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
   for (const char* name : {"cliff", "bricks", "ripples", "calm"}) {
+    const bool moving = name[0] == 'r' || name[0] == 'c' && name[1] == 'a';
     for (const render::Method method : {render::Method::csm, render::Method::acm4, render::Method::acm8}) {
       Scene scene = small_scene(name, 32, 40);
       scene.method = method;
       scene.steps = 8;
       scene.frame_ms = 0.0;
-      expect_no_ray_past_the_first_crossing(scene, 3);
+      scene.cone_lag_frames = 4;
+      expect_no_ray_past_the_first_crossing(scene, moving ? 9 : 3);
     }
   }
   // animated checkers and terraces (an image sequence whose frames shift the pattern)
@@ -373,7 +379,84 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
       scene.method = method;
       scene.steps = 8;
       scene.frame_ms = 0.0;
-      expect_no_ray_past_the_first_crossing(scene, 3, loader);
+      scene.cone_lag_frames = 4;
+      expect_no_ray_past_the_first_crossing(scene, 9, loader);
+    }
+  }
+}
+
+// Lagged cone maps (frame_pipeline.h), counted in steps: with the bake's share at 0 and a lag of
+// steps - 1 frames every frame runs one step of the first stage, so the map begun on frame b (frame
+// 0's made whole) is served from frame b + steps - 1 on, while the next is made. Each frame hands
+// the renderer exactly that map - the ratios a whole bake of frame b's heights gives, bit for bit -
+// with every apex raised by the most any texel rose since frame b (the record's lift), rounded up.
+// A lag of 1 makes each map in two frames (at most 2 frames old); a share that fits the whole stage
+// serves each frame its own map, and so does a lag of 0 at any share.
+TEST(Pipeline, LaggedConesServeTheLastMapRaisedWhileTheNextIsMade) {
+  const int steps = bake::BilinearBaker::first_stage_steps();
+  auto bake_alone = [](const render::HeightField& field, std::vector<float>& ratios, std::vector<float>& apex) {
+    bake::BilinearBaker baker(field.width, field.height, 4, bake::Address::wrap);
+    ratios.resize(field.heights.size() * 4);
+    apex.resize(field.heights.size());
+    bake::Budget none;
+    none.milliseconds = 0.0;
+    baker.bake({field.heights.data(), field.width, field.height}, none, {ratios.data(), field.width, field.height, 4},
+               apex);
+  };
+  FakeClock clock;
+  Scene scene = small_scene("calm", 128, 16);  // 128 rows: every step has work
+  scene.method = render::Method::acm4;
+  scene.frame_ms = 0.0;
+  scene.cone_lag_frames = steps - 1;
+  FramePipeline pipeline(scene, shared_renderer(), std::ref(clock));
+  std::vector<render::HeightField> heights;
+  render::Frame frame;
+  std::vector<float> ratios, apex;
+  int served_maps = 0;
+  long long served_from = 0;
+  for (int n = 0; n < 2 * steps + 2; ++n) {
+    const FrameRecord record = pipeline.run(n, frame, render::output_color);
+    heights.push_back(pipeline.heights());
+    long long from = 0;  // the frame whose map is served: begun on 1 + k steps, made steps - 1 later
+    for (long long begun = 1; begun + steps - 1 <= n; begun += steps) from = begun;
+    ASSERT_EQ(record.cone_lag, n - from) << "frame " << n;
+    float lift = 0.0f;
+    for (std::size_t t = 0; t < heights[std::size_t(n)].heights.size(); ++t) {
+      lift = std::max(lift, heights[std::size_t(n)].heights[t] - heights[std::size_t(from)].heights[t]);
+    }
+    EXPECT_EQ(record.cone_lift, lift) << "frame " << n;
+    if (n > from) EXPECT_GT(lift, 0.0f) << "frame " << n;  // the ocean rises somewhere
+    bake_alone(heights[std::size_t(from)], ratios, apex);
+    const render::ConeMapView& cones = pipeline.maps().cones[std::size_t(render::cone_slot(4))];
+    ASSERT_EQ(cones.ratios.size(), ratios.size());
+    EXPECT_TRUE(std::equal(ratios.begin(), ratios.end(), cones.ratios.begin())) << "frame " << n;
+    for (std::size_t t = 0; t < apex.size(); ++t) {
+      const float raised = lift > 0.0f ? std::min(1.0f, std::nextafter(apex[t] + lift, 2.0f)) : apex[t];
+      ASSERT_EQ(cones.apex[t], raised) << "frame " << n << " texel " << t;
+      ASSERT_TRUE(cones.apex[t] == 1.0f || double(cones.apex[t]) >= double(apex[t]) + double(lift))  // 1: above all
+          << "frame " << n << " texel " << t;
+    }
+    served_maps += from != served_from;
+    served_from = from;
+  }
+  EXPECT_EQ(served_maps, 2);
+
+  scene.cone_lag_frames = 1;  // maps begun on frames 1, 3, 5, ... and served from the frame after
+  FramePipeline two_frames(scene, shared_renderer(), std::ref(clock));
+  for (int n = 0; n < 7; ++n) {
+    EXPECT_EQ(two_frames.run(n, frame, render::output_color).cone_lag, n < 2 ? n : 1 + n % 2) << "frame " << n;
+  }
+  for (const auto& [frame_ms, lag] : {std::pair{1e9, 4}, std::pair{0.0, 0}}) {
+    scene.frame_ms = frame_ms;  // the whole stage fits, or no lag: every frame its own map
+    scene.cone_lag_frames = lag;
+    FramePipeline own(scene, shared_renderer(), std::ref(clock));
+    for (int n = 0; n < 3; ++n) {
+      const FrameRecord record = own.run(n, frame, render::output_color);
+      EXPECT_EQ(record.cone_lag, 0);
+      EXPECT_EQ(record.cone_lift, 0.0f);
+      bake_alone(own.heights(), ratios, apex);
+      const render::ConeMapView& cones = own.maps().cones[std::size_t(render::cone_slot(4))];
+      EXPECT_TRUE(std::equal(apex.begin(), apex.end(), cones.apex.begin())) << "frame " << n;
     }
   }
 }

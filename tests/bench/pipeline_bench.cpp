@@ -3,6 +3,13 @@
 // apart) of a built-in scene rendered with acm4 (32 steps) at 512 x 512, read back as colour.
 // Counters: median milliseconds of sim, bake, upload and render per frame, the bake's budget share,
 // its mean ratio and the texels still pending, and FFTs per frame.
+//
+// What a lagged cone map costs the render (pipeline/frame_pipeline.h, scene.cone_lag_frames):
+// BM_LaggedCones/water/<map size>/lag:<n> renders frame 120 of the water scene (acm4, 32 steps,
+// <map size>^2 pixels) from the cone map of frame 120 - n's heights, its apexes raised as the
+// pipeline raises them (by the most any texel rose since). Counters: fetches per pixel and search
+// iterations (means over the hit pixels), the lift, and the hit pixels that ended more than 0.01
+// texel from where lag 0's did (rays whose 32 steps ran out elsewhere). Timed: the render alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -11,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "bake/bake.h"
 #include "pipeline/frame_pipeline.h"
 
 namespace {
@@ -22,8 +30,13 @@ double median(std::vector<double> values) {
   return values.empty() ? 0.0 : values[values.size() / 2];
 }
 
-void run_frames(benchmark::State& state, const char* scene_name, int map_size, double frame_ms) {
+render::Renderer& bench_renderer() {
   static render::Renderer renderer{render::RendererOptions{}};
+  return renderer;
+}
+
+void run_frames(benchmark::State& state, const char* scene_name, int map_size, double frame_ms) {
+  render::Renderer& renderer = bench_renderer();
   pipeline::Scene scene = pipeline::builtin_scene(scene_name);
   scene.map_size = map_size;
   scene.method = render::Method::acm4;
@@ -56,7 +69,87 @@ void run_frames(benchmark::State& state, const char* scene_name, int map_size, d
   state.SetLabel(renderer.device().name);
 }
 
+render::HeightField heights_of_frame(const pipeline::Scene& scene, long long index) {
+  pipeline::FramePipeline frames(scene, bench_renderer());
+  pipeline::FrameRecord record;
+  frames.simulate(pipeline::frame_time(scene, index), record);
+  return frames.heights();
+}
+
+void run_lagged(benchmark::State& state, int map_size, int lag) {
+  render::Renderer& renderer = bench_renderer();
+  pipeline::Scene scene = pipeline::builtin_scene("water");
+  scene.map_size = map_size;
+  scene.camera.width = scene.camera.height = map_size;
+  const long long frame_index = 120;
+  const render::HeightField now = heights_of_frame(scene, frame_index);
+  const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, frame_index));
+  const std::size_t texels = now.heights.size();
+  // the map a lag of n serves: baked from frame 120 - n's heights (first stage only), raised
+  auto served_map = [&](int frames_old, std::vector<float>& ratios, std::vector<float>& apex) {
+    const render::HeightField then = heights_of_frame(scene, frame_index - frames_old);
+    bake::BilinearBaker baker(map_size, map_size, 4, bake::Address::wrap);
+    ratios.resize(texels * 4);
+    apex.resize(texels);
+    bake::Budget none;
+    none.milliseconds = 0.0;
+    baker.bake({then.heights.data(), map_size, map_size}, none, {ratios.data(), map_size, map_size, 4}, apex);
+    float lift = 0.0f;
+    for (std::size_t t = 0; t < texels; ++t) lift = std::max(lift, now.heights[t] - then.heights[t]);
+    if (lift > 0.0f) {
+      for (float& a : apex) a = std::min(1.0f, std::nextafter(a + lift, 2.0f));
+    }
+    return lift;
+  };
+  auto render_with = [&](const std::vector<float>& ratios, const std::vector<float>& apex, std::uint64_t version,
+                         render::Frame& frame) {
+    render::MapSet maps;
+    maps.width = maps.height = map_size;
+    maps.heights = now.heights;
+    maps.heights_version = 1;
+    render::ConeMapView& cones = maps.cones[std::size_t(render::cone_slot(4))];
+    cones.sector_count = 4;
+    cones.ratios = ratios;
+    cones.apex = apex;
+    cones.version = version;
+    renderer.set_maps(maps);
+    renderer.render(view, {render::Method::acm4, 32, 8}, frame,
+                    render::output_uv | render::output_fetches | render::output_iterations);
+  };
+  std::vector<float> ratios, apex;
+  render::Frame fresh, frame;
+  served_map(0, ratios, apex);
+  render_with(ratios, apex, 1000, fresh);
+  const float lift = served_map(lag, ratios, apex);
+  render_with(ratios, apex, 1001 + std::uint64_t(lag), frame);
+  for (auto _ : state) renderer.render(view, {render::Method::acm4, 32, 8}, frame, render::output_color);
+  render_with(ratios, apex, 1001 + std::uint64_t(lag), frame);
+  double fetches = 0.0, iterations = 0.0;
+  long long hits = 0, moved = 0;
+  for (std::size_t p = 0; p < frame.fetches.size(); ++p) {
+    if (frame.uv[3 * p + 2] < 0.5f) continue;
+    ++hits;
+    fetches += frame.fetches[p];
+    iterations += frame.iterations[p];
+    const double du = double(frame.uv[3 * p] - fresh.uv[3 * p]), dv = double(frame.uv[3 * p + 1] - fresh.uv[3 * p + 1]);
+    moved += std::sqrt(du * du + dv * dv) * map_size > 0.01;
+  }
+  state.counters["fetches_per_pixel"] = fetches / double(std::max(hits, 1ll));
+  state.counters["iterations"] = iterations / double(std::max(hits, 1ll));
+  state.counters["lift"] = lift;
+  state.counters["moved_pixels"] = double(moved);
+  state.SetLabel(renderer.device().name);
+}
+
 void register_frames() {
+  for (int size : {256, 512}) {
+    for (int lag : {0, 1, 2, 4, 8}) {
+      const std::string name = "BM_LaggedCones/water/" + std::to_string(size) + "/lag:" + std::to_string(lag);
+      benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& state) { run_lagged(state, size, lag); })
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+    }
+  }
   for (const char* scene : {"calm", "water", "ripples"}) {
     for (int size : {256, 512}) {
       for (double budget : {16.0, 100.0}) {
