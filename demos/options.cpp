@@ -1081,7 +1081,13 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
   if (given(app, "--steps")) scene.steps = draft.steps;
   if (given(app, "--budget-ms")) scene.frame_ms = draft.budget_ms;
   if (given(app, "--bake-work")) scene.bake_work = draft.bake_work;
-  if (given(app, "--cone-lag")) scene.cone_lag_frames = draft.cone_lag;
+  if (given(app, "--cone-lag")) {
+    if (!std::isfinite(scene.frame_ms)) {
+      throw usage_error("--cone-lag needs a frame budget (--budget-ms, or the scene's [budget] frame_ms): without one "
+                        "every frame makes its own cone maps");
+    }
+    scene.cone_lag_frames = draft.cone_lag;
+  }
   if (!render::supports_surface(scene.method, scene.surface)) {
     throw usage_error(fmt::format("--method {} does not support the scene's surface {}",
                                   render::method_info(scene.method).name, render::surface_name(scene.surface)));

@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "pipeline/maps.h"
@@ -247,6 +249,20 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
 // interpolates the texels' differences), so s(x) <= s_made(x) + lift <= (H_c + lift) + |x - p| / r_k
 // for every p in Q_c and x in sector k - the same ratios hold from the raised apex (rounded up past
 // both roundings; 1 is above every height).
+// max(0, max over t of (now[t] - then[t])), in eight independent maxima (a vector's worth)
+float largest_rise(std::span<const float> then, std::span<const float> now) {
+  float rise[8] = {};
+  const std::size_t count = now.size(), whole = count / 8 * 8;
+  for (std::size_t t = 0; t < whole; t += 8) {
+    for (int k = 0; k < 8; ++k) {
+      const float d = now[t + k] - then[t + k];
+      rise[k] = d > rise[k] ? d : rise[k];
+    }
+  }
+  for (std::size_t t = whole; t < count; ++t) rise[0] = std::max(rise[0], now[t] - then[t]);
+  return *std::max_element(std::begin(rise), std::end(rise));
+}
+
 void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& budget, FrameRecord& record) {
   const int width = b.field.width, height = b.field.height;
   const std::size_t texels = b.field.heights.size();
@@ -273,13 +289,16 @@ void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& b
   ++s.build_frames;
   if (made) s.served = s.building;
   const LaggedCones& served = s.lagged[std::size_t(s.served)];
-  const float* now = b.field.heights.data();
-  const float* then = served.heights.data();
-  float lift = 0.0f;
-  for (std::size_t t = 0; t < texels; ++t) lift = std::max(lift, now[t] - then[t]);
+  const float lift = largest_rise(served.heights, b.field.heights);
   b.apex.resize(texels);
   if (lift > 0.0f) {
-    for (std::size_t t = 0; t < texels; ++t) b.apex[t] = std::min(1.0f, std::nextafter(served.apex[t] + lift, 2.0f));
+    // apex + lift rounded up: the next float above the rounded sum (both are positive, so that is
+    // its bits plus one), at most 1
+    const float* apex = served.apex.data();
+    float* raised = b.apex.data();
+    for (std::size_t t = 0; t < texels; ++t) {
+      raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
+    }
   } else {
     std::copy(served.apex.begin(), served.apex.end(), b.apex.begin());
   }

@@ -706,6 +706,11 @@ TEST(Options, RejectsWhatDoesNotApply) {
     EXPECT_FALSE(usage_of(args)) << flag;
   }
   EXPECT_TRUE(usage({"sequence", "--frames", "0:3", "--output", "f_#.png", "--shard", "1/2", "--preview", "p.gif"}));
+  // lagged cone maps are real-time only: they need a frame budget
+  EXPECT_TRUE(usage({"bench-frame", "--cone-lag", "2"}));
+  EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));
+  EXPECT_FALSE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}));
+  EXPECT_EQ(std::get<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"})).scene.cone_lag_frames, 2);
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
                      "--budget-ms", "0", "--output", "c.exr"}));
 }
