@@ -10,10 +10,12 @@
 //    pixels off by more than 10 against the reference, and mean fetches per pixel. The reference of
 //    each scene and acm4 at 32 steps on water are written to OUTPUT_DIR as binary PPM.
 // 2. The frame loop of `displace bench-frame`: water, acm4 at 32 steps, bake budget 0 ms, map and
-//    image sizes 256, 512 and 1024, 150 frames after 10 of warm-up, in series and overlapped: p50 of
-//    each stage and the frame's p50 and p95 in milliseconds, and Vulkan allocations after warm-up.
+//    image sizes 256, 512 and 1024, 150 frames after 10 of warm-up, in series and overlapped, each
+//    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
+//    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
+//    allocations after warm-up.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
-// test suite runs it that way so that it keeps working.
+// test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -60,6 +62,7 @@ struct Plan {
   int width = 1920, height = 1080, water_map = 512, repeats = 9;
   std::vector<int> steps{8, 16, 32, 64};
   std::vector<int> frame_sizes{256, 512, 1024};
+  std::vector<int> cone_lags{0, 3};
   int warm_up = 10, frames = 150;
 };
 
@@ -122,6 +125,7 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
 
 void frame_loop(render::Renderer& renderer, const Plan& plan) {
   for (int size : plan.frame_sizes) {
+    for (int lag : plan.cone_lags)
     for (bool overlapped : {false, true}) {
       pipeline::Scene scene = pipeline::builtin_scene("water");
       scene.map_size = size;
@@ -129,12 +133,14 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
       scene.method = render::Method::acm4;
       scene.steps = 32;
       scene.frame_ms = 0.0;
+      scene.cone_lag_frames = lag;
       pipeline::FramePipeline frames(scene, renderer);
       render::Frame frame;
       for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
       const long long allocations = renderer.memory_allocations();
-      std::vector<double> sim, bake, upload, draw, total;
+      std::vector<double> sim, bake, upload, draw, total, age;
       auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
+        age.push_back(double(r.cone_lag));
         sim.push_back(r.sim_ms);
         bake.push_back(r.bake_ms);
         upload.push_back(r.upload_ms);
@@ -147,11 +153,11 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
         for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
       }
       std::printf(
-          "frame: water, map %d, %d x %d pixels, %s: p50 sim %.3f bake %.3f upload %.3f render %.3f frame %.3f ms, "
-          "frame p95 %.3f ms, %lld allocations after warm-up\n",
-          size, size, size, overlapped ? "overlapped" : "in series", percentile(sim, 0.5), percentile(bake, 0.5),
+          "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f render %.3f "
+          "frame %.3f ms, frame p95 %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
+          size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5), percentile(bake, 0.5),
           percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
-          renderer.memory_allocations() - allocations);
+          percentile(age, 0.5), renderer.memory_allocations() - allocations);
       std::fflush(stdout);
     }
   }
@@ -169,7 +175,9 @@ int main(int argc, char** argv) {
     render::Renderer renderer(options);
     std::printf("device: %s (%s), %d sub-texel bits\n", renderer.device().name.c_str(),
                 renderer.device().type.c_str(), renderer.device().sub_texel_precision_bits);
-    method_table(renderer, plan, directory);
+    const char* part = std::getenv("DISPLACE_PROBE_PART");
+    const bool frames_only = part && std::string(part) == "frames";
+    if (!frames_only) method_table(renderer, plan, directory);
     frame_loop(renderer, plan);
     return 0;
   } catch (const std::exception& error) {
