@@ -8,8 +8,8 @@
 // BM_LaggedCones/water/<map size>/lag:<n> renders frame 120 of the water scene (acm4, 32 steps,
 // <map size>^2 pixels) from the cone map of frame 120 - n's heights, its apexes raised as the
 // pipeline raises them (by the most any texel rose since). Counters: fetches per pixel and search
-// iterations (means over the hit pixels), the lift, and the hit pixels that ended more than 0.01
-// texel from where lag 0's did (rays whose 32 steps ran out elsewhere). Timed: the render alone.
+// iterations (means over the hit pixels), the lift, the hit pixels, and those that ended more than
+// 0.01 texel from where lag 0's did (rays whose 32 steps ran out elsewhere). Timed: the render alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -138,6 +138,7 @@ void run_lagged(benchmark::State& state, int map_size, int lag) {
   state.counters["iterations"] = iterations / double(std::max(hits, 1ll));
   state.counters["lift"] = lift;
   state.counters["moved_pixels"] = double(moved);
+  state.counters["hit_pixels"] = double(hits);
   state.SetLabel(renderer.device().name);
 }
 
