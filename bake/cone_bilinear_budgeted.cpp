@@ -408,13 +408,12 @@ void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* 
   }
 }
 
-// Stage L over the whole map: apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios.
-// Stage L runs in steps (BilinearBaker::advance spreads them over calls; bake() runs them all at
-// once): the apexes, in apex_parts parts of the rows; the cells, the Lipschitz bound and the lanes;
-// the sweeps of quadrants 0 and 1, then of 2 and 3 (two at a time, in parallel); the near field and
-// the last step that joins it all, in near_parts parts of the rows. A step's result does not depend
-// on when it runs: the steps read only the heights copied at the start and what the steps before
-// wrote into the state, so any spread gives bit for bit the same map.
+// Stage L over the whole map (apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios), in
+// steps that BilinearBaker::advance spreads over calls and bake() runs all at once: the apexes, in
+// apex_parts parts of the rows; the cells, the Lipschitz bound and the lanes; the sweeps of
+// quadrants 0 and 1, then of 2 and 3 (two at a time, in parallel); the near field and the last step
+// that joins it all, in near_parts parts of the rows. A step reads only the heights copied at the
+// start and what the steps before it wrote into the state, so any spread gives bit for bit the same map.
 int near_part_first_row(int height, int part) {
   const int bands = (height + near_band - 1) / near_band;
   return std::min(height, bands * part / near_parts * near_band);

@@ -243,12 +243,6 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
   b.heights_version = next_map_version();
 }
 
-// A lagged frame (see LaggedCones): the stage under way advances within the budget (a new one starts
-// on this frame's heights when none is), and the map made last is served. Conservative for these
-// heights: the bilinear surface rose by at most lift = max over texels of (h - h_made) anywhere (it
-// interpolates the texels' differences), so s(x) <= s_made(x) + lift <= (H_c + lift) + |x - p| / r_k
-// for every p in Q_c and x in sector k - the same ratios hold from the raised apex (rounded up past
-// both roundings; 1 is above every height).
 // max(0, max over t of (now[t] - then[t])), in eight independent maxima (a vector's worth)
 float largest_rise(std::span<const float> then, std::span<const float> now) {
   float rise[8] = {};
@@ -263,6 +257,12 @@ float largest_rise(std::span<const float> then, std::span<const float> now) {
   return *std::max_element(std::begin(rise), std::end(rise));
 }
 
+// A lagged frame (see LaggedCones): the stage under way advances within the budget (a new one starts
+// on this frame's heights when none is), and the map made last is served. Conservative for these
+// heights: the bilinear surface rose by at most lift = max over texels of (h - h_made) anywhere (it
+// interpolates the texels' differences), so s(x) <= s_made(x) + lift <= (H_c + lift) + |x - p| / r_k
+// for every p in Q_c and x in sector k - the same ratios hold from the raised apex (rounded up past
+// both roundings; 1 is above every height).
 void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& budget, FrameRecord& record) {
   const int width = b.field.width, height = b.field.height;
   const std::size_t texels = b.field.heights.size();
