@@ -1179,6 +1179,8 @@ constexpr const char* play_keys = R"(Keys:
                    a scene without a budget starts at 33 ms (with --frames: the scene's, deterministic)
   Space            pause / resume
   N                one frame forward (while paused)
+  L / Shift+L      cone maps made over one frame more / fewer (lagged maps, 0 .. 8, with a budget;
+                   the title shows their age and how far their apexes were raised)
   S                screenshot: play_NNNNNN.png (the frame index) in the working directory
   R                camera back to the scene's
   Esc / Q          quit
@@ -1213,6 +1215,10 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
   add_value(app, "--frames", settings.frames,
             "render exactly N fixed-step frames (scene time start + n / fps), then exit", "N",
             integer_in(1, 1000000000));
+  add_value(app, "--cone-lag", settings.cone_lag,
+            "frames a cone map may take to make while the last one is served with raised apexes (interactive: "
+            "with a frame budget; default: the scene's)",
+            "N", integer_in(0, pipeline::max_cone_lag_frames));
   add_value(app, "--screenshot", screenshot, "with --frames: write the last frame", "F.png",
             output_file({".png"}));
   add_switch(app, "--vsync", settings.vsync,
@@ -1223,6 +1229,9 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   if (given(app, "--size")) std::tie(settings.width, settings.height) = *read_image_size(size);
+  if (given(app, "--cone-lag") && given(app, "--frames")) {
+    throw usage_error("--cone-lag applies to real-time play, not --frames (its frames are deterministic)");
+  }
   if (given(app, "--screenshot")) {
     if (!given(app, "--frames")) {
       throw usage_error("--screenshot needs --frames N (in the window, S writes a screenshot)");

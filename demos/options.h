@@ -166,6 +166,7 @@ struct PlaySettings {
   std::string scene = "water";  // a built-in scene (pipeline::builtin_scene_names()) or a .toml scene file
   int width = 0, height = 0;    // --size WxH: the window and image in pixels; 0: the scene's
   int map_size = 0;             // --map-size N; 0: the scene's
+  int cone_lag = -1;            // --cone-lag N (lagged cone maps in real time); -1: the scene's
   long long frames = -1;        // --frames N: exactly N fixed-step frames (0 .. N-1), then exit; -1: until closed
   std::filesystem::path screenshot;  // --screenshot F.png (with --frames): the last frame
   bool vsync = false;                // present with FIFO (the display's rate)

@@ -37,6 +37,7 @@ constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel 
 constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
 constexpr float max_elevation = 1.5f;
 constexpr int max_play_steps = 4096;
+constexpr int max_play_cone_lag = 8;  // L / Shift+L
 // frames before nothing is allocated any more: every frame slot has made its targets and readback
 // buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
 constexpr long long warm_up_frames = render::frames_in_flight + 1;
@@ -88,6 +89,7 @@ struct Controls {
   int method_delta = 0;       // methods to move by in the table
   int steps_factor = 0;       // +1: double, -1: halve
   int budget_delta = 0;       // budget levels to move by
+  int lag_delta = 0;          // frames to add to the cone maps' lag
   bool camera_moved = false;  // draw the shown frame again (while paused)
   bool dragging = false;
   double last_x = 0.0, last_y = 0.0;
@@ -106,6 +108,7 @@ void on_key(GLFWwindow* window, int key, int, int action, int mods) {
     case GLFW_KEY_DOWN: controls.steps_factor = -1; break;
     case GLFW_KEY_RIGHT: controls.budget_delta += 1; break;
     case GLFW_KEY_LEFT: controls.budget_delta -= 1; break;
+    case GLFW_KEY_L: controls.lag_delta += shift ? -1 : 1; break;
     case GLFW_KEY_SPACE: controls.paused = !controls.paused; break;
     case GLFW_KEY_N: controls.step = true; break;
     case GLFW_KEY_S: controls.screenshot = true; break;
@@ -220,6 +223,11 @@ bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
     controls.budget_delta = 0;
     changed = true;
   }
+  if (controls.lag_delta != 0) {
+    scene.cone_lag_frames = std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, max_play_cone_lag);
+    controls.lag_delta = 0;
+    changed = true;
+  }
   return changed;
 }
 
@@ -272,6 +280,7 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
     }
     scene.map_size = settings.map_size;
   }
+  if (settings.cone_lag >= 0) scene.cone_lag_frames = settings.cone_lag;
   // Interactive play is real time: a scene that sets neither a frame budget nor a work limit (every
   // built-in one) starts at interactive_budget_ms a frame, not at an unlimited bake (a 256 x 256
   // ocean's unlimited bake is about 0.33 s, three frames a second). With --frames the scene's

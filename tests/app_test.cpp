@@ -711,6 +711,8 @@ TEST(Options, RejectsWhatDoesNotApply) {
   EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));
   EXPECT_FALSE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}));
   EXPECT_EQ(std::get<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"})).scene.cone_lag_frames, 2);
+  EXPECT_TRUE(usage({"play", "--frames", "3", "--cone-lag", "2"}));  // --frames is deterministic
+  EXPECT_EQ(std::get<PlaySettings>(parse({"play", "--cone-lag", "2"})).cone_lag, 2);
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
                      "--budget-ms", "0", "--output", "c.exr"}));
 }
