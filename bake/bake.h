@@ -214,17 +214,19 @@ class BilinearBaker {
 
   // The first stage over several calls, for a caller that serves its last map while the next one is
   // made (the pipeline's lagged maps, pipeline/frame_pipeline.h): begin() copies the heights and
-  // drops any stage under way; each advance() runs at least min_steps of the first stage's steps
-  // (those with work) and more while the budget lasts, and after the last one emits what bake()
-  // would (bit for bit) - the stage's ratios, refined within what is left of the budget - into
-  // `out`, `apex_heights` and `stats`, and returns true. Until then it leaves them alone and returns
-  // false. While a stage is under way refine() throws, update() rebakes everything and pending()
-  // counts the last emission.
+  // drops any stage under way; each advance() runs one of the first stage's steps (one with work)
+  // and more until `at_least` of the stage is done (first_stage_done()) and while the budget lasts,
+  // and after the last one emits what bake() would (bit for bit) - the stage's ratios, refined
+  // within what is left of the budget - into `out`, `apex_heights` and `stats`, and returns true.
+  // Until then it leaves them alone and returns false. While a stage is under way refine() throws,
+  // update() rebakes everything and pending() counts the last emission.
   void begin(HeightView heights);
   bool advance(const Budget& budget, ConeView out, std::span<float> apex_heights, BakeStats& stats,
-               int min_steps = 1);
+               double at_least = 0.0);
   bool in_progress() const;
-  int first_stage_steps_left() const;  // of the stage under way (0: none)
+  // The share of the stage under way that its steps so far have done, weighed by what each step
+  // costs on a 512 x 512 ocean (1: none under way).
+  double first_stage_done() const;
   static int first_stage_steps();
 
   struct State;

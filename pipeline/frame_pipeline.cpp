@@ -280,12 +280,10 @@ void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& b
   }
   LaggedCones& next = s.lagged[std::size_t(s.building)];
   const bake::ConeView cones{next.ratios.data(), width, height, sectors};
-  // the steps left shared among the frames left (the map is made by its begin frame + lag frames),
-  // more while the budget lasts; with no map to serve yet the first is made whole
-  const int frames_left = std::max(1, s.scene.cone_lag_frames + 1 - s.build_frames);
-  const int min_steps = s.served < 0 ? bake::BilinearBaker::first_stage_steps()
-                                     : (s.baker->first_stage_steps_left() + frames_left - 1) / frames_left;
-  const bool made = s.baker->advance(budget, cones, next.apex, next.stats, min_steps);
+  // an even share of the stage a frame (made by its begin frame + lag frames), more while the budget
+  // lasts; with no map to serve yet the first is made whole
+  const double due = s.served < 0 ? 1.0 : double(s.build_frames + 1) / double(s.scene.cone_lag_frames + 1);
+  const bool made = s.baker->advance(budget, cones, next.apex, next.stats, std::min(due, 1.0));
   ++s.build_frames;
   if (made) s.served = s.building;
   const LaggedCones& served = s.lagged[std::size_t(s.served)];
