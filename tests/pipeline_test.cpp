@@ -582,6 +582,26 @@ TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
   });
   EXPECT_EQ(seen, 5);
 
+  // lagged cone maps at budget 0 (each frame its even share of a map): the same maps frame by frame,
+  // however the frames overlap (the map being made and the one served are never the same buffers)
+  Scene lagged = small_scene("water", 64, 24);
+  lagged.method = render::Method::acm4;
+  lagged.frame_ms = 0.0;
+  lagged.cone_lag_frames = 2;
+  FramePipeline in_series(lagged, shared_renderer()), in_flight(lagged, shared_renderer());
+  std::vector<render::Frame> series(8);
+  std::vector<long long> ages;
+  for (int n = 0; n < 8; ++n) ages.push_back(in_series.run(n, series[std::size_t(n)], render::output_all).cone_lag);
+  seen = 0;
+  in_flight.run_frames(0, 8, render::output_all, [&](const FrameRecord& record, const render::Frame& frame) {
+    EXPECT_EQ(record.cone_lag, ages[std::size_t(seen)]) << record.index;
+    EXPECT_EQ(frame.color, series[std::size_t(seen)].color) << record.index;
+    EXPECT_EQ(frame.depth, series[std::size_t(seen)].depth) << record.index;
+    ++seen;
+  });
+  EXPECT_EQ(seen, 8);
+  EXPECT_GT(*std::max_element(ages.begin(), ages.end()), 1);
+
   FakeClock clock;
   clock.tick = 0.25;
   Scene cliff = small_scene("cliff", 64, 16);
