@@ -14,7 +14,10 @@
 
 #include "pipeline/maps.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
+#include <tbb/parallel_reduce.h>
 
 namespace displace::pipeline {
 namespace {
@@ -243,18 +246,25 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
   b.heights_version = next_map_version();
 }
 
-// max(0, max over t of (now[t] - then[t])), in eight independent maxima (a vector's worth)
+constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
+
+// max(0, max over t of (now[t] - then[t])), each task in eight independent maxima (a vector's worth)
 float largest_rise(std::span<const float> then, std::span<const float> now) {
-  float rise[8] = {};
-  const std::size_t count = now.size(), whole = count / 8 * 8;
-  for (std::size_t t = 0; t < whole; t += 8) {
-    for (int k = 0; k < 8; ++k) {
-      const float d = now[t + k] - then[t + k];
-      rise[k] = d > rise[k] ? d : rise[k];
-    }
-  }
-  for (std::size_t t = whole; t < count; ++t) rise[0] = std::max(rise[0], now[t] - then[t]);
-  return *std::max_element(std::begin(rise), std::end(rise));
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, now.size(), lift_grain), 0.0f,
+      [&](const tbb::blocked_range<std::size_t>& range, float largest) {
+        float rise[8] = {};
+        const std::size_t first = range.begin(), whole = first + (range.size() / 8) * 8;
+        for (std::size_t t = first; t < whole; t += 8) {
+          for (int k = 0; k < 8; ++k) {
+            const float d = now[t + k] - then[t + k];
+            rise[k] = d > rise[k] ? d : rise[k];
+          }
+        }
+        for (std::size_t t = whole; t < range.end(); ++t) rise[0] = std::max(rise[0], now[t] - then[t]);
+        return std::max(largest, *std::max_element(std::begin(rise), std::end(rise)));
+      },
+      [](float a, float b) { return std::max(a, b); });
 }
 
 // A lagged frame (see LaggedCones): the stage under way advances within the budget (a new one starts
@@ -294,9 +304,11 @@ void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& b
     // its bits plus one), at most 1
     const float* apex = served.apex.data();
     float* raised = b.apex.data();
-    for (std::size_t t = 0; t < texels; ++t) {
-      raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, lift_grain), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t t = range.begin(); t < range.end(); ++t) {
+        raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
+      }
+    });
   } else {
     std::copy(served.apex.begin(), served.apex.end(), b.apex.begin());
   }
