@@ -455,9 +455,9 @@ TEST(Pipeline, LaggedConesServeTheLastMapRaisedWhileTheNextIsMade) {
   for (int n = 0; n < 7; ++n) {
     EXPECT_EQ(two_frames.run(n, frame, render::output_color).cone_lag, n < 2 ? n : 1 + n % 2) << "frame " << n;
   }
-  for (const auto& [frame_ms, lag] : {std::pair{1e9, 4}, std::pair{0.0, 0}}) {
+  for (const auto& [frame_ms, frames_of_lag] : {std::pair{1e9, 4}, std::pair{0.0, 0}}) {
     scene.frame_ms = frame_ms;  // the whole stage fits, or no lag: every frame its own map
-    scene.cone_lag_frames = lag;
+    scene.cone_lag_frames = frames_of_lag;
     FramePipeline own(scene, shared_renderer(), std::ref(clock));
     for (int n = 0; n < 3; ++n) {
       const FrameRecord record = own.run(n, frame, render::output_color);
