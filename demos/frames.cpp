@@ -254,6 +254,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   long long ffts = 0, within = 0;
   unsigned effects = 0;
   long long allocations_after_warm_up = 0;
+  bool cones = false;  // a cone map was baked (the records' cone stats)
   // resident memory: after the warm-up, the most seen after it, at the end (a soak's growth)
   long long rss_after_warm_up = -1, rss_max = -1;
   double last_done = 0.0;
@@ -271,6 +272,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
       upload.push_back(record.upload_ms);
       draw.push_back(record.render_ms);
       frame_ms.push_back(record.frame_ms);
+      cones |= record.cones.sector_count > 0;
       lag.push_back(double(record.cone_lag));
       lift.push_back(double(record.cone_lift));
       if (seen > settings.warm_up) interval.push_back(now - last_done);
@@ -339,7 +341,6 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                      "after warm-up: {}\n",
                      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
                      allocations);
-  const bool cones = render::map_needs(scene.method, pipeline::scene_view(scene, scene.start)).cone_sectors > 0;
   const double lag_p50 = percentile(lag, 0.50), lag_max = lag.empty() ? 0.0 : *std::max_element(lag.begin(), lag.end());
   const double lift_p50 = percentile(lift, 0.50), lift_max = lift.empty() ? 0.0 : *std::max_element(lift.begin(), lift.end());
   if (cones) {

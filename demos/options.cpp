@@ -1179,7 +1179,7 @@ constexpr const char* play_keys = R"(Keys:
                    a scene without a budget starts at 33 ms (with --frames: the scene's, deterministic)
   Space            pause / resume
   N                one frame forward (while paused)
-  L / Shift+L      cone maps made over one frame more / fewer (lagged maps, 0 .. 8, with a budget;
+  L / Shift+L      cone maps made over one frame more / fewer (lagged maps, 0 .. 64, with a budget;
                    the title shows their age and how far their apexes were raised)
   S                screenshot: play_NNNNNN.png (the frame index) in the working directory
   R                camera back to the scene's

@@ -37,7 +37,6 @@ constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel 
 constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
 constexpr float max_elevation = 1.5f;
 constexpr int max_play_steps = 4096;
-constexpr int max_play_cone_lag = 8;  // L / Shift+L
 // frames before nothing is allocated any more: every frame slot has made its targets and readback
 // buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
 constexpr long long warm_up_frames = render::frames_in_flight + 1;
@@ -224,7 +223,7 @@ bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
     changed = true;
   }
   if (controls.lag_delta != 0) {
-    scene.cone_lag_frames = std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, max_play_cone_lag);
+    scene.cone_lag_frames = std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, pipeline::max_cone_lag_frames);
     controls.lag_delta = 0;
     changed = true;
   }

@@ -34,6 +34,45 @@ double steady_milliseconds() {
 
 }  // namespace
 
+namespace {
+constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
+}  // namespace
+
+// The lift and the raise. Conservative: the bilinear surface rose by at most lift = max over texels
+// of (h - h_made) anywhere (it interpolates the texels' differences), so s(x) <= s_made(x) + lift <=
+// (H_c + lift) + |x - p| / r_k for every p in Q_c and x in sector k - the same ratios hold from the
+// raised apex. apex + lift is rounded up past both roundings by taking the next float above the
+// rounded sum (both positive, so its bits plus one); 1 is above every height. The largest rise is
+// taken in eight independent maxima per task (a vector's worth).
+float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
+                   std::span<float> raised) {
+  const float lift = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, now.size(), lift_grain), 0.0f,
+      [&](const tbb::blocked_range<std::size_t>& range, float largest) {
+        float rise[8] = {};
+        const std::size_t first = range.begin(), whole = first + (range.size() / 8) * 8;
+        for (std::size_t t = first; t < whole; t += 8) {
+          for (int k = 0; k < 8; ++k) {
+            const float d = now[t + k] - made_from[t + k];
+            rise[k] = d > rise[k] ? d : rise[k];
+          }
+        }
+        for (std::size_t t = whole; t < range.end(); ++t) rise[0] = std::max(rise[0], now[t] - made_from[t]);
+        return std::max(largest, *std::max_element(std::begin(rise), std::end(rise)));
+      },
+      [](float a, float b) { return std::max(a, b); });
+  if (!(lift > 0.0f)) {
+    std::copy(apex.begin(), apex.end(), raised.begin());
+    return 0.0f;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, apex.size(), lift_grain), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t t = range.begin(); t < range.end(); ++t) {
+      raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
+    }
+  });
+  return lift;
+}
+
 unsigned scene_effects(const Scene& scene) {
   unsigned effects = effect_heights;
   if (scene.source == SourceKind::ocean && scene.ocean.choppiness > 0.0f) effects |= effect_choppy;
@@ -246,33 +285,8 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
   b.heights_version = next_map_version();
 }
 
-constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
-
-// max(0, max over t of (now[t] - then[t])), each task in eight independent maxima (a vector's worth)
-float largest_rise(std::span<const float> then, std::span<const float> now) {
-  return tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, now.size(), lift_grain), 0.0f,
-      [&](const tbb::blocked_range<std::size_t>& range, float largest) {
-        float rise[8] = {};
-        const std::size_t first = range.begin(), whole = first + (range.size() / 8) * 8;
-        for (std::size_t t = first; t < whole; t += 8) {
-          for (int k = 0; k < 8; ++k) {
-            const float d = now[t + k] - then[t + k];
-            rise[k] = d > rise[k] ? d : rise[k];
-          }
-        }
-        for (std::size_t t = whole; t < range.end(); ++t) rise[0] = std::max(rise[0], now[t] - then[t]);
-        return std::max(largest, *std::max_element(std::begin(rise), std::end(rise)));
-      },
-      [](float a, float b) { return std::max(a, b); });
-}
-
 // A lagged frame (see LaggedCones): the stage under way advances within the budget (a new one starts
-// on this frame's heights when none is), and the map made last is served. Conservative for these
-// heights: the bilinear surface rose by at most lift = max over texels of (h - h_made) anywhere (it
-// interpolates the texels' differences), so s(x) <= s_made(x) + lift <= (H_c + lift) + |x - p| / r_k
-// for every p in Q_c and x in sector k - the same ratios hold from the raised apex (rounded up past
-// both roundings; 1 is above every height).
+// on this frame's heights when none is), and the map made last is served, raised (raise_apexes).
 void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& budget, FrameRecord& record) {
   const int width = b.field.width, height = b.field.height;
   const std::size_t texels = b.field.heights.size();
@@ -297,21 +311,8 @@ void bake_lagged(FramePipeline::State& s, FrameBuffers& b, const bake::Budget& b
   ++s.build_frames;
   if (made) s.served = s.building;
   const LaggedCones& served = s.lagged[std::size_t(s.served)];
-  const float lift = largest_rise(served.heights, b.field.heights);
   b.apex.resize(texels);
-  if (lift > 0.0f) {
-    // apex + lift rounded up: the next float above the rounded sum (both are positive, so that is
-    // its bits plus one), at most 1
-    const float* apex = served.apex.data();
-    float* raised = b.apex.data();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, lift_grain), [&](const tbb::blocked_range<std::size_t>& range) {
-      for (std::size_t t = range.begin(); t < range.end(); ++t) {
-        raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
-      }
-    });
-  } else {
-    std::copy(served.apex.begin(), served.apex.end(), b.apex.begin());
-  }
+  const float lift = raise_apexes(served.heights, b.field.heights, served.apex, b.apex);
   b.cone_ratios = served.ratios;
   b.cone_stats = served.stats;
   b.cones_version = next_map_version();
@@ -352,7 +353,7 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
       b.apex.resize(texels);
       b.cone_ratios = b.ratios;
     }
-    const bake::ConeView cones{b.ratios.data(), width, height, s.needs.cone_sectors};
+    const bake::ConeView cones{b.ratios.data(), width, height, s.needs.cone_sectors};  // not lagged only
     if (lagged) {
       bake_lagged(s, b, budget, record);
     } else if (remake) {

@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 
 #include "bake/bake.h"
 #include "pipeline/scene.h"
@@ -48,6 +49,12 @@ enum Effect : unsigned {
 inline constexpr float foam_start = 0.85f;
 inline constexpr float foam_full = 0.45f;
 unsigned scene_effects(const Scene& scene);
+
+// The lagged cone maps' raise: lift = max(0, largest now[t] - made_from[t]), and `raised` = each apex
+// + lift rounded up (at most 1), so that a cone map made from `made_from` holds for `now` (proof in
+// frame_pipeline.cpp). Returns the lift. All four spans one texel each, as many.
+float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
+                   std::span<float> raised);
 
 struct FrameRecord {
   long long index = 0;

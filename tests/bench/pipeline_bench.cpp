@@ -93,13 +93,9 @@ void run_lagged(benchmark::State& state, int map_size, int lag) {
     apex.resize(texels);
     bake::Budget none;
     none.milliseconds = 0.0;
-    baker.bake({then.heights.data(), map_size, map_size}, none, {ratios.data(), map_size, map_size, 4}, apex);
-    float lift = 0.0f;
-    for (std::size_t t = 0; t < texels; ++t) lift = std::max(lift, now.heights[t] - then.heights[t]);
-    if (lift > 0.0f) {
-      for (float& a : apex) a = std::min(1.0f, std::nextafter(a + lift, 2.0f));
-    }
-    return lift;
+    std::vector<float> made(texels);
+    baker.bake({then.heights.data(), map_size, map_size}, none, {ratios.data(), map_size, map_size, 4}, made);
+    return pipeline::raise_apexes(then.heights, now.heights, made, apex);
   };
   auto render_with = [&](const std::vector<float>& ratios, const std::vector<float>& apex, std::uint64_t version,
                          render::Frame& frame) {

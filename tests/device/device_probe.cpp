@@ -125,40 +125,41 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
 
 void frame_loop(render::Renderer& renderer, const Plan& plan) {
   for (int size : plan.frame_sizes) {
-    for (int lag : plan.cone_lags)
-    for (bool overlapped : {false, true}) {
-      pipeline::Scene scene = pipeline::builtin_scene("water");
-      scene.map_size = size;
-      scene.camera.width = scene.camera.height = size;
-      scene.method = render::Method::acm4;
-      scene.steps = 32;
-      scene.frame_ms = 0.0;
-      scene.cone_lag_frames = lag;
-      pipeline::FramePipeline frames(scene, renderer);
-      render::Frame frame;
-      for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
-      const long long allocations = renderer.memory_allocations();
-      std::vector<double> sim, bake, upload, draw, total, age;
-      auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
-        age.push_back(double(r.cone_lag));
-        sim.push_back(r.sim_ms);
-        bake.push_back(r.bake_ms);
-        upload.push_back(r.upload_ms);
-        draw.push_back(r.render_ms);
-        total.push_back(r.frame_ms);
-      };
-      if (overlapped) {
-        frames.run_frames(plan.warm_up, plan.frames, render::output_color, keep);
-      } else {
-        for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
+    for (int lag : plan.cone_lags) {
+      for (bool overlapped : {false, true}) {
+        pipeline::Scene scene = pipeline::builtin_scene("water");
+        scene.map_size = size;
+        scene.camera.width = scene.camera.height = size;
+        scene.method = render::Method::acm4;
+        scene.steps = 32;
+        scene.frame_ms = 0.0;
+        scene.cone_lag_frames = lag;
+        pipeline::FramePipeline frames(scene, renderer);
+        render::Frame frame;
+        for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
+        const long long allocations = renderer.memory_allocations();
+        std::vector<double> sim, bake, upload, draw, total, age;
+        auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
+          age.push_back(double(r.cone_lag));
+          sim.push_back(r.sim_ms);
+          bake.push_back(r.bake_ms);
+          upload.push_back(r.upload_ms);
+          draw.push_back(r.render_ms);
+          total.push_back(r.frame_ms);
+        };
+        if (overlapped) {
+          frames.run_frames(plan.warm_up, plan.frames, render::output_color, keep);
+        } else {
+          for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
+        }
+        std::printf(
+            "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f render %.3f "
+            "frame %.3f ms, frame p95 %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
+            size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5), percentile(bake, 0.5),
+            percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
+            percentile(age, 0.5), renderer.memory_allocations() - allocations);
+        std::fflush(stdout);
       }
-      std::printf(
-          "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f render %.3f "
-          "frame %.3f ms, frame p95 %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
-          size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5), percentile(bake, 0.5),
-          percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
-          percentile(age, 0.5), renderer.memory_allocations() - allocations);
-      std::fflush(stdout);
     }
   }
 }
