@@ -128,6 +128,11 @@ struct BilinearBaker::State {
   long long uncertified_count = 0;        // of them
   bool queue_stale = false;  // the queue is still to be made from `uncertified` (when refinement runs)
   double emitted_sum = 0.0;               // of every ratio emitted (the stats' mean)
+  std::vector<double> row_sums;           // emit_all's per row: the emitted ratios' sum
+  std::vector<long long> row_flagged;     // and the uncertified texels
+  // where stage L's last steps emit each row as they finish it (bake()), or null (emit_all later)
+  float* emit_out = nullptr;
+  float* emit_apex = nullptr;
   float tolerance = 0.25f;
   std::unique_ptr<detail::BilinearSearch> search;  // made on first use, kept for the next heights
   bool search_current = false;                     // search is for the current heights
@@ -265,7 +270,15 @@ void make_sub_cells(const State& state, int first_row, int last_row, float rate_
     const int i0 = Y >= 0 ? Y / 2 : -((1 - Y) / 2);
     const float* a = state.heights.data() + std::size_t(texel(i0, H)) * W;
     const float* b = state.heights.data() + std::size_t(texel(Y == 2 * i0 ? i0 : i0 + 1, H)) * W;
-    for (int m = 0; m < sums; ++m) column_sum[m] = a[column[m]] + b[column[m]];
+    // column m holds texel m - pad / 2: in place for m in [pad / 2, W + pad / 2), a loop that
+    // vectorises; wrapped or clamped through the table at the ends
+    const int inner_first = pad / 2, inner_last = std::min(sums, W + pad / 2);
+    for (int m = 0; m < inner_first; ++m) column_sum[m] = a[column[m]] + b[column[m]];
+    const float* a_in = a - pad / 2;
+    const float* b_in = b - pad / 2;
+    float* sum_out = column_sum.data();
+    for (int m = inner_first; m < inner_last; ++m) sum_out[m] = a_in[m] + b_in[m];
+    for (int m = inner_last; m < sums; ++m) column_sum[m] = a[column[m]] + b[column[m]];
     row[0].resize(samples);
     row[1].resize(samples);
     float* even = row[0].data();
@@ -421,6 +434,8 @@ int near_part_first_row(int height, int part) {
   const int bands = (height + near_band - 1) / near_band;
   return std::min(height, bands * part / near_parts * near_band);
 }
+
+void emit_rows(State& state, int first_row, int last_row, float* out, float* apex);
 
 void run_stage_l_step(State& state, int step) {
   const int W = state.width, H = state.height;
@@ -580,6 +595,7 @@ void run_stage_l_step(State& state, int step) {
         case 3: detail::stage_l_combine_avx2(job); break;
         default: detail::stage_l_combine_avx512(job); break;
       }
+      if (state.emit_out) emit_rows(state, i, i + 1, state.emit_out, state.emit_apex);  // while the row is in cache
     }
   });
   state.stage_l_work += (long long)(last - first) * W * 4;
@@ -906,49 +922,124 @@ BakeStats finish(const State& state, const Clock& clock, long long work, long lo
   return stats;
 }
 
-// Every texel's ratios and apex to the caller, in one pass that also sums them and flags the texels
-// refinement will want (make_queue_from_emission).
+// One row of emit_all: texels [first, first + count) to the caller, their refinement flags, and the
+// sum of their ratios. The sum runs in 16 float accumulators (value n of the row into n mod 16) added
+// in a fixed order at the end, so that it vectorises and gives the same bits however the rows are
+// split among threads; `searched` says whether any texel of the row has search ratios (without them
+// a texel's ratios are stage L's spread to the sectors, and the loop has no branch).
+template <int sectors, bool searched>
+double emit_row(State& state, std::size_t first, int count, float* out, float* apex, float keep, long long& flagged) {
+  constexpr int accumulators = 16;
+  float partial[accumulators] = {};
+  flagged = 0;
+  const float* quadrants = state.stage_l.data() + first * 4;
+  const float* upper = state.upper_ready ? state.upper.data() + first * 4 : nullptr;
+  std::uint8_t* flags = state.uncertified.data() + first;
+  float* row_out = out + first * sectors;
+  int j = 0;
+  if constexpr (sectors == 4 && !searched) {
+    // the row in three simple passes (copy, sum, flags) that GCC vectorises, the sum into the same
+    // accumulators as the loop below (value n of the row into n mod 16)
+    typedef float Floats __attribute__((vector_size(64)));
+    const int whole = count / 4 * 4;
+    std::memcpy(row_out, quadrants, sizeof(float) * 4 * std::size_t(whole));
+    Floats sums = {};
+    for (int n = 0; n < 4 * whole; n += 16) {
+      Floats values;
+      std::memcpy(&values, quadrants + n, sizeof values);
+      sums += values;
+    }
+    std::memcpy(partial, &sums, sizeof partial);
+    for (; j < whole; ++j) {
+      const float* quadrant = quadrants + std::size_t(j) * 4;
+      const bool flag = !certified_of<sectors>(quadrant, upper ? upper + std::size_t(j) * 4 : no_upper_bounds, keep);
+      flags[j] = flag;
+      flagged += flag;
+    }
+  }
+  for (; j < count; ++j) {
+    const float* quadrant = quadrants + std::size_t(j) * 4;
+    if constexpr (searched) {
+      const float sum = emit_texel_of<sectors>(state, first + std::size_t(j), out);
+      partial[j % accumulators] += sum;
+    } else {
+      for (int k = 0; k < sectors; ++k) {
+        const float value = sectors == 4   ? quadrant[k]
+                            : sectors == 8 ? quadrant[k / 2]
+                                           : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+        row_out[std::size_t(j) * sectors + k] = value;
+        partial[(j * sectors + k) % accumulators] += value;
+      }
+    }
+    const bool flag = (!searched || !state.searched_flag[first + std::size_t(j)]) &&
+                      !certified_of<sectors>(quadrant, upper ? upper + std::size_t(j) * 4 : no_upper_bounds, keep);
+    flags[j] = flag;
+    flagged += flag;
+  }
+  std::memcpy(apex + first, state.apex.data() + first, sizeof(float) * std::size_t(count));
+  double sum = 0.0;
+  for (float value : partial) sum += double(value);
+  return sum;
+}
+
 template <int sectors>
-void emit_all_of(State& state, ConeView out, std::span<float> apex) {
+void emit_rows_of(State& state, int first_row, int last_row, float* out, float* apex) {
+  const int W = state.width;
+  const float keep = 1.0f - state.tolerance;
+  for (int i = first_row; i < last_row; ++i) {
+    const std::size_t first = std::size_t(i) * W;
+    const bool any_searched = std::memchr(state.searched_flag.data() + first, 1, std::size_t(W)) != nullptr;
+    long long flagged = 0;
+    state.row_sums[std::size_t(i)] = any_searched ? emit_row<sectors, true>(state, first, W, out, apex, keep, flagged)
+                                                  : emit_row<sectors, false>(state, first, W, out, apex, keep, flagged);
+    state.row_flagged[std::size_t(i)] = flagged;
+  }
+}
+
+void emit_rows(State& state, int first_row, int last_row, float* out, float* apex) {
+  switch (state.sector_count) {
+    case 1: emit_rows_of<1>(state, first_row, last_row, out, apex); break;
+    case 4: emit_rows_of<4>(state, first_row, last_row, out, apex); break;
+    default: emit_rows_of<8>(state, first_row, last_row, out, apex); break;
+  }
+}
+
+// Before an emission: the flags and per-row sums sized, searched ratios cleared when `fresh` (a new
+// stage L and nothing searched yet), the tolerance the flags use.
+void prepare_emission(State& state, float tolerance, bool fresh) {
   const std::size_t texels = std::size_t(state.width) * state.height;
+  if (fresh) state.searched_flag.assign(texels, 0);
+  state.searched.resize(texels * state.sector_count);
   state.uncertified.resize(texels);
-  struct Sums {
-    double ratios = 0.0;
-    long long uncertified = 0;
-  };
-  const Sums sums = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, texels, 4096), Sums{},
-      [&](const tbb::blocked_range<std::size_t>& range, Sums partial) {
-        float sum = 0.0f;
-        long long count = 0;
-        const float keep = 1.0f - state.tolerance;
-        const bool bounds = state.upper_ready;
-        for (std::size_t t = range.begin(); t < range.end(); ++t) {
-          sum += emit_texel_of<sectors>(state, t, out.data);
-          apex[t] = state.apex[t];
-          const float* upper = bounds ? state.upper.data() + t * 4 : no_upper_bounds;
-          const bool flag =
-              !state.searched_flag[t] && !certified_of<sectors>(state.stage_l.data() + t * 4, upper, keep);
-          state.uncertified[t] = flag;
-          count += flag;
-        }
-        return Sums{partial.ratios + double(sum), partial.uncertified + count};
-      },
-      [](Sums a, Sums b) { return Sums{a.ratios + b.ratios, a.uncertified + b.uncertified}; });
-  state.emitted_sum = sums.ratios;
-  state.uncertified_count = sums.uncertified;
+  state.row_sums.resize(std::size_t(state.height));
+  state.row_flagged.resize(std::size_t(state.height));
+  state.tolerance = tolerance;
+}
+
+// After every row is emitted: the stats' sum in row order (the same bits on every run, however the
+// rows were split among threads or steps) and the count refinement will want.
+void finish_emission(State& state) {
+  double sum = 0.0;
+  long long flagged = 0;
+  for (int i = 0; i < state.height; ++i) {
+    sum += state.row_sums[std::size_t(i)];
+    flagged += state.row_flagged[std::size_t(i)];
+  }
+  state.emitted_sum = sum;
+  state.uncertified_count = flagged;
   // the queue is made from the flags when refinement runs (at 0 ms it never does)
   state.queue.clear();
   state.next = 0;
   state.queue_stale = true;
 }
 
+// Every texel's ratios and apex to the caller, a row at a time, summing them and flagging the
+// texels refinement will want (make_queue_from_emission); prepare_emission first.
 void emit_all(State& state, ConeView out, std::span<float> apex) {
-  switch (state.sector_count) {
-    case 1: emit_all_of<1>(state, out, apex); break;
-    case 4: emit_all_of<4>(state, out, apex); break;
-    default: emit_all_of<8>(state, out, apex); break;
-  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, state.height, 8), [&](const tbb::blocked_range<int>& rows) {
+    emit_rows(state, rows.begin(), rows.end(), out.data, apex.data());
+  });
+  finish_emission(state);
 }
 
 }  // namespace
@@ -1002,11 +1093,22 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   state.heights.assign(heights.data, heights.data + texels);
   state.has_frame = true;
   state.search_current = false;
-  state.tolerance = budget.tolerance;
-  long long work = run_stage_l(state);
-  state.searched_flag.assign(texels, 0);
-  state.searched.resize(texels * state.sector_count);
-  emit_all(state, out, apex);
+  // stage L emits each row as the near field finishes it (the same bits as emit_all)
+  prepare_emission(state, budget.tolerance, true);
+  struct Emitting {  // the rows' target for this call only, however it ends
+    State& state;
+    Emitting(State& s, float* out, float* apex) : state(s) {
+      state.emit_out = out;
+      state.emit_apex = apex;
+    }
+    ~Emitting() { state.emit_out = state.emit_apex = nullptr; }
+  };
+  long long work = 0;
+  {
+    const Emitting emitting(state, out.data, apex.data());
+    work = run_stage_l(state);
+  }
+  finish_emission(state);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
   return finish(state, clock, work, refined);
@@ -1057,7 +1159,7 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
   const std::vector<float> old_apex = state.apex;
   state.heights.assign(heights.data, heights.data + texels);
   state.search_current = false;
-  state.tolerance = budget.tolerance;
+  prepare_emission(state, budget.tolerance, false);
   long long work = run_stage_l(state);
   // the raised texels' cells lie within [i0 - 1, i1 + 1] x [j0 - 1, j1 + 1] (texel-centre
   // coordinates) and below the largest new height there
@@ -1145,11 +1247,8 @@ bool BilinearBaker::advance(const Budget& budget, ConeView out, std::span<float>
     worked = true;
   }
   if (state.stage_l_next < stage_l_steps) return false;
-  const std::size_t texels = std::size_t(state.width) * state.height;
   state.has_frame = true;
-  state.tolerance = budget.tolerance;
-  state.searched_flag.assign(texels, 0);
-  state.searched.resize(texels * state.sector_count);
+  prepare_emission(state, budget.tolerance, true);
   emit_all(state, out, apex);
   long long refined = 0;
   const long long work = state.stage_l_work + run_refinement(state, clock, out, refined, budget.progress);

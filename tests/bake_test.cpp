@@ -2412,6 +2412,8 @@ TEST(BilinearBaker, StagedFirstStageEqualsTheWholeBake) {
         EXPECT_EQ(stats.work, expected.stats.work) << what;
         EXPECT_EQ(stats.texels_fallback, expected.stats.texels_fallback) << what;
         EXPECT_EQ(baker.pending(), expected.stats.texels_fallback) << what;
+        // bake() emits each row as stage L finishes it, advance() all rows at the end: the same sum
+        EXPECT_EQ(stats.mean_ratio, expected.stats.mean_ratio) << what;
         EXPECT_THROW(baker.advance(spent, cones.view(), apex, stats), BakeError) << what;  // nothing begun
         if (sectors != 4) continue;
         // an unlimited budget: one call, refined as bake() refines
