@@ -437,7 +437,9 @@ int near_part_first_row(int height, int part) {
 
 void emit_rows(State& state, int first_row, int last_row, float* out, float* apex);
 
-void run_stage_l_step(State& state, int step) {
+// `merged`: the step and the ones of its kind after it at once (the apexes, the two sweeps, the near
+// field's parts), as bake() runs them: fewer joins of the threads, the same bits.
+void run_stage_l_step(State& state, int step, bool merged = false) {
   const int W = state.width, H = state.height;
   const bool wrap = state.address == Address::wrap;
   const std::size_t texels = std::size_t(W) * H;
@@ -460,7 +462,8 @@ void run_stage_l_step(State& state, int step) {
     const std::vector<int>& after = state.column_after;
     const HeightView view{state.heights.data(), W, H};
     const int block_texels = detail::apex_block_texels(level);
-    const int first = int(std::int64_t(H) * step / apex_parts), last = int(std::int64_t(H) * (step + 1) / apex_parts);
+    const int first = int(std::int64_t(H) * step / apex_parts),
+              last = merged ? H : int(std::int64_t(H) * (step + 1) / apex_parts);
     tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
       for (int i = rows.begin(); i < rows.end(); ++i) {
         const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
@@ -539,7 +542,7 @@ void run_stage_l_step(State& state, int step) {
     return;
   }
   if (step <= 2) {
-    const int first_quadrant = 2 * (step - 1);
+    const int first_quadrant = 2 * (step - 1), quadrant_count = merged ? 4 - first_quadrant : 2;
     std::uint8_t* passed[4];
     std::uint8_t* passed3[4];
     for (int q = 0; q < 4; ++q) {
@@ -547,8 +550,8 @@ void run_stage_l_step(State& state, int step) {
       passed3[q] = state.passed3[0][q].data();
     }
     state.stage_l_work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus,
-                                                           passed, state.bonus3, passed3, -1, true, first_quadrant, 2);
-    if (step == 2) {
+                                                           passed, state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
+    if (first_quadrant + quadrant_count == 4) {
       std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
       state.upper_ready = false;
       state.stage_l.resize(texels * 4);
@@ -556,7 +559,7 @@ void run_stage_l_step(State& state, int step) {
     return;
   }
   const int part = step - 3;
-  const int first = near_part_first_row(H, part), last = near_part_first_row(H, part + 1);
+  const int first = near_part_first_row(H, part), last = near_part_first_row(H, merged ? near_parts : part + 1);
   const float highest = state.plan.highest;
   const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
                                    make_near_plan(W, H, 3)};
@@ -610,7 +613,10 @@ bool stage_l_step_works(const State& state, int step) {
 // Every step at once; returns the work.
 long long run_stage_l(State& state) {
   state.stage_l_work = 0;
-  for (int step = 0; step < stage_l_steps; ++step) run_stage_l_step(state, step);
+  run_stage_l_step(state, 0, true);                 // the apexes
+  run_stage_l_step(state, apex_parts);              // the cells, the Lipschitz bound, the lanes
+  run_stage_l_step(state, apex_parts + 1, true);    // the four sweeps
+  run_stage_l_step(state, apex_parts + 3, true);    // the near field and the rest
   state.stage_l_next = stage_l_steps;
   return state.stage_l_work;
 }
