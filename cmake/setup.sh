@@ -2,9 +2,10 @@
 # One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
-#   bash cmake/setup.sh test    # everything CI runs: suite, then sanitize, then fuzz (15-30 minutes)
+#   bash cmake/setup.sh test    # everything CI runs: suite, sanitize, tsan, then fuzz (25-45 minutes)
 #   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 2 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
+#   bash cmake/setup.sh tsan    # the suites but the renderer's and the CLI's under TSan, with a libtbb built for it (build-tsan/)
 #   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ, command-line and height-image readers (clang, build-fuzz/)
 #   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
 #   bash cmake/setup.sh build   # only install + configure + build
@@ -74,6 +75,89 @@ run_fuzz() {
   (cd "$fuzz_build" && ctest --output-on-failure -R '^fuzz_(scene|obj|cli|image)$')
 }
 
+# ThreadSanitizer over the suites that run threads of our own (bake, pipeline) in build-tsan/. Every
+# thread here is a TBB worker, and TSan sees a task's handoff only inside an instrumented libtbb,
+# which Debian does not ship: this builds one from Debian's own source of the installed libtbb-dev
+# (the upstream tarball from deb.debian.org, checked against the .dsc's SHA-256; Debian's patches
+# touch other architectures and TBB's own tests only), once, into build-tsan/tbb/.
+run_tsan() {
+  local tsan_build="$root/build-tsan" tbb_root="$root/build-tsan/tbb"
+  local version upstream source
+  version="$(dpkg-query -W -f='${Version}' libtbb-dev)"
+  source="$(dpkg-query -W -f='${source:Package}' libtbb-dev)"
+  upstream="${version#*:}"
+  upstream="${upstream%-*}"
+  if [ ! -f "$tbb_root/install/lib/cmake/TBB/TBBConfig.cmake" ] || [ "$(cat "$tbb_root/version" 2>/dev/null)" != "$version" ]; then
+    echo "setup: building libtbb $upstream with -fsanitize=thread (Debian source package $source $version)"
+    rm -rf "$tbb_root"
+    mkdir -p "$tbb_root"
+    python3 - "$source" "$version" "$tbb_root" <<'PY'
+import hashlib, re, sys, tarfile, urllib.request
+source, version, into = sys.argv[1], sys.argv[2], sys.argv[3]
+bare = version.split(":", 1)[-1]
+prefix = source[:4] if source.startswith("lib") else source[0]
+pools = ["http://deb.debian.org/debian/pool/main", "http://deb.debian.org/debian-security/pool/updates/main"]
+def fetch(url):
+    with urllib.request.urlopen(url, timeout=120) as response:
+        return response.read()
+dsc = None
+for pool in pools:
+    base = f"{pool}/{prefix}/{source}/"
+    try:
+        dsc = fetch(f"{base}{source}_{bare}.dsc").decode()
+        break
+    except OSError:
+        continue
+if dsc is None:
+    sys.exit(f"setup: no source package {source} {version} on deb.debian.org")
+block = dsc.split("Checksums-Sha256:", 1)[1]
+entries = re.findall(r"^ ([0-9a-f]{64}) \d+ (\S+)$", block, re.M)
+orig = [(digest, name) for digest, name in entries if ".orig.tar." in name]
+if not orig:
+    sys.exit(f"setup: {source} {version}: no upstream tarball named in the .dsc")
+digest, name = orig[0]
+data = fetch(base + name)
+if hashlib.sha256(data).hexdigest() != digest:
+    sys.exit(f"setup: {name}: SHA-256 does not match the .dsc")
+path = f"{into}/{name}"
+with open(path, "wb") as out:
+    out.write(data)
+with tarfile.open(path) as archive:
+    archive.extractall(f"{into}/source")
+PY
+    local tree
+    tree="$(find "$tbb_root/source" -mindepth 1 -maxdepth 1 -type d | head -n 1)"
+    # its compiler output (GCC warns that TSan does not model atomic_thread_fence) in a log, shown on failure
+    local log="$tbb_root/build.log"
+    if ! { cmake -S "$tree" -B "$tbb_root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTBB_SANITIZE=thread \
+             -DTBB_TEST=OFF -DTBB_STRICT=OFF -DTBBMALLOC_BUILD=OFF -DTBB_DISABLE_HWLOC_AUTOMATIC_SEARCH=ON \
+             -DCMAKE_INSTALL_PREFIX="$tbb_root/install" &&
+           cmake --build "$tbb_root/build" -j "$jobs" && cmake --install "$tbb_root/build"; } >"$log" 2>&1; then
+      tail -n 40 "$log" >&2
+      echo "setup: building the instrumented libtbb failed (log: $log)" >&2
+      exit 1
+    fi
+    echo "$version" > "$tbb_root/version"
+  fi
+  cmake -S "$root" -B "$tsan_build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDISPLACE_TSAN=ON -DDISPLACE_BENCHMARKS=OFF \
+    -DTBB_DIR="$tbb_root/install/lib/cmake/TBB" >/dev/null
+  cmake --build "$tsan_build" -j "$jobs" --target displace_tests
+  # a run against Debian's uninstrumented libtbb would report every handoff: refuse it
+  if ! ldd "$tsan_build/tests/displace_tests" | grep -q "$tbb_root/install/lib/libtbb"; then
+    echo "setup: the TSan tests do not load the instrumented libtbb from $tbb_root" >&2
+    exit 1
+  fi
+  # reports go to files (some tests capture stderr, and a report there would be lost), shown on failure
+  local reports="$tsan_build/tsan-reports"
+  rm -rf "$reports"
+  mkdir -p "$reports"
+  export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$root/tests/sanitizers/tsan.supp:log_path=$reports/report"
+  if ! (cd "$tsan_build" && ctest --output-on-failure -j "$jobs" -R '^(sim|bake|budgeted|bilinear|app|pipeline|other)$'); then
+    cat "$reports"/report* >&2 2>/dev/null || true
+    exit 1
+  fi
+}
+
 # how long a part took, for the README's account of the CI run
 timed() {
   local started=$SECONDS
@@ -100,11 +184,13 @@ case "$mode" in
   suite) timed run_suite ;;
   sanitize) timed run_sanitize ;;
   fuzz) timed run_fuzz ;;
+  tsan) timed run_tsan ;;
   test)
     timed run_suite
     timed run_sanitize
+    timed run_tsan
     timed run_fuzz ;;
   *)
-    echo "setup: unknown mode '$mode' (use main, test, suite, sanitize, fuzz, report or build)" >&2
+    echo "setup: unknown mode '$mode' (use main, test, suite, sanitize, tsan, fuzz, report or build)" >&2
     exit 2 ;;
 esac
