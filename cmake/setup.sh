@@ -116,7 +116,10 @@ orig = [(digest, name) for digest, name in entries if ".orig.tar." in name]
 if not orig:
     sys.exit(f"setup: {source} {version}: no upstream tarball named in the .dsc")
 digest, name = orig[0]
-data = fetch(base + name)
+try:
+    data = fetch(base + name)
+except OSError as error:
+    sys.exit(f"setup: {base}{name}: {error}")
 if hashlib.sha256(data).hexdigest() != digest:
     sys.exit(f"setup: {name}: SHA-256 does not match the .dsc")
 path = f"{into}/{name}"
