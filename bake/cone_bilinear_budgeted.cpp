@@ -932,43 +932,33 @@ BakeStats finish(const State& state, const Clock& clock, long long work, long lo
 // sum of their ratios. The sum runs in 16 float accumulators (value n of the row into n mod 16) added
 // in a fixed order at the end, so that it vectorises and gives the same bits however the rows are
 // split among threads; `searched` says whether any texel of the row has search ratios (without them
-// a texel's ratios are stage L's spread to the sectors, and the loop has no branch).
+// a texel's ratios are stage L's spread to the sectors). Every emission follows a new stage L, whose
+// upper bounds are made only when refinement first needs them, so the flags hold against none (1).
 template <int sectors, bool searched>
 double emit_row(State& state, std::size_t first, int count, float* out, float* apex, float keep, long long& flagged) {
   constexpr int accumulators = 16;
   float partial[accumulators] = {};
-  flagged = 0;
   const float* quadrants = state.stage_l.data() + first * 4;
-  const float* upper = state.upper_ready ? state.upper.data() + first * 4 : nullptr;
-  std::uint8_t* flags = state.uncertified.data() + first;
   float* row_out = out + first * sectors;
   int j = 0;
   if constexpr (sectors == 4 && !searched) {
-    // the row in three simple passes (copy, sum, flags) that GCC vectorises, the sum into the same
-    // accumulators as the loop below (value n of the row into n mod 16)
+    // four texels (16 values) at a time: a copy and a sum into the same accumulators as the loop below
     typedef float Floats __attribute__((vector_size(64)));
-    const int whole = count / 4 * 4;
-    std::memcpy(row_out, quadrants, sizeof(float) * 4 * std::size_t(whole));
+    j = count / 4 * 4;
+    std::memcpy(row_out, quadrants, sizeof(float) * 4 * std::size_t(j));
     Floats sums = {};
-    for (int n = 0; n < 4 * whole; n += 16) {
+    for (int n = 0; n < 4 * j; n += 16) {
       Floats values;
       std::memcpy(&values, quadrants + n, sizeof values);
       sums += values;
     }
     std::memcpy(partial, &sums, sizeof partial);
-    for (; j < whole; ++j) {
-      const float* quadrant = quadrants + std::size_t(j) * 4;
-      const bool flag = !certified_of<sectors>(quadrant, upper ? upper + std::size_t(j) * 4 : no_upper_bounds, keep);
-      flags[j] = flag;
-      flagged += flag;
-    }
   }
   for (; j < count; ++j) {
-    const float* quadrant = quadrants + std::size_t(j) * 4;
     if constexpr (searched) {
-      const float sum = emit_texel_of<sectors>(state, first + std::size_t(j), out);
-      partial[j % accumulators] += sum;
+      partial[j % accumulators] += emit_texel_of<sectors>(state, first + std::size_t(j), out);
     } else {
+      const float* quadrant = quadrants + std::size_t(j) * 4;
       for (int k = 0; k < sectors; ++k) {
         const float value = sectors == 4   ? quadrant[k]
                             : sectors == 8 ? quadrant[k / 2]
@@ -977,8 +967,12 @@ double emit_row(State& state, std::size_t first, int count, float* out, float* a
         partial[(j * sectors + k) % accumulators] += value;
       }
     }
+  }
+  std::uint8_t* flags = state.uncertified.data() + first;
+  flagged = 0;
+  for (j = 0; j < count; ++j) {
     const bool flag = (!searched || !state.searched_flag[first + std::size_t(j)]) &&
-                      !certified_of<sectors>(quadrant, upper ? upper + std::size_t(j) * 4 : no_upper_bounds, keep);
+                      !certified_of<sectors>(quadrants + std::size_t(j) * 4, no_upper_bounds, keep);
     flags[j] = flag;
     flagged += flag;
   }

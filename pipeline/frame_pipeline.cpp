@@ -32,10 +32,8 @@ double steady_milliseconds() {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-}  // namespace
-
-namespace {
 constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
+
 }  // namespace
 
 // The lift and the raise. Conservative: the bilinear surface rose by at most lift = max over texels
