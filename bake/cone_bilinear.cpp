@@ -297,9 +297,14 @@ struct TexelSearch {
     }
   }
 
-  // every other cell, through the max pyramid over cells, nearest first (step 2)
+  // every other cell, through the max pyramid over cells, nearest first (step 2). A node is a block
+  // of the pyramid's level in a tile of the periodic plane (tiles 0 with clamp): its tile and its
+  // index in the tile along each axis, kept apart so that no step divides.
+  struct Block {
+    int level, tile_u, tile_v, bu, bv;
+  };
   struct Entry {
-    detail::Node node;
+    Block node;
     double bound;
     detail::SectorMask mask;  // the sectors it could lower when examined
   };
@@ -313,19 +318,26 @@ struct TexelSearch {
     const int wu0 = U.cell_of_left_centre(j - R), wu1 = U.cell_of_left_centre(j + R - 1);
     const int wv0 = V.cell_of_left_centre(i - R), wv1 = V.cell_of_left_centre(i + R - 1);
     // bound of a node; false when it cannot lower any ratio or lies inside the window
-    auto examine = [&](const detail::Node& node, Entry& entry) {
+    auto examine = [&](const Block& node, Entry& entry) {
       ++work;
-      const int count_u = pyramid.count_x(node.level), count_v = pyramid.count_y(node.level);
-      const int tile_u = detail::floor_div(node.nx, count_u), tile_v = detail::floor_div(node.ny, count_v);
-      const double top = pyramid.value(node.level, node.ny - tile_v * count_v, node.nx - tile_u * count_u);
+      const double top = pyramid.value(node.level, node.bv, node.bu);
       if (!(top > apex)) return false;
-      int first_u, last_u, first_v, last_v;
-      detail::block_range(node.nx, node.level, count_u, U.cells, first_u, last_u);
-      detail::block_range(node.ny, node.level, count_v, V.cells, first_v, last_v);
+      // the block's cells, unrolled (detail::block_range without the division)
+      const int first_u = node.tile_u * U.cells + (node.bu << node.level),
+                last_u = node.tile_u * U.cells + std::min((node.bu + 1) << node.level, U.cells) - 1;
+      const int first_v = node.tile_v * V.cells + (node.bv << node.level),
+                last_v = node.tile_v * V.cells + std::min((node.bv + 1) << node.level, V.cells) - 1;
       if (R > 0 && first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;
       const int u0 = U.begin(first_u), u1 = U.end(last_u), v0 = V.begin(first_v), v1 = V.end(last_v);
-      const double bound = far_bound(u0, u1, v0, v1, top);
-      if (!(bound < largest_best())) return false;
+      // far_bound's arithmetic, with a rejection first that needs neither the root nor the division:
+      // where distance^2 exceeds (largest * rise)^2 by a relative 1e-9 (far above the roundings of
+      // either side), the bound is above every ratio, as the full test would find
+      const double gap_u = span_gap(j, u0, u1) * context.half_texel_u, gap_v = span_gap(i, v0, v1) * context.half_texel_v;
+      const double squared = gap_u * gap_u + gap_v * gap_v, rise = top - apex;
+      const double largest = largest_best(), reach = largest * rise;
+      if (squared > reach * reach * (1.0 + 1e-9)) return false;
+      const double bound = std::sqrt(squared) / rise;
+      if (!(bound < largest)) return false;
       const detail::SectorMask mask =
           box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
       detail::SectorMask useful = 0;
@@ -345,7 +357,7 @@ struct TexelSearch {
     const int tiles = U.wrap ? 2 : 0;  // with wrap, images within uv distance 1 of Q_c lie in tiles -2..1
     for (int tv = -tiles; tv <= tiles; ++tv)
       for (int tu = -tiles; tu <= tiles; ++tu)
-        if (examine({top_level, tu, tv}, entry)) stack.push_back(entry);
+        if (examine({top_level, tu, tv, 0, 0}, entry)) stack.push_back(entry);  // one block a tile
     std::sort(stack.begin(), stack.end(), [](const Entry& a, const Entry& b) { return a.bound > b.bound; });
     while (!stack.empty()) {
       const Entry top = stack.back();
@@ -355,17 +367,14 @@ struct TexelSearch {
       for (int k = 0; k < context.grid.sector_count; ++k)
         if ((top.mask >> k & 1u) && top.bound < best[k]) useful = true;
       if (!useful) continue;
-      const detail::Node& node = top.node;
+      const Block& node = top.node;
       Entry children[4];
       int child_count = 0;
       const int level = node.level - 1;
-      const int parent_u = pyramid.count_x(node.level), parent_v = pyramid.count_y(node.level);
       const int count_u = pyramid.count_x(level), count_v = pyramid.count_y(level);
-      const int tile_u = detail::floor_div(node.nx, parent_u), tile_v = detail::floor_div(node.ny, parent_v);
-      const int bu = node.nx - tile_u * parent_u, bv = node.ny - tile_v * parent_v;
-      for (int dv = 0; dv < 2 && 2 * bv + dv < count_v; ++dv)
-        for (int du = 0; du < 2 && 2 * bu + du < count_u; ++du) {
-          const detail::Node child{level, tile_u * count_u + 2 * bu + du, tile_v * count_v + 2 * bv + dv};
+      for (int dv = 0; dv < 2 && 2 * node.bv + dv < count_v; ++dv)
+        for (int du = 0; du < 2 && 2 * node.bu + du < count_u; ++du) {
+          const Block child{level, node.tile_u, node.tile_v, 2 * node.bu + du, 2 * node.bv + dv};
           if (examine(child, children[child_count])) ++child_count;
         }
       for (int a = 1; a < child_count; ++a)  // largest bound first, so the nearest is searched first
