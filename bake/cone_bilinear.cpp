@@ -178,7 +178,6 @@ struct TexelSearch {
   double* best;
   long long work = 0;
 
-  double largest_best() const { return *std::max_element(best, best + context.grid.sector_count); }
 
   void lower(detail::SectorMask mask, double bound) {
     for (int k = 0; k < context.grid.sector_count; ++k)
@@ -329,17 +328,21 @@ struct TexelSearch {
                 last_v = node.tile_v * V.cells + std::min((node.bv + 1) << node.level, V.cells) - 1;
       if (R > 0 && first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;
       const int u0 = U.begin(first_u), u1 = U.end(last_u), v0 = V.begin(first_v), v1 = V.end(last_v);
+      // the sectors it can reach, and the largest ratio among them: the block is useful only if its
+      // bound is below that
+      const detail::SectorMask mask =
+          box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
+      double largest = 0.0;
+      for (int k = 0; k < context.grid.sector_count; ++k)
+        if (mask >> k & 1u) largest = std::max(largest, best[k]);
       // far_bound's arithmetic, with a rejection first that needs neither the root nor the division:
       // where distance^2 exceeds (largest * rise)^2 by a relative 1e-9 (far above the roundings of
-      // either side), the bound is above every ratio, as the full test would find
+      // either side), the bound is above every ratio it could lower, as the full test would find
       const double gap_u = span_gap(j, u0, u1) * context.half_texel_u, gap_v = span_gap(i, v0, v1) * context.half_texel_v;
-      const double squared = gap_u * gap_u + gap_v * gap_v, rise = top - apex;
-      const double largest = largest_best(), reach = largest * rise;
+      const double squared = gap_u * gap_u + gap_v * gap_v, rise = top - apex, reach = largest * rise;
       if (squared > reach * reach * (1.0 + 1e-9)) return false;
       const double bound = std::sqrt(squared) / rise;
       if (!(bound < largest)) return false;
-      const detail::SectorMask mask =
-          box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
       detail::SectorMask useful = 0;
       for (int k = 0; k < context.grid.sector_count; ++k)
         if ((mask >> k & 1u) && bound < best[k]) useful |= 1u << k;
