@@ -178,7 +178,6 @@ struct TexelSearch {
   double* best;
   long long work = 0;
 
-
   void lower(detail::SectorMask mask, double bound) {
     for (int k = 0; k < context.grid.sector_count; ++k)
       if ((mask >> k & 1u) && bound < best[k]) best[k] = bound;
