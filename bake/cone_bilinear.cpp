@@ -250,11 +250,25 @@ struct TexelSearch {
         at(1, da, db) = rise_v;
         if (!exists) continue;
         ++work;
-        if (!(context.pyramid.max.levels[0][stored] > apex)) continue;
-        const Patch patch = context.patch(nu, nv);
+        const double cell_max = context.pyramid.max.levels[0][stored];
+        if (!(cell_max > apex)) continue;
         const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
-        const int origin_u = 2 * U.left_centre(nu), origin_v = 2 * V.left_centre(nv);
         const int cu[2] = {U.begin(nu), U.end(nu)}, cv[2] = {V.begin(nv), V.end(nv)};
+        if (!centre) {
+          // Each piece lies in the cell: no nearer to Q_c than the cell, no higher than its maximum
+          // (a patch's corner; its other values are within 1e-15 of them), with no sector the cell's
+          // box of directions misses, and piece_bound is at least near / rise, every rounding
+          // monotone. So when the cell's gap over its rise (with twice the margin) reaches the
+          // largest ratio of its sectors, no piece can lower one: the same ratios, fewer pieces.
+          const detail::SectorMask cell_sectors = box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0);
+          double largest = 0.0;
+          for (int k = 0; k < context.grid.sector_count; ++k)
+            if (cell_sectors >> k & 1u) largest = std::max(largest, best[k]);
+          const double gap = gap_distance(context, span_gap(j, cu[0], cu[1]), span_gap(i, cv[0], cv[1]));
+          if (gap / (cell_max + 2.0 * height_margin - apex) >= largest) continue;
+        }
+        const Patch patch = context.patch(nu, nv);
+        const int origin_u = 2 * U.left_centre(nu), origin_v = 2 * V.left_centre(nv);
         // the three ranges along each axis: before Q_c, across it, beyond it (side -1, 0, +1)
         for (int sv = -1; sv <= 1; ++sv) {
           const int v0 = std::max(cv[0], sv < 0 ? cv[0] : sv == 0 ? qv0 : qv1);
