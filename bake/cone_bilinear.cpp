@@ -378,6 +378,13 @@ struct TexelSearch {
     while (!stack.empty()) {
       const Entry top = stack.back();
       stack.pop_back();
+      if (!stack.empty()) {  // the next block's children, into the cache while this one's are examined
+        const Block& next = stack.back().node;
+        const int width = pyramid.count_x(next.level - 1), height = pyramid.count_y(next.level - 1);
+        const float* level = pyramid.max.levels[std::size_t(next.level - 1)].data();
+        __builtin_prefetch(level + std::size_t(2 * next.bv) * width + 2 * next.bu);
+        if (2 * next.bv + 1 < height) __builtin_prefetch(level + std::size_t(2 * next.bv + 1) * width + 2 * next.bu);
+      }
       // the ratios may have dropped since it was pushed
       bool useful = false;
       for (int k = 0; k < context.grid.sector_count; ++k)
