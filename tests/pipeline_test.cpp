@@ -134,9 +134,10 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
     const std::string path = key;
     const std::size_t dot = path.find('.');
     for (const char* value : values) {
-      const std::string text = dot == std::string::npos
-                                   ? path + " = " + value + "\n"
-                                   : "[" + path.substr(0, dot) + "]\n" + path.substr(dot + 1) + " = " + value + "\n";
+      // appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on "[" + std::string
+      std::string text;
+      if (dot != std::string::npos) text.append("[").append(path, 0, dot).append("]\n");
+      text.append(path, dot == std::string::npos ? 0 : dot + 1).append(" = ").append(value).append("\n");
       const std::string error = error_of(text);
       EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
       EXPECT_EQ(error.rfind("scene.toml:", 0), 0u) << text << " -> " << error;
