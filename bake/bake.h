@@ -185,6 +185,9 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
 struct BilinearConeSettings {
   int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
   std::function<void(double fraction_done)> progress = {};  // see Progress: rows done over all rows
+  // false: the search skips nothing that cannot lower a ratio only by its bound - every block of the
+  // pyramid opened, every window piece bounded. The same maps bit for bit, far slower: for tests.
+  bool prune = true;
 };
 BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                               std::span<float> apex_heights, const BilinearConeSettings& settings = {});

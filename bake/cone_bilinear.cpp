@@ -136,6 +136,7 @@ struct Context {
   detail::Pyramid pyramid;             // max pyramid over the cells' maxima
   detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
   double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
+  bool prune = true;                               // BilinearConeSettings::prune
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {
@@ -254,7 +255,7 @@ struct TexelSearch {
         if (!(cell_max > apex)) continue;
         const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
         const int cu[2] = {U.begin(nu), U.end(nu)}, cv[2] = {V.begin(nv), V.end(nv)};
-        if (!centre) {
+        if (!centre && context.prune) {
           // Each piece lies in the cell: no nearer to Q_c than the cell, no higher than its maximum
           // (a patch's corner; its other values are within 1e-15 of them), with no sector the cell's
           // box of directions misses, and piece_bound is at least near / rise, every rounding
@@ -353,12 +354,12 @@ struct TexelSearch {
       // either side), the bound is above every ratio it could lower, as the full test would find
       const double gap_u = span_gap(j, u0, u1) * context.half_texel_u, gap_v = span_gap(i, v0, v1) * context.half_texel_v;
       const double squared = gap_u * gap_u + gap_v * gap_v, rise = top - apex, reach = largest * rise;
-      if (squared > reach * reach * (1.0 + 1e-9)) return false;
+      if (context.prune && squared > reach * reach * (1.0 + 1e-9)) return false;
       const double bound = std::sqrt(squared) / rise;
-      if (!(bound < largest)) return false;
+      if (context.prune && !(bound < largest)) return false;
       detail::SectorMask useful = 0;
       for (int k = 0; k < context.grid.sector_count; ++k)
-        if ((mask >> k & 1u) && bound < best[k]) useful |= 1u << k;
+        if ((mask >> k & 1u) && (bound < best[k] || !context.prune)) useful |= 1u << k;
       if (!useful) return false;
       if (node.level == 0) {
         lower(useful, bound);
@@ -389,7 +390,7 @@ struct TexelSearch {
       bool useful = false;
       for (int k = 0; k < context.grid.sector_count; ++k)
         if ((top.mask >> k & 1u) && top.bound < best[k]) useful = true;
-      if (!useful) continue;
+      if (!useful && context.prune) continue;
       const Block& node = top.node;
       Entry children[4];
       int child_count = 0;
@@ -468,7 +469,7 @@ void prepare(Context& context) {
   context.beyond[3] = box_sectors(context, -reach, reach, -1, -1);
 }
 
-Context make_context(HeightView heights, Address address, int sectors, int window) {
+Context make_context(HeightView heights, Address address, int sectors, int window, bool prune = true) {
   Context context{heights,
                   detail::Grid(heights.width, heights.height, sectors, address),
                   Axis(heights.width, address),
@@ -478,6 +479,7 @@ Context make_context(HeightView heights, Address address, int sectors, int windo
                   {},
                   {},
                   {}};
+  context.prune = prune;
   prepare(context);
   return context;
 }
@@ -512,7 +514,7 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   }
   const auto start = std::chrono::steady_clock::now();
   const int sectors = out.sector_count;
-  const Context context = make_context(heights, address, sectors, settings.slope_window);
+  const Context context = make_context(heights, address, sectors, settings.slope_window, settings.prune);
 
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(settings.progress, heights.height);
