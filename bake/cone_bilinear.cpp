@@ -30,7 +30,9 @@
 // 5. r_k = min over the pieces whose sector set holds k of their bound (step 3 in the slope window,
 //    step 2 elsewhere), clamped to 1, is then <= |x - p| / (s(x) - H_c), which is the claim. A
 //    pruned pyramid node only holds cells whose far bounds are >= its own (larger distance, smaller
-//    maximum), so it cannot lower any r_k.
+//    maximum), so it cannot lower any r_k; likewise a window cell whose gap over its rise already
+//    reaches the ratios it could lower (every piece's bound is at least its near / rise). Pruning
+//    only skips such work: BilinearConeSettings::prune = false turns it off, and a test compares.
 // Pieces. The four cells that overlap Q_c would have d = 0 (a ratio of 0 wherever a neighbour is
 // higher), so every cell within `slope_window` cells of c is cut at Q_c's edge lines into pieces
 // before, across and beyond Q_c along u and along v (the piece across both is inside Q_c and
@@ -382,9 +384,9 @@ struct TexelSearch {
       if (!stack.empty()) {  // the next block's children, into the cache while this one's are examined
         const Block& next = stack.back().node;
         const int width = pyramid.count_x(next.level - 1), height = pyramid.count_y(next.level - 1);
-        const float* level = pyramid.max.levels[std::size_t(next.level - 1)].data();
-        __builtin_prefetch(level + std::size_t(2 * next.bv) * width + 2 * next.bu);
-        if (2 * next.bv + 1 < height) __builtin_prefetch(level + std::size_t(2 * next.bv + 1) * width + 2 * next.bu);
+        const float* children = pyramid.max.levels[std::size_t(next.level - 1)].data();
+        __builtin_prefetch(children + std::size_t(2 * next.bv) * width + 2 * next.bu);
+        if (2 * next.bv + 1 < height) __builtin_prefetch(children + std::size_t(2 * next.bv + 1) * width + 2 * next.bu);
       }
       // the ratios may have dropped since it was pushed
       bool useful = false;
