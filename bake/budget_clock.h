@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <functional>
 
 #include "bake/bake.h"
@@ -29,6 +30,8 @@ struct BudgetClock {
     start = clock();
   }
   double elapsed() const { return clock() - start; }
+  // no milliseconds and no work limit: nothing to look at between steps but progress
+  bool unlimited() const { return std::isinf(limit) && limit > 0.0 && max_work < 0; }
   bool exhausted() const {
     if (max_work >= 0 && work.load(std::memory_order_relaxed) >= max_work) return true;
     return !(elapsed() < limit);

@@ -198,9 +198,12 @@ struct TexelSearch {
     return m;
   }
 
-  // far bound of a box spanning [u0, u1] x [v0, v1] half texels with maximum `top`
-  double far_bound(int u0, int u1, int v0, int v1, double top) const {
-    return gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)) / (top - apex);
+  // the largest ratio among the sectors of `mask` (0 for none): a bound at or above it lowers nothing
+  double largest_in(detail::SectorMask mask) const {
+    double largest = 0.0;
+    for (int k = 0; k < context.grid.sector_count; ++k)
+      if (mask >> k & 1u) largest = std::max(largest, best[k]);
+    return largest;
   }
 
   // The cells (da, db) in [-R, R - 1]^2 around Q_c (steps 2 to 4), cut at Q_c's edge lines into
@@ -264,11 +267,8 @@ struct TexelSearch {
           // monotone. So when the cell's gap over its rise (with twice the margin) reaches the
           // largest ratio of its sectors, no piece can lower one: the same ratios, fewer pieces.
           const detail::SectorMask cell_sectors = box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0);
-          double largest = 0.0;
-          for (int k = 0; k < context.grid.sector_count; ++k)
-            if (cell_sectors >> k & 1u) largest = std::max(largest, best[k]);
           const double gap = gap_distance(context, span_gap(j, cu[0], cu[1]), span_gap(i, cv[0], cv[1]));
-          if (gap / (cell_max + 2.0 * height_margin - apex) >= largest) continue;
+          if (gap / (cell_max + 2.0 * height_margin - apex) >= largest_in(cell_sectors)) continue;
         }
         const Patch patch = context.patch(nu, nv);
         const int origin_u = 2 * U.left_centre(nu), origin_v = 2 * V.left_centre(nv);
@@ -348,10 +348,9 @@ struct TexelSearch {
       // bound is below that
       const detail::SectorMask mask =
           box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
-      double largest = 0.0;
-      for (int k = 0; k < context.grid.sector_count; ++k)
-        if (mask >> k & 1u) largest = std::max(largest, best[k]);
-      // far_bound's arithmetic, with a rejection first that needs neither the root nor the division:
+      const double largest = largest_in(mask);
+      // the far bound (gap_distance over the rise, the same arithmetic), with a rejection first that
+      // needs neither the root nor the division:
       // where distance^2 exceeds (largest * rise)^2 by a relative 1e-9 (far above the roundings of
       // either side), the bound is above every ratio it could lower, as the full test would find
       const double gap_u = span_gap(j, u0, u1) * context.half_texel_u, gap_v = span_gap(i, v0, v1) * context.half_texel_v;

@@ -880,9 +880,8 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   // share of the queue as large as the reports allow: with 2 chunks, one thread waited for the
   // other at every join (the searches differ in cost), 4% of the time in TBB and 4% in the kernel's
   // scheduler on the 512 ocean.
-  const bool unlimited = std::isinf(clock.limit) && clock.limit > 0.0 && clock.max_work < 0;
   const std::size_t batch =
-      unlimited ? std::max<std::size_t>(std::size_t(refine_chunk) * 2,
+      clock.unlimited() ? std::max<std::size_t>(std::size_t(refine_chunk) * 2,
                                         (state.queue.size() - first_queued) / max_progress_reports + 1)
                 : std::size_t(refine_chunk) * 2;
   double next_report = 1.0 / max_progress_reports;
