@@ -5,7 +5,7 @@
 #   bash cmake/setup.sh test    # everything CI runs: suite, sanitize, tsan, then fuzz (25-45 minutes)
 #   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 2 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
-#   bash cmake/setup.sh tsan    # the suite under TSan, with a libtbb built for it (build-tsan/)
+#   bash cmake/setup.sh tsan    # the suite but the report and the soak under TSan, with a libtbb built for it (build-tsan/)
 #   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ, command-line and height-image readers (clang, build-fuzz/)
 #   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
 #   bash cmake/setup.sh build   # only install + configure + build
@@ -75,10 +75,9 @@ run_fuzz() {
   (cd "$fuzz_build" && ctest --output-on-failure -R '^fuzz_(scene|obj|cli|image)$')
 }
 
-# ThreadSanitizer over the suite in build-tsan/. Every
-# thread here is a TBB worker, and TSan sees a task's handoff only inside an instrumented libtbb,
-# which Debian does not ship: this builds one from Debian's own source of the installed libtbb-dev
-# (the upstream tarball from deb.debian.org, checked against the .dsc's SHA-256; Debian's patches
+# ThreadSanitizer over the suite in build-tsan/. Every thread here is a TBB worker, and TSan sees a
+# task's handoff only inside an instrumented libtbb, which Debian does not ship: this builds one
+# from Debian's own source of the installed libtbb-dev (the upstream tarball from deb.debian.org, checked against the .dsc's SHA-256; Debian's patches
 # touch other architectures and TBB's own tests only), once, into build-tsan/tbb/.
 run_tsan() {
   local tsan_build="$root/build-tsan" tbb_root="$root/build-tsan/tbb"
