@@ -77,8 +77,9 @@ run_fuzz() {
 
 # ThreadSanitizer over the suite in build-tsan/. Every thread here is a TBB worker, and TSan sees a
 # task's handoff only inside an instrumented libtbb, which Debian does not ship: this builds one
-# from Debian's own source of the installed libtbb-dev (the upstream tarball from deb.debian.org, checked against the .dsc's SHA-256; Debian's patches
-# touch other architectures and TBB's own tests only), once, into build-tsan/tbb/.
+# from Debian's own source of the installed libtbb-dev (the upstream tarball from deb.debian.org,
+# checked against the .dsc's SHA-256; Debian's patches touch other architectures and TBB's own
+# tests only), once, into build-tsan/tbb/.
 run_tsan() {
   local tsan_build="$root/build-tsan" tbb_root="$root/build-tsan/tbb"
   local version upstream source
