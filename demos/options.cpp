@@ -699,6 +699,21 @@ CommandSettings parse_sim(std::span<const std::string_view> args) {
   return SimSettings{finish_source(app, source), std::filesystem::path(output)};
 }
 
+// A baker's tolerance (bake::Budget::tolerance): a finite number in [0, 1).
+CLI::Validator tolerance_in_range() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double value = 0.0;
+        if (read_number(text, value) != std::errc{} || !std::isfinite(value)) {
+          return "expects a finite number, got " + in_quotes(text);
+        }
+        if (!(value >= 0.0 && value < 1.0)) return "must be in [0, 1), got " + in_quotes(text);
+        text = fmt::format("{}", value);
+        return {};
+      },
+      "[0, 1)");
+}
+
 CommandSettings parse_bake(std::span<const std::string_view> args) {
   CLI::App app("Bake a cone map from a height image or a source.", "displace bake");
   set_up(app);
@@ -733,17 +748,7 @@ CommandSettings parse_bake(std::span<const std::string_view> args) {
   app.add_option("--tolerance", tolerance,
                  "budgeted: refine while a ratio may be more than T below exact (default 0.25)")
       ->type_name("T")
-      ->transform(CLI::Validator(
-          [](std::string& text) -> std::string {
-            double value = 0.0;
-            if (read_number(text, value) != std::errc{} || !std::isfinite(value)) {
-              return "expects a finite number, got " + in_quotes(text);
-            }
-            if (!(value >= 0.0 && value < 1.0)) return "must be in [0, 1), got " + in_quotes(text);
-            text = fmt::format("{}", value);
-            return {};
-          },
-          "[0, 1)"));
+      ->transform(tolerance_in_range());
   add_value(app, "--address", settings.address, "how the map continues past its edges (default wrap)",
             word_list(address_words), word_in(address_words));
   app.option_defaults()->group("Options");
@@ -798,7 +803,7 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   SceneDraft scene;
   std::string output, compare;
   std::vector<std::string> aovs;
-  double bake_budget = 0.0;
+  double bake_budget = 0.0, bake_tolerance = 0.0;
   add_scene_flags(app, scene);
   add_renderer_flags(app, settings.renderer);
   const Words<render::Method> methods = method_words();
@@ -813,6 +818,10 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   add_value(app, "--bake-budget-ms", bake_budget,
             "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
             number_in(budget_range));
+  app.add_option("--bake-tolerance", bake_tolerance,
+                 "cone methods: refine while a ratio may be more than T below the best (default 0.25)")
+      ->type_name("T")
+      ->transform(tolerance_in_range());
   app.option_defaults()->group("Options");
   add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
       ->required();
@@ -836,18 +845,17 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
     throw usage_error(fmt::format("--method {} does not support --surface {}", info.name,
                                   render::surface_name(settings.view.surface)));
   }
-  if (given(app, "--bake-budget-ms")) {
-    if (info.cone_sectors == 0) {
-      std::vector<std::string> cone_methods;
-      for (const render::MethodInfo& known : render::method_table()) {
-        if (known.cone_sectors != 0) cone_methods.emplace_back(known.name);
-      }
-      throw usage_error(
-          fmt::format("--bake-budget-ms applies to the methods that read cone maps ({}), not --method {}",
-                      fmt::join(cone_methods, ", "), info.name));
+  for (const char* flag : {"--bake-budget-ms", "--bake-tolerance"}) {
+    if (!given(app, flag) || info.cone_sectors != 0) continue;
+    std::vector<std::string> cone_methods;
+    for (const render::MethodInfo& known : render::method_table()) {
+      if (known.cone_sectors != 0) cone_methods.emplace_back(known.name);
     }
-    settings.bake_budget_milliseconds = bake_budget;
+    throw usage_error(fmt::format("{} applies to the methods that read cone maps ({}), not --method {}", flag,
+                                  fmt::join(cone_methods, ", "), info.name));
   }
+  if (given(app, "--bake-budget-ms")) settings.bake_budget_milliseconds = bake_budget;
+  if (given(app, "--bake-tolerance")) settings.bake_tolerance = float(bake_tolerance);
   settings.aovs = aov_outputs(aovs);
   settings.compare_reference = given(app, "--compare");
   settings.output = output;

@@ -100,6 +100,7 @@ struct RenderSettings {
   bool compare_reference = false;
   // the budget of the cone maps' bake (bake::BilinearBaker), for the methods that read cone maps
   double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
+  float bake_tolerance = bake::Budget{}.tolerance;  // and its tolerance
   render::RendererOptions renderer;
 };
 

@@ -766,6 +766,12 @@ TEST(Options, ParsesTheRenderBakeBudget) {
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                       "--method", "acm8", "--output", "f.png"}));
   EXPECT_TRUE(std::isinf(unlimited.bake_budget_milliseconds));
+  EXPECT_EQ(unlimited.bake_tolerance, displace::bake::Budget{}.tolerance);
+  const RenderSettings loose =
+      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                      "--method", "csm", "--bake-tolerance", "0.45", "--output", "f.png"}));
+  EXPECT_EQ(loose.bake_tolerance, 0.45f);
+  EXPECT_TRUE(std::isinf(loose.bake_budget_milliseconds));
 }
 
 // Interactive play starts a scene that sets no budget at a real-time frame budget (an unlimited bake
@@ -1271,6 +1277,38 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
   }
 }
 
+// --bake-tolerance: an unlimited bake at tolerance 0 searches texels that one at 0.9 leaves to stage
+// L (none on this map), and both render the reference's picture; the line and the file say which.
+TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
+  TempDir dir;
+  const std::string out = (dir / "acm8.png").string();
+  auto searched = [](const std::string& line) {
+    const std::size_t at = line.find(" texels searched");
+    EXPECT_NE(at, std::string::npos) << line;
+    const std::size_t of = line.rfind(" of ", at), from = line.rfind(", ", of);
+    return std::stol(line.substr(from + 2, of - from - 2));
+  };
+  const std::string common = "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 --method acm8 "
+                             "--compare reference --output '" + out + "' --bake-tolerance ";
+  const RunResult tight = run_displace(dir, common + "0");
+  ASSERT_EQ(tight.exit_code, 0) << tight.err;
+  EXPECT_GT(searched(tight.out), 0) << tight.out;
+  const RunResult result = run_displace(dir, common + "0.9");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("with an unlimited budget at tolerance 0.9: "), std::string::npos) << result.out;
+  EXPECT_EQ(searched(result.out), 0) << result.out;
+  for (const RunResult* run : {&tight, &result}) {
+    const std::size_t at = run->out.find("compare reference: rmse ");
+    ASSERT_NE(at, std::string::npos) << run->out;
+    EXPECT_LT(std::stod(run->out.substr(at + 24)), 3.0) << run->out;
+  }
+  const Rgba8Image written = read_rgba8_image(out);
+  const Attribute* tolerance = find_attribute(written.metadata, "displace:bake_tolerance");
+  ASSERT_NE(tolerance, nullptr);
+  EXPECT_EQ(std::stof(std::get<std::string>(tolerance->value)), 0.9f);  // PNG text: the float's digits
+  EXPECT_EQ(find_attribute(written.metadata, "displace:bake_budget_ms"), nullptr);
+}
+
 // --albedo and --shadows: a red albedo image shades every hit red (green and blue hold only the
 // white highlight, equal), and shadows darken some pixels without changing which pixels hit.
 TEST(Cli, RendersWithAnAlbedoImageAndShadows) {
@@ -1350,6 +1388,10 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --bake-budget-ms 0", 2},  // pom reads no cone map
       {ok + " --method acm4 --bake-budget-ms -1", 2},
       {ok + " --method acm4 --bake-budget-ms inf", 2},
+      {ok + " --method relief --bake-tolerance 0.5", 2},  // relief reads no cone map
+      {ok + " --method acm4 --bake-tolerance 1", 2},
+      {ok + " --method acm4 --bake-tolerance -0.1", 2},
+      {ok + " --method acm4 --bake-tolerance nan", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);
