@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -118,6 +119,12 @@ std::string clamped_phrase(std::size_t clamped) {
 std::string budget_phrase(double milliseconds) {
   return std::isinf(milliseconds) ? std::string("unlimited budget")
                                   : fmt::format("{:.6g} ms budget", milliseconds);
+}
+
+// "within a 0 ms budget", "with an unlimited budget"
+std::string baked_within(double milliseconds) {
+  return std::isinf(milliseconds) ? std::string("with an unlimited budget")
+                                  : "within a " + budget_phrase(milliseconds);
 }
 
 std::string stats_phrase(const bake::BakeStats& stats) {
@@ -532,9 +539,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
       summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
   if (info.cone_sectors != 0) {  // what the cone maps cost and claim
     out << "  cone maps baked by the budgeted bilinear baker "
-        << (std::isfinite(settings.bake_budget_milliseconds)
-                ? "within a " + budget_phrase(settings.bake_budget_milliseconds)
-                : std::string("with an unlimited budget"))
+        << baked_within(settings.bake_budget_milliseconds)
         << (default_tolerance ? std::string() : fmt::format(" at tolerance {:g}", settings.bake_tolerance));
     const bake::BakeStats& stats = maps.cone_stats(info.cone_sectors);
     if (stats.sector_count != 0) {
@@ -574,12 +579,18 @@ void load_scene(render::Renderer& renderer, pipeline::MapMaker& maps, const Scen
 void run_sweep(const SweepSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
+  bake::Budget cone_budget;
+  cone_budget.milliseconds = settings.bake_budget_milliseconds;
+  cone_budget.tolerance = settings.bake_tolerance;
+  maps.set_cone_budget(cone_budget);
   std::ofstream csv(settings.output);
   if (!csv) throw runtime_error("cannot write " + settings.output.string());
   csv << "scene,method,steps,refine,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,mean_iterations,"
          "median_ms,device\n";
   out << "displace sweep on " << renderer.device().name << " (" << renderer.device().type << "), "
-      << settings.repeat << " renders per row, median device time\n";
+      << settings.repeat << " renders per row, median device time; cone maps baked "
+      << baked_within(settings.bake_budget_milliseconds)
+      << fmt::format(" at tolerance {:g}\n", settings.bake_tolerance);
   for (const SceneSettings& scene : settings.scenes) {
     load_scene(renderer, maps, scene);
     const render::Frame reference =
@@ -587,6 +598,7 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, maps.heights().width, maps.heights().height,
                        scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
+    std::array<bool, 3> cones_used{};  // by render::cone_slot
     for (render::Method method : settings.methods) {
       const render::MethodInfo& info = render::method_info(method);
       if (!render::supports_surface(method, scene.view.surface)) {
@@ -594,6 +606,7 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
                            render::surface_name(scene.view.surface));
         continue;
       }
+      if (info.cone_sectors != 0) cones_used[std::size_t(render::cone_slot(info.cone_sectors))] = true;
       double best_fetches = -1.0;
       int best_steps = 0;
       double last_rmse = 0.0;
@@ -619,6 +632,13 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
       } else {
         out << fmt::format("  {:<17} {:>8}{:25} {:.2f}\n", info.name, "not reached", "", last_rmse);
       }
+    }
+    for (int sectors : {1, 4, 8}) {  // what the cone methods rendered from
+      if (!cones_used[std::size_t(render::cone_slot(sectors))]) continue;
+      const bake::BakeStats& stats = maps.cone_stats(sectors);
+      out << fmt::format("  cone maps, {} sector{}: {:.1f} ms, mean ratio {:.4f}, {} of {} texels searched\n",
+                         sectors, sectors == 1 ? "" : "s", stats.milliseconds, stats.mean_ratio,
+                         stats.texels_refined, (long long)stats.width * stats.height);
     }
   }
   out << "  wrote " << settings.output.string() << '\n';
@@ -793,8 +813,8 @@ usage:
       $XDG_CACHE_HOME/displace, else ~/.cache/displace).
 
   displace sweep [--scene bricks|ocean|cliff|FILE ...] [--methods all|NAME,NAME...]
-                 [--steps 4,8,16,32,64] [--refine R] [--repeat N] [--size WxH] [--device D] [--validate]
-                 --output sweep.csv
+                 [--steps 4,8,16,32,64] [--refine R] [--repeat N] [--size WxH] [--bake-budget-ms B]
+                 [--bake-tolerance T] [--device D] [--validate] --output sweep.csv
       What accuracy costs: every method at every step count on each scene, against the reference.
       One CSV row per scene, method and steps: rmse, max error, share of pixels off by more than 10,
       mean and p99 fetches per pixel, mean iterations, median device milliseconds. Prints, per
@@ -802,7 +822,7 @@ usage:
       ones (256 x 256 maps, the default camera). A scene FILE holds render flags, one per line
       (--source/--input and their options, --map-size, --eye, --look-at, --up, --fov-y, --size,
       --tile, --depth-scale, --address, --light, --shadows, --albedo, --surface, --radius); '#' starts a
-      comment.
+      comment. --bake-budget-ms and --bake-tolerance bake the cone methods' maps as render does.
 
   displace report [--scene bricks|ocean|cliff|IMAGE|FILE.txt ...] [--invert] [--quick] [--size N]
                   [--output DIR] [--no-plots]

@@ -714,6 +714,17 @@ CLI::Validator tolerance_in_range() {
       "[0, 1)");
 }
 
+// --bake-budget-ms and --bake-tolerance: the budget of the cone methods' maps (bake::BilinearBaker).
+void add_cone_bake_flags(CLI::App& app, double& budget, double& tolerance) {
+  add_value(app, "--bake-budget-ms", budget,
+            "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
+            number_in(budget_range));
+  app.add_option("--bake-tolerance", tolerance,
+                 "cone methods: refine while a ratio may be more than T below the best (default 0.25)")
+      ->type_name("T")
+      ->transform(tolerance_in_range());
+}
+
 CommandSettings parse_bake(std::span<const std::string_view> args) {
   CLI::App app("Bake a cone map from a height image or a source.", "displace bake");
   set_up(app);
@@ -815,13 +826,7 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
             "INT", integer_in(1, max_steps));
   add_value(app, "--refine", settings.method.refine, "binary or secant steps (default 8)", "INT",
             integer_in(0, max_refine));
-  add_value(app, "--bake-budget-ms", bake_budget,
-            "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
-            number_in(budget_range));
-  app.add_option("--bake-tolerance", bake_tolerance,
-                 "cone methods: refine while a ratio may be more than T below the best (default 0.25)")
-      ->type_name("T")
-      ->transform(tolerance_in_range());
+  add_cone_bake_flags(app, bake_budget, bake_tolerance);
   app.option_defaults()->group("Options");
   add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
       ->required();
@@ -946,10 +951,14 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
                    : std::string("of 'displace sweep' must end in .csv");
       }))
       ->required();
+  double bake_budget = 0.0, bake_tolerance = 0.0;
+  add_cone_bake_flags(app, bake_budget, bake_tolerance);
   add_renderer_flags(app, settings.renderer);
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
 
+  if (given(app, "--bake-budget-ms")) settings.bake_budget_milliseconds = bake_budget;
+  if (given(app, "--bake-tolerance")) settings.bake_tolerance = float(bake_tolerance);
   for (const std::string& scene : scenes) {
     const bool builtin =
         std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end();

@@ -120,6 +120,9 @@ struct SweepSettings {
   int refine = 8;
   int repeat = 3;  // renders per row; the row reports the median device time
   std::filesystem::path output;  // .csv
+  // the cone methods' maps (bake::BilinearBaker), as RenderSettings' bake_budget_milliseconds
+  double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
+  float bake_tolerance = bake::Budget{}.tolerance;
   render::RendererOptions renderer;
 };
 

@@ -752,6 +752,12 @@ TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
   ASSERT_EQ(sweep.scenes.size(), 2u);
   EXPECT_EQ(sweep.scenes[1].name, "cliff");
   EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
+  EXPECT_TRUE(std::isinf(sweep.bake_budget_milliseconds));
+  const SweepSettings starved = std::get<SweepSettings>(parse(
+      {"sweep", "--bake-budget-ms", "2.5", "--bake-tolerance", "0.4", "--methods", "csm", "--output",
+       "s.csv"}));
+  EXPECT_EQ(starved.bake_budget_milliseconds, 2.5);
+  EXPECT_EQ(starved.bake_tolerance, 0.4f);
   const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
   EXPECT_NE(help.text.find("--steps INT:[1, 4096]"), std::string::npos) << help.text;
   EXPECT_TRUE(std::get<HelpSettings>(parse({"help"})).text.empty());  // the overview
@@ -1461,6 +1467,44 @@ TEST(Cli, RenderWithoutAnyVulkanDriverSaysWhatToInstall) {
 }  // namespace
 
 namespace {
+
+// A sweep of a small scene file: one CSV row per method and step count, the fewest fetches that
+// reach the target, and the cone maps it rendered from - baked at the budget and tolerance asked
+// (budget 0: stage L alone, no texel searched; unlimited at tolerance 0: texels searched).
+TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
+  TempDir dir;
+  std::ofstream(dir / "small.scene") << "# a small ocean\n--source ocean\n--map-size 32\n--time 0\n"
+                                         "--size 40x32\n";
+  const std::string csv = (dir / "s.csv").string();
+  const std::string common = "sweep --scene '" + (dir / "small.scene").string() +
+                             "' --methods acm4,pom --steps 16,64 --repeat 1 --output '" + csv + "' ";
+  auto searched = [](const std::string& out) {
+    const std::size_t at = out.find("cone maps, 4 sectors: ");
+    EXPECT_NE(at, std::string::npos) << out;
+    const std::size_t end = out.find(" texels searched", at), of = out.rfind(" of ", end);
+    const std::size_t from = out.rfind(", ", of);
+    return std::stol(out.substr(from + 2, of - from - 2));
+  };
+  const RunResult starved = run_displace(dir, common + "--bake-budget-ms 0");
+  ASSERT_EQ(starved.exit_code, 0) << starved.err;
+  EXPECT_NE(starved.out.find("cone maps baked within a 0 ms budget at tolerance 0.25"), std::string::npos)
+      << starved.out;
+  EXPECT_EQ(searched(starved.out), 0) << starved.out;
+  // only acm4 reads cone maps
+  EXPECT_EQ(starved.out.find("cone maps, 1 sector"), std::string::npos) << starved.out;
+  std::ifstream table(csv);
+  std::string line;
+  int rows = 0;
+  std::getline(table, line);
+  EXPECT_EQ(line.rfind("scene,method,steps,", 0), 0u) << line;
+  while (std::getline(table, line)) rows += line.rfind("small,", 0) == 0 ? 1 : 0;
+  EXPECT_EQ(rows, 4);  // 2 methods x 2 step counts
+  const RunResult exact = run_displace(dir, common + "--bake-tolerance 0");
+  ASSERT_EQ(exact.exit_code, 0) << exact.err;
+  EXPECT_NE(exact.out.find("cone maps baked with an unlimited budget at tolerance 0\n"), std::string::npos)
+      << exact.out;
+  EXPECT_GT(searched(exact.out), 0) << exact.out;
+}
 
 TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
   TempDir dir;
