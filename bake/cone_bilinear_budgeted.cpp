@@ -50,10 +50,11 @@
 //
 // Refinement (while the budget lasts): texels not certified within the tolerance get
 // bake_bilinear_cones' own search (bilinear_search.h), and the larger of the two lower bounds is
-// emitted. Certified means every quadrant's ratio is at least (1 - tolerance) times a certified upper
-// bound of the best ratio: the centre-to-centre lane sweep of the texels against the apexes (a texel
-// centre q above H_c that a lane's cone from p = c does not clear bounds every conservative ratio;
-// lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
+// emitted, the texels whose stage-L ratios lie furthest below their upper bounds first
+// (order_by_gain). Certified means every quadrant's ratio is at least (1 - tolerance) times a
+// certified upper bound of the best ratio: the centre-to-centre lane sweep of the texels against the
+// apexes (a texel centre q above H_c that a lane's cone from p = c does not clear bounds every
+// conservative ratio; lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
 // surface within 2 texels that rises above H_c gives r <= |x - p| / (s(x) - H_c) for the point p of
 // Q_c nearest x that sees x in the quadrant (witness_upper); both made when refinement first needs
 // them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant
@@ -824,6 +825,47 @@ bool certified(const State& state, std::size_t t) {
   }
 }
 
+// What a search of texel t could raise its ratios by at most: the sum over its quadrants of how far
+// stage L's ratio lies below the certified bound (with 1 sector, the lowest quadrant below the
+// lowest bound; 8 sectors order by their quadrants' bounds too, though an octant's best may exceed
+// them - an order only, no claim).
+float possible_gain(const State& state, std::size_t t) {
+  const float* quadrant = state.stage_l.data() + t * 4;
+  const float* upper = state.upper_ready ? state.upper.data() + t * 4 : no_upper_bounds;
+  if (state.sector_count == 1) {
+    const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+    return std::max(0.0f, std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3])) - lowest);
+  }
+  float gain = 0.0f;
+  for (int q = 0; q < 4; ++q) gain += std::max(0.0f, upper[q] - quadrant[q]);
+  return gain;
+}
+
+// The queue's rest (from next) by possible gain, the largest first (gain_buckets bands of 1 /
+// gain_buckets, the last holding everything from 1 on; texel order within a band): a budget that
+// runs out has then searched the texels whose ratios can rise most. A stable counting sort, the
+// same order every time. On the 256 ocean, a work limit of a tenth of an unlimited bake's now
+// raises the mean ratio from 0.930 to 0.952 of the full bake's (0.941 in texel order, 0.948 in
+// order of stage L's quotient to the bound); a fifth 0.951 -> 0.964.
+constexpr int gain_buckets = 256;
+void order_by_gain(State& state) {
+  const std::size_t first = state.next, count = state.queue.size() - first;
+  if (count < 2) return;
+  thread_local std::vector<std::uint8_t> bucket;
+  thread_local std::vector<int> ordered;
+  bucket.resize(count);
+  ordered.resize(count);
+  std::size_t starts[gain_buckets + 1] = {};
+  for (std::size_t n = 0; n < count; ++n) {
+    const float gain = possible_gain(state, std::size_t(state.queue[first + n]));
+    bucket[n] = std::uint8_t(gain_buckets - 1 - std::min(gain_buckets - 1, int(gain * gain_buckets)));
+    ++starts[bucket[n] + 1];
+  }
+  for (int b = 0; b < gain_buckets; ++b) starts[b + 1] += starts[b];
+  for (std::size_t n = 0; n < count; ++n) ordered[starts[bucket[n]]++] = state.queue[first + n];
+  std::copy(ordered.begin(), ordered.end(), state.queue.begin() + std::ptrdiff_t(first));
+}
+
 // The texels to search, in order: neither searched nor certified.
 void make_queue(State& state) {
   state.queue.clear();
@@ -832,6 +874,7 @@ void make_queue(State& state) {
   const std::size_t texels = std::size_t(state.width) * state.height;
   for (std::size_t t = 0; t < texels; ++t)
     if (!state.searched_flag[t] && !certified(state, t)) state.queue.push_back(int(t));
+  if (state.upper_ready) order_by_gain(state);  // else when refinement makes the bounds
 }
 
 // The same from the flags emit_all left (the tolerance and upper bounds unchanged since).
@@ -864,6 +907,7 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
       if (!certified(state, std::size_t(state.queue[n]))) state.queue[kept++] = state.queue[n];
     state.queue.resize(kept);
     if (state.next >= state.queue.size()) return work;
+    order_by_gain(state);
   }
   const HeightView current{state.heights.data(), state.width, state.height};
   if (!state.search) {
