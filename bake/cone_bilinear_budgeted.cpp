@@ -54,13 +54,14 @@
 // (order_by_gain). Certified means every quadrant's ratio is at least (1 - tolerance) times a
 // certified upper bound of the best ratio: the centre-to-centre lane sweep of the texels against the
 // apexes (a texel centre q above H_c that a lane's cone from p = c does not clear bounds every
-// conservative ratio; lane_sweep.cpp's bound), and under it the witnesses near the texel: a half-texel sample x of the
-// surface within 2 texels that rises above H_c gives r <= |x - p| / (s(x) - H_c) for the point p of
-// Q_c nearest x that sees x in the quadrant (witness_upper); both made when refinement first needs
-// them (they certify 17% of the 512 ocean's texels, the lanes alone 4%). 8 sectors have no octant
-// bounds and certify only what reaches 1 - tolerance. update() redoes stage L and keeps the searched
-// ratios that cannot have changed: those of texels whose apex is unchanged, where heights only fell
-// (a lower surface keeps every claim) or where the raised texels' region is too far to lower them.
+// conservative ratio; lane_sweep.cpp's bound), and under it the witnesses near the texel: a
+// half-texel sample x of the surface within 2 texels that rises above H_c gives r <= |x - p| /
+// (s(x) - H_c) for the point p of Q_c nearest x that sees x in the quadrant (witness_upper); both
+// made when refinement first needs them (they certify 17% of the 512 ocean's texels, the lanes alone
+// 4%). 8 sectors have no octant bounds and certify only what reaches 1 - tolerance. update() redoes
+// stage L and keeps the searched ratios that cannot have changed: those of texels whose apex is
+// unchanged, where heights only fell (a lower surface keeps every claim) or where the raised texels'
+// region is too far to lower them.
 #include "bake/bilinear_search.h"
 #include "bake/budget_clock.h"
 

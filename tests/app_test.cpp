@@ -1294,8 +1294,8 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
     const std::size_t of = line.rfind(" of ", at), from = line.rfind(", ", of);
     return std::stol(line.substr(from + 2, of - from - 2));
   };
-  const std::string common = "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 --method acm8 "
-                             "--compare reference --output '" + out + "' --bake-tolerance ";
+  const std::string common = "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 "
+                             "--method acm8 --compare reference --output '" + out + "' --bake-tolerance ";
   const RunResult tight = run_displace(dir, common + "0");
   ASSERT_EQ(tight.exit_code, 0) << tight.err;
   EXPECT_GT(searched(tight.out), 0) << tight.out;

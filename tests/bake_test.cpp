@@ -2402,11 +2402,12 @@ TEST(BilinearBaker, RefineContinuesAndPendingFalls) {
 }
 
 // A budget that runs out has searched the texels whose ratios can rise most first: on an ocean, a
-// cliff and bricks, the texels a work limit of a tenth of the unlimited bake's raised gain, on
-// average, well over what the unlimited bake's raised texels gain (texel order would give about
-// the same; NeverPiercedAtAnyBudget holds such maps to the contract).
+// cliff and bricks, the texels that a work limit of a tenth of the unlimited bake's raised gain, on
+// average, over 1.5x what the unlimited bake's raised texels gain (1.8-2.3x; texel order gives
+// 0.9-1.2x). NeverPiercedAtAnyBudget holds such maps to the contract.
 TEST(BilinearBaker, ALimitedRefinementSearchesTheLargestGainsFirst) {
-  for (const Map& map : {test::make_ocean(96, 96), test::make_fractal_cliff(96, 80), test::make_bricks(96, 96)}) {
+  const Map maps[] = {test::make_ocean(96, 96), test::make_fractal_cliff(96, 80), test::make_bricks(96, 96)};
+  for (const Map& map : maps) {
     for (int sectors : {1, 4}) {
       std::vector<float> apex(map.values.size());
       auto baked = [&](long long max_work) {
@@ -2435,12 +2436,16 @@ TEST(BilinearBaker, ALimitedRefinementSearchesTheLargestGainsFirst) {
         if (gain <= 0.0) continue;
         raised_sum += gain;
         ++raised;
-        if (limited_raised) limited_sum += gain, ++limited_count;
+        if (limited_raised) {
+          limited_sum += gain;
+          ++limited_count;
+        }
       }
       ASSERT_GT(raised, 0) << map.name;
       ASSERT_GT(limited_count, 0) << map.name;
       const double ratio = (limited_sum / double(limited_count)) / (raised_sum / double(raised));
-      EXPECT_GT(ratio, 1.5) << map.name << " sectors " << sectors << ": " << limited_count << " of " << raised;
+      EXPECT_GT(ratio, 1.5) << map.name << " sectors " << sectors << ": " << limited_count << " of "
+                            << raised;
       EXPECT_GT(some.mean_ratio, none.mean_ratio) << map.name;
     }
   }
