@@ -130,6 +130,8 @@ struct BilinearBaker::State {
   std::vector<float> searched;  // per texel and sector, the search's ratios (valid where searched_flag)
   std::vector<std::uint8_t> searched_flag;
   std::vector<int> queue;  // texels still to search, in order
+  std::vector<std::uint8_t> queue_band;  // order_by_gain's scratch, kept between frames
+  std::vector<int> queue_ordered;
   std::size_t next = 0;    // queue position
   std::vector<std::uint8_t> uncertified;  // per texel, from the last emission: not certified, not searched
   long long uncertified_count = 0;        // of them
@@ -181,6 +183,11 @@ void check_view(const State& state, HeightView heights, const ConeView& out, std
     throw BakeError("bilinear baker: the apex heights hold " + std::to_string(apex.size()) + " values for " +
                     std::to_string(std::size_t(state.width) * state.height) + " texels");
   }
+}
+
+// The smallest of a texel's four quadrant values (1 sector takes it; so do the certified bounds).
+inline float lowest_of_four(const float* quadrant) {
+  return std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
 }
 
 int wrap_index(int n, int count) {
@@ -639,7 +646,7 @@ float emit_texel_of(const State& state, std::size_t t, float* out) {
   for (int k = 0; k < sectors; ++k) {
     const float from_l = sectors == 4   ? quadrant[k]
                          : sectors == 8 ? quadrant[k / 2]
-                                        : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+                                        : lowest_of_four(quadrant);
     const float value = searched ? std::max(from_l, state.searched[t * sectors + k]) : from_l;
     out[t * sectors + k] = value;
     sum += value;
@@ -801,14 +808,14 @@ long long ensure_upper(State& state) {
 // `upper` is the texel's four bounds, or none (all 1) before they are made.
 template <int sectors>
 inline bool certified_of(const float* quadrant, const float* upper, float keep) {
-  const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+  const float lowest = lowest_of_four(quadrant);
   switch (sectors) {
     case 4: {
       bool all = true;
       for (int q = 0; q < 4; ++q) all &= !(quadrant[q] < keep * upper[q]);
       return all;
     }
-    case 1: return lowest >= keep * std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3]));
+    case 1: return lowest >= keep * lowest_of_four(upper);
     default: return lowest >= keep;
   }
 }
@@ -834,8 +841,8 @@ float possible_gain(const State& state, std::size_t t) {
   const float* quadrant = state.stage_l.data() + t * 4;
   const float* upper = state.upper_ready ? state.upper.data() + t * 4 : no_upper_bounds;
   if (state.sector_count == 1) {
-    const float lowest = std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
-    return std::max(0.0f, std::min(std::min(upper[0], upper[1]), std::min(upper[2], upper[3])) - lowest);
+    const float lowest = lowest_of_four(quadrant);
+    return std::max(0.0f, lowest_of_four(upper) - lowest);
   }
   float gain = 0.0f;
   for (int q = 0; q < 4; ++q) gain += std::max(0.0f, upper[q] - quadrant[q]);
@@ -852,8 +859,8 @@ constexpr int gain_buckets = 256;
 void order_by_gain(State& state) {
   const std::size_t first = state.next, count = state.queue.size() - first;
   if (count < 2) return;
-  thread_local std::vector<std::uint8_t> bucket;
-  thread_local std::vector<int> ordered;
+  std::vector<std::uint8_t>& bucket = state.queue_band;
+  std::vector<int>& ordered = state.queue_ordered;
   bucket.resize(count);
   ordered.resize(count);
   std::size_t starts[gain_buckets + 1] = {};
@@ -925,10 +932,9 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   // share of the queue as large as the reports allow: with 2 chunks, one thread waited for the
   // other at every join (the searches differ in cost), 4% of the time in TBB and 4% in the kernel's
   // scheduler on the 512 ocean.
-  const std::size_t batch =
-      clock.unlimited() ? std::max<std::size_t>(std::size_t(refine_chunk) * 2,
-                                        (state.queue.size() - first_queued) / max_progress_reports + 1)
-                : std::size_t(refine_chunk) * 2;
+  const std::size_t two_chunks = std::size_t(refine_chunk) * 2;
+  const std::size_t share = (state.queue.size() - first_queued) / max_progress_reports + 1;
+  const std::size_t batch = clock.unlimited() ? std::max(two_chunks, share) : two_chunks;
   double next_report = 1.0 / max_progress_reports;
   while (state.next < state.queue.size() && !clock.exhausted()) {
     const std::size_t first = state.next, last = std::min(state.queue.size(), first + batch);
@@ -1021,7 +1027,7 @@ double emit_row(State& state, std::size_t first, int count, float* out, float* a
       for (int k = 0; k < sectors; ++k) {
         const float value = sectors == 4   ? quadrant[k]
                             : sectors == 8 ? quadrant[k / 2]
-                                           : std::min(std::min(quadrant[0], quadrant[1]), std::min(quadrant[2], quadrant[3]));
+                                           : lowest_of_four(quadrant);
         row_out[std::size_t(j) * sectors + k] = value;
         partial[(j * sectors + k) % accumulators] += value;
       }

@@ -5,7 +5,7 @@
 #   bash cmake/setup.sh test    # everything CI runs: suite, sanitize, tsan, then fuzz (25-45 minutes)
 #   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 2 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
-#   bash cmake/setup.sh tsan    # the suite but the report and the soak under TSan, with a libtbb built for it (build-tsan/)
+#   bash cmake/setup.sh tsan    # the suite under TSan but the report and the soak, with a TBB built for it (build-tsan/)
 #   bash cmake/setup.sh fuzz    # libFuzzer over the scene, OBJ, command-line and height-image readers (clang, build-fuzz/)
 #   bash cmake/setup.sh report  # docs/report/: what accuracy costs in time, measured here (about 6 minutes)
 #   bash cmake/setup.sh build   # only install + configure + build

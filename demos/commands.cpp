@@ -507,10 +507,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
     require_memory(render_memory(settings, input.width, input.height), limits);
   }
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
-  bake::Budget cone_budget;
-  cone_budget.milliseconds = settings.bake_budget_milliseconds;
-  cone_budget.tolerance = settings.bake_tolerance;
-  maps.set_cone_budget(cone_budget);
+  maps.set_cone_budget(settings.cone_budget);
   maps.set_heights({input.width, input.height, std::move(input.heights)});
   if (!settings.albedo.empty()) set_albedo_from(renderer, settings.albedo);
   if (!settings.mesh.empty()) renderer.set_mesh(read_obj(settings.mesh));
@@ -520,10 +517,11 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   metadata.push_back({"displace:method", std::string(info.name)});
   metadata.push_back({"displace:steps", settings.method.steps});
   metadata.push_back({"displace:refine", settings.method.refine});
-  const bool default_tolerance = settings.bake_tolerance == bake::Budget{}.tolerance;
-  if (std::isfinite(settings.bake_budget_milliseconds))
-    metadata.push_back({"displace:bake_budget_ms", float(settings.bake_budget_milliseconds)});
-  if (!default_tolerance) metadata.push_back({"displace:bake_tolerance", settings.bake_tolerance});
+  const bake::Budget& cone_budget = settings.cone_budget;
+  const bool default_tolerance = cone_budget.tolerance == bake::Budget{}.tolerance;
+  if (std::isfinite(cone_budget.milliseconds))
+    metadata.push_back({"displace:bake_budget_ms", float(cone_budget.milliseconds)});
+  if (!default_tolerance) metadata.push_back({"displace:bake_tolerance", cone_budget.tolerance});
   if (settings.view.surface != render::Surface::plane) {
     metadata.push_back({"displace:surface", std::string(render::surface_name(settings.view.surface))});
     metadata.push_back({"displace:radius", settings.view.radius});
@@ -539,8 +537,8 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
       summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
   if (info.cone_sectors != 0) {  // what the cone maps cost and claim
     out << "  cone maps baked by the budgeted bilinear baker "
-        << baked_within(settings.bake_budget_milliseconds)
-        << (default_tolerance ? std::string() : fmt::format(" at tolerance {:g}", settings.bake_tolerance));
+        << baked_within(cone_budget.milliseconds)
+        << (default_tolerance ? std::string() : fmt::format(" at tolerance {:g}", cone_budget.tolerance));
     const bake::BakeStats& stats = maps.cone_stats(info.cone_sectors);
     if (stats.sector_count != 0) {
       out << fmt::format(": {:.1f} ms, mean ratio {:.4f}, {} of {} texels searched", stats.milliseconds,
@@ -579,18 +577,15 @@ void load_scene(render::Renderer& renderer, pipeline::MapMaker& maps, const Scen
 void run_sweep(const SweepSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
-  bake::Budget cone_budget;
-  cone_budget.milliseconds = settings.bake_budget_milliseconds;
-  cone_budget.tolerance = settings.bake_tolerance;
-  maps.set_cone_budget(cone_budget);
+  maps.set_cone_budget(settings.cone_budget);
   std::ofstream csv(settings.output);
   if (!csv) throw runtime_error("cannot write " + settings.output.string());
   csv << "scene,method,steps,refine,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,mean_iterations,"
          "median_ms,device\n";
   out << "displace sweep on " << renderer.device().name << " (" << renderer.device().type << "), "
       << settings.repeat << " renders per row, median device time; cone maps baked "
-      << baked_within(settings.bake_budget_milliseconds)
-      << fmt::format(" at tolerance {:g}\n", settings.bake_tolerance);
+      << baked_within(settings.cone_budget.milliseconds)
+      << fmt::format(" at tolerance {:g}\n", settings.cone_budget.tolerance);
   for (const SceneSettings& scene : settings.scenes) {
     load_scene(renderer, maps, scene);
     const render::Frame reference =

@@ -714,12 +714,13 @@ CLI::Validator tolerance_in_range() {
       "[0, 1)");
 }
 
-// --bake-budget-ms and --bake-tolerance: the budget of the cone methods' maps (bake::BilinearBaker).
-void add_cone_bake_flags(CLI::App& app, double& budget, double& tolerance) {
-  add_value(app, "--bake-budget-ms", budget,
+// --bake-budget-ms and --bake-tolerance: the budget of the cone methods' maps (bake::BilinearBaker),
+// into `budget` where given.
+void add_cone_bake_flags(CLI::App& app, bake::Budget& budget) {
+  add_value(app, "--bake-budget-ms", budget.milliseconds,
             "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
             number_in(budget_range));
-  app.add_option("--bake-tolerance", tolerance,
+  app.add_option("--bake-tolerance", budget.tolerance,
                  "cone methods: refine while a ratio may be more than T below the best (default 0.25)")
       ->type_name("T")
       ->transform(tolerance_in_range());
@@ -814,7 +815,6 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
   SceneDraft scene;
   std::string output, compare;
   std::vector<std::string> aovs;
-  double bake_budget = 0.0, bake_tolerance = 0.0;
   add_scene_flags(app, scene);
   add_renderer_flags(app, settings.renderer);
   const Words<render::Method> methods = method_words();
@@ -826,7 +826,7 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
             "INT", integer_in(1, max_steps));
   add_value(app, "--refine", settings.method.refine, "binary or secant steps (default 8)", "INT",
             integer_in(0, max_refine));
-  add_cone_bake_flags(app, bake_budget, bake_tolerance);
+  add_cone_bake_flags(app, settings.cone_budget);
   app.option_defaults()->group("Options");
   add_value(app, "--output", output, "the picture", "FILE.png|FILE.exr", output_file({".png", ".exr"}))
       ->required();
@@ -859,8 +859,6 @@ CommandSettings parse_render(std::span<const std::string_view> args) {
     throw usage_error(fmt::format("{} applies to the methods that read cone maps ({}), not --method {}", flag,
                                   fmt::join(cone_methods, ", "), info.name));
   }
-  if (given(app, "--bake-budget-ms")) settings.bake_budget_milliseconds = bake_budget;
-  if (given(app, "--bake-tolerance")) settings.bake_tolerance = float(bake_tolerance);
   settings.aovs = aov_outputs(aovs);
   settings.compare_reference = given(app, "--compare");
   settings.output = output;
@@ -951,14 +949,11 @@ CommandSettings parse_sweep(std::span<const std::string_view> args) {
                    : std::string("of 'displace sweep' must end in .csv");
       }))
       ->required();
-  double bake_budget = 0.0, bake_tolerance = 0.0;
-  add_cone_bake_flags(app, bake_budget, bake_tolerance);
+  add_cone_bake_flags(app, settings.cone_budget);
   add_renderer_flags(app, settings.renderer);
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
 
-  if (given(app, "--bake-budget-ms")) settings.bake_budget_milliseconds = bake_budget;
-  if (given(app, "--bake-tolerance")) settings.bake_tolerance = float(bake_tolerance);
   for (const std::string& scene : scenes) {
     const bool builtin =
         std::find(sweep_scene_names.begin(), sweep_scene_names.end(), scene) != sweep_scene_names.end();

@@ -98,9 +98,9 @@ struct RenderSettings {
   std::filesystem::path albedo;  // empty: the procedural grid
   std::filesystem::path mesh;    // --surface mesh:FILE.obj
   bool compare_reference = false;
-  // the budget of the cone maps' bake (bake::BilinearBaker), for the methods that read cone maps
-  double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
-  float bake_tolerance = bake::Budget{}.tolerance;  // and its tolerance
+  // the milliseconds and tolerance of the cone maps' bake (bake::BilinearBaker; unlimited by
+  // default), for the methods that read cone maps
+  bake::Budget cone_budget;
   render::RendererOptions renderer;
 };
 
@@ -120,9 +120,7 @@ struct SweepSettings {
   int refine = 8;
   int repeat = 3;  // renders per row; the row reports the median device time
   std::filesystem::path output;  // .csv
-  // the cone methods' maps (bake::BilinearBaker), as RenderSettings' bake_budget_milliseconds
-  double bake_budget_milliseconds = std::numeric_limits<double>::infinity();
-  float bake_tolerance = bake::Budget{}.tolerance;
+  bake::Budget cone_budget;  // the cone methods' maps, as RenderSettings' cone_budget
   render::RendererOptions renderer;
 };
 

@@ -752,12 +752,12 @@ TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
   ASSERT_EQ(sweep.scenes.size(), 2u);
   EXPECT_EQ(sweep.scenes[1].name, "cliff");
   EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
-  EXPECT_TRUE(std::isinf(sweep.bake_budget_milliseconds));
+  EXPECT_TRUE(std::isinf(sweep.cone_budget.milliseconds));
   const SweepSettings starved = std::get<SweepSettings>(parse(
       {"sweep", "--bake-budget-ms", "2.5", "--bake-tolerance", "0.4", "--methods", "csm", "--output",
        "s.csv"}));
-  EXPECT_EQ(starved.bake_budget_milliseconds, 2.5);
-  EXPECT_EQ(starved.bake_tolerance, 0.4f);
+  EXPECT_EQ(starved.cone_budget.milliseconds, 2.5);
+  EXPECT_EQ(starved.cone_budget.tolerance, 0.4f);
   const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
   EXPECT_NE(help.text.find("--steps INT:[1, 4096]"), std::string::npos) << help.text;
   EXPECT_TRUE(std::get<HelpSettings>(parse({"help"})).text.empty());  // the overview
@@ -767,17 +767,17 @@ TEST(Options, ParsesTheRenderBakeBudget) {
   const RenderSettings budget =
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                       "--method", "acm8", "--bake-budget-ms", "0", "--output", "f.png"}));
-  EXPECT_EQ(budget.bake_budget_milliseconds, 0.0);
+  EXPECT_EQ(budget.cone_budget.milliseconds, 0.0);
   const RenderSettings unlimited =
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                       "--method", "acm8", "--output", "f.png"}));
-  EXPECT_TRUE(std::isinf(unlimited.bake_budget_milliseconds));
-  EXPECT_EQ(unlimited.bake_tolerance, displace::bake::Budget{}.tolerance);
+  EXPECT_TRUE(std::isinf(unlimited.cone_budget.milliseconds));
+  EXPECT_EQ(unlimited.cone_budget.tolerance, displace::bake::Budget{}.tolerance);
   const RenderSettings loose =
       std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                       "--method", "csm", "--bake-tolerance", "0.45", "--output", "f.png"}));
-  EXPECT_EQ(loose.bake_tolerance, 0.45f);
-  EXPECT_TRUE(std::isinf(loose.bake_budget_milliseconds));
+  EXPECT_EQ(loose.cone_budget.tolerance, 0.45f);
+  EXPECT_TRUE(std::isinf(loose.cone_budget.milliseconds));
 }
 
 // Interactive play starts a scene that sets no budget at a real-time frame budget (an unlimited bake
