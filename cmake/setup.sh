@@ -13,13 +13,14 @@ set -euo pipefail
 mode="${1:-build}"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${DISPLACE_BUILD_DIR:-$root/build}"
+source "$root/cmake/setup_lib.sh"
 
 packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools
           mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb python3-matplotlib)
 missing=()
 for p in "${packages[@]}"; do
-  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+  if ! package_installed "$p"; then
     missing+=("$p")
   fi
 done
@@ -61,7 +62,7 @@ run_sanitize() {
 run_fuzz() {
   local fuzz_packages=(clang libclang-rt-14-dev) p
   for p in "${fuzz_packages[@]}"; do
-    if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    if ! package_installed "$p"; then
       local sudo_cmd=()
       if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
       DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${fuzz_packages[@]}" >/dev/null
@@ -77,9 +78,9 @@ run_fuzz() {
 
 # ThreadSanitizer over the suite in build-tsan/. Every thread here is a TBB worker, and TSan sees a
 # task's handoff only inside an instrumented libtbb, which Debian does not ship: this builds one
-# from Debian's own source of the installed libtbb-dev (the upstream tarball from deb.debian.org,
-# checked against the .dsc's SHA-256; Debian's patches touch other architectures and TBB's own
-# tests only), once, into build-tsan/tbb/.
+# from Debian's own source of the installed libtbb-dev (fetched by apt from deb-src entries derived
+# from the machine's configured deb entries, checked by apt against the signed index; Debian's
+# patches touch other architectures and TBB's own tests only), once, into build-tsan/tbb/.
 run_tsan() {
   local tsan_build="$root/build-tsan" tbb_root="$root/build-tsan/tbb"
   local version upstream source
@@ -91,45 +92,9 @@ run_tsan() {
     echo "setup: building libtbb $upstream with -fsanitize=thread (Debian source package $source $version)"
     rm -rf "$tbb_root"
     mkdir -p "$tbb_root"
-    python3 - "$source" "$version" "$tbb_root" <<'PY'
-import hashlib, re, sys, tarfile, urllib.request
-source, version, into = sys.argv[1], sys.argv[2], sys.argv[3]
-bare = version.split(":", 1)[-1]
-prefix = source[:4] if source.startswith("lib") else source[0]
-pools = ["http://deb.debian.org/debian/pool/main", "http://deb.debian.org/debian-security/pool/updates/main"]
-def fetch(url):
-    with urllib.request.urlopen(url, timeout=120) as response:
-        return response.read()
-dsc = None
-for pool in pools:
-    base = f"{pool}/{prefix}/{source}/"
-    try:
-        dsc = fetch(f"{base}{source}_{bare}.dsc").decode()
-        break
-    except OSError:
-        continue
-if dsc is None:
-    sys.exit(f"setup: no source package {source} {version} on deb.debian.org")
-block = dsc.split("Checksums-Sha256:", 1)[1]
-entries = re.findall(r"^ ([0-9a-f]{64}) \d+ (\S+)$", block, re.M)
-orig = [(digest, name) for digest, name in entries if ".orig.tar." in name]
-if not orig:
-    sys.exit(f"setup: {source} {version}: no upstream tarball named in the .dsc")
-digest, name = orig[0]
-try:
-    data = fetch(base + name)
-except OSError as error:
-    sys.exit(f"setup: {base}{name}: {error}")
-if hashlib.sha256(data).hexdigest() != digest:
-    sys.exit(f"setup: {name}: SHA-256 does not match the .dsc")
-path = f"{into}/{name}"
-with open(path, "wb") as out:
-    out.write(data)
-with tarfile.open(path) as archive:
-    archive.extractall(f"{into}/source")
-PY
-    local tree
-    tree="$(find "$tbb_root/source" -mindepth 1 -maxdepth 1 -type d | head -n 1)"
+    fetch_debian_source libtbb-dev "$version" "$tbb_root" || exit 1
+    local tree candidate
+    for candidate in "$tbb_root"/source/*/; do tree="${candidate%/}"; break; done
     # its compiler output (GCC warns that TSan does not model atomic_thread_fence) in a log, shown on failure
     local log="$tbb_root/build.log"
     if ! { cmake -S "$tree" -B "$tbb_root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTBB_SANITIZE=thread \
@@ -148,7 +113,7 @@ PY
   # a run against Debian's uninstrumented libtbb would report every handoff: refuse it
   local program
   for program in "$tsan_build/tests/displace_tests" "$tsan_build/displace"; do
-    if ! ldd "$program" | grep -q "$tbb_root/install/lib/libtbb"; then
+    if ! loads_library "$program" "$tbb_root/install/lib/libtbb"; then
       echo "setup: $program does not load the instrumented libtbb from $tbb_root" >&2
       exit 1
     fi

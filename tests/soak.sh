@@ -40,7 +40,8 @@ if [ -s "$work/stderr.txt" ]; then
 fi
 
 # one number of the JSON written by bench-frame (nlohmann's dump(2): one key a line)
-number() { sed -n "s/^ *\"$1\": \(-\{0,1\}[0-9][0-9]*\),\{0,1\}$/\1/p" "$work/soak.json" | head -n 1; }
+# (the first match; sed reads the file itself, so no pipe can break under pipefail)
+number() { sed -n "/^ *\"$1\": -\{0,1\}[0-9][0-9]*,\{0,1\}$/{s/^ *\"$1\": \(-\{0,1\}[0-9][0-9]*\),\{0,1\}$/\1/p;q;}" "$work/soak.json"; }
 rendered="$(number frames_rendered)"
 after="$(number after_warmup)"
 end="$(number end)"
