@@ -39,4 +39,3 @@ struct BudgetClock {
 };
 
 }  // namespace displace::bake::detail
-

@@ -138,7 +138,7 @@ struct Context {
   detail::Pyramid pyramid;             // max pyramid over the cells' maxima
   detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
   double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
-  bool prune = true;                               // BilinearConeSettings::prune
+  bool prune = true;                              // BilinearConeSettings::prune
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {
@@ -266,7 +266,8 @@ struct TexelSearch {
           // box of directions misses, and piece_bound is at least near / rise, every rounding
           // monotone. So when the cell's gap over its rise (with twice the margin) reaches the
           // largest ratio of its sectors, no piece can lower one: the same ratios, fewer pieces.
-          const detail::SectorMask cell_sectors = box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0);
+          const detail::SectorMask cell_sectors =
+              box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0);
           const double gap = gap_distance(context, span_gap(j, cu[0], cu[1]), span_gap(i, cv[0], cv[1]));
           if (gap / (cell_max + 2.0 * height_margin - apex) >= largest_in(cell_sectors)) continue;
         }
@@ -353,7 +354,8 @@ struct TexelSearch {
       // needs neither the root nor the division:
       // where distance^2 exceeds (largest * rise)^2 by a relative 1e-9 (far above the roundings of
       // either side), the bound is above every ratio it could lower, as the full test would find
-      const double gap_u = span_gap(j, u0, u1) * context.half_texel_u, gap_v = span_gap(i, v0, v1) * context.half_texel_v;
+      const double gap_u = span_gap(j, u0, u1) * context.half_texel_u,
+                   gap_v = span_gap(i, v0, v1) * context.half_texel_v;
       const double squared = gap_u * gap_u + gap_v * gap_v, rise = top - apex, reach = largest * rise;
       if (context.prune && squared > reach * reach * (1.0 + 1e-9)) return false;
       const double bound = std::sqrt(squared) / rise;
@@ -385,7 +387,8 @@ struct TexelSearch {
         const int width = pyramid.count_x(next.level - 1), height = pyramid.count_y(next.level - 1);
         const float* children = pyramid.max.levels[std::size_t(next.level - 1)].data();
         __builtin_prefetch(children + std::size_t(2 * next.bv) * width + 2 * next.bu);
-        if (2 * next.bv + 1 < height) __builtin_prefetch(children + std::size_t(2 * next.bv + 1) * width + 2 * next.bu);
+        if (2 * next.bv + 1 < height)
+          __builtin_prefetch(children + std::size_t(2 * next.bv + 1) * width + 2 * next.bu);
       }
       // the ratios may have dropped since it was pushed
       bool useful = false;
@@ -486,8 +489,9 @@ Context make_context(HeightView heights, Address address, int sectors, int windo
 }
 
 // One texel: apex and ratios as stored; `best`, `hull` and `stack` are scratch.
-long long search_texel(const Context& context, int i, int j, std::vector<double>& best, std::vector<double>& hull,
-                       std::vector<TexelSearch::Entry>& stack, float& apex, float* ratios) {
+long long search_texel(const Context& context, int i, int j, std::vector<double>& best,
+                       std::vector<double>& hull, std::vector<TexelSearch::Entry>& stack, float& apex,
+                       float* ratios) {
   double square[3][3];
   square_values(context, i, j, square);
   apex = apex_height(square);
@@ -544,7 +548,8 @@ struct BilinearSearch::Context {
 };
 
 BilinearSearch::BilinearSearch(HeightView heights, Address address, int sector_count, int slope_window)
-    : context_(std::make_unique<Context>(Context{make_context(heights, address, sector_count, slope_window)})) {}
+    : context_(
+          std::make_unique<Context>(Context{make_context(heights, address, sector_count, slope_window)})) {}
 BilinearSearch::~BilinearSearch() = default;
 
 void BilinearSearch::update(HeightView heights) {

@@ -62,9 +62,6 @@
 // stage L and keeps the searched ratios that cannot have changed: those of texels whose apex is
 // unchanged, where heights only fell (a lower surface keeps every claim) or where the raised texels'
 // region is too far to lower them.
-#include "bake/bilinear_search.h"
-#include "bake/budget_clock.h"
-
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -80,6 +77,8 @@
 #include <vector>
 
 #include "bake/apex_kernel.h"
+#include "bake/bilinear_search.h"
+#include "bake/budget_clock.h"
 #include "bake/geometry.h"
 #include "bake/lane_sweep.h"
 
@@ -88,19 +87,21 @@ namespace {
 
 constexpr float lane_lowest_ratio = 0.02f;  // stage L: the lowest lane of make_lane_plan (replaced below)
 constexpr double lane_knee = 0.03;          // stage L: lanes 1.3x apart below this ratio, dense above
-constexpr int stage_l_sweeps = 1;           // stage L: sweeps of detail::lane_count lanes each (2: +33% time, +1% ratio)
-constexpr int refine_chunk = 64;            // texels searched between two looks at the budget
-constexpr int near_reach = 6;               // half texels of padding the near field reads past the map (even)
-constexpr int near_band = 32;               // texel rows per band of sub-cells (a task's share)
-constexpr int apex_parts = 2;               // stage L's steps (run_stage_l_step): the apexes in 2 parts,
-constexpr int near_parts = 4;               // the cells, two sweeps, the near field in 4 parts
+constexpr int stage_l_sweeps =
+    1;  // stage L: sweeps of detail::lane_count lanes each (2: +33% time, +1% ratio)
+constexpr int refine_chunk = 64;  // texels searched between two looks at the budget
+constexpr int near_reach = 6;     // half texels of padding the near field reads past the map (even)
+constexpr int near_band = 32;     // texel rows per band of sub-cells (a task's share)
+constexpr int apex_parts = 2;     // stage L's steps (run_stage_l_step): the apexes in 2 parts,
+constexpr int near_parts = 4;     // the cells, two sweeps, the near field in 4 parts
 constexpr int stage_l_steps = apex_parts + 3 + near_parts;
 // each step's share of stage L's time, measured on a 512 x 512 ocean (one step per advance() call,
 // medians of 15; the last near part includes the emission): for advance()'s `at_least`
-constexpr double stage_l_step_share[stage_l_steps] = {0.028, 0.024, 0.066, 0.206, 0.194, 0.101, 0.098, 0.097, 0.186};
-constexpr int witness_reach = 4;            // half texels: how far the upper bounds' near witnesses reach
-constexpr int witness_pad = 6;              // half texels of witness rows past the map (even, > reach)
-constexpr float witness_slack = 2e-7f;      // heights: a witness's rounding and its difference to H_c
+constexpr double stage_l_step_share[stage_l_steps] = {0.028, 0.024, 0.066, 0.206, 0.194,
+                                                      0.101, 0.098, 0.097, 0.186};
+constexpr int witness_reach = 4;        // half texels: how far the upper bounds' near witnesses reach
+constexpr int witness_pad = 6;          // half texels of witness rows past the map (even, > reach)
+constexpr float witness_slack = 2e-7f;  // heights: a witness's rounding and its difference to H_c
 
 // Made for a band of rows at a time (first_row on), so that a thread's planes stay O(W).
 struct SubCells {
@@ -129,16 +130,16 @@ struct BilinearBaker::State {
   std::vector<float> stage_l;   // per texel and quadrant, stage L's ratios
   std::vector<float> searched;  // per texel and sector, the search's ratios (valid where searched_flag)
   std::vector<std::uint8_t> searched_flag;
-  std::vector<int> queue;  // texels still to search, in order
+  std::vector<int> queue;                // texels still to search, in order
   std::vector<std::uint8_t> queue_band;  // order_by_gain's scratch, kept between frames
   std::vector<int> queue_ordered;
-  std::size_t next = 0;    // queue position
+  std::size_t next = 0;                   // queue position
   std::vector<std::uint8_t> uncertified;  // per texel, from the last emission: not certified, not searched
   long long uncertified_count = 0;        // of them
-  bool queue_stale = false;  // the queue is still to be made from `uncertified` (when refinement runs)
-  double emitted_sum = 0.0;               // of every ratio emitted (the stats' mean)
-  std::vector<double> row_sums;           // emit_all's per row: the emitted ratios' sum
-  std::vector<long long> row_flagged;     // and the uncertified texels
+  bool queue_stale = false;      // the queue is still to be made from `uncertified` (when refinement runs)
+  double emitted_sum = 0.0;      // of every ratio emitted (the stats' mean)
+  std::vector<double> row_sums;  // emit_all's per row: the emitted ratios' sum
+  std::vector<long long> row_flagged;  // and the uncertified texels
   // where stage L's last steps emit each row as they finish it (bake()), or null (emit_all later)
   float* emit_out = nullptr;
   float* emit_apex = nullptr;
@@ -154,8 +155,8 @@ struct BilinearBaker::State {
   std::vector<std::uint32_t> upper_masks[4];                 // the upper bounds' centre sweep, per quadrant
   float lane_ratio[stage_l_sweeps][detail::lane_count + 1];  // per sweep: the ratio a count proves
   detail::LanePlan plan, upper_plan;
-  std::vector<float> upper;  // per texel and quadrant: a certified upper bound of the best ratio
-  bool upper_ready = false;  // upper holds this frame's bounds (else every bound is 1)
+  std::vector<float> upper;   // per texel and quadrant: a certified upper bound of the best ratio
+  bool upper_ready = false;   // upper holds this frame's bounds (else every bound is 1)
   std::vector<double> lanes;  // stage L's lane ratios (stage_l_sweeps x 32)
   std::vector<int> column_before, column_after;  // stage L: each column's neighbours, wrapped or clamped
   // stage L in steps: the next one (stage_l_steps: none under way) and what the steps hand on
@@ -173,11 +174,12 @@ using Clock = detail::BudgetClock;
 
 void check_view(const State& state, HeightView heights, const ConeView& out, std::span<float> apex) {
   validate(heights, out);
-  if (heights.width != state.width || heights.height != state.height || out.sector_count != state.sector_count) {
-    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " + std::to_string(state.height) +
-                    " map with " + std::to_string(state.sector_count) + " sectors, given " +
-                    std::to_string(heights.width) + " x " + std::to_string(heights.height) + " with " +
-                    std::to_string(out.sector_count));
+  if (heights.width != state.width || heights.height != state.height ||
+      out.sector_count != state.sector_count) {
+    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " +
+                    std::to_string(state.height) + " map with " + std::to_string(state.sector_count) +
+                    " sectors, given " + std::to_string(heights.width) + " x " +
+                    std::to_string(heights.height) + " with " + std::to_string(out.sector_count));
   }
   if (apex.size() != std::size_t(state.width) * state.height) {
     throw BakeError("bilinear baker: the apex heights hold " + std::to_string(apex.size()) + " values for " +
@@ -398,7 +400,8 @@ NearPlan make_near_plan(int width, int height, int q) {
   for (int g = 0; g < detail::near_groups; ++g)
     for (int n = 0; n < plan.group_counts[g]; ++n) {
       plan.entries[count] = grouped[g][n];
-      plan.entries[count++].inverse_gap = std::uint16_t(std::ceil(inverse_gap[g][n] * gap_scale * (1.0 + 1e-12)));
+      plan.entries[count++].inverse_gap =
+          std::uint16_t(std::ceil(inverse_gap[g][n] * gap_scale * (1.0 + 1e-12)));
     }
   return plan;
 }
@@ -412,8 +415,8 @@ NearPlan make_near_plan(int width, int height, int q) {
 // edge along u (a segment runs along u only there), rise_v likewise. Each sub-cell above H_c also
 // bounds by its gap to Q_c over its height above H_c; the bound is the larger of the two (see the
 // file comment), infinity where nothing in the region exceeds H_c. The plan is make_near_plan's for q.
-void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* apex, float rate_unit, int width,
-              int i, float* near, float* slope3) {
+void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* apex, float rate_unit,
+              int width, int i, float* near, float* slope3) {
   detail::NearOffset offsets[45];
   for (int n = 0; n < 45; ++n) {
     const NearPlan::Entry& entry = plan.entries[n];
@@ -481,8 +484,10 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
               last = merged ? H : int(std::int64_t(H) * (step + 1) / apex_parts);
     tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
       for (int i = rows.begin(); i < rows.end(); ++i) {
-        const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1), down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
-        const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W, view.data + std::size_t(up) * W};
+        const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1),
+                  down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
+        const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W,
+                                       view.data + std::size_t(up) * W};
         float* apex_row = state.apex.data() + std::size_t(i) * W;
         std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
         // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
@@ -524,21 +529,25 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
   if (step == 0) {
     state.lipschitz = make_cells(state);
     const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
-    detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false, state.plan);
+    detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false,
+                           state.plan);
     // the lanes (of every sweep, interleaved): from the smallest ratio a map can have (one texel over
     // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
     // above 1, 1.3x apart below lane_knee and evenly geometric above
     double lanes[stage_l_sweeps * detail::lane_count];
-    const double range = double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
+    const double range =
+        double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
     const double smallest = std::clamp(
-        std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)), 1.0 / 8192.0, 0.5);
+        std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)),
+        1.0 / 8192.0, 0.5);
     const int total = stage_l_sweeps * detail::lane_count;
     const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
     const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
     for (int l = 0; l < total; ++l)
       lanes[l] = l <= low ? lowest * std::pow(1.3, l)
                           : lowest * std::pow(1.3, low) *
-                                std::pow(1.0001 / (lowest * std::pow(1.3, low)), double(l - low) / (total - 1 - low));
+                                std::pow(1.0001 / (lowest * std::pow(1.3, low)),
+                                         double(l - low) / (total - 1 - low));
     state.lanes.assign(lanes, lanes + total);
     double ratios[detail::lane_count];
     for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l];
@@ -547,8 +556,10 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
       // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down; for the
       // box {0, ..., 3}^2 the gap beyond its far faces is at least 1.5 texels more
       const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
-      state.bonus[l] = std::uint16_t(std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
-      state.bonus3[l] = std::uint16_t(std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+      state.bonus[l] = std::uint16_t(
+          std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+      state.bonus3[l] = std::uint16_t(
+          std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
     }
     for (int q = 0; q < 4; ++q) {
       state.passed[0][q].resize(texels);
@@ -564,8 +575,9 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
       passed[q] = state.passed[0][q].data();
       passed3[q] = state.passed3[0][q].data();
     }
-    state.stage_l_work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus,
-                                                           passed, state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
+    state.stage_l_work +=
+        detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus, passed,
+                                         state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
     if (first_quadrant + quadrant_count == 4) {
       std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
       state.upper_ready = false;
@@ -574,48 +586,51 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
     return;
   }
   const int part = step - 3;
-  const int first = near_part_first_row(H, part), last = near_part_first_row(H, merged ? near_parts : part + 1);
+  const int first = near_part_first_row(H, part),
+            last = near_part_first_row(H, merged ? near_parts : part + 1);
   const float highest = state.plan.highest;
   const NearPlan near_plans[4] = {make_near_plan(W, H, 0), make_near_plan(W, H, 1), make_near_plan(W, H, 2),
-                                   make_near_plan(W, H, 3)};
+                                  make_near_plan(W, H, 3)};
   const float rate_scale = near_rate_scale(state.lipschitz, W, H);
   const float rate_unit = detail::float_at_least(1.0 / double(rate_scale));
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
-  tbb::parallel_for(tbb::blocked_range<int>(first, last, near_band), [&](const tbb::blocked_range<int>& rows) {
-    thread_local std::vector<float> near[4], slope3[4];
-    thread_local SubCells sub_cells;
-    for (int q = 0; q < 4; ++q) {
-      near[q].resize(W);
-      slope3[q].resize(W);
-    }
-    make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1, rate_scale,
-                   sub_cells);
-    detail::StageLCombineJob job;
-    job.width = W;
-    job.highest = highest;
-    job.half_texel = 0.5 * t;
-    job.lane_ratio = state.lane_ratio[0];
-    job.lipschitz = state.lipschitz;
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      const std::size_t row = std::size_t(i) * W;
-      for (int q = 0; q < 4; ++q) {
-        near_row(sub_cells, near_plans[q], state.apex_bottom.data() + row, rate_unit, W, i, near[q].data(),
-                 slope3[q].data());
-        job.passed[q] = state.passed[0][q].data() + row;
-        job.passed3[q] = state.passed3[0][q].data() + row;
-        job.near[q] = near[q].data();
-        job.slope3[q] = slope3[q].data();
-      }
-      job.apex = state.apex.data() + row;
-      job.out = state.stage_l.data() + row * 4;
-      switch (level) {
-        case 0: detail::stage_l_combine_generic(job); break;
-        case 3: detail::stage_l_combine_avx2(job); break;
-        default: detail::stage_l_combine_avx512(job); break;
-      }
-      if (state.emit_out) emit_rows(state, i, i + 1, state.emit_out, state.emit_apex);  // while the row is in cache
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<int>(first, last, near_band), [&](const tbb::blocked_range<int>& rows) {
+        thread_local std::vector<float> near[4], slope3[4];
+        thread_local SubCells sub_cells;
+        for (int q = 0; q < 4; ++q) {
+          near[q].resize(W);
+          slope3[q].resize(W);
+        }
+        make_sub_cells(state, 2 * rows.begin() - near_reach, 2 * (rows.end() - 1) + near_reach + 1,
+                       rate_scale, sub_cells);
+        detail::StageLCombineJob job;
+        job.width = W;
+        job.highest = highest;
+        job.half_texel = 0.5 * t;
+        job.lane_ratio = state.lane_ratio[0];
+        job.lipschitz = state.lipschitz;
+        for (int i = rows.begin(); i < rows.end(); ++i) {
+          const std::size_t row = std::size_t(i) * W;
+          for (int q = 0; q < 4; ++q) {
+            near_row(sub_cells, near_plans[q], state.apex_bottom.data() + row, rate_unit, W, i,
+                     near[q].data(), slope3[q].data());
+            job.passed[q] = state.passed[0][q].data() + row;
+            job.passed3[q] = state.passed3[0][q].data() + row;
+            job.near[q] = near[q].data();
+            job.slope3[q] = slope3[q].data();
+          }
+          job.apex = state.apex.data() + row;
+          job.out = state.stage_l.data() + row * 4;
+          switch (level) {
+            case 0: detail::stage_l_combine_generic(job); break;
+            case 3: detail::stage_l_combine_avx2(job); break;
+            default: detail::stage_l_combine_avx512(job); break;
+          }
+          if (state.emit_out)
+            emit_rows(state, i, i + 1, state.emit_out, state.emit_apex);  // while the row is in cache
+        }
+      });
   state.stage_l_work += (long long)(last - first) * W * 4;
 }
 
@@ -628,10 +643,10 @@ bool stage_l_step_works(const State& state, int step) {
 // Every step at once; returns the work.
 long long run_stage_l(State& state) {
   state.stage_l_work = 0;
-  run_stage_l_step(state, 0, true);                 // the apexes
-  run_stage_l_step(state, apex_parts);              // the cells, the Lipschitz bound, the lanes
-  run_stage_l_step(state, apex_parts + 1, true);    // the four sweeps
-  run_stage_l_step(state, apex_parts + 3, true);    // the near field and the rest
+  run_stage_l_step(state, 0, true);               // the apexes
+  run_stage_l_step(state, apex_parts);            // the cells, the Lipschitz bound, the lanes
+  run_stage_l_step(state, apex_parts + 1, true);  // the four sweeps
+  run_stage_l_step(state, apex_parts + 3, true);  // the near field and the rest
   state.stage_l_next = stage_l_steps;
   return state.stage_l_work;
 }
@@ -772,11 +787,11 @@ long long ensure_upper(State& state) {
   const std::size_t texels = std::size_t(W) * H;
   const double* lanes = state.lanes.data();
   long long work = 0;
-  // Upper bounds, for the tolerance (made when refinement first needs them): the centre-to-centre lane sweep of the texels tested against
-  // the apexes. Where lane l fails, some texel centre q in the quadrant has h(q) above the apex by
-  // more than lane l's cone from c allows (lane_sweep.cpp's bound, with the apex for h(c): its
-  // rounding is the same), and q is a surface point that the contract's cone from p = c must clear,
-  // so the best ratio is below lane_upper.
+  // Upper bounds, for the tolerance (made when refinement first needs them): the centre-to-centre lane sweep
+  // of the texels tested against the apexes. Where lane l fails, some texel centre q in the quadrant has h(q)
+  // above the apex by more than lane l's cone from c allows (lane_sweep.cpp's bound, with the apex for h(c):
+  // its rounding is the same), and q is a surface point that the contract's cone from p = c must clear, so
+  // the best ratio is below lane_upper.
   detail::make_lane_plan(state.heights.data(), W, H, wrap, lane_lowest_ratio, true, false, state.upper_plan);
   state.upper_plan.bottom = state.apex_bottom;
   state.upper.assign(texels * 4, 1.0f);
@@ -790,12 +805,13 @@ long long ensure_upper(State& state) {
       masks[q] = state.upper_masks[q].data();
     }
     work += detail::sweep_sectors(state.upper_plan, state.heights.data(), 4, masks, nullptr, nullptr).work;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
-      for (std::size_t n = range.begin(); n < range.end(); ++n)
-        for (int q = 0; q < 4; ++q)
-          state.upper[n * 4 + q] =
-              std::min(state.upper[n * 4 + q], state.upper_plan.lane_upper[detail::lanes_passed(masks[q][n])]);
-    });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+          for (std::size_t n = range.begin(); n < range.end(); ++n)
+            for (int q = 0; q < 4; ++q)
+              state.upper[n * 4 + q] = std::min(
+                  state.upper[n * 4 + q], state.upper_plan.lane_upper[detail::lanes_passed(masks[q][n])]);
+        });
   }
   // and the witnesses near the texel
   work += witness_upper(state);
@@ -897,7 +913,8 @@ void make_queue_from_emission(State& state) {
 }
 
 // Searches queued texels while the budget lasts, writing their ratios to out.
-long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined, const Progress& progress) {
+long long run_refinement(State& state, Clock& clock, ConeView out, long long& refined,
+                         const Progress& progress) {
   struct Finish {  // the call's last report, 1, however it ends
     const Progress& progress;
     ~Finish() {
@@ -920,7 +937,7 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
   const HeightView current{state.heights.data(), state.width, state.height};
   if (!state.search) {
     state.search = std::make_unique<detail::BilinearSearch>(current, state.address, state.sector_count,
-                                                           BilinearConeSettings{}.slope_window);
+                                                            BilinearConeSettings{}.slope_window);
   } else if (!state.search_current) {
     state.search->update(current);
   }
@@ -957,7 +974,9 @@ long long run_refinement(State& state, Clock& clock, ConeView out, long long& re
           }
           return done;
         },
-        [](Done a, Done b) { return Done{a.work + b.work, a.raised + b.raised}; });
+        [](Done a, Done b) {
+          return Done{a.work + b.work, a.raised + b.raised};
+        });
     const long long batch_work = batch_done.work;
     state.emitted_sum += batch_done.raised;
     refined += (long long)(last - first);
@@ -1000,7 +1019,8 @@ BakeStats finish(const State& state, const Clock& clock, long long work, long lo
 // a texel's ratios are stage L's spread to the sectors). Every emission follows a new stage L, whose
 // upper bounds are made only when refinement first needs them, so the flags hold against none (1).
 template <int sectors, bool searched>
-double emit_row(State& state, std::size_t first, int count, float* out, float* apex, float keep, long long& flagged) {
+double emit_row(State& state, std::size_t first, int count, float* out, float* apex, float keep,
+                long long& flagged) {
   constexpr int accumulators = 16;
   float partial[accumulators] = {};
   const float* quadrants = state.stage_l.data() + first * 4;
@@ -1055,8 +1075,9 @@ void emit_rows_of(State& state, int first_row, int last_row, float* out, float* 
     const std::size_t first = std::size_t(i) * W;
     const bool any_searched = std::memchr(state.searched_flag.data() + first, 1, std::size_t(W)) != nullptr;
     long long flagged = 0;
-    state.row_sums[std::size_t(i)] = any_searched ? emit_row<sectors, true>(state, first, W, out, apex, keep, flagged)
-                                                  : emit_row<sectors, false>(state, first, W, out, apex, keep, flagged);
+    state.row_sums[std::size_t(i)] =
+        any_searched ? emit_row<sectors, true>(state, first, W, out, apex, keep, flagged)
+                     : emit_row<sectors, false>(state, first, W, out, apex, keep, flagged);
     state.row_flagged[std::size_t(i)] = flagged;
   }
 }
@@ -1138,7 +1159,9 @@ void check_tolerance(const Budget& budget) {
 // Per axis, the uv gap between Q_c = [c - 0.5, c + 0.5] and [first, last] (texel-centre coordinates),
 // over the periodic images with wrap.
 double axis_gap(double c, double first, double last, int count, bool wrap) {
-  auto gap = [&](double shift) { return std::max({0.0, first + shift - (c + 0.5), (c - 0.5) - (last + shift)}); };
+  auto gap = [&](double shift) {
+    return std::max({0.0, first + shift - (c + 0.5), (c - 0.5) - (last + shift)});
+  };
   double best = gap(0.0);
   if (wrap) {
     if (last - first >= count) return 0.0;
@@ -1179,8 +1202,8 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   return finish(state, clock, work, refined);
 }
 
-BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget, ConeView out,
-                                std::span<float> apex) {
+BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget,
+                                ConeView out, std::span<float> apex) {
   State& state = *state_;
   // with a stage under way the heights held are not the emitted ones: nothing to compare against
   if (!state.has_frame || in_progress()) return bake(heights, budget, out, apex);
@@ -1198,9 +1221,10 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
   std::vector<Raised> raised;
   for (const Rect& rect : dirty) {
     if (rect.x0 < 0 || rect.y0 < 0 || rect.x1 > W || rect.y1 > H || rect.x0 > rect.x1 || rect.y0 > rect.y1) {
-      throw BakeError("bilinear baker: dirty rectangle [" + std::to_string(rect.x0) + ", " + std::to_string(rect.x1) +
-                      ") x [" + std::to_string(rect.y0) + ", " + std::to_string(rect.y1) + ") is not inside the " +
-                      std::to_string(W) + " x " + std::to_string(H) + " map");
+      throw BakeError("bilinear baker: dirty rectangle [" + std::to_string(rect.x0) + ", " +
+                      std::to_string(rect.x1) + ") x [" + std::to_string(rect.y0) + ", " +
+                      std::to_string(rect.y1) + ") is not inside the " + std::to_string(W) + " x " +
+                      std::to_string(H) + " map");
     }
     Raised box{H, -1, W, -1};
     for (int i = rect.y0; i < rect.y1; ++i)
@@ -1233,31 +1257,35 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
     float top = 0.0f;
     for (int i = raised[r].i0 - 1; i <= raised[r].i1 + 1; ++i)
       for (int j = raised[r].j0 - 1; j <= raised[r].j1 + 1; ++j) {
-        const int y = wrap ? wrap_index(i, H) : std::clamp(i, 0, H - 1), x = wrap ? wrap_index(j, W) : std::clamp(j, 0, W - 1);
+        const int y = wrap ? wrap_index(i, H) : std::clamp(i, 0, H - 1),
+                  x = wrap ? wrap_index(j, W) : std::clamp(j, 0, W - 1);
         top = std::max(top, state.heights[std::size_t(y) * W + x]);
       }
     raised_top[r] = top;
   }
   const int sectors = state.sector_count;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t t = range.begin(); t < range.end(); ++t) {
-      if (!state.searched_flag[t]) continue;
-      if (state.apex[t] != old_apex[t]) {
-        state.searched_flag[t] = 0;
-        continue;
-      }
-      const int i = int(t / W), j = int(t % W);
-      const float* searched = state.searched.data() + t * sectors;
-      const float largest = *std::max_element(searched, searched + sectors);
-      for (std::size_t r = 0; r < raised.size() && state.searched_flag[t]; ++r) {
-        if (!(raised_top[r] > state.apex[t])) continue;
-        const double gu = axis_gap(j, raised[r].j0 - 1, raised[r].j1 + 1, W, wrap);
-        const double gv = axis_gap(i, raised[r].i0 - 1, raised[r].i1 + 1, H, wrap);
-        const double bound = std::sqrt(gu * gu + gv * gv) / (double(raised_top[r]) - double(state.apex[t]));
-        if (bound * (1.0 - 1e-6) < double(largest)) state.searched_flag[t] = 0;  // may have dropped: search again
-      }
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t < range.end(); ++t) {
+                        if (!state.searched_flag[t]) continue;
+                        if (state.apex[t] != old_apex[t]) {
+                          state.searched_flag[t] = 0;
+                          continue;
+                        }
+                        const int i = int(t / W), j = int(t % W);
+                        const float* searched = state.searched.data() + t * sectors;
+                        const float largest = *std::max_element(searched, searched + sectors);
+                        for (std::size_t r = 0; r < raised.size() && state.searched_flag[t]; ++r) {
+                          if (!(raised_top[r] > state.apex[t])) continue;
+                          const double gu = axis_gap(j, raised[r].j0 - 1, raised[r].j1 + 1, W, wrap);
+                          const double gv = axis_gap(i, raised[r].i0 - 1, raised[r].i1 + 1, H, wrap);
+                          const double bound =
+                              std::sqrt(gu * gu + gv * gv) / (double(raised_top[r]) - double(state.apex[t]));
+                          if (bound * (1.0 - 1e-6) < double(largest))
+                            state.searched_flag[t] = 0;  // may have dropped: search again
+                        }
+                      }
+                    });
   emit_all(state, out, apex);
   long long refined = 0;
   work += run_refinement(state, clock, out, refined, budget.progress);
@@ -1267,7 +1295,8 @@ BakeStats BilinearBaker::update(HeightView heights, std::span<const Rect> dirty,
 BakeStats BilinearBaker::refine(const Budget& budget, ConeView out, std::span<float> apex) {
   State& state = *state_;
   if (!state.has_frame) throw BakeError("bilinear baker: refine() before the first bake()");
-  if (in_progress()) throw BakeError("bilinear baker: refine() while a staged first stage is under way (advance() it)");
+  if (in_progress())
+    throw BakeError("bilinear baker: refine() while a staged first stage is under way (advance() it)");
   check_view(state, {state.heights.data(), state.width, state.height}, out, apex);
   check_tolerance(budget);
   Clock clock(budget);
@@ -1286,8 +1315,9 @@ void BilinearBaker::begin(HeightView heights) {
   State& state = *state_;
   validate_heights(heights, "a cone map");
   if (heights.width != state.width || heights.height != state.height) {
-    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " + std::to_string(state.height) +
-                    " map, given " + std::to_string(heights.width) + " x " + std::to_string(heights.height));
+    throw BakeError("bilinear baker: made for a " + std::to_string(state.width) + " x " +
+                    std::to_string(state.height) + " map, given " + std::to_string(heights.width) + " x " +
+                    std::to_string(heights.height));
   }
   state.heights.assign(heights.data, heights.data + std::size_t(state.width) * state.height);
   state.search_current = false;

@@ -185,7 +185,6 @@ struct BudgetedBaker::State {
 
 namespace {
 
-
 // Stage 0, the O(N) floor that every call completes whatever the budget: the eight neighbours
 // exactly, and for every level L one bound for all texels between the level-(L-1) and level-L
 // 3 x 3 block neighbourhoods: (smallest distance to leave the inner one) / (largest height in the
@@ -501,7 +500,8 @@ float keep_of(const Budget& budget) {
 
 // Advances groups in cursor order while the budget lasts: first stage A for every group that only
 // has the stage-0 floor, then stage B for groups with texels looser than the tolerance.
-void run_refinement(BudgetedBaker::State& state, detail::BudgetClock& clock, float keep, float* out, long long& refined) {
+void run_refinement(BudgetedBaker::State& state, detail::BudgetClock& clock, float keep, float* out,
+                    long long& refined) {
   const int groups = group_count(state.grid);
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<int> order;
@@ -670,8 +670,8 @@ void ensure_slack(BudgetedBaker::State& state) {
   state.slack_stale = false;
 }
 
-BakeStats finish(const BudgetedBaker::State& state, const detail::BudgetClock& clock, float keep, long long refined,
-                 float* out, const StageTotals* known = nullptr) {
+BakeStats finish(const BudgetedBaker::State& state, const detail::BudgetClock& clock, float keep,
+                 long long refined, float* out, const StageTotals* known = nullptr) {
   BakeStats stats;
   stats.mode = Mode::budgeted;
   stats.width = state.grid.width;

@@ -51,7 +51,7 @@ struct StackEntry {
   Node node;
   float bound;
   SectorMask mask;
-  int dx, dy;        // offset of the block's first texel from the searching texel
+  int dx, dy;  // offset of the block's first texel from the searching texel
   float block_max;
 };
 
@@ -67,8 +67,9 @@ long long search_texel_within(const SearchContext& context, int ci, int cj, floa
   return search_texel_leaves(context, ci, cj, hc, roots, keep, best, floor, nullptr);
 }
 
-long long search_texel_leaves(const SearchContext& context, int ci, int cj, float hc, std::span<const Node> roots,
-                              float keep, float* best, float* floor, const LeafRatio* leaf) {
+long long search_texel_leaves(const SearchContext& context, int ci, int cj, float hc,
+                              std::span<const Node> roots, float keep, float* best, float* floor,
+                              const LeafRatio* leaf) {
   const Grid& grid = context.grid;
   const Pyramid& pyramid = context.pyramid;
   const int sectors = grid.sector_count;
@@ -86,7 +87,8 @@ long long search_texel_leaves(const SearchContext& context, int ci, int cj, floa
     block_range(node.ny, node.level, count_y, grid.height, y0, y1);
     x0 -= cj, x1 -= cj, y0 -= ci, y1 -= ci;
     const float bound = pair_ratio(grid.distance(interval_gap(x0, x1), interval_gap(y0, y1)), block_max - hc);
-    const SectorMask mask = node.level == 0 ? point_sectors(grid, x0, y0) : rect_sectors(grid, x0, x1, y0, y1);
+    const SectorMask mask =
+        node.level == 0 ? point_sectors(grid, x0, y0) : rect_sectors(grid, x0, x1, y0, y1);
     SectorMask useful = 0;
     for (int k = 0; k < sectors; ++k) {
       if (!(mask >> k & 1u) || !(bound < best[k])) continue;
@@ -125,9 +127,11 @@ long long search_texel_leaves(const SearchContext& context, int ci, int cj, floa
     StackEntry children[4];
     int child_count = 0;
     const int level = top.node.level - 1;
-    const int parent_count_x = pyramid.count_x(top.node.level), parent_count_y = pyramid.count_y(top.node.level);
+    const int parent_count_x = pyramid.count_x(top.node.level),
+              parent_count_y = pyramid.count_y(top.node.level);
     const int count_x = pyramid.count_x(level), count_y = pyramid.count_y(level);
-    const int tile_x = floor_div(top.node.nx, parent_count_x), tile_y = floor_div(top.node.ny, parent_count_y);
+    const int tile_x = floor_div(top.node.nx, parent_count_x),
+              tile_y = floor_div(top.node.ny, parent_count_y);
     const int bx = top.node.nx - tile_x * parent_count_x, by = top.node.ny - tile_y * parent_count_y;
     for (int dy = 0; dy < 2; ++dy) {
       const int cy = 2 * by + dy;
@@ -135,11 +139,13 @@ long long search_texel_leaves(const SearchContext& context, int ci, int cj, floa
       for (int dx = 0; dx < 2; ++dx) {
         const int cx = 2 * bx + dx;
         if (cx >= count_x) break;
-        if (examine({level, tile_x * count_x + cx, tile_y * count_y + cy}, children[child_count])) ++child_count;
+        if (examine({level, tile_x * count_x + cx, tile_y * count_y + cy}, children[child_count]))
+          ++child_count;
       }
     }
     for (int a = 1; a < child_count; ++a)  // insertion sort, largest bound first
-      for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) std::swap(children[b - 1], children[b]);
+      for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b)
+        std::swap(children[b - 1], children[b]);
     for (int c = 0; c < child_count; ++c) stack.push_back(children[c]);
   }
   return work;
@@ -166,7 +172,8 @@ BakeStats bake_exact(HeightView heights, Address address, ConeView out, const Pr
       for (int j = 0; j < heights.width; ++j) {
         float* best = out.data + (std::size_t(i) * heights.width + j) * sectors;
         std::fill(best, best + sectors, 1.0f);
-        work += detail::search_texel(context, i, j, heights.data[std::size_t(i) * heights.width + j], roots, best);
+        work += detail::search_texel(context, i, j, heights.data[std::size_t(i) * heights.width + j], roots,
+                                     best);
       }
       rows_done.row_done();
     }

@@ -15,7 +15,6 @@
 
 namespace displace::bake {
 
-
 BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAdaptiveSettings& settings,
                               ConeView out) {
   validate(heights, out);

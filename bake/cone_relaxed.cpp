@@ -5,10 +5,10 @@
 // most once: a renderer that steps to the cone's edge then lands at most one crossing past the first
 // hit, which a binary search finds. As in their preprocessing, for texel c and every other texel d
 // we follow the ray from the top of c's axis, (c, 1), through the surface point (d, h(d)) and on
-// until it leaves the bilinear relief at E (found exactly, cell by cell, not by marching); the cone must not contain E, so its ratio is at most
-// |E - c| / (h(E) - h(c)) when E lies above c. Because E is beyond d and no higher than d, that
-// bound is never below d's pair ratio: the max pyramid search of the exact baker prunes the texels d
-// (search.h), and a relaxed ratio is never below the conservative one.
+// until it leaves the bilinear relief at E (found exactly, cell by cell, not by marching); the cone must not
+// contain E, so its ratio is at most |E - c| / (h(E) - h(c)) when E lies above c. Because E is beyond d and
+// no higher than d, that bound is never below d's pair ratio: the max pyramid search of the exact baker
+// prunes the texels d (search.h), and a relaxed ratio is never below the conservative one.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -122,7 +122,7 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
         // exit point of the ray from (c, 1) through (d, hq), d at texel offset (dx, dy)
         const detail::LeafRatio leaf = [&](int dx, int dy, float hq) {
           const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - hc);
-          if (!(hq < 1.0f)) return pair;  // a horizontal ray along the top leaves at once
+          if (!(hq < 1.0f)) return pair;         // a horizontal ray along the top leaves at once
           const double drop = 1.0 - double(hq);  // ray height lost per unit of the c -> d offset
           const double s_stop = (1.0 - double(hc)) / drop;
           const double s = exit_parameter(surface, j, i, dx, dy, drop, s_stop, work);

@@ -42,8 +42,12 @@ struct Grid {
   Address address = Address::wrap;
 
   Grid(int w, int h, int sectors, Address addr)
-      : width(w), height(h), inv_width(1.0f / float(w)), inv_height(1.0f / float(h)),
-        sector_count(sectors), address(addr) {}
+      : width(w),
+        height(h),
+        inv_width(1.0f / float(w)),
+        inv_height(1.0f / float(h)),
+        sector_count(sectors),
+        address(addr) {}
 
   // uv distance of a texel offset; monotone in |dx| and |dy|.
   float distance(int dx, int dy) const {
@@ -156,7 +160,8 @@ inline BakeStats whole_map_stats(Mode mode, HeightView heights, int sectors, lon
   stats.sector_count = sectors;
   stats.texels_refined = (long long)heights.width * heights.height;
   stats.work = work;
-  stats.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats.milliseconds =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   stats.mean_ratio = mean_of(out, std::size_t(heights.width) * heights.height * sectors);
   return stats;
 }

@@ -163,10 +163,12 @@ void stage_l_combine_avx2(const StageLCombineJob& job) { stage_l_combine_generic
 void sub_cell_row_avx2(const SubCellRowJob& job) { sub_cell_row_generic(job); }
 void sub_cell_row_avx512(const SubCellRowJob& job) { sub_cell_row_generic(job); }
 void stage_l_combine_avx512(const StageLCombineJob& job) { stage_l_combine_generic(job); }
-void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex,
+                      std::uint16_t* bottom) {
   apex_blocks_generic(rows, first, 2 * blocks, apex, bottom);
 }
-void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex,
+                        std::uint16_t* bottom) {
   apex_blocks_generic(rows, first, 4 * blocks, apex, bottom);
 }
 void lane_sweep_avx2(LaneSweepJob& job) { lane_sweep_generic(job); }
@@ -212,7 +214,9 @@ ChamferMoves chamfer_moves(const LanePlan& plan, double (&length)[lane_move_limi
 
 }  // namespace
 
-void AlignedScratch::Free::operator()(std::uint16_t* p) const { ::operator delete[](p, std::align_val_t(64)); }
+void AlignedScratch::Free::operator()(std::uint16_t* p) const {
+  ::operator delete[](p, std::align_val_t(64));
+}
 
 std::uint16_t* AlignedScratch::get(std::size_t values) {
   if (values > size_ || !data_) {
@@ -366,8 +370,8 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   // The upper lanes take the steps that spacing allows made `closer` times smaller (in log), as many
   // as reach down to the knee lane, the top of the lower ones, when there are more lanes than
   // needed (never wider than allowed: closer >= 1); the lower ones go on from where they end.
-  const double knee_target = std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) *
-                             std::pow(low_spacing, low_lanes);
+  const double knee_target =
+      std::max(smallest_ratio, knee / std::pow(low_spacing, low_lanes)) * std::pow(low_spacing, low_lanes);
   double steps_needed = 0.0;  // at spacing_below, with the fraction of the last
   for (double r = highest_lane; steps_needed < lane_count;) {
     const double spacing = spacing_below(r);
@@ -478,8 +482,8 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level, bool stop_early, int first_quadrant,
-                                   int quadrant_count) {
+                                   std::uint8_t* const passed3[4], int level, bool stop_early,
+                                   int first_quadrant, int quadrant_count) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
   tbb::parallel_for(first_quadrant, first_quadrant + quadrant_count, [&](int quadrant) {

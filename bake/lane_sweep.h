@@ -59,7 +59,7 @@ struct LaneSweepJob {
   // unused, and the sweep is a quadrant's (the carry and the plan's row and column moves).
   bool bilinear = false;
   int texel_width = 0, texel_height = 0;
-  int cell_offset_x = 0, cell_offset_y = 0;      // 0 or -1 (wrap with a flipped axis)
+  int cell_offset_x = 0, cell_offset_y = 0;     // 0 or -1 (wrap with a flipped axis)
   const std::uint16_t* texel_bottom = nullptr;  // floor(apex * 65535) or a little below, physical
   const std::uint16_t* bonus = nullptr;         // lane_count values, rounded down
   std::uint16_t* bilinear_scratch = nullptr;    // bilinear_sweep_scratch(width, texel_width) values
@@ -260,9 +260,12 @@ void near_row_avx512(const NearRowJob& job);
 // The bilinear baker's apexes (apex_kernel.h's apex_blocks) for `blocks` blocks of texels from
 // `first` on, whose neighbours both lie in the row: 2 texels a block in any CPU's build, 4 with AVX2,
 // 8 with AVX-512 (apex_block_texels).
-void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
-void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
-void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom);
+void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex,
+                         std::uint16_t* bottom);
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex,
+                      std::uint16_t* bottom);
+void apex_blocks_avx512(const float* const (&rows)[3], int first, int blocks, float* apex,
+                        std::uint16_t* bottom);
 inline int apex_block_texels(int level) { return level >= 4 ? 8 : level == 3 ? 4 : 2; }
 
 // The bilinear baker's stage L ratios of a row of texels from one sweep's lanes
@@ -270,9 +273,9 @@ inline int apex_block_texels(int level) { return level >= 4 ? 8 : level == 3 ? 4
 struct StageLCombineJob {
   int width = 0;
   const float* apex = nullptr;
-  float highest = 0.0f;     // the map's highest cell
-  double half_texel = 0.0;  // half the smaller texel side, in uv
-  const float* lane_ratio = nullptr;  // lane_count + 1 entries: the ratio a count of passing lanes proves
+  float highest = 0.0f;                 // the map's highest cell
+  double half_texel = 0.0;              // half the smaller texel side, in uv
+  const float* lane_ratio = nullptr;    // lane_count + 1 entries: the ratio a count of passing lanes proves
   const std::uint8_t* passed[4] = {};   // per quadrant: lanes passed beyond box 2
   const std::uint8_t* passed3[4] = {};  // beyond box 3
   const float* near[4] = {};

@@ -73,7 +73,8 @@ namespace displace::bake::detail {
 void lane_sweep_avx2(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_avx2(const NearRowJob& job) { near_row_kernel(job); }
 
-void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+void apex_blocks_avx2(const float* const (&rows)[3], int first, int blocks, float* apex,
+                      std::uint16_t* bottom) {
   typedef float F __attribute__((vector_size(16)));
   typedef double D __attribute__((vector_size(32)));
   typedef std::int32_t I __attribute__((vector_size(16)));

@@ -47,7 +47,8 @@ namespace displace::bake::detail {
 void lane_sweep_generic(LaneSweepJob& job) { sweep_kernel<Ops>(job); }
 void near_row_generic(const NearRowJob& job) { near_row_kernel(job); }
 
-void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex, std::uint16_t* bottom) {
+void apex_blocks_generic(const float* const (&rows)[3], int first, int blocks, float* apex,
+                         std::uint16_t* bottom) {
   typedef float F __attribute__((vector_size(8)));
   typedef double D __attribute__((vector_size(16)));
   typedef std::int32_t I __attribute__((vector_size(8)));

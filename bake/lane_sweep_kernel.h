@@ -201,7 +201,9 @@ void sweep_kernel(LaneSweepJob& job) {
         Ops::store(dilations + std::size_t(W + 1 + k) * lane_stride,
                    wrap ? Ops::load(dilations + std::size_t(1 + k % W) * lane_stride) : nothing);
       // the texel row tested by cell row a (unrolled with wrap)
-      auto texel_row = [&](int row) { return wrap ? ((row % texel_height) + texel_height) % texel_height : row; };
+      auto texel_row = [&](int row) {
+        return wrap ? ((row % texel_height) + texel_height) % texel_height : row;
+      };
       const int tested = texel_row(a - job.cell_offset_y);
       const bool left_to_second_lap = wrap && step < skip_tests;  // the second lap tests this row
       if (tested >= 0 && tested < texel_height && !left_to_second_lap) {

@@ -93,8 +93,8 @@ struct NearSums {
 // One group of offsets, all of one kind (near_row sorts them so): in box 2 or only in box 3,
 // touching Q_c (gap 0) or not, beyond Q_c's edge along u, along v.
 template <bool box2, bool touching, bool along_u, bool along_v>
-__attribute__((always_inline)) inline void near_group(const NearOffset* offsets, int count, int j0, Shorts apex,
-                                                     NearSums& sums) {
+__attribute__((always_inline)) inline void near_group(const NearOffset* offsets, int count, int j0,
+                                                      Shorts apex, NearSums& sums) {
   // the accumulators in locals for the loop (kept in the struct, GCC stores them back every offset)
   Shorts ru = sums.ru, rv = sums.rv, ru3 = sums.ru3, rv3 = sums.rv3, steep = sums.steep;
   Shorts touch = sums.touch, any = sums.any, any3 = sums.any3;
@@ -142,7 +142,8 @@ inline Floats half_floats(Shorts v, [[maybe_unused]] int h) {
 // The bounds of a block's texels from their accumulators, in float, 16 at a time: 1 / G and 1 / (the gap
 // term) carry a few roundings of 2^-24 each (squares, sum, root, the products with the units,
 // quotient), all within near_shrink; the units are rounded up.
-inline void finish_texels(const NearSums& sums, float rate_unit, float steep_unit, float* near, float* slope3) {
+inline void finish_texels(const NearSums& sums, float rate_unit, float steep_unit, float* near,
+                          float* slope3) {
   constexpr float infinite = std::numeric_limits<float>::infinity();
   const Floats zero = Floats{} + 0.0f, inf = Floats{} + infinite, shrink = Floats{} + (1.0f - 4e-6f);
   for (int h = 0; h < near_lanes / float_lanes; ++h) {
@@ -151,7 +152,8 @@ inline void finish_texels(const NearSums& sums, float rate_unit, float steep_uni
     const Floats g3 = square_root(ru3 * ru3 + rv3 * rv3) * rate_unit;
     const Floats g = square_root(ru * ru + rv * rv) * rate_unit;
     const Floats steep = half_floats(sums.steep, h) * steep_unit;
-    const Floats any3 = half_floats(sums.any3, h), any = half_floats(sums.any, h), touch = half_floats(sums.touch, h);
+    const Floats any3 = half_floats(sums.any3, h), any = half_floats(sums.any, h),
+                 touch = half_floats(sums.touch, h);
     const Floats slope3_bound = any3 == zero ? inf : g3 > zero ? shrink / g3 : zero;
     const Floats slope_bound = g > zero ? shrink / g : zero;
     const Floats far = touch != zero ? zero : shrink / steep;  // steep 0: infinity

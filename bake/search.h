@@ -46,8 +46,9 @@ long long search_texel_within(const SearchContext& context, int ci, int cj, floa
 // instead of its pair ratio. The leaf value must never be below the pair ratio, so that the pair-ratio
 // bounds of the pyramid still prune correctly (the relaxed baker uses this).
 using LeafRatio = std::function<float(int dx, int dy, float hq)>;
-long long search_texel_leaves(const SearchContext& context, int ci, int cj, float hc, std::span<const Node> roots,
-                              float keep, float* best, float* floor, const LeafRatio* leaf);
+long long search_texel_leaves(const SearchContext& context, int ci, int cj, float hc,
+                              std::span<const Node> roots, float keep, float* best, float* floor,
+                              const LeafRatio* leaf);
 
 // Chen & Chuang's ring search for texel (ci, cj) of any W x H grid (a map or a pyramid level):
 // best[] holds the initial short-circuit ratios and receives the result (cone_original.cpp).

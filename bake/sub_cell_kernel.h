@@ -47,7 +47,9 @@ inline void sub_cell_row_kernel(const SubCellRowJob& job) {
       const U stored = __builtin_convertvector(__builtin_convertvector(quantize(v, scale), I), U);
       std::memcpy(p, &stored, sizeof stored);
     };
-    auto store_one = [&](std::uint16_t* p, float v, float scale) { *p = std::uint16_t(int(quantize(v, scale))); };
+    auto store_one = [&](std::uint16_t* p, float v, float scale) {
+      *p = std::uint16_t(int(quantize(v, scale)));
+    };
     const V zero = V{} + 0.0f;
     int k = 0;
     for (; k + width <= job.count; k += width) {

@@ -2,7 +2,8 @@
 # One-stop set-up for a fresh Debian machine: installs the missing Debian packages, configures and
 # builds in ./build (Release), then runs what was asked:
 #   bash cmake/setup.sh main    # the main job: the built-in water scene as a sequence, and its frame budget (out/)
-#   bash cmake/setup.sh test    # everything CI runs: suite, sanitize, tsan, then fuzz (25-45 minutes)
+#   bash cmake/setup.sh test    # everything CI runs: format, suite, sanitize, tsan, then fuzz (25-40 minutes)
+#   bash cmake/setup.sh format  # every C++ file as clang-format writes it (tests/scripts/format_check.sh)
 #   bash cmake/setup.sh suite   # the test suite on the Release build (ctest, about 2 minutes)
 #   bash cmake/setup.sh sanitize  # the suite under ASan + UBSan (build-asan/)
 #   bash cmake/setup.sh tsan    # the suite under TSan but the report and the soak, with a TBB built for it (build-tsan/)
@@ -17,7 +18,7 @@ source "$root/cmake/setup_lib.sh"
 
 packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools
-          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb python3-matplotlib)
+          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev xvfb python3-matplotlib clang-format)
 missing=()
 for p in "${packages[@]}"; do
   if ! package_installed "$p"; then
@@ -35,6 +36,11 @@ fi
 jobs="$(nproc 2>/dev/null || echo 2)"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" -j "$jobs"
+
+# Every tracked C++ file as Debian's clang-format writes it under .clang-format.
+run_format_check() {
+  bash "$root/tests/scripts/format_check.sh" "$root"
+}
 
 # The test suite on the Release build.
 run_suite() {
@@ -154,16 +160,18 @@ case "$mode" in
   report)
     cd "$root"
     "$build/displace" report --output docs/report ;;
+  format) timed run_format_check ;;
   suite) timed run_suite ;;
   sanitize) timed run_sanitize ;;
   fuzz) timed run_fuzz ;;
   tsan) timed run_tsan ;;
   test)
+    timed run_format_check
     timed run_suite
     timed run_sanitize
     timed run_tsan
     timed run_fuzz ;;
   *)
-    echo "setup: unknown mode '$mode' (use main, test, suite, sanitize, tsan, fuzz, report or build)" >&2
+    echo "setup: unknown mode '$mode' (use main, test, format, suite, sanitize, tsan, fuzz, report or build)" >&2
     exit 2 ;;
 esac

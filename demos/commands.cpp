@@ -50,10 +50,8 @@ const char* spectrum_name(sim::Spectrum spectrum) {
 
 Metadata synthesis_metadata(const SourceSettings& source, const sim::HeightMapping& mapping) {
   Metadata metadata = {
-      {"displace:units", std::string("metres")},
-      {"displace:source", std::string(source_name(source.kind))},
-      {"displace:time", float(source.time)},
-      {"displace:height_scale", mapping.scale},
+      {"displace:units", std::string("metres")}, {"displace:source", std::string(source_name(source.kind))},
+      {"displace:time", float(source.time)},     {"displace:height_scale", mapping.scale},
       {"displace:height_bias", mapping.bias},
   };
   if (source.kind == SourceKind::ocean) {
@@ -160,7 +158,7 @@ SynthesizedHeights synthesize(const SourceSettings& source) {
     } else if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
       result.raw.resize(std::size_t(source.size) * std::size_t(source.size));
       (source.kind == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(source.size, source.size,
-                                                                                   source.seed, result.raw);
+                                                                                    source.seed, result.raw);
       result.mapping = sim::HeightMapping{1.0f, 0.0f};
     } else {
       const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(source.sinusoids);
@@ -341,8 +339,9 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   }
   BakeInput input = prepare_bake_input(settings.input);
   if (std::holds_alternative<FileInput>(settings.input)) {
-    require_memory(bake_memory(input.width, input.height, settings.sector_count, settings.baker, settings.cones),
-                   limits);
+    require_memory(
+        bake_memory(input.width, input.height, settings.sector_count, settings.baker, settings.cones),
+        limits);
   }
   const bool png = settings.output_format == ImageFormat::png;
   if (png) quantize_heights_8bit(input.heights);  // bake the heights the PNG will store
@@ -384,7 +383,8 @@ namespace {
 
 // Blue -> cyan -> green -> yellow -> red over [0, maximum]: the iterations heatmap (as in Figure 5 of
 // Risser et al.'s interval mapping paper). Pixels off the relief stay black.
-std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const float> uv_hit, float maximum) {
+std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const float> uv_hit,
+                                  float maximum) {
   constexpr float stops[5][3] = {{0, 0, 1}, {0, 1, 1}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}};
   std::vector<std::uint8_t> rgba(values.size() * 4, 0);
   for (std::size_t p = 0; p < values.size(); ++p) {
@@ -394,7 +394,8 @@ std::vector<std::uint8_t> heatmap(std::span<const float> values, std::span<const
     const int stop = std::min(int(x), 3);
     const float f = x - float(stop);
     for (int c = 0; c < 3; ++c) {
-      rgba[p * 4 + c] = std::uint8_t(std::lround(255.0f * (stops[stop][c] * (1 - f) + stops[stop + 1][c] * f)));
+      rgba[p * 4 + c] =
+          std::uint8_t(std::lround(255.0f * (stops[stop][c] * (1 - f) + stops[stop + 1][c] * f)));
     }
   }
   return rgba;
@@ -440,7 +441,8 @@ MethodRun measure_method(render::Renderer& renderer, pipeline::MapMaker& maps, c
   return run;
 }
 
-void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata) {
+void write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
+                       const Metadata& metadata) {
   if (lower_extension(file) == ".png") {
     write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
     return;
@@ -536,8 +538,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
       renderer.device().type, frame.width, frame.height, summary.hit_pixels, frame.gpu_milliseconds,
       summary.mean_iterations, summary.mean_fetches, summary.p99_fetches);
   if (info.cone_sectors != 0) {  // what the cone maps cost and claim
-    out << "  cone maps baked by the budgeted bilinear baker "
-        << baked_within(cone_budget.milliseconds)
+    out << "  cone maps baked by the budgeted bilinear baker " << baked_within(cone_budget.milliseconds)
         << (default_tolerance ? std::string() : fmt::format(" at tolerance {:g}", cone_budget.tolerance));
     const bake::BakeStats& stats = maps.cone_stats(info.cone_sectors);
     if (stats.sector_count != 0) {
@@ -559,7 +560,8 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
         error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
   }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
+    throw runtime_error(std::to_string(renderer.validation_messages()) +
+                        " Vulkan validation messages (printed above)");
   }
 }
 
@@ -590,8 +592,8 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     load_scene(renderer, maps, scene);
     const render::Frame reference =
         pipeline::render_with_maps(renderer, maps, scene.view, {render::Method::reference, 1, 0});
-    out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, maps.heights().width, maps.heights().height,
-                       scene.view.camera.width, scene.view.camera.height);
+    out << fmt::format("scene {}: {} x {} map, {} x {} pixels\n", scene.name, maps.heights().width,
+                       maps.heights().height, scene.view.camera.width, scene.view.camera.height);
     out << "  method            fetches/pixel for rmse <= 3 (steps)   rmse at the most steps\n";
     std::array<bool, 3> cones_used{};  // by render::cone_slot
     for (render::Method method : settings.methods) {
@@ -607,8 +609,8 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
       double last_rmse = 0.0;
       render::Frame frame;
       for (int steps : settings.steps) {
-        const MethodRun run =
-            measure_method(renderer, maps, scene.view, {method, steps, settings.refine}, settings.repeat, reference, frame);
+        const MethodRun run = measure_method(renderer, maps, scene.view, {method, steps, settings.refine},
+                                             settings.repeat, reference, frame);
         const render::ImageError& error = run.error;
         const FrameSummary& summary = run.summary;
         csv << fmt::format("{},{},{},{},{:.4f},{:.0f},{:.6f},{:.3f},{:.0f},{:.3f},{:.4f},\"{}\"\n",
@@ -638,7 +640,8 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
   }
   out << "  wrote " << settings.output.string() << '\n';
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) + " Vulkan validation messages (printed above)");
+    throw runtime_error(std::to_string(renderer.validation_messages()) +
+                        " Vulkan validation messages (printed above)");
   }
 }
 
@@ -657,7 +660,8 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   source.time = 0.0f;
   source.ocean.size = settings.map_size;
   std::vector<render::Allocation> needs = synthesis_memory(source);
-  for (render::Allocation& bake : bake_memory(source.size, source.size, demo_sectors, Baker::budgeted, ConeKind::center)) {
+  for (render::Allocation& bake :
+       bake_memory(source.size, source.size, demo_sectors, Baker::budgeted, ConeKind::center)) {
     needs.push_back(std::move(bake));
   }
   require_memory(needs, host_limits());
@@ -709,7 +713,8 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
   render::Renderer renderer(render_settings.renderer);
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
   maps.set_heights({ocean.width, ocean.height, heights});
-  const render::Frame acm4 = pipeline::render_with_maps(renderer, maps, render_settings.view, render_settings.method);
+  const render::Frame acm4 =
+      pipeline::render_with_maps(renderer, maps, render_settings.view, render_settings.method);
   const render::Frame reference =
       pipeline::render_with_maps(renderer, maps, render_settings.view, {render::Method::reference, 1, 0});
   const std::filesystem::path acm4_file = settings.output_directory / "ocean_acm4.png";
@@ -726,8 +731,8 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
       "{:.3f}% of pixels off by more than 10\n",
       acm4.width, acm4.height, renderer.device().name, acm4.gpu_milliseconds, summary.mean_fetches,
       reference.gpu_milliseconds, error.rmse, 100.0 * error.fraction_over_10);
-  out << "  wrote " << acm4_file.string() << ", " << reference_file.string() << ", " << iterations_file.string()
-      << " (iterations heatmap)\n";
+  out << "  wrote " << acm4_file.string() << ", " << reference_file.string() << ", "
+      << iterations_file.string() << " (iterations heatmap)\n";
 }
 
 void run_print_scene(const PrintSceneSettings& settings, std::ostream& out) {

@@ -66,7 +66,8 @@ std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address 
                        ConeKind kind = ConeKind::center);
 
 // A rendered frame's colour to .png (8-bit) or .exr (float RGBA), and one AOV (AovOutput's formats).
-void write_frame_image(const std::filesystem::path& file, const render::Frame& frame, const Metadata& metadata);
+void write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
+                       const Metadata& metadata);
 void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata);
 
 // The error target of `sweep` and `report`: rmse against the reference, 8-bit units.

@@ -47,16 +47,11 @@ Metadata cone_metadata(const ConeMapExport& cones, const Metadata& extra) {
 
 const char* baker_name(Baker baker) {
   switch (baker) {
-    case Baker::exact:
-      return "exact";
-    case Baker::original:
-      return "original";
-    case Baker::paper_adaptive:
-      return "paper-adaptive";
-    case Baker::budgeted:
-      return "budgeted";
-    case Baker::relaxed:
-      return "relaxed";
+    case Baker::exact: return "exact";
+    case Baker::original: return "original";
+    case Baker::paper_adaptive: return "paper-adaptive";
+    case Baker::budgeted: return "budgeted";
+    case Baker::relaxed: return "relaxed";
     case Baker::full: return "full";
   }
   return "unknown";

@@ -13,7 +13,8 @@ namespace displace::app {
 // The rule (demos/options.h has it in full): usage when changing the command line fixes it, runtime
 // when the problem lies outside it.
 enum class ErrorKind {
-  usage,    // the command line is wrong: flags, values, limits, a flag that does not fit its input (exit status 2)
+  usage,  // the command line is wrong: flags, values, limits, a flag that does not fit its input (exit status
+          // 2)
   runtime,  // the command line was fine but the work failed: files, devices, memory, bakers (exit status 1)
 };
 

@@ -2,6 +2,7 @@
 // shardable, resumable) and `displace bench-frame` (the loop timed stage by stage).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -10,14 +11,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
-
-#include <nlohmann/json.hpp>
 
 #include "demos/commands.h"
 #include "demos/error.h"
@@ -62,7 +60,8 @@ std::vector<std::string> effect_names(unsigned effects) {
 template <typename Write>
 void write_atomically(const std::filesystem::path& file, Write&& write) {
   const std::filesystem::path temporary =
-      file.parent_path() / fmt::format(".{}.partial{}{}", file.stem().string(), ::getpid(), file.extension().string());
+      file.parent_path() /
+      fmt::format(".{}.partial{}{}", file.stem().string(), ::getpid(), file.extension().string());
   write(temporary);
   std::error_code error;
   std::filesystem::rename(temporary, file, error);
@@ -79,7 +78,8 @@ bool on_path(const std::string& program) {
   std::size_t start = 0;
   while (start <= directories.size()) {
     const std::size_t end = std::min(directories.find(':', start), directories.size());
-    const std::filesystem::path candidate = std::filesystem::path(directories.substr(start, end - start)) / program;
+    const std::filesystem::path candidate =
+        std::filesystem::path(directories.substr(start, end - start)) / program;
     if (::access(candidate.c_str(), X_OK) == 0) return true;
     start = end + 1;
   }
@@ -92,7 +92,8 @@ std::filesystem::path csv_file(const SequenceSettings& settings) {
   stem.erase(std::remove(stem.begin(), stem.end(), '#'), stem.end());
   while (!stem.empty() && (stem.back() == '_' || stem.back() == '-' || stem.back() == '.')) stem.pop_back();
   if (stem.empty()) stem = "frames";
-  if (settings.shard_count > 1) stem += fmt::format(".shard{}of{}", settings.shard_index, settings.shard_count);
+  if (settings.shard_count > 1)
+    stem += fmt::format(".shard{}of{}", settings.shard_index, settings.shard_count);
   return settings.output.parent_path() / (stem + ".csv");
 }
 
@@ -112,7 +113,8 @@ long long resident_kilobytes() {
 double percentile(std::vector<double> values, double fraction) {
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
-  const std::size_t rank = std::min(values.size() - 1, std::size_t(std::ceil(fraction * double(values.size())) - 1));
+  const std::size_t rank =
+      std::min(values.size() - 1, std::size_t(std::ceil(fraction * double(values.size())) - 1));
   return values[rank];
 }
 
@@ -132,18 +134,20 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
          return patterns;
        }()) {
     if (!pattern.parent_path().empty()) std::filesystem::create_directories(pattern.parent_path(), error);
-    if (error) throw runtime_error(fmt::format("cannot create the directory '{}'", pattern.parent_path().string()));
+    if (error)
+      throw runtime_error(fmt::format("cannot create the directory '{}'", pattern.parent_path().string()));
   }
   if (!settings.video.empty() && !on_path("ffmpeg")) {
-    throw runtime_error("--video needs ffmpeg on the PATH (apt-get install ffmpeg); the frames alone need no --video");
+    throw runtime_error(
+        "--video needs ffmpeg on the PATH (apt-get install ffmpeg); the frames alone need no --video");
   }
 
   unsigned outputs = render::output_color;
   for (const AovOutput& aov : settings.aovs) {
-    outputs |= aov.aov == Aov::uv          ? render::output_uv
-               : aov.aov == Aov::depth     ? render::output_depth
+    outputs |= aov.aov == Aov::uv           ? render::output_uv
+               : aov.aov == Aov::depth      ? render::output_depth
                : aov.aov == Aov::iterations ? render::output_uv | render::output_iterations
-                                           : render::output_uv | render::output_fetches;
+                                            : render::output_uv | render::output_fetches;
   }
   render::Renderer renderer(settings.renderer);
   require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
@@ -152,16 +156,17 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
 
   std::FILE* video = nullptr;
   if (!settings.video.empty()) {
-    const std::string command =
-        fmt::format("ffmpeg -loglevel error -y -f rawvideo -pix_fmt rgba -s {}x{} -r {} -i - -pix_fmt yuv420p '{}'",
-                    scene.camera.width, scene.camera.height, scene.fps, settings.video.string());
+    const std::string command = fmt::format(
+        "ffmpeg -loglevel error -y -f rawvideo -pix_fmt rgba -s {}x{} -r {} -i - -pix_fmt yuv420p '{}'",
+        scene.camera.width, scene.camera.height, scene.fps, settings.video.string());
     video = ::popen(command.c_str(), "w");
     if (!video) throw runtime_error("cannot start ffmpeg for --video");
   }
 
   const std::filesystem::path csv_path = csv_file(settings);
   std::string csv =
-      "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_mean_ratio,"
+      "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
+      "mean_ratio,"
       "pending_texels,cone_lag_frames,cone_lift\n";
   const bool terminal = stderr_is_terminal();
   const double start = seconds_now();
@@ -173,7 +178,8 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
     std::vector<AovOutput> aovs = settings.aovs;
     for (AovOutput& aov : aovs) aov.file = pipeline::image_for_frame(aov.file, n);
     const bool present = std::filesystem::exists(picture) &&
-                         std::all_of(aovs.begin(), aovs.end(), [](const AovOutput& aov) { return std::filesystem::exists(aov.file); });
+                         std::all_of(aovs.begin(), aovs.end(),
+                                     [](const AovOutput& aov) { return std::filesystem::exists(aov.file); });
     if (settings.resume && present && !video && settings.preview.empty()) {
       ++skipped;
       continue;
@@ -184,20 +190,24 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                          {"displace:time", fmt::format("{:.17g}", record.time)},
                          {"displace:method", std::string(render::method_info(scene.method).name)},
                          {"displace:steps", scene.steps}};
-    write_atomically(picture, [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
+    write_atomically(picture,
+                     [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
     for (const AovOutput& aov : aovs) {
-      write_atomically(aov.file, [&](const std::filesystem::path& file) { write_aov({aov.aov, file}, frame, metadata); });
+      write_atomically(aov.file, [&](const std::filesystem::path& file) {
+        write_aov({aov.aov, file}, frame, metadata);
+      });
     }
     if (!settings.preview.empty()) preview.push_back(frame.color);
     if (video && std::fwrite(frame.color.data(), 1, frame.color.size(), video) != frame.color.size()) {
       ::pclose(video);
       throw runtime_error("ffmpeg stopped taking frames for --video");
     }
-    csv += fmt::format("{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
-                       record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
-                       std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
-                       record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
-                       record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
+    csv += fmt::format(
+        "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
+        record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
+        std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
+        record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
+        record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
     ++done;
     const double elapsed = seconds_now() - start;
     const double rate = double(done) / std::max(elapsed, 1e-9);
@@ -205,14 +215,15 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
     if (terminal) {
       const int width = 30;
       const int filled = int(width * double(done + skipped) / double(frames.size()));
-      std::fprintf(stderr, "\r[%s%s] frame %lld of %zu, %.2f frames/s, %.0f s left ", std::string(filled, '#').c_str(),
-                   std::string(width - filled, '.').c_str(), done + skipped, frames.size(), rate,
-                   double(left) / std::max(rate, 1e-9));
+      std::fprintf(stderr, "\r[%s%s] frame %lld of %zu, %.2f frames/s, %.0f s left ",
+                   std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), done + skipped,
+                   frames.size(), rate, double(left) / std::max(rate, 1e-9));
       std::fflush(stderr);
     } else {
-      out << fmt::format("frame {} ({} of {}): {:.1f} ms (sim {:.1f}, bake {:.1f}, upload {:.1f}, render {:.1f}) -> {}\n",
-                         n, done + skipped, frames.size(), record.frame_ms, record.sim_ms, record.bake_ms,
-                         record.upload_ms, record.render_ms, picture.string());
+      out << fmt::format(
+          "frame {} ({} of {}): {:.1f} ms (sim {:.1f}, bake {:.1f}, upload {:.1f}, render {:.1f}) -> {}\n", n,
+          done + skipped, frames.size(), record.frame_ms, record.sim_ms, record.bake_ms, record.upload_ms,
+          record.render_ms, picture.string());
     }
   }
   if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
@@ -230,15 +241,17 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
       if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
     });
   }
-  out << fmt::format("displace sequence: {} {}, frames {}..{} step {}{}: rendered {}, skipped {} (present), "
-                     "{:.1f} s on {}\n",
-                     scene.name, render::method_info(scene.method).name, settings.first, settings.last, settings.step,
-                     settings.shard_count > 1 ? fmt::format(", shard {}/{}", settings.shard_index, settings.shard_count)
-                                              : std::string(),
-                     done, skipped, seconds_now() - start, renderer.device().name);
+  out << fmt::format(
+      "displace sequence: {} {}, frames {}..{} step {}{}: rendered {}, skipped {} (present), "
+      "{:.1f} s on {}\n",
+      scene.name, render::method_info(scene.method).name, settings.first, settings.last, settings.step,
+      settings.shard_count > 1 ? fmt::format(", shard {}/{}", settings.shard_index, settings.shard_count)
+                               : std::string(),
+      done, skipped, seconds_now() - start, renderer.device().name);
   if (done > 0) out << "  per-frame stage times: " << csv_path.string() << '\n';
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
+    throw runtime_error(
+        fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
   }
 }
 
@@ -297,7 +310,8 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                         [&](const pipeline::FrameRecord& record, const render::Frame&) { take(record); });
   }
   renderer.wait_idle();
-  const int pinned_threads = pinning ? pinning->pinned_threads() : 0, pinned_cpus = pinning ? pinning->cpu_count() : 0;
+  const int pinned_threads = pinning ? pinning->pinned_threads() : 0,
+            pinned_cpus = pinning ? pinning->cpu_count() : 0;
   pinning.reset();
   const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
   const long long rss_end = resident_kilobytes();
@@ -308,18 +322,21 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
     const char* name;
     const std::vector<double>* values;
   };
-  const Row rows[] = {{"sim", &sim},       {"bake", &bake},         {"upload", &upload},
-                      {"render", &draw},   {"frame", &interval},    {"latency", &frame_ms}};
-  out << fmt::format("displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
-                     "budget {}, {}, on {}\n",
-                     scene.name, scene.source == pipeline::SourceKind::image ? "image" : "a",
-                     scene.map_size, scene.map_size, scene.camera.width, scene.camera.height,
-                     render::method_info(scene.method).name, scene.steps, settings.frames, settings.warm_up,
-                     std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
-                     settings.serial ? "stages in series" : "stages overlapped", renderer.device().name);
+  const Row rows[] = {{"sim", &sim},     {"bake", &bake},      {"upload", &upload},
+                      {"render", &draw}, {"frame", &interval}, {"latency", &frame_ms}};
+  out << fmt::format(
+      "displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
+      "budget {}, {}, on {}\n",
+      scene.name, scene.source == pipeline::SourceKind::image ? "image" : "a", scene.map_size, scene.map_size,
+      scene.camera.width, scene.camera.height, render::method_info(scene.method).name, scene.steps,
+      settings.frames, settings.warm_up,
+      std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
+      settings.serial ? "stages in series" : "stages overlapped", renderer.device().name);
   if (settings.pin_threads) {
-    out << (pinned_cpus > 0 ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", pinned_threads, pinned_cpus)
-                            : std::string("  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity here)\n"));
+    out << (pinned_cpus > 0
+                ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", pinned_threads, pinned_cpus)
+                : std::string(
+                      "  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity here)\n"));
   }
   out << "  stage     p50 ms   p95 ms   p99 ms\n";
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
@@ -331,52 +348,59 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   }
   const double within_budget = double(within) / double(settings.frames);
   if (settings.serial) {
-    out << fmt::format("  frame = the time between finished frames (the stages one after another, each with the\n"
-                       "  whole machine); latency = from a frame's sim to its render's end\n");
+    out << fmt::format(
+        "  frame = the time between finished frames (the stages one after another, each with the\n"
+        "  whole machine); latency = from a frame's sim to its render's end\n");
   } else {
-    out << fmt::format("  frame = the time between finished frames (stages overlap: the next frame's sim and bake run\n"
-                       "  while this one renders); latency = from a frame's sim to its render's end\n");
+    out << fmt::format(
+        "  frame = the time between finished frames (stages overlap: the next frame's sim and bake run\n"
+        "  while this one renders); latency = from a frame's sim to its render's end\n");
   }
-  out << fmt::format("  within budget: {:.1f}% of frames; FFTs per frame: {:.2f}; effects: {}; Vulkan allocations "
-                     "after warm-up: {}\n",
-                     100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
-                     allocations);
-  const double lag_p50 = percentile(lag, 0.50), lag_max = lag.empty() ? 0.0 : *std::max_element(lag.begin(), lag.end());
-  const double lift_p50 = percentile(lift, 0.50), lift_max = lift.empty() ? 0.0 : *std::max_element(lift.begin(), lift.end());
+  out << fmt::format(
+      "  within budget: {:.1f}% of frames; FFTs per frame: {:.2f}; effects: {}; Vulkan allocations "
+      "after warm-up: {}\n",
+      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
+      allocations);
+  const double lag_p50 = percentile(lag, 0.50),
+               lag_max = lag.empty() ? 0.0 : *std::max_element(lag.begin(), lag.end());
+  const double lift_p50 = percentile(lift, 0.50),
+               lift_max = lift.empty() ? 0.0 : *std::max_element(lift.begin(), lift.end());
   if (cones) {
-    out << fmt::format("  cone maps: made from the heights of {:g} frames before (p50; at most {:g}), apexes raised by "
-                       "{:.4f} (p50; at most {:.4f}) of the height range\n",
-                       lag_p50, lag_max, lift_p50, lift_max);
+    out << fmt::format(
+        "  cone maps: made from the heights of {:g} frames before (p50; at most {:g}), apexes raised by "
+        "{:.4f} (p50; at most {:.4f}) of the height range\n",
+        lag_p50, lag_max, lift_p50, lift_max);
   }
   if (rss_end >= 0) {
-    out << fmt::format("  {} of {} frames rendered; resident memory {} kB after warm-up, {} kB at the end ({:+} kB), "
-                       "at most {} kB\n",
-                       frames_rendered, settings.frames, rss_after_warm_up, rss_end, rss_end - rss_after_warm_up, rss_max);
+    out << fmt::format(
+        "  {} of {} frames rendered; resident memory {} kB after warm-up, {} kB at the end ({:+} kB), "
+        "at most {} kB\n",
+        frames_rendered, settings.frames, rss_after_warm_up, rss_end, rss_end - rss_after_warm_up, rss_max);
   }
   if (!settings.json.empty()) {
-    nlohmann::ordered_json json = {{"frames", settings.frames},
-                                   {"budget_ms", std::isfinite(scene.frame_ms) ? nlohmann::ordered_json(scene.frame_ms)
-                                                                               : nlohmann::ordered_json(nullptr)},
-                                   {"stages", stages},
-                                   {"within_budget", within_budget},
-                                   {"ffts_per_frame", double(ffts) / double(settings.frames)},
-                                   {"effects", effect_names(effects)},
-                                   {"vulkan_allocations_after_warmup", allocations},
-                                   {"frames_rendered", frames_rendered},
-                                   {"cone_lag_frames", cones ? nlohmann::ordered_json{{"p50", lag_p50}, {"max", lag_max}}
-                                                             : nlohmann::ordered_json(nullptr)},
-                                   {"cone_lift", cones ? nlohmann::ordered_json{{"p50", lift_p50}, {"max", lift_max}}
-                                                       : nlohmann::ordered_json(nullptr)},
-                                   {"overlapped", !settings.serial},
-                                   {"pinned_threads", pinned_threads},
-                                   {"rss_kb",
-                                    rss_end < 0 ? nlohmann::ordered_json(nullptr)
-                                                : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},
-                                                                         {"end", rss_end},
-                                                                         {"growth", rss_end - rss_after_warm_up},
-                                                                         {"max", rss_max}}},
-                                   {"scene", scene.name},
-                                   {"device", renderer.device().name}};
+    nlohmann::ordered_json json = {
+        {"frames", settings.frames},
+        {"budget_ms", std::isfinite(scene.frame_ms) ? nlohmann::ordered_json(scene.frame_ms)
+                                                    : nlohmann::ordered_json(nullptr)},
+        {"stages", stages},
+        {"within_budget", within_budget},
+        {"ffts_per_frame", double(ffts) / double(settings.frames)},
+        {"effects", effect_names(effects)},
+        {"vulkan_allocations_after_warmup", allocations},
+        {"frames_rendered", frames_rendered},
+        {"cone_lag_frames", cones ? nlohmann::ordered_json{{"p50", lag_p50}, {"max", lag_max}}
+                                  : nlohmann::ordered_json(nullptr)},
+        {"cone_lift", cones ? nlohmann::ordered_json{{"p50", lift_p50}, {"max", lift_max}}
+                            : nlohmann::ordered_json(nullptr)},
+        {"overlapped", !settings.serial},
+        {"pinned_threads", pinned_threads},
+        {"rss_kb", rss_end < 0 ? nlohmann::ordered_json(nullptr)
+                               : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},
+                                                        {"end", rss_end},
+                                                        {"growth", rss_end - rss_after_warm_up},
+                                                        {"max", rss_max}}},
+        {"scene", scene.name},
+        {"device", renderer.device().name}};
     write_atomically(settings.json, [&](const std::filesystem::path& file) {
       std::ofstream stream(file);
       stream << json.dump(2) << '\n';
@@ -385,7 +409,8 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
     out << "  wrote " << settings.json.string() << '\n';
   }
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
+    throw runtime_error(
+        fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
   }
 }
 

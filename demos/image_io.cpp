@@ -224,18 +224,20 @@ std::unique_ptr<oiio::ImageInput> open_input(const std::filesystem::path& file, 
   auto input = oiio::ImageInput::open(file.string(), &config, memory);
   const std::vector<std::string> library = capture.finish();
   if (!input) {
-    throw runtime_error("cannot read " + quoted(file) + " as an image: " + one_line(oiio::geterror(), library));
+    throw runtime_error("cannot read " + quoted(file) +
+                        " as an image: " + one_line(oiio::geterror(), library));
   }
   const oiio::ImageSpec& spec = input->spec();
   const std::string size = std::to_string(spec.width) + " x " + std::to_string(spec.height);
-  if (spec.width <= 0 || spec.height <= 0) throw runtime_error(quoted(file) + " is an empty image (" + size + ")");
+  if (spec.width <= 0 || spec.height <= 0)
+    throw runtime_error(quoted(file) + " is an empty image (" + size + ")");
   if (spec.width < use.min_side || spec.height < use.min_side) {
-    throw runtime_error(fmt::format("{} is {}: {} needs at least {} x {} texels to displace anything", quoted(file),
-                                    size, use.noun, use.min_side, use.min_side));
+    throw runtime_error(fmt::format("{} is {}: {} needs at least {} x {} texels to displace anything",
+                                    quoted(file), size, use.noun, use.min_side, use.min_side));
   }
   if (spec.width > use.max_side || spec.height > use.max_side) {
-    throw runtime_error(fmt::format("{} is {} pixels; {} may have at most {} a side", quoted(file), size, use.noun,
-                                    use.max_side));
+    throw runtime_error(fmt::format("{} is {} pixels; {} may have at most {} a side", quoted(file), size,
+                                    use.noun, use.max_side));
   }
   if (spec.depth > 1) throw runtime_error(quoted(file) + " is a volume image; " + use.noun + " is 2D");
   if (spec.deep) throw runtime_error(quoted(file) + " is a deep image; " + use.noun + " is flat");
@@ -261,17 +263,17 @@ int choose_channel(const oiio::ImageSpec& spec, const ChannelChoice& choice,
                    const std::filesystem::path& file) {
   if (choice.index >= 0) {
     if (choice.index >= spec.nchannels) {
-      throw usage_error("--channel " + std::to_string(choice.index) + ": " + quoted(file) + " has " + std::to_string(spec.nchannels) + " channel(s) (" +
-                          channel_list(spec) + "); there is no channel index " +
-                          std::to_string(choice.index));
+      throw usage_error("--channel " + std::to_string(choice.index) + ": " + quoted(file) + " has " +
+                        std::to_string(spec.nchannels) + " channel(s) (" + channel_list(spec) +
+                        "); there is no channel index " + std::to_string(choice.index));
     }
     return choice.index;
   }
   if (!choice.name.empty()) {
     for (int c = 0; c < spec.nchannels; ++c)
       if (spec.channel_name(c) == choice.name) return c;
-    throw usage_error("--channel " + choice.name + ": " + quoted(file) + " has no channel named '" + choice.name +
-                        "' (channels: " + channel_list(spec) + ")");
+    throw usage_error("--channel " + choice.name + ": " + quoted(file) + " has no channel named '" +
+                      choice.name + "' (channels: " + channel_list(spec) + ")");
   }
   for (int c = 0; c < spec.nchannels; ++c)
     if (spec.channel_name(c) == "height") return c;
@@ -284,14 +286,11 @@ int choose_channel(const oiio::ImageSpec& spec, const ChannelChoice& choice,
 
 SampleFormat sample_format(oiio::TypeDesc type, const std::filesystem::path& file) {
   switch (type.basetype) {
-    case oiio::TypeDesc::UINT8:
-      return SampleFormat::uint8;
-    case oiio::TypeDesc::UINT16:
-      return SampleFormat::uint16;
+    case oiio::TypeDesc::UINT8: return SampleFormat::uint8;
+    case oiio::TypeDesc::UINT16: return SampleFormat::uint16;
     case oiio::TypeDesc::HALF:
     case oiio::TypeDesc::FLOAT:
-    case oiio::TypeDesc::DOUBLE:
-      return SampleFormat::floating;
+    case oiio::TypeDesc::DOUBLE: return SampleFormat::floating;
     default:
       throw runtime_error(quoted(file) + " stores " + std::string(type.c_str()) +
                           " samples; supported are 8-bit and 16-bit unsigned integers and floats");
@@ -399,7 +398,8 @@ LoadedHeights read_heights(std::unique_ptr<oiio::ImageInput> input, const std::f
   loaded.format = sample_format(spec.channelformat(loaded.channel_index), file);
   if (settings.range && loaded.format != SampleFormat::floating) {
     throw usage_error("--height-range applies to float images only; " + quoted(file) + " stores " +
-                      (loaded.format == SampleFormat::uint8 ? "8" : "16") + "-bit integers, mapped as value / maximum");
+                      (loaded.format == SampleFormat::uint8 ? "8" : "16") +
+                      "-bit integers, mapped as value / maximum");
   }
 
   // read the raw samples in their own format
@@ -606,9 +606,11 @@ Rgba8Image read_color_image(const std::filesystem::path& file) {
   const oiio::ImageSpec& spec = input->spec();
   const int channels = spec.nchannels;
   if (channels < 1 || channels > 4) {
-    throw runtime_error(quoted(file) + " has " + std::to_string(channels) + " channels; a colour image has 1 to 4");
+    throw runtime_error(quoted(file) + " has " + std::to_string(channels) +
+                        " channels; a colour image has 1 to 4");
   }
-  std::vector<std::uint8_t> stored(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(channels));
+  std::vector<std::uint8_t> stored(std::size_t(spec.width) * std::size_t(spec.height) *
+                                   std::size_t(channels));
   read_pixels(*input, 0, channels, oiio::TypeDesc::UINT8, stored.data(), file);
   input->close();
   Rgba8Image image;

@@ -18,14 +18,17 @@ namespace {
 
 // Host bytes per texel, measured as the growth of peak resident memory per texel from 1024 x 1024
 // to 2048 x 2048 (512 to 1024 where a run takes minutes), rounded up by about a fifth.
-constexpr std::uint64_t ocean_texel_bytes = 40;      // the spectrum, FFT plans and one frame (36 measured)
-constexpr std::uint64_t synthesis_texel_bytes = 10;  // sinusoids, bricks, cliff: heights and their mapping (8)
-constexpr std::uint64_t bake_texel_bytes = 16;       // a centre-to-centre bake and its export, plus per sector:
-constexpr std::uint64_t bake_sector_bytes = 13;      //   59 at 4 sectors, 108 at 8 (exact, budgeted, original)
-constexpr std::uint64_t bilinear_texel_bytes = 100;  // a bilinear bake (BilinearBaker, full) with its outputs,
+constexpr std::uint64_t ocean_texel_bytes = 40;  // the spectrum, FFT plans and one frame (36 measured)
+constexpr std::uint64_t synthesis_texel_bytes =
+    10;                                          // sinusoids, bricks, cliff: heights and their mapping (8)
+constexpr std::uint64_t bake_texel_bytes = 16;   // a centre-to-centre bake and its export, plus per sector:
+constexpr std::uint64_t bake_sector_bytes = 13;  //   59 at 4 sectors, 108 at 8 (exact, budgeted, original)
+constexpr std::uint64_t bilinear_texel_bytes =
+    100;  // a bilinear bake (BilinearBaker, full) with its outputs,
 constexpr std::uint64_t bilinear_sector_bytes = 10;  //   plus per sector: 104 at 4 sectors, 133 at 8
-constexpr std::uint64_t pipeline_texel_bytes = 480;  // the frame pipeline's loop (477 on water, 299 on bricks)
-constexpr std::uint64_t height_bytes = 4;            // one float per texel
+constexpr std::uint64_t pipeline_texel_bytes =
+    480;                                   // the frame pipeline's loop (477 on water, 299 on bricks)
+constexpr std::uint64_t height_bytes = 4;  // one float per texel
 constexpr std::uint64_t mebibyte = 1ull << 20;
 
 std::string map_text(int width, int height) { return fmt::format("a {} x {} map", width, height); }
@@ -33,12 +36,14 @@ std::string map_text(int width, int height) { return fmt::format("a {} x {} map"
 std::uint64_t texels_of(int width, int height) { return std::uint64_t(width) * std::uint64_t(height); }
 
 // The cone bake a method's maps need (pipeline::MapMaker bakes bilinear cones, plus relaxed ones).
-void add_cone_bake(std::vector<render::Allocation>& list, const render::MapNeeds& needs, int width, int height) {
+void add_cone_bake(std::vector<render::Allocation>& list, const render::MapNeeds& needs, int width,
+                   int height) {
   const std::uint64_t texels = texels_of(width, height);
   if (needs.cone_sectors > 0) {
-    list.push_back({fmt::format("baking the {}-sector cone maps of {}", needs.cone_sectors, map_text(width, height)),
-                    texels * (bilinear_texel_bytes + bilinear_sector_bytes * std::uint64_t(needs.cone_sectors)),
-                    render::MemoryKind::host, "--map-size"});
+    list.push_back(
+        {fmt::format("baking the {}-sector cone maps of {}", needs.cone_sectors, map_text(width, height)),
+         texels * (bilinear_texel_bytes + bilinear_sector_bytes * std::uint64_t(needs.cone_sectors)),
+         render::MemoryKind::host, "--map-size"});
   }
   if (needs.relaxed) {
     list.push_back({"baking the relaxed cones of " + map_text(width, height),
@@ -80,8 +85,8 @@ std::uint64_t memory_limit_from_environment() {
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), megabytes);
   if (error != std::errc{} || end != text.data() + text.size() || megabytes == 0 ||
       megabytes > (~0ull) / mebibyte) {
-    throw usage_error(fmt::format("{} must be a whole number of megabytes above 0, got '{}'", memory_limit_variable,
-                                  text));
+    throw usage_error(
+        fmt::format("{} must be a whole number of megabytes above 0, got '{}'", memory_limit_variable, text));
   }
   return megabytes * mebibyte;
 }
@@ -94,14 +99,16 @@ std::vector<render::Allocation> synthesis_memory(const SourceSettings& source) {
   const std::uint64_t texels = texels_of(source.size, source.size);
   const bool ocean = source.kind == SourceKind::ocean;
   return {{"synthesizing the heights of " + map_text(source.size, source.size),
-           texels * (ocean ? ocean_texel_bytes : synthesis_texel_bytes), render::MemoryKind::host, "--map-size"}};
+           texels * (ocean ? ocean_texel_bytes : synthesis_texel_bytes), render::MemoryKind::host,
+           "--map-size"}};
 }
 
-std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker, ConeKind cones) {
+std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker,
+                                            ConeKind cones) {
   const std::uint64_t texels = texels_of(width, height), sectors = std::uint64_t(sector_count);
   const bool bilinear = cones == ConeKind::bilinear;
-  const std::uint64_t per_texel =
-      bilinear ? bilinear_texel_bytes + bilinear_sector_bytes * sectors : bake_texel_bytes + bake_sector_bytes * sectors;
+  const std::uint64_t per_texel = bilinear ? bilinear_texel_bytes + bilinear_sector_bytes * sectors
+                                           : bake_texel_bytes + bake_sector_bytes * sectors;
   return {{fmt::format("baking {}-sector {} cones ({}) of {}", sector_count, bilinear ? "bilinear" : "centre",
                        baker_name(baker), map_text(width, height)),
            texels * per_texel, render::MemoryKind::host, "--map-size"}};
@@ -109,7 +116,8 @@ std::vector<render::Allocation> bake_memory(int width, int height, int sector_co
 
 std::vector<render::Allocation> render_memory(const RenderSettings& settings, int width, int height) {
   std::vector<render::Allocation> list;
-  if (const auto* source = std::get_if<SourceSettings>(&settings.input)) append(list, synthesis_memory(*source));
+  if (const auto* source = std::get_if<SourceSettings>(&settings.input))
+    append(list, synthesis_memory(*source));
   list.push_back({"the heights of " + map_text(width, height), texels_of(width, height) * height_bytes * 2,
                   render::MemoryKind::host, "--map-size"});
   const render::MapNeeds needs = render::map_needs(settings.method.method, settings.view);

@@ -30,7 +30,8 @@ render::MemoryLimits host_limits();
 // Synthesizing `source`: the generator's state and the heights.
 std::vector<render::Allocation> synthesis_memory(const SourceSettings& source);
 // Baking a width x height map to a cone map: heights, the baker's working memory, the export.
-std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker, ConeKind cones);
+std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker,
+                                            ConeKind cones);
 // `displace render` on a width x height map: the maps it bakes (pipeline::MapMaker), their device
 // copies and the frame (with the reference's when it compares).
 std::vector<render::Allocation> render_memory(const RenderSettings& settings, int width, int height);

@@ -222,13 +222,13 @@ CLI::Validator output_file(std::vector<std::string> extensions) {
 CLI::Validator image_size_check() {
   return text_check(
       [](const std::string& text) {
-        return read_image_size(text) ? std::string()
-                                     : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
-                                                   max_image_side, in_quotes(text));
+        return read_image_size(text)
+                   ? std::string()
+                   : fmt::format("expects WxH with each side an integer between 1 and {}, got {}",
+                                 max_image_side, in_quotes(text));
       },
       fmt::format("[1, {}] each", max_image_side));
 }
-
 
 const Words<SourceKind> source_words = {{"ocean", SourceKind::ocean},
                                         {"sinusoids", SourceKind::sinusoids},
@@ -249,7 +249,6 @@ const Words<render::Surface> surface_words = {{"plane", render::Surface::plane},
                                               {"cone", render::Surface::cone}};
 const Words<Aov> aov_words = {
     {"uv", Aov::uv}, {"depth", Aov::depth}, {"iterations", Aov::iterations}, {"fetches", Aov::fetches}};
-
 
 Words<render::Method> method_words() {
   Words<render::Method> words;
@@ -285,7 +284,8 @@ CLI::Validator frame_pattern(std::vector<std::string> extensions) {
 
 // --aov NAME=FILE (render) or NAME=PATTERN (sequence, a '#' pattern): uv and depth to .exr,
 // iterations and fetches to .exr (raw) or .png (heatmap).
-void add_aov_option(CLI::App& app, std::vector<std::string>& aovs, const std::string& description, bool patterns) {
+void add_aov_option(CLI::App& app, std::vector<std::string>& aovs, const std::string& description,
+                    bool patterns) {
   const std::string value = patterns ? "PATTERN" : "FILE";
   app.add_option("--aov", aovs, description)
       ->type_name("NAME=" + value)
@@ -294,7 +294,8 @@ void add_aov_option(CLI::App& app, std::vector<std::string>& aovs, const std::st
         if (equals == std::string::npos || equals + 1 == text.size()) {
           return "expects NAME=" + value + " (" + word_list(aov_words, ", ") + "), got " + in_quotes(text);
         }
-        if (std::string problem = word_in(aov_words)(text.substr(0, equals)); !problem.empty()) return problem;
+        if (std::string problem = word_in(aov_words)(text.substr(0, equals)); !problem.empty())
+          return problem;
         const Aov aov = word_value(aov_words, text.substr(0, equals));
         std::vector<std::string> extensions{".exr"};
         if (aov == Aov::iterations || aov == Aov::fetches) extensions.push_back(".png");
@@ -309,7 +310,8 @@ std::vector<AovOutput> aov_outputs(const std::vector<std::string>& aovs) {
   std::vector<AovOutput> outputs;
   for (const std::string& aov : aovs) {
     const auto equals = aov.find('=');
-    outputs.push_back({word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
+    outputs.push_back(
+        {word_value(aov_words, aov.substr(0, equals)), std::filesystem::path(aov.substr(equals + 1))});
   }
   return outputs;
 }
@@ -450,8 +452,9 @@ SourceSettings finish_source(const CLI::App& app, const SourceDraft& draft) {
   if (!given(app, "--map-size")) throw usage_error("--source needs --map-size N (samples along u and v)");
   source.size = draft.map_size;
   if (source.kind == SourceKind::ocean && (source.size % 2 != 0 || source.size > max_ocean_size)) {
-    throw usage_error(fmt::format("--map-size for the ocean must be even and at most {} (its FFT grid), got {}",
-                                  max_ocean_size, source.size));
+    throw usage_error(
+        fmt::format("--map-size for the ocean must be even and at most {} (its FFT grid), got {}",
+                    max_ocean_size, source.size));
   }
   if (source.kind == SourceKind::bricks || source.kind == SourceKind::cliff) {
     // static procedural reliefs: only a seed
@@ -643,7 +646,8 @@ SceneSettings finish_scene(const CLI::App& app, const SceneDraft& draft, const s
   if (given(app, "--up")) view.camera.up = *read_vector(draft.up);
   if (given(app, "--light")) {
     view.light_direction = *read_vector(draft.light);
-    if (glm::length(view.light_direction) < 1e-6f) throw usage_error("--light must not be 0,0,0 (a direction towards the light)");
+    if (glm::length(view.light_direction) < 1e-6f)
+      throw usage_error("--light must not be 0,0,0 (a direction towards the light)");
   }
   if (given(app, "--surface")) {
     if (draft.surface.starts_with("mesh:")) {
@@ -1000,7 +1004,8 @@ CommandSettings parse_demo(std::span<const std::string_view> args) {
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
   if (settings.map_size % 2 != 0) {
-    throw usage_error(fmt::format("--map-size for the ocean must be even (its FFT grid), got {}", settings.map_size));
+    throw usage_error(
+        fmt::format("--map-size for the ocean must be even (its FFT grid), got {}", settings.map_size));
   }
   settings.output_directory = directory;
   return settings;
@@ -1052,15 +1057,18 @@ void add_pipeline_scene_flags(CLI::App& app, PipelineSceneDraft& draft) {
   const Words<render::Method> methods = method_words();
   add_value(app, "--method", draft.method, "the per-pixel method (default: the scene's)", word_list(methods),
             word_in(methods));
-  add_value(app, "--steps", draft.steps, "search steps (default: the scene's)", "INT", integer_in(1, max_steps));
-  add_value(app, "--budget-ms", draft.budget_ms, "the frame budget the bake's share comes from (default: the scene's)",
-            "MS", number_in(budget_range));
-  add_value(app, "--bake-work", draft.bake_work, "texels the cone bake may search a frame (default: the scene's)",
-            "N", integer_in(0, 1ll << 40));
-  add_value(app, "--cone-lag", draft.cone_lag,
-            "with --budget-ms and moving heights: frames a cone map may take to make while the last one is served "
-            "with raised apexes (default: the scene's; 0: every frame makes its own)",
-            "N", integer_in(0, pipeline::max_cone_lag_frames));
+  add_value(app, "--steps", draft.steps, "search steps (default: the scene's)", "INT",
+            integer_in(1, max_steps));
+  add_value(app, "--budget-ms", draft.budget_ms,
+            "the frame budget the bake's share comes from (default: the scene's)", "MS",
+            number_in(budget_range));
+  add_value(app, "--bake-work", draft.bake_work,
+            "texels the cone bake may search a frame (default: the scene's)", "N", integer_in(0, 1ll << 40));
+  add_value(
+      app, "--cone-lag", draft.cone_lag,
+      "with --budget-ms and moving heights: frames a cone map may take to make while the last one is served "
+      "with raised apexes (default: the scene's; 0: every frame makes its own)",
+      "N", integer_in(0, pipeline::max_cone_lag_frames));
 }
 
 pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDraft& draft) {
@@ -1071,8 +1079,8 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
       scene = pipeline::builtin_scene(draft.scene);
     } else {
       if (!std::filesystem::exists(draft.scene)) {
-        throw runtime_error(fmt::format("--scene {} is neither a built-in scene ({}) nor a file", in_quotes(draft.scene),
-                                        fmt::join(names, ", ")));
+        throw runtime_error(fmt::format("--scene {} is neither a built-in scene ({}) nor a file",
+                                        in_quotes(draft.scene), fmt::join(names, ", ")));
       }
       scene = pipeline::read_scene_file(draft.scene);
     }
@@ -1095,18 +1103,19 @@ pipeline::Scene finish_pipeline_scene(const CLI::App& app, const PipelineSceneDr
   if (given(app, "--bake-work")) scene.bake_work = draft.bake_work;
   if (given(app, "--cone-lag")) {
     if (!std::isfinite(scene.frame_ms)) {
-      throw usage_error("--cone-lag needs a frame budget (--budget-ms, or the scene's [budget] frame_ms): without one "
-                        "every frame makes its own cone maps");
+      throw usage_error(
+          "--cone-lag needs a frame budget (--budget-ms, or the scene's [budget] frame_ms): without one "
+          "every frame makes its own cone maps");
     }
     scene.cone_lag_frames = draft.cone_lag;
   }
   if (!render::supports_surface(scene.method, scene.surface)) {
     throw usage_error(fmt::format("--method {} does not support the scene's surface {}",
-                                  render::method_info(scene.method).name, render::surface_name(scene.surface)));
+                                  render::method_info(scene.method).name,
+                                  render::surface_name(scene.surface)));
   }
   return scene;
 }
-
 
 CommandSettings parse_sequence(std::span<const std::string_view> args) {
   CLI::App app(
@@ -1143,7 +1152,8 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
       ->check(text_check([](const std::string& text) -> std::string {
         int i = 0, n = 0;
         char extra = 0;
-        if (std::sscanf(text.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 || i > n) {
+        if (std::sscanf(text.c_str(), "%d/%d%c", &i, &n, &extra) != 2 || n < 1 || n > 100000 || i < 1 ||
+            i > n) {
           return "expects I/N with 1 <= I <= N, got " + in_quotes(text);
         }
         return {};
@@ -1169,7 +1179,8 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   if (std::isfinite(settings.scene.frame_ms) && (settings.shard_count > 1 || settings.resume)) {
     throw usage_error(fmt::format(
         "--shard and --resume need frames that depend on their index only, and a wall-clock frame budget "
-        "({:g} ms, from --budget-ms or the scene's [budget] frame_ms) makes them depend on timing: give a work "
+        "({:g} ms, from --budget-ms or the scene's [budget] frame_ms) makes them depend on timing: give a "
+        "work "
         "budget instead (--bake-work N)",
         settings.scene.frame_ms));
   }
@@ -1178,7 +1189,6 @@ CommandSettings parse_sequence(std::span<const std::string_view> args) {
   settings.video = video;
   if (!settings.video.empty() && settings.shard_count > 1) {
     throw usage_error("--video encodes one run's frames: not with --shard");
-
   }
   return settings;
 }
@@ -1227,10 +1237,11 @@ CommandSettings parse_play(std::span<const std::string_view> args) {
   add_value(app, "--frames", settings.frames,
             "render exactly N fixed-step frames (scene time start + n / fps), then exit", "N",
             integer_in(1, 1000000000));
-  add_value(app, "--cone-lag", settings.cone_lag,
-            "frames a cone map may take to make while the last one is served with raised apexes (interactive: "
-            "with a frame budget; default: the scene's)",
-            "N", integer_in(0, pipeline::max_cone_lag_frames));
+  add_value(
+      app, "--cone-lag", settings.cone_lag,
+      "frames a cone map may take to make while the last one is served with raised apexes (interactive: "
+      "with a frame budget; default: the scene's)",
+      "N", integer_in(0, pipeline::max_cone_lag_frames));
   add_value(app, "--screenshot", screenshot, "with --frames: write the last frame", "F.png",
             output_file({".png"}));
   add_switch(app, "--vsync", settings.vsync,
@@ -1270,9 +1281,10 @@ CommandSettings parse_bench_frame(std::span<const std::string_view> args) {
             integer_in(2, 10000));
   add_switch(app, "--serial", settings.serial,
              "run the stages one after another, none overlapped: what each costs with the whole machine");
-  add_switch(app, "--pin-threads", settings.pin_threads,
-             "run TBB's threads and lavapipe's rasterizer threads one per CPU (Linux): frame times without the "
-             "stalls of a woken thread queued on a busy CPU");
+  add_switch(
+      app, "--pin-threads", settings.pin_threads,
+      "run TBB's threads and lavapipe's rasterizer threads one per CPU (Linux): frame times without the "
+      "stalls of a woken thread queued on a busy CPU");
   add_value(app, "--json", json, "also write the table as JSON", "FILE.json", output_file({".json"}));
   if (auto help = parse_flags(app, args)) return *help;
   reject_extras(app);
@@ -1411,13 +1423,13 @@ SceneSettings read_scene_file(const std::filesystem::path& file) {
     if (!(tokens >> flag)) continue;
     if (!flag.starts_with("--")) {
       throw runtime_error(fmt::format("scene file {} line {}: expected a --flag, got {}",
-                                    in_quotes(file.string()), number, in_quotes(flag)));
+                                      in_quotes(file.string()), number, in_quotes(flag)));
     }
     words.push_back(flag);
     if (tokens >> value) words.push_back(value);
     if (tokens >> extra) {
       throw runtime_error(fmt::format("scene file {} line {}: one flag and at most one value per line",
-                                    in_quotes(file.string()), number));
+                                      in_quotes(file.string()), number));
     }
   }
   const std::vector<std::string_view> args(words.begin(), words.end());

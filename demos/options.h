@@ -118,9 +118,9 @@ struct SweepSettings {
   std::vector<render::Method> methods;
   std::vector<int> steps;
   int refine = 8;
-  int repeat = 3;  // renders per row; the row reports the median device time
+  int repeat = 3;                // renders per row; the row reports the median device time
   std::filesystem::path output;  // .csv
-  bake::Budget cone_budget;  // the cone methods' maps, as RenderSettings' cone_budget
+  bake::Budget cone_budget;      // the cone methods' maps, as RenderSettings' cone_budget
   render::RendererOptions renderer;
 };
 
@@ -144,11 +144,11 @@ struct SequenceSettings {
   // --shard I/N: this run renders the frames whose position in A..B:STEP is I modulo N (round robin,
   // I from 1), so that shards finish together
   int shard_index = 1, shard_count = 1;
-  std::filesystem::path output;  // pattern, .png (8-bit) or .exr (float colour)
-  std::vector<AovOutput> aovs;   // file patterns
-  bool resume = false;           // skip frames whose every output exists
-  std::filesystem::path video;   // .mp4 or .webm through ffmpeg; empty: none
-  std::filesystem::path preview; // an animated .gif of the frames rendered; empty: none
+  std::filesystem::path output;   // pattern, .png (8-bit) or .exr (float colour)
+  std::vector<AovOutput> aovs;    // file patterns
+  bool resume = false;            // skip frames whose every output exists
+  std::filesystem::path video;    // .mp4 or .webm through ffmpeg; empty: none
+  std::filesystem::path preview;  // an animated .gif of the frames rendered; empty: none
   render::RendererOptions renderer;
 };
 
@@ -169,10 +169,10 @@ struct PlaySettings {
   int width = 0, height = 0;    // --size WxH: the window and image in pixels; 0: the scene's
   int map_size = 0;             // --map-size N; 0: the scene's
   int cone_lag = -1;            // --cone-lag N (lagged cone maps in real time); -1: the scene's
-  long long frames = -1;        // --frames N: exactly N fixed-step frames (0 .. N-1), then exit; -1: until closed
+  long long frames = -1;  // --frames N: exactly N fixed-step frames (0 .. N-1), then exit; -1: until closed
   std::filesystem::path screenshot;  // --screenshot F.png (with --frames): the last frame
   bool vsync = false;                // present with FIFO (the display's rate)
-  bool pin_threads = false;          // --pin-threads: the loop's threads one per CPU (pipeline::ThreadPinning)
+  bool pin_threads = false;  // --pin-threads: the loop's threads one per CPU (pipeline::ThreadPinning)
   render::RendererOptions renderer;
 };
 
@@ -181,15 +181,15 @@ struct PlaySettings {
 struct ReportSettings {
   std::vector<SceneSettings> scenes;  // default: the sweep's three built-in scenes
   bool quick = false;
-  int image_side = 0;                 // --size N: square images of the render figures; 0: the mode's
+  int image_side = 0;  // --size N: square images of the render figures; 0: the mode's
   std::filesystem::path output = "docs/report";
-  bool plots = true;                  // --no-plots: the data only (CSV and JSON), no python
+  bool plots = true;  // --no-plots: the data only (CSV and JSON), no python
   render::RendererOptions renderer;
 };
 
-using CommandSettings = std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings,
-                                     SweepSettings, PrintSceneSettings, SequenceSettings, BenchFrameSettings,
-                                     PlaySettings, ReportSettings>;
+using CommandSettings =
+    std::variant<HelpSettings, SimSettings, BakeSettings, DemoSettings, RenderSettings, SweepSettings,
+                 PrintSceneSettings, SequenceSettings, BenchFrameSettings, PlaySettings, ReportSettings>;
 
 // The extension of a path, lower-cased (".png").
 std::string lower_extension(const std::filesystem::path& path);

@@ -17,8 +17,8 @@
 #include <cstdlib>
 #include <limits>
 #include <memory>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <string>
 
 #include "demos/error.h"
@@ -43,7 +43,8 @@ constexpr long long warm_up_frames = render::frames_in_flight + 1;
 // the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
 constexpr std::array<double, 10> budget_levels = {
     0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
-static_assert(std::find(budget_levels.begin(), budget_levels.end(), interactive_budget_ms) != budget_levels.end());
+static_assert(std::find(budget_levels.begin(), budget_levels.end(), interactive_budget_ms) !=
+              budget_levels.end());
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -223,7 +224,8 @@ bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
     changed = true;
   }
   if (controls.lag_delta != 0) {
-    scene.cone_lag_frames = std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, pipeline::max_cone_lag_frames);
+    scene.cone_lag_frames =
+        std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, pipeline::max_cone_lag_frames);
     controls.lag_delta = 0;
     changed = true;
   }
@@ -238,7 +240,8 @@ std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecor
       scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time,
       record.frame_ms, frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
       budget_text(scene.frame_ms), budget_text(record.bake_budget_ms), record.pending,
-      record.cone_lag > 0 ? fmt::format(" | cones {} frames old, +{:.3f}", record.cone_lag, record.cone_lift) : "",
+      record.cone_lag > 0 ? fmt::format(" | cones {} frames old, +{:.3f}", record.cone_lag, record.cone_lift)
+                          : "",
       paused ? " | paused" : "");
 }
 

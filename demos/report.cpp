@@ -467,12 +467,9 @@ void run_report(const ReportSettings& settings, std::ostream& out) {
   json["default_tolerance"] = default_tolerance;
   json["bake_view_elevation"] = bake_view_elevation;
   const pipeline::Scene water = pipeline::builtin_scene("water");  // the frame part's scene
-  json["frame"] = {{"scene", "water"},
-                   {"map_size", plan.frame_map_size},
-                   {"width", plan.frame_width},
-                   {"height", plan.frame_height},
-                   {"frames", plan.frame_count},
-                   {"method", render::method_info(water.method).name},
+  json["frame"] = {{"scene", "water"},           {"map_size", plan.frame_map_size},
+                   {"width", plan.frame_width},  {"height", plan.frame_height},
+                   {"frames", plan.frame_count}, {"method", render::method_info(water.method).name},
                    {"steps", water.steps}};
   json["heatmap_steps"] = plan.heatmap_steps;
   json["seconds"] = seconds;

@@ -1,6 +1,11 @@
 // pipeline/frame_pipeline.cpp - the per-frame service (frame_pipeline.h).
 #include "pipeline/frame_pipeline.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -14,11 +19,6 @@
 
 #include "pipeline/maps.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_pipeline.h>
-#include <tbb/parallel_reduce.h>
-
 namespace displace::pipeline {
 namespace {
 
@@ -29,7 +29,8 @@ constexpr int choppy_iterations = 8;
 constexpr float choppy_settle = 3e-4f;  // texels
 
 double steady_milliseconds() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
@@ -63,11 +64,13 @@ float raise_apexes(std::span<const float> made_from, std::span<const float> now,
     std::copy(apex.begin(), apex.end(), raised.begin());
     return 0.0f;
   }
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, apex.size(), lift_grain), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t t = range.begin(); t < range.end(); ++t) {
-      raised[t] = std::min(1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, apex.size(), lift_grain),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t < range.end(); ++t) {
+                        raised[t] = std::min(
+                            1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
+                      }
+                    });
   return lift;
 }
 
@@ -142,8 +145,8 @@ struct FramePipeline::State {
 
   // frames in flight (run_frames overlaps two; run uses the first)
   std::array<FrameBuffers, 2> buffers;
-  int current = 0;        // the buffers the stage functions work on
-  int last_baked = -1;    // the buffers the baker emitted into last (refine continues from them)
+  int current = 0;      // the buffers the stage functions work on
+  int last_baked = -1;  // the buffers the baker emitted into last (refine continues from them)
   std::atomic<double> last_other_ms{0.0};  // sim + upload + render of the last frame
 
   FrameBuffers& frame() { return buffers[std::size_t(current)]; }
@@ -154,7 +157,8 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
     : state_(std::make_unique<State>(scene, renderer, std::move(clock), std::move(loader))) {
   State& s = *state_;
   if (!scene.albedo.empty()) {
-    if (!albedo_loader) throw SceneError("an albedo material needs an albedo loader (the application's image reader)");
+    if (!albedo_loader)
+      throw SceneError("an albedo material needs an albedo loader (the application's image reader)");
     renderer.set_albedo(albedo_loader(scene.albedo));
   } else {
     renderer.clear_albedo();
@@ -188,12 +192,14 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
       case SourceKind::cliff:
         s.static_source = true;
         for (FrameBuffers& b : s.buffers) {
-          (scene.source == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(n, n, scene.seed, b.raw);
+          (scene.source == SourceKind::bricks ? sim::brick_heights : sim::cliff_heights)(n, n, scene.seed,
+                                                                                         b.raw);
         }
         s.mapping = sim::HeightMapping{1.0f, 0.0f};
         break;
       case SourceKind::image:
-        if (!s.loader) throw SceneError("an image scene needs a height loader (the application's image reader)");
+        if (!s.loader)
+          throw SceneError("an image scene needs a height loader (the application's image reader)");
         s.static_source = !is_image_sequence(scene.image);
         s.mapping = sim::HeightMapping{1.0f, 0.0f};
         break;
@@ -225,10 +231,12 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
       b.heights_changed = false;
       return;
     }
-    render::HeightField loaded = s.loader(s.static_source ? s.scene.image : image_for_frame(s.scene.image, record.index));
+    render::HeightField loaded =
+        s.loader(s.static_source ? s.scene.image : image_for_frame(s.scene.image, record.index));
     if (loaded.width != b.field.width || loaded.height != b.field.height) {
       b.maps_made = false;
-      if (s.needs.cone_sectors > 0 && (!s.baker || s.baker_width != loaded.width || s.baker_height != loaded.height)) {
+      if (s.needs.cone_sectors > 0 &&
+          (!s.baker || s.baker_width != loaded.width || s.baker_height != loaded.height)) {
         s.baker.emplace(loaded.width, loaded.height, s.needs.cone_sectors, s.needs.cone_address);
         s.baker_width = loaded.width;
         s.baker_height = loaded.height;
@@ -253,15 +261,16 @@ void simulate_into(FramePipeline::State& s, FrameBuffers& b, double time, FrameR
     const long long ffts = s.ocean->fft_count();
     const bool choppy = (s.effects & effect_choppy) != 0;
     const bool foam = (s.effects & effect_foam) != 0;
-    s.ocean->evaluate(time,
-                      sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u) | (foam ? sim::ocean_foam : 0u),
-                      b.ocean_frame);
+    s.ocean->evaluate(
+        time, sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u) | (foam ? sim::ocean_foam : 0u),
+        b.ocean_frame);
     record.ffts = s.ocean->fft_count() - ffts;
     if (foam) b.jacobian.resize(b.field.heights.size());
     if (choppy) {
       record.choppy_residual = sim::resample_displaced(
-          n, s.ocean->patch_size(), b.ocean_frame.height, b.ocean_frame.displacement_x, b.ocean_frame.displacement_y,
-          choppy_iterations, b.raw, foam ? std::span<const float>(b.ocean_frame.jacobian) : std::span<const float>{},
+          n, s.ocean->patch_size(), b.ocean_frame.height, b.ocean_frame.displacement_x,
+          b.ocean_frame.displacement_y, choppy_iterations, b.raw,
+          foam ? std::span<const float>(b.ocean_frame.jacobian) : std::span<const float>{},
           foam ? std::span<float>(b.jacobian) : std::span<float>{}, choppy_settle);
       sim::apply_mapping(s.mapping, b.raw, b.field.heights);
     } else {
@@ -345,7 +354,8 @@ void bake_into(FramePipeline::State& s, FrameBuffers& b, double budget_ms, Frame
     budget.clock = s.clock;
     budget.max_work = s.scene.bake_work;
     budget.tolerance = s.scene.tolerance;
-    const bool lagged = !s.deterministic && !s.static_source && !s.needs.relaxed && s.scene.cone_lag_frames > 0;
+    const bool lagged =
+        !s.deterministic && !s.static_source && !s.needs.relaxed && s.scene.cone_lag_frames > 0;
     if (!lagged) {
       b.ratios.resize(texels * std::size_t(s.needs.cone_sectors));
       b.apex.resize(texels);
@@ -409,8 +419,8 @@ void upload_from(FramePipeline::State& s, FrameBuffers& b) {
     set.foam_version = b.foam_version;
   }
   if (s.needs.distance) {
-    set.distance = {b.distance.width,  b.distance.height, b.distance.depth,
-                    s.needs.address, b.distance.values, b.distance_version};
+    set.distance = {b.distance.width, b.distance.height, b.distance.depth,
+                    s.needs.address,  b.distance.values, b.distance_version};
   }
   s.renderer.set_maps(set);
 }
@@ -434,7 +444,8 @@ FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned o
   return run(index, scene_view(state_->scene, frame_time(state_->scene, index)), frame, outputs);
 }
 
-FrameRecord FramePipeline::run(long long index, const render::View& view, render::Frame& frame, unsigned outputs) {
+FrameRecord FramePipeline::run(long long index, const render::View& view, render::Frame& frame,
+                               unsigned outputs) {
   State& s = *state_;
   FrameRecord record;
   record.index = index;
@@ -477,45 +488,42 @@ void FramePipeline::run_frames(long long first, long long count, unsigned output
   };
   tbb::parallel_pipeline(
       tokens.size(),
-      tbb::make_filter<void, Token*>(tbb::filter_mode::serial_in_order,
-                                     [&](tbb::flow_control& control) -> Token* {
-                                       if (next >= count) {
-                                         control.stop();
-                                         return nullptr;
-                                       }
-                                       const long long index = first + next;
-                                       Token& token = tokens[std::size_t(next % 2)];
-                                       token.buffers = &s.buffers[std::size_t(next % 2)];
-                                       ++next;
-                                       token.record = FrameRecord{};
-                                       token.record.index = index;
-                                       token.start = s.clock();
-                                       simulate_into(s, *token.buffers, frame_time(s.scene, index), token.record);
-                                       token.record.sim_ms = s.clock() - token.start;
-                                       return &token;
-                                     }) &
-          tbb::make_filter<Token*, Token*>(tbb::filter_mode::serial_in_order,
-                                           [&](Token* token) {
-                                             const double start = s.clock();
-                                             bake_into(s, *token->buffers, budget_now(), token->record);
-                                             token->record.bake_ms = s.clock() - start;
-                                             return token;
-                                           }) &
-          tbb::make_filter<Token*, void>(tbb::filter_mode::serial_in_order, [&](Token* token) {
-            FrameRecord& record = token->record;
-            const double start = s.clock();
-            upload_from(s, *token->buffers);
-            const double uploaded = s.clock();
-            const render::View view = scene_view(s.scene, record.time);
-            s.renderer.render(view, {s.scene.method, s.scene.steps, s.scene.refine}, frame, outputs);
-            const double drawn = s.clock();
-            record.upload_ms = uploaded - start;
-            record.render_ms = drawn - uploaded;
-            record.frame_ms = drawn - token->start;
-            record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
-            s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
-            consume(record, frame);
-          }));
+      tbb::make_filter<void,
+                       Token*>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& control) -> Token* {
+        if (next >= count) {
+          control.stop();
+          return nullptr;
+        }
+        const long long index = first + next;
+        Token& token = tokens[std::size_t(next % 2)];
+        token.buffers = &s.buffers[std::size_t(next % 2)];
+        ++next;
+        token.record = FrameRecord{};
+        token.record.index = index;
+        token.start = s.clock();
+        simulate_into(s, *token.buffers, frame_time(s.scene, index), token.record);
+        token.record.sim_ms = s.clock() - token.start;
+        return &token;
+      }) & tbb::make_filter<Token*, Token*>(tbb::filter_mode::serial_in_order, [&](Token* token) {
+        const double start = s.clock();
+        bake_into(s, *token->buffers, budget_now(), token->record);
+        token->record.bake_ms = s.clock() - start;
+        return token;
+      }) & tbb::make_filter<Token*, void>(tbb::filter_mode::serial_in_order, [&](Token* token) {
+        FrameRecord& record = token->record;
+        const double start = s.clock();
+        upload_from(s, *token->buffers);
+        const double uploaded = s.clock();
+        const render::View view = scene_view(s.scene, record.time);
+        s.renderer.render(view, {s.scene.method, s.scene.steps, s.scene.refine}, frame, outputs);
+        const double drawn = s.clock();
+        record.upload_ms = uploaded - start;
+        record.render_ms = drawn - uploaded;
+        record.frame_ms = drawn - token->start;
+        record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
+        s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
+        consume(record, frame);
+      }));
 }
 
 }  // namespace displace::pipeline

@@ -58,17 +58,17 @@ float raise_apexes(std::span<const float> made_from, std::span<const float> now,
 
 struct FrameRecord {
   long long index = 0;
-  double time = 0.0;       // scene seconds
-  unsigned effects = 0;    // Effect bits that ran
-  long long ffts = 0;      // inverse FFTs the sim took
+  double time = 0.0;     // scene seconds
+  unsigned effects = 0;  // Effect bits that ran
+  long long ffts = 0;    // inverse FFTs the sim took
   double sim_ms = 0.0, bake_ms = 0.0, upload_ms = 0.0, render_ms = 0.0, frame_ms = 0.0;  // the scene's clock
-  double bake_budget_ms = 0.0;  // the bake's share of the frame budget (infinity: unlimited)
-  bool overrun = false;         // the frame took longer than the scene's frame budget
-  bake::BakeStats cones;        // the cone bake (sector_count 0 when the method reads no cone map)
-  long long pending = 0;        // texels the cone baker would still refine
-  long long cone_lag = 0;       // frames since the heights the cone map was made from (lagged maps)
-  float cone_lift = 0.0f;       // how far its apexes were raised for this frame's heights
-  double choppy_residual = 0.0; // metres: the resampling's largest |p + D(p) - x|
+  double bake_budget_ms = 0.0;   // the bake's share of the frame budget (infinity: unlimited)
+  bool overrun = false;          // the frame took longer than the scene's frame budget
+  bake::BakeStats cones;         // the cone bake (sector_count 0 when the method reads no cone map)
+  long long pending = 0;         // texels the cone baker would still refine
+  long long cone_lag = 0;        // frames since the heights the cone map was made from (lagged maps)
+  float cone_lift = 0.0f;        // how far its apexes were raised for this frame's heights
+  double choppy_residual = 0.0;  // metres: the resampling's largest |p + D(p) - x|
 };
 
 // Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
@@ -109,7 +109,7 @@ class FramePipeline {
 
   const Scene& scene() const;
   const render::HeightField& heights() const;  // [0, 1], the source's fixed mapping applied
-  const render::MapSet& maps() const;           // what upload() hands over
+  const render::MapSet& maps() const;          // what upload() hands over
 
   struct State;
 

@@ -112,7 +112,8 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
       }
       c.ratios.resize(texels * std::size_t(needs.cone_sectors));
       c.apex.resize(texels);
-      c.stats = c.baker->bake(s.view(), s.cone_budget, {c.ratios.data(), width, height, needs.cone_sectors}, c.apex);
+      c.stats = c.baker->bake(s.view(), s.cone_budget, {c.ratios.data(), width, height, needs.cone_sectors},
+                              c.apex);
       c.made = true;
       c.relaxed_made = false;
       c.address = needs.cone_address;
@@ -165,7 +166,7 @@ const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
   }
   if (s.pyramid_made) set.max_pyramid = {&s.pyramid, s.pyramid_address, s.pyramid_version};
   if (s.distance_made) {
-    set.distance = {s.distance.width,    s.distance.height, s.distance.depth,
+    set.distance = {s.distance.width,   s.distance.height, s.distance.depth,
                     s.distance_address, s.distance.values, s.distance_version};
   }
   return set;

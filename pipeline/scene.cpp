@@ -1,16 +1,16 @@
 // pipeline/scene.cpp - scenes: built-ins, TOML files (toml++), and the camera over time.
 #include "pipeline/scene.h"
 
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <charconv>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <initializer_list>
 #include <numbers>
 #include <sstream>
-
-#include <toml++/toml.h>
 
 namespace displace::pipeline {
 namespace {
@@ -54,8 +54,8 @@ class Reader {
     for (auto&& [key, node] : table) {
       if (std::find(known.begin(), known.end(), key.str()) == known.end()) {
         fail(&node, qualified(section, key.str()),
-             "unknown key (known in " + (section.empty() ? std::string("the file") : "[" + section + "]") + ": " +
-                 join(known) + ")");
+             "unknown key (known in " + (section.empty() ? std::string("the file") : "[" + section + "]") +
+                 ": " + join(known) + ")");
       }
     }
   }
@@ -74,24 +74,27 @@ class Reader {
     std::optional<double> read = node->value<double>();
     if (!read || !(node->is_number())) fail(node, qualified(section, key), "must be a number");
     if (!(*read >= lo && *read <= hi)) {
-      fail(node, qualified(section, key), "must be in [" + format_number(lo) + ", " + format_number(hi) + "]");
+      fail(node, qualified(section, key),
+           "must be in [" + format_number(lo) + ", " + format_number(hi) + "]");
     }
     return *read;
   }
 
-  long long integer(const toml::table* table, const std::string& section, const std::string& key, long long value,
-                    long long lo, long long hi) const {
+  long long integer(const toml::table* table, const std::string& section, const std::string& key,
+                    long long value, long long lo, long long hi) const {
     const toml::node* node = table ? table->get(key) : nullptr;
     if (!node) return value;
     if (!node->is_integer()) fail(node, qualified(section, key), "must be an integer");
     const long long read = node->as_integer()->get();
     if (read < lo || read > hi) {
-      fail(node, qualified(section, key), "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+      fail(node, qualified(section, key),
+           "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
     }
     return read;
   }
 
-  bool boolean(const toml::table* table, const std::string& section, const std::string& key, bool value) const {
+  bool boolean(const toml::table* table, const std::string& section, const std::string& key,
+               bool value) const {
     const toml::node* node = table ? table->get(key) : nullptr;
     if (!node) return value;
     if (!node->is_boolean()) fail(node, qualified(section, key), "must be true or false");
@@ -104,7 +107,8 @@ class Reader {
     if (!node) return value;
     if (!node->is_string()) {
       fail(node, qualified(section, key),
-           allowed.size() == 0 ? std::string("must be a string") : "must be a string (one of " + join(allowed) + ")");
+           allowed.size() == 0 ? std::string("must be a string")
+                               : "must be a string (one of " + join(allowed) + ")");
     }
     const std::string read = node->as_string()->get();
     if (allowed.size() > 0 && std::find(allowed.begin(), allowed.end(), read) == allowed.end()) {
@@ -120,7 +124,8 @@ class Reader {
     glm::vec3 out;
     for (int i = 0; i < 3; ++i) {
       const std::optional<double> v = (*array)[std::size_t(i)].value<double>();
-      if (!v || !std::isfinite(*v) || std::abs(*v) > 1e6) fail(node, key, "must be an array of 3 finite numbers");
+      if (!v || !std::isfinite(*v) || std::abs(*v) > 1e6)
+        fail(node, key, "must be an array of 3 finite numbers");
       out[i] = float(*v);
     }
     return out;
@@ -220,8 +225,8 @@ Scene builtin_scene(std::string_view name) {
     scene.ocean.choppiness = name == "calm" ? 0.0f : 1.5f;
     scene.material = render::Material::water;
     scene.foam = name == "water";
-    scene.depth_scale = 0.04f;             // 8 m of relief over the 200 m patch
-    scene.light = {0.0f, 1.0f, 0.3f};      // a low sun ahead: its glint path runs towards the eye
+    scene.depth_scale = 0.04f;         // 8 m of relief over the 200 m patch
+    scene.light = {0.0f, 1.0f, 0.3f};  // a low sun ahead: its glint path runs towards the eye
     scene.camera.eye = {0.5f, -0.25f, 0.22f};
     scene.camera.look_at = {0.5f, 0.6f, -0.02f};
   } else if (name == "ripples") {
@@ -247,7 +252,8 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                      std::string(error.description()));
   }
   const Reader read(source_name);
-  read.known_keys(root, "", {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
+  read.known_keys(root, "",
+                  {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
   Scene scene;
   scene.name = read.word(&root, "", "name", "scene", {});
 
@@ -263,7 +269,8 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                                        : SourceKind::image;
   const std::string path = read.word(source, "source", "path", "", {});
   if (scene.source == SourceKind::image) {
-    if (path.empty()) read.fail(source ? source->get("kind") : nullptr, "source.path", "kind = \"image\" needs a path");
+    if (path.empty())
+      read.fail(source ? source->get("kind") : nullptr, "source.path", "kind = \"image\" needs a path");
     std::filesystem::path image(path);
     if (image.is_relative() && source_name.find('/') != std::string::npos) {
       image = std::filesystem::path(source_name).parent_path() / image;
@@ -272,11 +279,13 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   } else if (!path.empty()) {
     read.fail(source->get("path"), "source.path", "only kind = \"image\" reads a file");
   }
-  scene.map_size = int(read.integer(source, "source", "map_size", scene.map_size, min_map_size, max_map_size));
+  scene.map_size =
+      int(read.integer(source, "source", "map_size", scene.map_size, min_map_size, max_map_size));
   if (scene.source == SourceKind::ocean && scene.map_size % 2 != 0) {
     read.fail(source ? source->get("map_size") : nullptr, "source.map_size", "must be even for the ocean");
   }
-  scene.seed = std::uint64_t(read.integer(source, "source", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  scene.seed =
+      std::uint64_t(read.integer(source, "source", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
 
   // [ocean]
   const toml::table* ocean = read.section(root, "ocean");
@@ -287,7 +296,8 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   sim::OceanParams& params = scene.ocean;
   // [ocean] size: the ocean's grid, the same as [source] map_size (either may be given; not both, differing)
   if (const toml::node* size = ocean ? ocean->get("size") : nullptr) {
-    const int ocean_size = int(read.integer(ocean, "ocean", "size", scene.map_size, min_map_size, max_map_size));
+    const int ocean_size =
+        int(read.integer(ocean, "ocean", "size", scene.map_size, min_map_size, max_map_size));
     if (ocean_size % 2 != 0) read.fail(size, "ocean.size", "must be even");
     if (source && source->get("map_size") && ocean_size != scene.map_size) {
       read.fail(size, "ocean.size", "differs from source.map_size (" + std::to_string(scene.map_size) + ")");
@@ -299,28 +309,36 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                         ? sim::Spectrum::jonswap
                         : sim::Spectrum::phillips;
   params.wind_speed = float(read.number(ocean, "ocean", "wind_speed", params.wind_speed, 0.1, 100.0));
-  params.wind_direction = float(read.number(ocean, "ocean", "wind_direction",
-                                            double(params.wind_direction) * 180.0 / std::numbers::pi, -360.0, 360.0) *
-                                std::numbers::pi / 180.0);
+  params.wind_direction =
+      float(read.number(ocean, "ocean", "wind_direction",
+                        double(params.wind_direction) * 180.0 / std::numbers::pi, -360.0, 360.0) *
+            std::numbers::pi / 180.0);
   params.choppiness = float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, 4.0));
-  params.seed = std::uint64_t(read.integer(ocean, "ocean", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  params.seed =
+      std::uint64_t(read.integer(ocean, "ocean", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
 
   // [sinusoids]
   const toml::table* waves = read.section(root, "sinusoids");
   if (waves) read.known_keys(*waves, "sinusoids", {"wave_count", "patch_size", "steepness", "seed"});
-  scene.sinusoids.wave_count = int(read.integer(waves, "sinusoids", "wave_count", scene.sinusoids.wave_count, 1, 1024));
-  scene.sinusoids.patch_size = float(read.number(waves, "sinusoids", "patch_size", scene.sinusoids.patch_size, 0.01, 1e5));
-  scene.sinusoids.steepness = float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
-  scene.sinusoids.seed = std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  scene.sinusoids.wave_count =
+      int(read.integer(waves, "sinusoids", "wave_count", scene.sinusoids.wave_count, 1, 1024));
+  scene.sinusoids.patch_size =
+      float(read.number(waves, "sinusoids", "patch_size", scene.sinusoids.patch_size, 0.01, 1e5));
+  scene.sinusoids.steepness =
+      float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
+  scene.sinusoids.seed =
+      std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
 
   // [material]
   const toml::table* material = read.section(root, "material");
   if (material) read.known_keys(*material, "material", {"kind", "foam", "albedo"});
-  const std::string material_kind = read.word(material, "material", "kind", "grid", {"grid", "albedo", "water"});
+  const std::string material_kind =
+      read.word(material, "material", "kind", "grid", {"grid", "albedo", "water"});
   scene.material = material_kind == "water" ? render::Material::water : render::Material::grid;
   const std::string albedo = read.word(material, "material", "albedo", "", {});
   if (material_kind == "albedo") {
-    if (albedo.empty()) read.fail(material->get("kind"), "material.albedo", "kind = \"albedo\" needs an albedo image");
+    if (albedo.empty())
+      read.fail(material->get("kind"), "material.albedo", "kind = \"albedo\" needs an albedo image");
     scene.albedo = albedo;
     if (scene.albedo.is_relative() && source_name.find('/') != std::string::npos) {
       scene.albedo = std::filesystem::path(source_name).parent_path() / scene.albedo;
@@ -337,9 +355,11 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   const toml::table* camera = read.section(root, "camera");
   if (camera) read.known_keys(*camera, "camera", {"eye", "look_at", "up", "fov_y", "keyframes"});
   scene.camera.eye = read.vector3(camera ? camera->get("eye") : nullptr, "camera.eye", scene.camera.eye);
-  scene.camera.look_at = read.vector3(camera ? camera->get("look_at") : nullptr, "camera.look_at", scene.camera.look_at);
+  scene.camera.look_at =
+      read.vector3(camera ? camera->get("look_at") : nullptr, "camera.look_at", scene.camera.look_at);
   scene.camera.up = read.vector3(camera ? camera->get("up") : nullptr, "camera.up", scene.camera.up);
-  scene.camera.fov_y_degrees = float(read.number(camera, "camera", "fov_y", scene.camera.fov_y_degrees, 1.0, 170.0));
+  scene.camera.fov_y_degrees =
+      float(read.number(camera, "camera", "fov_y", scene.camera.fov_y_degrees, 1.0, 170.0));
   if (const toml::node* keys = camera ? camera->get("keyframes") : nullptr) {
     const toml::array* array = keys->as_array();
     if (!array || !array->is_array_of_tables()) {
@@ -365,15 +385,17 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   // [render]
   const toml::table* render_table = read.section(root, "render");
   if (render_table) {
-    read.known_keys(*render_table, "render",
-                    {"method", "steps", "refine", "size", "surface", "shadows", "light", "depth_scale", "tile"});
+    read.known_keys(
+        *render_table, "render",
+        {"method", "steps", "refine", "size", "surface", "shadows", "light", "depth_scale", "tile"});
   }
   if (const toml::node* method = render_table ? render_table->get("method") : nullptr) {
     const std::optional<std::string> name = method->value<std::string>();
     const render::MethodInfo* info = name ? render::find_method(*name) : nullptr;
     if (!info) {
       std::string names;
-      for (const render::MethodInfo& known : render::method_table()) names += (names.empty() ? "" : ", ") + std::string(known.name);
+      for (const render::MethodInfo& known : render::method_table())
+        names += (names.empty() ? "" : ", ") + std::string(known.name);
       read.fail(method, "render.method", "must be one of " + names);
     }
     scene.method = info->method;
@@ -399,13 +421,17 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
                   : surface == "cone"     ? render::Surface::cone
                                           : render::Surface::plane;
   scene.shadows = read.boolean(render_table, "render", "shadows", scene.shadows);
-  scene.light = read.vector3(render_table ? render_table->get("light") : nullptr, "render.light", scene.light);
-  if (glm::length(scene.light) < 1e-6f) read.fail(render_table->get("light"), "render.light", "must not be zero");
-  scene.depth_scale = float(read.number(render_table, "render", "depth_scale", scene.depth_scale, 1e-4, 10.0));
+  scene.light =
+      read.vector3(render_table ? render_table->get("light") : nullptr, "render.light", scene.light);
+  if (glm::length(scene.light) < 1e-6f)
+    read.fail(render_table->get("light"), "render.light", "must not be zero");
+  scene.depth_scale =
+      float(read.number(render_table, "render", "depth_scale", scene.depth_scale, 1e-4, 10.0));
   scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, 64));
   if (!render::supports_surface(scene.method, scene.surface)) {
-    read.fail(render_table ? render_table->get("surface") : nullptr, "render.surface",
-              std::string("--method ") + render::method_info(scene.method).name + " does not render on " + surface);
+    read.fail(
+        render_table ? render_table->get("surface") : nullptr, "render.surface",
+        std::string("--method ") + render::method_info(scene.method).name + " does not render on " + surface);
   }
 
   // [time], [budget]
@@ -418,7 +444,8 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, 1e7);
   scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, std::int64_t(1) << 40);
   scene.tolerance = float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, 1.0));
-  scene.cone_lag_frames = int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
+  scene.cone_lag_frames =
+      int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
 
   try {
     scene_view(scene, scene.start).camera.validate();
@@ -451,15 +478,19 @@ std::string scene_toml(const Scene& scene) {
   auto vec = [](glm::vec3 v) { return toml::array{tidy(v.x), tidy(v.y), tidy(v.z)}; };
   toml::table root;
   root.insert("name", scene.name);
-  toml::table source{{"kind", source_word(scene.source)}, {"map_size", scene.map_size}, {"seed", std::int64_t(scene.seed)}};
+  toml::table source{
+      {"kind", source_word(scene.source)}, {"map_size", scene.map_size}, {"seed", std::int64_t(scene.seed)}};
   if (scene.source == SourceKind::image) source.insert("path", scene.image.string());
   root.insert("source", source);
-  root.insert("ocean", toml::table{{"patch_size", tidy(scene.ocean.patch_size)},
-                                   {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
-                                   {"wind_speed", tidy(scene.ocean.wind_speed)},
-                                   {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
-                                   {"choppiness", tidy(scene.ocean.choppiness)},
-                                   {"seed", std::int64_t(scene.ocean.seed)}});
+  root.insert(
+      "ocean",
+      toml::table{
+          {"patch_size", tidy(scene.ocean.patch_size)},
+          {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
+          {"wind_speed", tidy(scene.ocean.wind_speed)},
+          {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
+          {"choppiness", tidy(scene.ocean.choppiness)},
+          {"seed", std::int64_t(scene.ocean.seed)}});
   root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
                                        {"patch_size", tidy(scene.sinusoids.patch_size)},
                                        {"steepness", tidy(scene.sinusoids.steepness)},

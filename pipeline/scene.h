@@ -5,13 +5,12 @@
 #pragma once
 
 #include <filesystem>
+#include <glm/glm.hpp>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "render/render.h"
 #include "sim/sim.h"
@@ -37,13 +36,13 @@ struct Scene {
 
   // [source]
   SourceKind source = SourceKind::ocean;
-  int map_size = 256;           // height map texels a side
-  std::uint64_t seed = 1;       // bricks and cliff roughness
+  int map_size = 256;      // height map texels a side
+  std::uint64_t seed = 1;  // bricks and cliff roughness
   // kind = "image": a height image, or a numbered sequence where each run of '#' in the file name
   // is frame n zero-padded to that many digits (heights_####.exr: frame 7 reads heights_0007.exr);
   // relative to the scene file. The map size is the image's. Read by the application's loader.
   std::filesystem::path image;
-  sim::OceanParams ocean;       // [ocean]; size is map_size
+  sim::OceanParams ocean;         // [ocean]; size is map_size
   sim::SinusoidParams sinusoids;  // [sinusoids]
 
   // [camera]: eye, look_at, up, fov_y; keyframes override eye and look_at over time

@@ -5,10 +5,9 @@
 
 #include <sched.h>
 #include <sys/types.h>
-#include <unistd.h>
-
 #include <tbb/task_arena.h>
 #include <tbb/task_scheduler_observer.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -88,7 +87,8 @@ ThreadPinning::~ThreadPinning() {
   if (s.cpus.empty()) return;
   s.observe(false);
   const std::lock_guard<std::mutex> lock(s.mutex);
-  for (const pid_t thread : s.pinned) sched_setaffinity(thread, sizeof s.original, &s.original);  // gone: ESRCH
+  for (const pid_t thread : s.pinned)
+    sched_setaffinity(thread, sizeof s.original, &s.original);  // gone: ESRCH
 }
 
 int ThreadPinning::cpu_count() const { return int(state_->cpus.size()); }

@@ -2,9 +2,8 @@
 // (pixel rays for tests and the exact reference trace). Both use the same basis, so a pixel's ray on
 // the CPU is the ray its fragment traces on the GPU.
 #include <cmath>
-#include <string>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <string>
 
 #include "render/render.h"
 
@@ -32,7 +31,8 @@ Basis basis(const Camera& camera) {
 void Camera::validate() const {
   if (width < 1 || height < 1 || width > max_image_side || height > max_image_side) {
     throw RenderError("image size must be between 1x1 and " + std::to_string(max_image_side) + "x" +
-                      std::to_string(max_image_side) + ", got " + std::to_string(width) + "x" + std::to_string(height));
+                      std::to_string(max_image_side) + ", got " + std::to_string(width) + "x" +
+                      std::to_string(height));
   }
   if (!finite(eye) || !finite(look_at) || !finite(up)) throw RenderError("camera vectors must be finite");
   if (!(fov_y_degrees >= min_fov_degrees && fov_y_degrees <= max_fov_degrees)) {
@@ -59,8 +59,8 @@ Camera::PixelRays Camera::pixel_rays() const {
   const Basis b = basis(*this);
   const double tan_half = std::tan(glm::radians(double(fov_y_degrees)) * 0.5);
   const double aspect = double(width) / double(height);
-  return {b.forward - tan_half * aspect * b.right + tan_half * b.up, (2.0 * tan_half * aspect / width) * b.right,
-          (-2.0 * tan_half / height) * b.up};
+  return {b.forward - tan_half * aspect * b.right + tan_half * b.up,
+          (2.0 * tan_half * aspect / width) * b.right, (-2.0 * tan_half / height) * b.up};
 }
 
 Ray Camera::pixel_ray(double px, double py) const {

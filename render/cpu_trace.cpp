@@ -20,7 +20,8 @@ constexpr int bisection_steps = 60;  // halvings of a monotone piece: far below 
 // Texel (i, j), each axis wrapped or clamped.
 double texel_at(const HeightField& field, bool wrap_u, bool wrap_v, long long i, long long j) {
   j = wrap_u ? ((j % field.width) + field.width) % field.width : std::clamp<long long>(j, 0, field.width - 1);
-  i = wrap_v ? ((i % field.height) + field.height) % field.height : std::clamp<long long>(i, 0, field.height - 1);
+  i = wrap_v ? ((i % field.height) + field.height) % field.height
+             : std::clamp<long long>(i, 0, field.height - 1);
   return field.heights[std::size_t(i * field.width + j)];
 }
 double texel_at(const HeightField& field, bake::Address address, long long i, long long j) {

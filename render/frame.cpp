@@ -22,8 +22,10 @@ void Renderer::Impl::ensure_targets(int width, int height) {
   targets = Targets{};
   const auto w = std::uint32_t(width), h = std::uint32_t(height);
   const VkImageUsageFlags color_usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-  targets.color = Image(context, color_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
-  targets.hit = Image(context, hit_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  targets.color =
+      Image(context, color_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  targets.hit =
+      Image(context, hit_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
   targets.counters =
       Image(context, counters_format, w, h, 1, color_usage, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
   targets.depth = Image(context, depth_format, w, h, 1, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
@@ -69,27 +71,30 @@ void Renderer::Impl::ensure_mesh_reference(int tile) {
 void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info) {
   const bool wrap = view.address == bake::Address::wrap;
   const bool quadric = is_quadric(view.surface);
-  const VkImageView cone_view =
-      info.cone_sectors > 0 ? cones[std::size_t(cone_slot(info.cone_sectors))].image.view() : dummy_cones.view();
+  const VkImageView cone_view = info.cone_sectors > 0
+                                    ? cones[std::size_t(cone_slot(info.cone_sectors))].image.view()
+                                    : dummy_cones.view();
   const VkBuffer pyramid_buffer =
       info.family == MethodFamily::pyramid ? max_pyramid.buffer.handle() : dummy_pyramid.handle();
   const VkImageView distance_view =
       info.family == MethodFamily::distance ? distance.image.view() : dummy_distance.view();
   const VkDescriptorBufferInfo uniform_info{frame_slot.uniforms.handle(), 0, sizeof(gpu::FrameUniforms)};
   const VkSampler linear = wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get());
-  const VkSampler nearest = wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
+  const VkSampler nearest =
+      wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
   const VkDescriptorImageInfo height_info{linear, heights.image.view(), heights.read_layout()};
-  const VkDescriptorImageInfo cone_info{
-      nearest, cone_view,
-      info.cone_sectors > 0 ? cones[std::size_t(cone_slot(info.cone_sectors))].read_layout()
-                            : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo cone_info{nearest, cone_view,
+                                        info.cone_sectors > 0
+                                            ? cones[std::size_t(cone_slot(info.cone_sectors))].read_layout()
+                                            : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo albedo_info{linear, has_albedo ? albedo_image.view() : dummy_albedo.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo foam_info{linear, foam.held ? foam.image.view() : dummy_foam.view(),
-                                        foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo foam_info{
+      linear, foam.held ? foam.image.view() : dummy_foam.view(),
+      foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -117,8 +122,10 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   // validate the view
   if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
   view.camera.validate();
-  if (view.tile < 1 || view.tile > max_tile) throw RenderError("--tile must be between 1 and " + std::to_string(max_tile));
-  if (view.tile > 1 && view.address != bake::Address::wrap) throw RenderError("--tile above 1 needs --address wrap");
+  if (view.tile < 1 || view.tile > max_tile)
+    throw RenderError("--tile must be between 1 and " + std::to_string(max_tile));
+  if (view.tile > 1 && view.address != bake::Address::wrap)
+    throw RenderError("--tile above 1 needs --address wrap");
   if (!(view.depth_scale > 0.0f && view.depth_scale <= max_depth_scale)) {
     throw RenderError("--depth-scale must be above 0 and at most 10");
   }
@@ -185,11 +192,13 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   uniforms.map_size =
       glm::vec4(float(map_width), float(map_height), 1.0f / float(map_width), 1.0f / float(map_height));
   const bool water = view.material == Material::water;
-  const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
-                    (has_albedo ? FLAG_ALBEDO : 0) | (water ? FLAG_WATER : 0) | (water && foam.held ? FLAG_FOAM : 0);
+  const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) |
+                    (view.shadows ? FLAG_SHADOWS : 0) | (has_albedo ? FLAG_ALBEDO : 0) |
+                    (water ? FLAG_WATER : 0) | (water && foam.held ? FLAG_FOAM : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
   const std::array<float, 4> clear_colour =
-      water ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f} : background;
+      water ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f}
+            : background;
   uniforms.background = glm::vec4(clear_colour[0], clear_colour[1], clear_colour[2], clear_colour[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
   const Camera::PixelRays rays = camera.pixel_rays();
@@ -283,8 +292,8 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
     VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
     to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
-                         nullptr, 0, nullptr);
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
+                         0, nullptr, 0, nullptr);
   }
 
   // submit; wait only for a frame that is read back
@@ -307,7 +316,8 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   keep(frame.iterations, outputs & output_iterations, std::size_t(pixels));
   keep(frame.fetches, outputs & output_fetches, std::size_t(pixels));
   if (outputs == output_none) return;
-  if (read_color) std::memcpy(frame.color.data(), frame_slot.color_readback.mapped(), std::size_t(pixels) * 4);
+  if (read_color)
+    std::memcpy(frame.color.data(), frame_slot.color_readback.mapped(), std::size_t(pixels) * 4);
   if (read_hit) {
     const auto* hit = static_cast<const float*>(frame_slot.hit_readback.mapped());
     const bool uv = outputs & output_uv, depth = outputs & output_depth;

@@ -27,7 +27,7 @@ bool pack_heights(std::span<const float> heights, int width, const bake::Rect& r
 //   as 1 and those below 2^-14 as 0;
 // - the apex as q / 65535 rounded up, with a unit of margin beyond the float roundings on either
 //   side (the shader divides by 65535 in float).
-constexpr float smallest_half_ratio = 0x1p-14f;  // below: stored as 0
+constexpr float smallest_half_ratio = 0x1p-14f;   // below: stored as 0
 inline std::uint16_t encode_ratio(float ratio) {  // ratio >= 0
   const float clamped = std::min(ratio, 1.0f);
   std::uint32_t bits;

@@ -27,7 +27,9 @@ namespace {
 
 constexpr VkDeviceSize staging_alignment = 16;  // bytes; a multiple of every texel size copied
 
-VkDeviceSize align_up(VkDeviceSize bytes) { return (bytes + staging_alignment - 1) / staging_alignment * staging_alignment; }
+VkDeviceSize align_up(VkDeviceSize bytes) {
+  return (bytes + staging_alignment - 1) / staging_alignment * staging_alignment;
+}
 
 const char* address_name(bake::Address address) { return address == bake::Address::wrap ? "wrap" : "clamp"; }
 
@@ -50,13 +52,15 @@ void check_rects(std::span<const bake::Rect> rects, int width, int height, const
     if (rect.x0 < 0 || rect.y0 < 0 || rect.x1 > width || rect.y1 > height || rect.x0 > rect.x1 ||
         rect.y0 > rect.y1) {
       throw RenderError(std::string(map) + ": a dirty rectangle [" + std::to_string(rect.x0) + ", " +
-                        std::to_string(rect.x1) + ") x [" + std::to_string(rect.y0) + ", " + std::to_string(rect.y1) +
-                        ") lies outside the " + size_text(width, height) + " map");
+                        std::to_string(rect.x1) + ") x [" + std::to_string(rect.y0) + ", " +
+                        std::to_string(rect.y1) + ") lies outside the " + size_text(width, height) + " map");
     }
   }
 }
 
-VkDeviceSize rect_texels(const bake::Rect& rect) { return VkDeviceSize(rect.x1 - rect.x0) * VkDeviceSize(rect.y1 - rect.y0); }
+VkDeviceSize rect_texels(const bake::Rect& rect) {
+  return VkDeviceSize(rect.x1 - rect.x0) * VkDeviceSize(rect.y1 - rect.y0);
+}
 
 // A host-written image's float at texel (x, y) of layer 0.
 float* texel_of(const DeviceMap& map, int x, int y, std::size_t texel_bytes) {
@@ -74,8 +78,8 @@ void to_transfer(VkCommandBuffer commands, const DeviceMap& map, std::uint32_t l
 
 void to_shader(VkCommandBuffer commands, const DeviceMap& map, std::uint32_t layers) {
   image_barrier(commands, map.image.handle(), layers, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
-                VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,
+                VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                 VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
 }
 
@@ -108,19 +112,21 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   const int width = maps.width, height = maps.height;
   if (width < 1 || height < 1 || width > max_map_side || height > max_map_side ||
       maps.heights.size() != std::size_t(width) * std::size_t(height)) {
-    throw RenderError("maps: the height map must be between 1x1 and 16384x16384 texels with one height per texel (got " +
-                      size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
+    throw RenderError(
+        "maps: the height map must be between 1x1 and 16384x16384 texels with one height per texel (got " +
+        size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
   }
   check_rects(maps.heights_dirty, width, height, "heights");
   if (!maps.foam.empty() && maps.foam.size() != std::size_t(width) * std::size_t(height)) {
-    throw RenderError("maps: foam coverage must hold one value per texel of the " + size_text(width, height) + " heights");
+    throw RenderError("maps: foam coverage must hold one value per texel of the " + size_text(width, height) +
+                      " heights");
   }
   const std::size_t texels = std::size_t(width) * std::size_t(height);
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& given = maps.cones[index];
     if (given.sector_count == 0) continue;
     // the map's name, for the errors only (a checked frame allocates nothing)
-    const char* const name = given.sector_count == 1 ? "1-sector cone map"
+    const char* const name = given.sector_count == 1   ? "1-sector cone map"
                              : given.sector_count == 4 ? "4-sector cone map"
                                                        : "8-sector cone map";
     if (cone_slot(given.sector_count) != int(index)) {
@@ -141,7 +147,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (levels == 0 || levels > MAX_PYRAMID_LEVELS || pyramid->heights.size() != levels ||
         pyramid->offsets.size() != levels ||
         pyramid->origin != (maps.max_pyramid.address == bake::Address::clamp ? -1 : 0)) {
-      throw RenderError("maps: the max pyramid is not one of bake::build_dual_max_pyramid with its address mode");
+      throw RenderError(
+          "maps: the max pyramid is not one of bake::build_dual_max_pyramid with its address mode");
     }
     pyramid_bytes = sizeof(gpu::MaxPyramidHeader) + pyramid->values.size() * sizeof(float);
     if (pyramid_bytes > context.info().max_storage_buffer_range) {
@@ -155,8 +162,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     const int limit = context.info().max_image_dimension_3d;
     if (distance_view.width < 1 || distance_view.height < 1 || distance_view.depth < 1 ||
         distance_view.width > limit || distance_view.height > limit || distance_view.depth > limit ||
-        distance_view.values.size() !=
-            std::size_t(distance_view.width) * std::size_t(distance_view.height) * std::size_t(distance_view.depth)) {
+        distance_view.values.size() != std::size_t(distance_view.width) * std::size_t(distance_view.height) *
+                                           std::size_t(distance_view.depth)) {
       throw RenderError("maps: the distance map must have 1 to " + std::to_string(limit) +
                         " voxels a side (this device's 3D images) and one value per voxel");
     }
@@ -181,11 +188,14 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   map_width = width;
   map_height = height;
 
-  const Copy heights_copy = copy_kind(heights, heights.width == width && heights.height == height,
-                                      maps.heights_version, maps.heights_dirty_since, maps.heights_dirty.size());
+  const Copy heights_copy =
+      copy_kind(heights, heights.width == width && heights.height == height, maps.heights_version,
+                maps.heights_dirty_since, maps.heights_dirty.size());
   // a map's image: written by the host where the device shares its memory, else copied into
-  auto make_image = [&](DeviceMap& map, VkFormat format, int w, int h, int layers, VkImageViewType view_type) {
-    const auto image_width = std::uint32_t(w), image_height = std::uint32_t(h), image_layers = std::uint32_t(layers);
+  auto make_image = [&](DeviceMap& map, VkFormat format, int w, int h, int layers,
+                        VkImageViewType view_type) {
+    const auto image_width = std::uint32_t(w), image_height = std::uint32_t(h),
+               image_layers = std::uint32_t(layers);
     map.general = false;
     map.image = host_written_maps && context.host_images(format, image_width, image_height, image_layers)
                     ? Image::host_written(context, format, image_width, image_height, image_layers, view_type)
@@ -193,15 +203,17 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     map.host_written = map.image.handle() != VK_NULL_HANDLE;
     if (!map.host_written) {
       map.image = Image(context, format, image_width, image_height, image_layers,
-                        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
-                        view_type);
+                        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                        VK_IMAGE_ASPECT_COLOR_BIT, view_type);
     }
   };
-  if (reshape(heights, width, height, 1)) make_image(heights, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
+  if (reshape(heights, width, height, 1))
+    make_image(heights, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
   Copy foam_copy = Copy::none;
   if (!maps.foam.empty()) {
     foam_copy = copy_kind(foam, foam.width == width && foam.height == height, maps.foam_version, 0, 0);
-    if (reshape(foam, width, height, 1)) make_image(foam, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
+    if (reshape(foam, width, height, 1))
+      make_image(foam, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
   } else {
     foam.held = false;
   }
@@ -216,7 +228,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     const bool relaxed = !view.relaxed.empty();
     const int layers = cone_layer_count(view.sector_count, relaxed);
     const bool same = map.width == width && map.height == height && map.layers == layers &&
-                      map.sectors == view.sector_count && map.relaxed == relaxed && map.address == view.address;
+                      map.sectors == view.sector_count && map.relaxed == relaxed &&
+                      map.address == view.address;
     cone_copies[index] = copy_kind(map, same, view.version, view.dirty_since, view.dirty.size());
     if (reshape(map, width, height, layers)) {
       make_image(map, cone_format, width, height, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
@@ -255,8 +268,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (reshape(distance, distance_view.width, distance_view.height, distance_view.depth)) {
       distance.image = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(distance_view.width),
                              std::uint32_t(distance_view.height), std::uint32_t(distance_view.depth),
-                             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
-                             VK_IMAGE_VIEW_TYPE_3D);
+                             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                             VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_3D);
     }
     distance.address = distance_view.address;
   } else {
@@ -276,7 +289,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   if (heights.host_written) {
     host_writes |= heights_copy != Copy::none;
   } else {
-    for (const bake::Rect& rect : rects_of(heights_copy, maps.heights_dirty)) bytes += align_up(rect_texels(rect) * 4);
+    for (const bake::Rect& rect : rects_of(heights_copy, maps.heights_dirty))
+      bytes += align_up(rect_texels(rect) * 4);
   }
   if (foam.host_written) {
     host_writes |= foam_copy != Copy::none;
@@ -317,8 +331,9 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   // host's writes before the submission are visible to it without a barrier of their own)
   auto to_general = [&](DeviceMap& map, std::uint32_t layers) {
     if (map.general) return;
-    image_barrier(commands, map.image.handle(), layers, VK_IMAGE_LAYOUT_PREINITIALIZED, VK_IMAGE_LAYOUT_GENERAL,
-                  VK_ACCESS_HOST_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+    image_barrier(commands, map.image.handle(), layers, VK_IMAGE_LAYOUT_PREINITIALIZED,
+                  VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_HOST_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
+                  VK_PIPELINE_STAGE_HOST_BIT,
                   VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
     map.general = true;
   };
@@ -332,7 +347,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     if (map.host_written) {
       for (const bake::Rect& rect : rects_of(copy, dirty)) {
         if (rect_texels(rect) == 0) continue;
-        if (!detail::pack_heights(values, width, rect, texel_of(map, rect.x0, rect.y0, 4), map.image.row_pitch() / 4)) {
+        if (!detail::pack_heights(values, width, rect, texel_of(map, rect.x0, rect.y0, 4),
+                                  map.image.row_pitch() / 4)) {
           throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
         }
       }
@@ -346,7 +362,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
       if (rect_texels(rect) == 0) continue;
       const VkDeviceSize offset = reserve(rect_texels(rect) * 4);
       if (!detail::pack_heights(values, width, rect, reinterpret_cast<float*>(staging + offset),
-                        std::size_t(rect.x1 - rect.x0))) {
+                                std::size_t(rect.x1 - rect.x0))) {
         throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
       }
       VkBufferImageCopy region{};
@@ -361,7 +377,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     to_transfer(commands, map, 1, fresh);
     if (!regions.empty()) {
       vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
-                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()), regions.data());
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()),
+                             regions.data());
     }
     to_shader(commands, map, 1);
     map.held = true;
@@ -378,14 +395,16 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     const bool fresh = !map.held;
     map.held = false;
     auto invalid = [&] {  // made only when thrown: a frame builds no strings
-      return RenderError("maps: the " + std::to_string(view.sector_count) +
-                         "-sector cone map holds a negative or non-finite ratio or an apex height outside [0, 1]");
+      return RenderError(
+          "maps: the " + std::to_string(view.sector_count) +
+          "-sector cone map holds a negative or non-finite ratio or an apex height outside [0, 1]");
     };
     if (map.host_written) {
       for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
         if (rect_texels(rect) == 0) continue;
         auto* origin = reinterpret_cast<std::uint16_t*>(texel_of(map, rect.x0, rect.y0, cone_texel_bytes));
-        if (!detail::pack_cones(view, width, rect, origin, map.image.row_pitch() / 2, map.image.layer_pitch() / 2)) {
+        if (!detail::pack_cones(view, width, rect, origin, map.image.row_pitch() / 2,
+                                map.image.layer_pitch() / 2)) {
           throw invalid();
         }
       }
@@ -414,7 +433,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     to_transfer(commands, map, std::uint32_t(map.layers), fresh);
     if (!regions.empty()) {
       vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
-                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()), regions.data());
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()),
+                             regions.data());
     }
     to_shader(commands, map, std::uint32_t(map.layers));
     map.held = true;
@@ -433,21 +453,22 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
           glm::ivec4(int(pyramid->offsets[level]), pyramid->widths[level], pyramid->heights[level], 0);
     }
     std::memcpy(staging + offset, &header, sizeof header);
-    std::memcpy(staging + offset + sizeof header, pyramid->values.data(), pyramid->values.size() * sizeof(float));
+    std::memcpy(staging + offset + sizeof header, pyramid->values.data(),
+                pyramid->values.size() * sizeof(float));
     VkBufferMemoryBarrier barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
     barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
     barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
     barrier.buffer = max_pyramid.buffer.handle();
     barrier.size = VK_WHOLE_SIZE;
     barrier.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0,
-                         nullptr, 1, &barrier, 0, nullptr);
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                         0, nullptr, 1, &barrier, 0, nullptr);
     const VkBufferCopy region{offset, 0, pyramid_bytes};
     vkCmdCopyBuffer(commands, frame_slot->staging.handle(), max_pyramid.buffer.handle(), 1, &region);
     barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
     barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
-    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 0,
-                         nullptr, 1, &barrier, 0, nullptr);
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0,
+                         0, nullptr, 1, &barrier, 0, nullptr);
     max_pyramid.held = true;
     max_pyramid.version = maps.max_pyramid.version;
   }
@@ -485,24 +506,30 @@ void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info)
   if (needs.cone_sectors > 0) {
     const DeviceMap& map = cones[std::size_t(cone_slot(needs.cone_sectors))];
     const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";
-    if (!map.held) throw RenderError(method + " needs a " + wanted + " (bake::BilinearBaker); none was given");
+    if (!map.held)
+      throw RenderError(method + " needs a " + wanted + " (bake::BilinearBaker); none was given");
     if (needs.relaxed && !map.relaxed) {
-      throw RenderError(method + " needs the " + wanted + " with its relaxed ratios (bake::bake_relaxed); they were not given");
+      throw RenderError(method + " needs the " + wanted +
+                        " with its relaxed ratios (bake::bake_relaxed); they were not given");
     }
     if (map.address != needs.cone_address) {
-      throw RenderError(method + " needs a " + wanted + " baked with address " + address_name(needs.cone_address) +
-                        "; the one given was baked with " + address_name(map.address));
+      throw RenderError(method + " needs a " + wanted + " baked with address " +
+                        address_name(needs.cone_address) + "; the one given was baked with " +
+                        address_name(map.address));
     }
   }
   if (needs.max_pyramid) {
-    if (!max_pyramid.held) throw RenderError(method + " needs the dual max pyramid (bake::build_dual_max_pyramid); none was given");
+    if (!max_pyramid.held)
+      throw RenderError(method +
+                        " needs the dual max pyramid (bake::build_dual_max_pyramid); none was given");
     if (max_pyramid.address != needs.address) {
       throw RenderError(method + " needs the max pyramid built with address " + address_name(needs.address) +
                         "; the one given was built with " + address_name(max_pyramid.address));
     }
   }
   if (needs.distance) {
-    if (!distance.held) throw RenderError(method + " needs a distance map (bake::bake_distance_map); none was given");
+    if (!distance.held)
+      throw RenderError(method + " needs a distance map (bake::bake_distance_map); none was given");
     if (distance.address != needs.address) {
       throw RenderError(method + " needs a distance map baked with address " + address_name(needs.address) +
                         "; the one given was baked with " + address_name(distance.address));

@@ -26,10 +26,10 @@ constexpr std::uint64_t hit_bytes = 16;      // RGBA32F: u, v, hit, depth
 constexpr std::uint64_t counters_bytes = 8;  // RG32F: iterations, fetches
 constexpr std::uint64_t depth_bytes = 4;     // D32F
 // bytes per texel of each map on the device
-constexpr std::uint64_t height_texel_bytes = 4;      // R32F
+constexpr std::uint64_t height_texel_bytes = 4;                     // R32F
 constexpr std::uint64_t cone_layer_texel_bytes = cone_texel_bytes;  // RG16UI: (ratio, apex) per layer
-constexpr std::uint64_t plane_vertex_bytes = 8;      // (u, v) floats
-constexpr std::uint64_t triangle_bytes = 12;         // three 32-bit indices
+constexpr std::uint64_t plane_vertex_bytes = 8;                     // (u, v) floats
+constexpr std::uint64_t triangle_bytes = 12;                        // three 32-bit indices
 // a mesh reference's triangles per vertex at most (n^2 triangles over (n + 1)(n + 2) / 2 vertices)
 constexpr std::uint64_t mesh_triangles_per_vertex = 2;
 
@@ -37,11 +37,14 @@ std::string size_text(std::uint64_t width, std::uint64_t height) {
   return std::to_string(width) + " x " + std::to_string(height);
 }
 
-std::uint64_t pixels_of(int width, int height) { return std::uint64_t(std::max(width, 0)) * std::uint64_t(std::max(height, 0)); }
+std::uint64_t pixels_of(int width, int height) {
+  return std::uint64_t(std::max(width, 0)) * std::uint64_t(std::max(height, 0));
+}
 
 const char* pool_name(MemoryKind kind, const MemoryLimits& limits) {
   if (limits.device.empty() || limits.device_is_host || kind == MemoryKind::host) return "host memory";
-  return kind == MemoryKind::device_local || limits.shared_heap ? "device memory" : "host-visible device memory";
+  return kind == MemoryKind::device_local || limits.shared_heap ? "device memory"
+                                                                : "host-visible device memory";
 }
 
 // The bytes behind one item of frame_memory: the reference's tessellation on the plane.
@@ -58,7 +61,8 @@ PlaneTessellation plane_tessellation(int map_width, int map_height, int tile) {
 std::string amount(std::uint64_t bytes, int decimals) {
   char text[40];
   if (bytes >= 1000000000ull) {
-    std::snprintf(text, sizeof text, "%.*f GB", (bytes >= 10000000000ull ? 1 : 2) + decimals, double(bytes) / 1e9);
+    std::snprintf(text, sizeof text, "%.*f GB", (bytes >= 10000000000ull ? 1 : 2) + decimals,
+                  double(bytes) / 1e9);
   } else if (bytes >= 1000000ull) {
     std::snprintf(text, sizeof text, "%.*f MB", decimals, double(bytes) / 1e6);
   } else {
@@ -100,9 +104,10 @@ void check_memory(std::span<const Allocation> allocations, const MemoryLimits& l
     if (allocation.kind == MemoryKind::host || limits.max_allocation == 0) continue;
     if (allocation.bytes > limits.max_allocation) {
       int decimals = 0;  // enough to tell the two apart
-      while (decimals < 3 && amount(allocation.bytes, decimals) == amount(limits.max_allocation, decimals)) ++decimals;
-      throw RenderError(allocation.what + " needs one allocation of " + amount(allocation.bytes, decimals) + "; " +
-                        limits.device + " allows at most " + amount(limits.max_allocation, decimals) +
+      while (decimals < 3 && amount(allocation.bytes, decimals) == amount(limits.max_allocation, decimals))
+        ++decimals;
+      throw RenderError(allocation.what + " needs one allocation of " + amount(allocation.bytes, decimals) +
+                        "; " + limits.device + " allows at most " + amount(limits.max_allocation, decimals) +
                         " in one: lower " + allocation.lower);
     }
   }
@@ -116,7 +121,7 @@ void check_memory(std::span<const Allocation> allocations, const MemoryLimits& l
   const bool one_pool = limits.device.empty() || limits.device_is_host;
   Pool host{limits.host}, device{limits.device_local}, host_visible{limits.host_visible};
   for (const Allocation& allocation : allocations) {
-    Pool& pool = one_pool || allocation.kind == MemoryKind::host ? host
+    Pool& pool = one_pool || allocation.kind == MemoryKind::host                     ? host
                  : allocation.kind == MemoryKind::device_local || limits.shared_heap ? device
                                                                                      : host_visible;
     pool.needed += allocation.bytes;
@@ -128,8 +133,8 @@ void check_memory(std::span<const Allocation> allocations, const MemoryLimits& l
     const bool alone = largest.bytes == pool->needed;
     const bool lowered = pool == &host && !limited.empty();
     throw RenderError(largest.what + " needs " + memory_text(largest.bytes) +
-                      (alone ? std::string() : " (" + memory_text(pool->needed) + " with the rest)") + " of " +
-                      pool_name(largest.kind, limits) + "; " + memory_text(pool->available) +
+                      (alone ? std::string() : " (" + memory_text(pool->needed) + " with the rest)") +
+                      " of " + pool_name(largest.kind, limits) + "; " + memory_text(pool->available) +
                       (pool == &host ? " is available" : " is all " + limits.device + " has") +
                       (lowered ? limited : std::string()) + ": lower " + largest.lower);
   }
@@ -154,7 +159,8 @@ void add_readback_memory(std::vector<Allocation>& list, int width, int height, u
     list.push_back({"the hit readback" + frame, pixels * hit_bytes, MemoryKind::host_visible, "--size"});
   }
   if (outputs & (output_iterations | output_fetches)) {
-    list.push_back({"the counter readback" + frame, pixels * counters_bytes, MemoryKind::host_visible, "--size"});
+    list.push_back(
+        {"the counter readback" + frame, pixels * counters_bytes, MemoryKind::host_visible, "--size"});
   }
 }
 
@@ -168,8 +174,9 @@ void add_frame_vector_memory(std::vector<Allocation>& list, int width, int heigh
   if (outputs & output_iterations) bytes += pixels * 4;
   if (outputs & output_fetches) bytes += pixels * 4;
   if (bytes == 0) return;
-  list.push_back({"the pixels read back from a " + size_text(std::uint64_t(width), std::uint64_t(height)) + " frame",
-                  bytes, MemoryKind::host, "--size"});
+  list.push_back(
+      {"the pixels read back from a " + size_text(std::uint64_t(width), std::uint64_t(height)) + " frame",
+       bytes, MemoryKind::host, "--size"});
 }
 
 void add_reference_memory(std::vector<Allocation>& list, const View& view, int map_width, int map_height) {
@@ -193,7 +200,8 @@ void add_reference_memory(std::vector<Allocation>& list, const View& view, int m
     throw RenderError(what + " would have " + std::to_string(mesh.vertices) +
                       " vertices, more than 32-bit indices address: lower " + lower);
   }
-  const std::uint64_t vertex_bytes = mesh.vertices * plane_vertex_bytes, index_bytes = mesh.triangles * triangle_bytes;
+  const std::uint64_t vertex_bytes = mesh.vertices * plane_vertex_bytes,
+                      index_bytes = mesh.triangles * triangle_bytes;
   list.push_back({what, vertex_bytes + index_bytes, MemoryKind::host, lower});
   list.push_back({"the vertex buffer of " + what, vertex_bytes, MemoryKind::host_visible, lower});
   list.push_back({"the index buffer of " + what, index_bytes, MemoryKind::host_visible, lower});
@@ -202,7 +210,8 @@ void add_reference_memory(std::vector<Allocation>& list, const View& view, int m
 std::vector<Allocation> map_memory(const MapShape& shape) {
   std::vector<Allocation> list;
   const std::uint64_t texels = pixels_of(shape.width, shape.height);
-  const std::string map = " of a " + size_text(std::uint64_t(shape.width), std::uint64_t(shape.height)) + " map";
+  const std::string map =
+      " of a " + size_text(std::uint64_t(shape.width), std::uint64_t(shape.height)) + " map";
   std::uint64_t staging = 0;
   auto add = [&](std::string what, std::uint64_t bytes) {
     list.push_back({std::move(what), bytes, MemoryKind::device_local, "--map-size"});
@@ -212,21 +221,22 @@ std::vector<Allocation> map_memory(const MapShape& shape) {
   if (shape.foam) add("the foam image" + map, texels * height_texel_bytes);
   if (shape.cone_sectors > 0) {
     const std::uint64_t layers = std::uint64_t(cone_layer_count(shape.cone_sectors, shape.relaxed));
-    add("the " + std::to_string(shape.cone_sectors) + "-sector cone image" + map, texels * layers * cone_layer_texel_bytes);
+    add("the " + std::to_string(shape.cone_sectors) + "-sector cone image" + map,
+        texels * layers * cone_layer_texel_bytes);
   }
   if (shape.max_pyramid_values > 0) {
     add("the max pyramid" + map, sizeof(gpu::MaxPyramidHeader) + shape.max_pyramid_values * sizeof(float));
   }
   if (shape.distance_depth > 0) {
-    add("the distance map" + map,
-        pixels_of(shape.distance_width, shape.distance_height) * std::uint64_t(shape.distance_depth) * sizeof(float));
+    add("the distance map" + map, pixels_of(shape.distance_width, shape.distance_height) *
+                                      std::uint64_t(shape.distance_depth) * sizeof(float));
   }
   list.push_back({"the staging of the maps" + map, staging, MemoryKind::host_visible, "--map-size"});
   return list;
 }
 
-std::vector<Allocation> frame_memory(const View& view, const MethodSettings& method, int map_width, int map_height,
-                                     unsigned outputs, bool with_reference) {
+std::vector<Allocation> frame_memory(const View& view, const MethodSettings& method, int map_width,
+                                     int map_height, unsigned outputs, bool with_reference) {
   std::vector<Allocation> list;
   const int width = view.camera.width, height = view.camera.height;
   add_target_memory(list, width, height);
@@ -235,7 +245,8 @@ std::vector<Allocation> frame_memory(const View& view, const MethodSettings& met
     add_readback_memory(list, width, height, outputs);
     add_frame_vector_memory(list, width, height, outputs);
   }
-  if (method.method == Method::reference || with_reference) add_reference_memory(list, view, map_width, map_height);
+  if (method.method == Method::reference || with_reference)
+    add_reference_memory(list, view, map_width, map_height);
   return list;
 }
 
@@ -248,9 +259,12 @@ void Renderer::Impl::check_frame_memory(const View& view, const MethodInfo& info
   const FrameSlot& next = slots[std::size_t(slot)];
   const bool same_readback = next.readback_width == width && next.readback_height == height;
   unsigned new_readback = 0;
-  if ((outputs & output_color) && !(same_readback && next.color_readback.handle())) new_readback |= output_color;
-  if ((outputs & (output_uv | output_depth)) && !(same_readback && next.hit_readback.handle())) new_readback |= output_uv;
-  if ((outputs & (output_iterations | output_fetches)) && !(same_readback && next.counters_readback.handle())) {
+  if ((outputs & output_color) && !(same_readback && next.color_readback.handle()))
+    new_readback |= output_color;
+  if ((outputs & (output_uv | output_depth)) && !(same_readback && next.hit_readback.handle()))
+    new_readback |= output_uv;
+  if ((outputs & (output_iterations | output_fetches)) &&
+      !(same_readback && next.counters_readback.handle())) {
     new_readback |= output_iterations;
   }
   unsigned growing = 0;  // outputs whose vector in the caller's Frame grows
@@ -282,14 +296,16 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
   shape.width = maps.width;
   shape.height = maps.height;
   shape.foam = !maps.foam.empty();
-  bool reshaped = heights.width != maps.width || heights.height != maps.height || !heights.image.handle() ||
-                  (shape.foam && (foam.width != maps.width || foam.height != maps.height || !foam.image.handle()));
+  bool reshaped =
+      heights.width != maps.width || heights.height != maps.height || !heights.image.handle() ||
+      (shape.foam && (foam.width != maps.width || foam.height != maps.height || !foam.image.handle()));
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& view = maps.cones[index];
     if (view.sector_count == 0) continue;
     const DeviceMap& held = cones[index];
     const int layers = cone_layer_count(view.sector_count, !view.relaxed.empty());
-    reshaped |= held.width != maps.width || held.height != maps.height || held.layers != layers || !held.image.handle();
+    reshaped |= held.width != maps.width || held.height != maps.height || held.layers != layers ||
+                !held.image.handle();
     if (view.sector_count > shape.cone_sectors) {  // the largest cone map stands for them all
       shape.cone_sectors = view.sector_count;
       shape.relaxed = !view.relaxed.empty();
@@ -317,7 +333,8 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
     needed.push_back({"the " + std::to_string(view.sector_count) + "-sector cone image", bytes,
                       MemoryKind::device_local, "--map-size"});
     for (Allocation& allocation : needed) {
-      if (allocation.kind == MemoryKind::host_visible) allocation.bytes += bytes;  // the staging carries it too
+      if (allocation.kind == MemoryKind::host_visible)
+        allocation.bytes += bytes;  // the staging carries it too
     }
   }
   check_memory(needed, memory_limits());

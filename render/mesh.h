@@ -71,8 +71,8 @@ struct MeshReference {
   std::vector<std::uint32_t> indices;
   int subdivisions = 0;  // n
 };
-MeshReference mesh_reference(const std::vector<MeshVertex>& vertices, const std::vector<std::uint32_t>& triangles,
-                             int width, int height, int tile);
+MeshReference mesh_reference(const std::vector<MeshVertex>& vertices,
+                             const std::vector<std::uint32_t>& triangles, int width, int height, int tile);
 
 }  // namespace displace::render
 

@@ -31,8 +31,9 @@ constexpr MethodInfo methods[] = {
 // Methods whose search the quadrics implement (render/shaders/quadric_trace.inc.glsl). The parallax
 // family offsets along the plane's tangent frame and relaxed cones hold only for straight rays in
 // texture space, so those stay on the plane.
-constexpr Method quadric_methods[] = {Method::bump, Method::pom,  Method::relief, Method::interval,      Method::csm,
-                                      Method::acm4, Method::acm8, Method::acm4_interval, Method::reference};
+constexpr Method quadric_methods[] = {Method::bump,     Method::pom,           Method::relief,
+                                      Method::interval, Method::csm,           Method::acm4,
+                                      Method::acm8,     Method::acm4_interval, Method::reference};
 
 }  // namespace
 
@@ -49,7 +50,8 @@ const char* surface_name(Surface surface) {
 
 bool supports_surface(Method method, Surface surface) {
   return surface == Surface::plane || surface == Surface::mesh ||
-         std::find(std::begin(quadric_methods), std::end(quadric_methods), method) != std::end(quadric_methods);
+         std::find(std::begin(quadric_methods), std::end(quadric_methods), method) !=
+             std::end(quadric_methods);
 }
 
 std::span<const MethodInfo> method_table() { return methods; }

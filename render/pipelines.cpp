@@ -1,6 +1,8 @@
 // render/pipelines.cpp - descriptor and pipeline layouts, the render pass, samplers, shader modules,
 // one graphics pipeline per method and surface (specialization constants METHOD and SURFACE), and
 // the VkPipelineCache kept on disk between runs so that a second process starts without compiling.
+#include <unistd.h>
+
 #include <array>
 #include <cstdint>
 #include <cstdio>
@@ -12,8 +14,6 @@
 #include <string>
 #include <system_error>
 #include <vector>
-
-#include <unistd.h>
 
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
@@ -56,8 +56,8 @@ bool cache_matches_device(const std::vector<char>& data, const VkPhysicalDeviceP
   if (data.size() < sizeof header) return false;
   std::memcpy(&header, data.data(), sizeof header);
   return header.headerSize >= sizeof header && header.headerSize <= data.size() &&
-         header.headerVersion == VK_PIPELINE_CACHE_HEADER_VERSION_ONE && header.vendorID == properties.vendorID &&
-         header.deviceID == properties.deviceID &&
+         header.headerVersion == VK_PIPELINE_CACHE_HEADER_VERSION_ONE &&
+         header.vendorID == properties.vendorID && header.deviceID == properties.deviceID &&
          std::memcmp(header.pipelineCacheUUID, properties.pipelineCacheUUID, VK_UUID_SIZE) == 0;
 }
 
@@ -77,7 +77,8 @@ void Renderer::Impl::load_pipeline_cache(const std::string& requested) {
     VkPhysicalDeviceProperties properties;
     vkGetPhysicalDeviceProperties(context.physical_device(), &properties);
     char uuid[2 * VK_UUID_SIZE + 1] = {};
-    for (int i = 0; i < int(VK_UUID_SIZE); ++i) std::snprintf(uuid + 2 * i, 3, "%02x", properties.pipelineCacheUUID[i]);
+    for (int i = 0; i < int(VK_UUID_SIZE); ++i)
+      std::snprintf(uuid + 2 * i, 3, "%02x", properties.pipelineCacheUUID[i]);
     pipeline_cache_file = directory + "/pipelines-" + std::to_string(properties.vendorID) + "-" +
                           std::to_string(properties.deviceID) + "-" + uuid + ".bin";
     std::ifstream file(pipeline_cache_file, std::ios::binary);
@@ -100,7 +101,8 @@ void Renderer::Impl::save_pipeline_cache() noexcept {
     std::size_t size = 0;
     if (vkGetPipelineCacheData(context.device(), pipeline_cache.get(), &size, nullptr) != VK_SUCCESS) return;
     std::vector<char> data(size);
-    if (vkGetPipelineCacheData(context.device(), pipeline_cache.get(), &size, data.data()) != VK_SUCCESS) return;
+    if (vkGetPipelineCacheData(context.device(), pipeline_cache.get(), &size, data.data()) != VK_SUCCESS)
+      return;
     const std::filesystem::path path(pipeline_cache_file);
     std::error_code error;
     std::filesystem::create_directories(path.parent_path(), error);
@@ -128,11 +130,14 @@ void Renderer::Impl::create_layouts() {
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   bindings[1] = {BINDING_HEIGHT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
-  bindings[2] = {BINDING_CONES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[2] = {BINDING_CONES, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+                 nullptr};
   bindings[3] = {BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
                  nullptr};
-  bindings[4] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
-  bindings[6] = {BINDING_FOAM, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[4] = {BINDING_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+                 nullptr};
+  bindings[6] = {BINDING_FOAM, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+                 nullptr};
   bindings[5] = {BINDING_DISTANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
                  nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
@@ -174,14 +179,14 @@ void Renderer::Impl::create_layouts() {
     DISPLACE_VK_CHECK(vkCreateSampler(device, &info, nullptr, &handle));
     return OwnedSampler(device, handle);
   };
-  const VkSamplerAddressMode repeat = VK_SAMPLER_ADDRESS_MODE_REPEAT, clamp = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  const VkSamplerAddressMode repeat = VK_SAMPLER_ADDRESS_MODE_REPEAT,
+                             clamp = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   linear_wrap = sampler(VK_FILTER_LINEAR, repeat, repeat);
   linear_clamp = sampler(VK_FILTER_LINEAR, clamp, clamp);
   nearest_wrap = sampler(VK_FILTER_NEAREST, repeat, repeat);
   nearest_clamp = sampler(VK_FILTER_NEAREST, clamp, clamp);
   linear_wrap_u = sampler(VK_FILTER_LINEAR, clamp, repeat);
   nearest_wrap_u = sampler(VK_FILTER_NEAREST, clamp, repeat);
-
 }
 
 void Renderer::Impl::create_render_pass() {
@@ -222,7 +227,8 @@ void Renderer::Impl::create_render_pass() {
   dependencies[0].dstSubpass = 0;
   dependencies[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
   dependencies[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT |
-                                 VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+                                 VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT |
+                                 VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
   dependencies[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
   dependencies[0].dstAccessMask =
       VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
@@ -247,12 +253,12 @@ void Renderer::Impl::create_render_pass() {
   relief_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_relief_vert));
   reference_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_reference_vert));
   surface_fragment = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_frag));
-  quadric_proxy_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
+  quadric_proxy_vertex =
+      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
   quadric_reference_vertex =
       OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_reference_vert));
   mesh_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_mesh_vert));
 }
-
 
 VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   const int key = info.shader_id * 8 + surface_id(surface);
@@ -266,7 +272,8 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   const std::array<VkSpecializationMapEntry, 2> entries = {
       VkSpecializationMapEntry{0, 0, sizeof(std::int32_t)},
       VkSpecializationMapEntry{1, sizeof(std::int32_t), sizeof(std::int32_t)}};
-  VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(), sizeof(constants), constants.data()};
+  VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(), sizeof(constants),
+                                      constants.data()};
   std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
   stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
@@ -288,7 +295,8 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
 
   const VkVertexInputBindingDescription vertex_binding{0, sizeof(float) * 2, VK_VERTEX_INPUT_RATE_VERTEX};
   const VkVertexInputAttributeDescription vertex_attribute{0, 0, VK_FORMAT_R32G32_SFLOAT, 0};
-  VkPipelineVertexInputStateCreateInfo vertex_input{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineVertexInputStateCreateInfo vertex_input{
+      VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
   // meshes: MeshVertex, four vec4 per vertex
   const VkVertexInputBindingDescription mesh_binding{0, sizeof(MeshVertex), VK_VERTEX_INPUT_RATE_VERTEX};
   std::array<VkVertexInputAttributeDescription, 4> mesh_attributes{};
@@ -306,7 +314,8 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
     vertex_input.vertexAttributeDescriptionCount = 1;
     vertex_input.pVertexAttributeDescriptions = &vertex_attribute;
   }
-  VkPipelineInputAssemblyStateCreateInfo assembly{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo assembly{
+      VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
   assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
   VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
   viewport.viewportCount = 1;
@@ -329,8 +338,8 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   depth.depthCompareOp = VK_COMPARE_OP_LESS;
   std::array<VkPipelineColorBlendAttachmentState, 3> blend{};
   for (auto& attachment : blend) {
-    attachment.colorWriteMask =
-        VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    attachment.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                                VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
   }
   VkPipelineColorBlendStateCreateInfo blending{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
   blending.attachmentCount = std::uint32_t(blend.size());
@@ -354,10 +363,10 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   create.layout = pipeline_layout.get();
   create.renderPass = render_pass.get();
   VkPipeline handle = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateGraphicsPipelines(context.device(), pipeline_cache.get(), 1, &create, nullptr, &handle));
+  DISPLACE_VK_CHECK(
+      vkCreateGraphicsPipelines(context.device(), pipeline_cache.get(), 1, &create, nullptr, &handle));
   ++pipelines_created;
   return pipelines.emplace(key, OwnedPipeline(context.device(), handle)).first->second.get();
 }
-
 
 }  // namespace displace::render

@@ -76,8 +76,7 @@ glm::dvec3 texture_point(const Shape& shape, const glm::dvec3& q) {
       const double polar = (rho > 0.0 || q.z != 0.0) ? std::atan2(rho, -q.z) : 0.0;
       return {u, tile * polar / std::numbers::pi, (glm::length(q) - r) / depth + 1.0};
     }
-    case Surface::cylinder:
-      return {u, tile * (q.z + r) / (2.0 * r), (rho - r) / depth + 1.0};
+    case Surface::cylinder: return {u, tile * (q.z + r) / (2.0 * r), (rho - r) / depth + 1.0};
     case Surface::cone: {
       const double below_apex = -q.z;
       const double slant = cone_sin * rho + cone_cos * below_apex;
@@ -85,8 +84,7 @@ glm::dvec3 texture_point(const Shape& shape, const glm::dvec3& q) {
       return {u, tile * (2.0 * r - cone_cos * slant) / r, distance / depth + 1.0};
     }
     case Surface::plane:
-    case Surface::mesh:
-      break;
+    case Surface::mesh: break;
   }
   throw std::logic_error("quadric::texture_point on a surface that is not a quadric");
 }
@@ -100,16 +98,14 @@ glm::dvec3 surface_point(const Shape& shape, double u, double v, double h) {
       const double polar = std::numbers::pi * v / tile;
       return anchor(shape) + (r - inset) * glm::dvec3(std::sin(polar) * radial, -std::cos(polar));
     }
-    case Surface::cylinder:
-      return anchor(shape) + glm::dvec3((r - inset) * radial, 2.0 * r * v / tile - r);
+    case Surface::cylinder: return anchor(shape) + glm::dvec3((r - inset) * radial, 2.0 * r * v / tile - r);
     case Surface::cone: {
       const double slant = (2.0 * r - r * v / tile) / cone_cos;
       return anchor(shape) + slant * glm::dvec3(cone_sin * radial, -cone_cos) -
              inset * glm::dvec3(cone_cos * radial, cone_sin);
     }
     case Surface::plane:
-    case Surface::mesh:
-      break;
+    case Surface::mesh: break;
   }
   throw std::logic_error("quadric::surface_point on a surface that is not a quadric");
 }

@@ -10,7 +10,8 @@
 namespace displace::render {
 namespace {
 
-MeshVertex blend(const MeshVertex& a, const MeshVertex& b, const MeshVertex& c, float wa, float wb, float wc) {
+MeshVertex blend(const MeshVertex& a, const MeshVertex& b, const MeshVertex& c, float wa, float wb,
+                 float wc) {
   MeshVertex v;
   v.position = wa * a.position + wb * b.position + wc * c.position;
   v.u = wa * a.u + wb * b.u + wc * c.u;
@@ -58,12 +59,14 @@ MeshReference mesh_reference(const std::vector<MeshVertex>& mesh, const std::vec
     for (int e = 0; e < 3; ++e) {
       const MeshVertex& a = mesh[triangles[t + e]];
       const MeshVertex& b = mesh[triangles[t + (e + 1) % 3]];
-      longest = std::max({longest, std::abs(double(a.u) - b.u) * width * tile,
-                          std::abs(double(a.v) - b.v) * height * tile});
+      longest = std::max(
+          {longest, std::abs(double(a.u) - b.u) * width * tile, std::abs(double(a.v) - b.v) * height * tile});
     }
   }
-  const long long most = (long long)std::sqrt(2.0 * double(max_mesh_reference_vertices) / double(triangle_count));
-  const int n = int(std::clamp<long long>((long long)std::ceil(2.0 * longest), 1, std::max<long long>(most - 1, 1)));
+  const long long most =
+      (long long)std::sqrt(2.0 * double(max_mesh_reference_vertices) / double(triangle_count));
+  const int n =
+      int(std::clamp<long long>((long long)std::ceil(2.0 * longest), 1, std::max<long long>(most - 1, 1)));
   const int per_row = n + 1;
   reference.subdivisions = n;
   std::vector<MeshVertex>& vertices = reference.vertices;
@@ -90,8 +93,8 @@ MeshReference mesh_reference(const std::vector<MeshVertex>& mesh, const std::vec
           const float w = float(counts[second]) / float(n);
           vertex = blend(mesh[corner[first]], mesh[corner[second]], mesh[corner[first]], 1.0f - w, w, 0.0f);
         } else {
-          vertex = blend(mesh[corner[0]], mesh[corner[1]], mesh[corner[2]], float(i) / float(n), float(j) / float(n),
-                         float(n - i - j) / float(n));
+          vertex = blend(mesh[corner[0]], mesh[corner[1]], mesh[corner[2]], float(i) / float(n),
+                         float(j) / float(n), float(n - i - j) / float(n));
         }
         grid[std::size_t(i) * per_row + j] = std::uint32_t(vertices.size());
         vertices.push_back(vertex);
@@ -100,10 +103,12 @@ MeshReference mesh_reference(const std::vector<MeshVertex>& mesh, const std::vec
     // sub-triangles, with the winding of the triangle (+i towards its first corner, +j its second)
     for (int i = 0; i < n; ++i) {
       for (int j = 0; i + j < n; ++j) {
-        const std::uint32_t p = grid[std::size_t(i) * per_row + j], pi = grid[std::size_t(i + 1) * per_row + j],
+        const std::uint32_t p = grid[std::size_t(i) * per_row + j],
+                            pi = grid[std::size_t(i + 1) * per_row + j],
                             pj = grid[std::size_t(i) * per_row + j + 1];
         indices.insert(indices.end(), {p, pi, pj});
-        if (i + j + 1 < n) indices.insert(indices.end(), {pi, grid[std::size_t(i + 1) * per_row + j + 1], pj});
+        if (i + j + 1 < n)
+          indices.insert(indices.end(), {pi, grid[std::size_t(i + 1) * per_row + j + 1], pj});
       }
     }
   }

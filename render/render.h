@@ -44,18 +44,18 @@
 //   outer surface back to the hit; passing through the inner solid is a shadow too (the terminator).
 #pragma once
 
+#include <vulkan/vulkan_core.h>
+
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <glm/glm.hpp>
 #include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <glm/glm.hpp>
-#include <vulkan/vulkan_core.h>
 
 #include "bake/bake.h"
 #include "render/mesh.h"
@@ -103,11 +103,11 @@ const char* surface_name(Surface surface);  // the --surface word
 
 struct MethodInfo {
   Method method;
-  const char* name;   // the --method word
-  int shader_id;      // METHOD_* in render/shaders/config.h
+  const char* name;  // the --method word
+  int shader_id;     // METHOD_* in render/shaders/config.h
   MethodFamily family;
-  int cone_sectors;   // 0: the method reads no cone map
-  bool exact_class;   // converges to the true hit as steps grow
+  int cone_sectors;            // 0: the method reads no cone map
+  bool exact_class;            // converges to the true hit as steps grow
   bool relaxed_cones = false;  // a relaxed ratio layer (bake::bake_relaxed) follows the bilinear cones
 };
 
@@ -156,19 +156,19 @@ enum class Material { grid, water };
 struct View {
   Camera camera;
   Material material = Material::grid;
-  int tile = 1;                  // texture repeats over the plane; > 1 needs Address::wrap
-  float depth_scale = 0.1f;      // world units between height 1 and height 0
+  int tile = 1;              // texture repeats over the plane; > 1 needs Address::wrap
+  float depth_scale = 0.1f;  // world units between height 1 and height 0
   bake::Address address = bake::Address::wrap;
   glm::vec3 light_direction{0.35f, 0.25f, 1.0f};  // towards the light; normalized when used
   Surface surface = Surface::plane;
   float radius = 0.25f;  // the quadric's outer radius R, world units (quadrics only)
-  bool shadows = false;          // self-shadowing, traced towards the light with the frame's method
+  bool shadows = false;  // self-shadowing, traced towards the light with the frame's method
 };
 
 struct MethodSettings {
   Method method = Method::relief;
-  int steps = 32;   // linear-search steps, the maximum number of cone steps, or iterations
-  int refine = 8;   // binary or secant refinement steps after the search
+  int steps = 32;  // linear-search steps, the maximum number of cone steps, or iterations
+  int refine = 8;  // binary or secant refinement steps after the search
 };
 
 // One rendered frame read back to the CPU. Row 0 is the top of the image.
@@ -176,18 +176,18 @@ struct Frame {
   int width = 0;
   int height = 0;
   std::vector<std::uint8_t> color;  // RGBA8, 4 per pixel
-  std::vector<float> uv;            // u, v, hit: 3 per pixel; u, v unwrapped in [0, tile]; 0, 0, 0 off the relief
-  std::vector<float> depth;         // world distance from the eye to the hit; 0 off the relief
-  std::vector<float> iterations;    // search-loop iterations per pixel
-  std::vector<float> fetches;       // height and cone texture reads per pixel
-  double gpu_milliseconds = 0.0;    // the draw, from GPU timestamps (0 when the device has none)
+  std::vector<float> uv;     // u, v, hit: 3 per pixel; u, v unwrapped in [0, tile]; 0, 0, 0 off the relief
+  std::vector<float> depth;  // world distance from the eye to the hit; 0 off the relief
+  std::vector<float> iterations;  // search-loop iterations per pixel
+  std::vector<float> fetches;     // height and cone texture reads per pixel
+  double gpu_milliseconds = 0.0;  // the draw, from GPU timestamps (0 when the device has none)
 };
 
 struct DeviceInfo {
   int index = 0;
   std::string name;
-  std::string type;  // "discrete-gpu", "integrated-gpu", "virtual-gpu", "cpu", "other"
-  int max_image_dimension_3d = 0;            // texels a side of a 3D image (the distance map)
+  std::string type;                // "discrete-gpu", "integrated-gpu", "virtual-gpu", "cpu", "other"
+  int max_image_dimension_3d = 0;  // texels a side of a 3D image (the distance map)
   std::uint64_t max_storage_buffer_range = 0;  // bytes of one storage buffer (the max pyramid)
   // Linear filtering's weights are fixed point with this many fraction bits (subTexelPrecisionBits;
   // Vulkan asks for 4 at least, NVIDIA has 8): where a filtered read may be off (the distance map's
@@ -301,8 +301,8 @@ int cone_slot(int sector_count);  // 0, 1, 2 for 1, 4, 8 sectors
 // What a method reads for a view, from the method table: the renderer refuses a frame whose maps
 // are missing (naming the map), and map makers (pipeline/maps.h) bake exactly this.
 struct MapNeeds {
-  int cone_sectors = 0;  // 0: no cone map
-  bool relaxed = false;  // the cone map's relaxed layer
+  int cone_sectors = 0;                              // 0: no cone map
+  bool relaxed = false;                              // the cone map's relaxed layer
   bake::Address cone_address = bake::Address::wrap;  // wrap on quadrics (u closes around the axis)
   bool max_pyramid = false;
   bool distance = false;
@@ -388,7 +388,8 @@ std::vector<Allocation> map_memory(const MapShape& shape);
 // tessellation too. Throws RenderError when the reference's tessellation would have more vertices
 // than 32-bit indices address.
 std::vector<Allocation> frame_memory(const View& view, const MethodSettings& method, int map_width,
-                                     int map_height, unsigned outputs = output_all, bool with_reference = false);
+                                     int map_height, unsigned outputs = output_all,
+                                     bool with_reference = false);
 
 // Bytes as text: "812 MB", "4.3 GB" (decimal units).
 std::string memory_text(std::uint64_t bytes);
@@ -463,7 +464,8 @@ class Swapchain {
   // `renderer` (made with RendererOptions::instance_extensions) must outlive the swapchain. Throws
   // RenderError when the device cannot present to the surface. vsync: FIFO; otherwise MAILBOX or
   // IMMEDIATE when offered (FIFO when not).
-  Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height, bool vsync = false);
+  Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height,
+            bool vsync = false);
   ~Swapchain();  // waits for the presents in flight
   Swapchain(Swapchain&&) noexcept;
   Swapchain& operator=(Swapchain&&) noexcept;
@@ -473,7 +475,7 @@ class Swapchain {
   // a zero-sized (minimized) window, or a swapchain that went out of date (made again for the next
   // call).
   bool present(int width, int height);
-  int width() const;   // of the swapchain images
+  int width() const;  // of the swapchain images
   int height() const;
 
   struct Impl;
@@ -495,8 +497,9 @@ struct ImageError {
 ImageError compare(const Frame& frame, const Frame& reference);
 
 // The exact ray-height-field intersection on the CPU (a cell-by-cell walk of the bilinear surface,
-// solving the quadratic in each cell) for the plane, for tests: the texture coordinates (u, v, h) of the first hit of the ray
-// through pixel (px, py), or hit = false when the ray misses the relief of the [0, tile]^2 patch.
+// solving the quadratic in each cell) for the plane, for tests: the texture coordinates (u, v, h) of the
+// first hit of the ray through pixel (px, py), or hit = false when the ray misses the relief of the [0,
+// tile]^2 patch.
 struct CpuHit {
   bool hit = false;
   glm::dvec3 texture;  // u, v, h

@@ -24,9 +24,9 @@ static_assert(sizeof(gpu::MaxPyramidHeader) == 16 * (1 + MAX_PYRAMID_LEVELS),
               "MaxPyramidHeader must match std430");
 static_assert(offsetof(gpu::FrameUniforms, quadric) == 64 + 16 * 6);
 
-void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from, VkImageLayout to,
-                   VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags src_stage,
-                   VkPipelineStageFlags dst_stage) {
+void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from,
+                   VkImageLayout to, VkAccessFlags src_access, VkAccessFlags dst_access,
+                   VkPipelineStageFlags src_stage, VkPipelineStageFlags dst_stage) {
   VkImageMemoryBarrier barrier{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
   barrier.srcAccessMask = src_access;
   barrier.dstAccessMask = dst_access;
@@ -64,15 +64,18 @@ void Renderer::Impl::create_frame_slots() {
 
   // stand-ins bound where a method reads no map of that kind
   const std::array<std::uint16_t, 2> cone_one = {0x3c00, 65535};  // ratio 1 (half float), apex 1
-  dummy_cones = upload_image_now(cone_format, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, cone_one.data(), sizeof cone_one);
+  dummy_cones =
+      upload_image_now(cone_format, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D_ARRAY, cone_one.data(), sizeof cone_one);
   const std::array<std::uint8_t, 4> white = {255, 255, 255, 255};
-  dummy_albedo = upload_image_now(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
+  dummy_albedo =
+      upload_image_now(VK_FORMAT_R8G8B8A8_UNORM, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, white.data(), sizeof white);
   const float zero = 0.0f;
   dummy_distance = upload_image_now(VK_FORMAT_R32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_3D, &zero, sizeof zero);
   dummy_foam = upload_image_now(VK_FORMAT_R32_SFLOAT, 1, 1, 1, VK_IMAGE_VIEW_TYPE_2D, &zero, sizeof zero);
   // a pyramid of 0 levels: the header, then one value
-  dummy_pyramid = Buffer(context, sizeof(gpu::MaxPyramidHeader) + sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                         VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+  dummy_pyramid =
+      Buffer(context, sizeof(gpu::MaxPyramidHeader) + sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+             VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   std::memset(dummy_pyramid.mapped(), 0, sizeof(gpu::MaxPyramidHeader) + sizeof(float));
 }
 
@@ -80,7 +83,8 @@ FrameSlot& Renderer::Impl::begin_slot() {
   FrameSlot& frame_slot = slots[std::size_t(slot)];
   if (frame_slot.recording) return frame_slot;
   const VkFence fence = frame_slot.fence.get();
-  DISPLACE_VK_CHECK(vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
+  DISPLACE_VK_CHECK(
+      vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.commands, 0));
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
@@ -102,7 +106,8 @@ void Renderer::Impl::submit_slot(bool wait) {
   submit.pCommandBuffers = &frame_slot.commands;
   DISPLACE_VK_CHECK(vkQueueSubmit(context.queue(), 1, &submit, fence));
   if (wait) {
-    DISPLACE_VK_CHECK(vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
+    DISPLACE_VK_CHECK(
+        vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   }
   slot = (slot + 1) % frames_in_flight;
 }
@@ -111,7 +116,8 @@ void Renderer::Impl::wait_submitted() {
   for (std::size_t index = 0; index < slots.size(); ++index) {
     if (slots[index].recording) continue;  // nothing of it submitted since its fence was waited for
     const VkFence fence = slots[index].fence.get();
-    DISPLACE_VK_CHECK(vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
+    DISPLACE_VK_CHECK(
+        vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   }
 }
 
@@ -120,10 +126,11 @@ void Renderer::Impl::drain() {
   DISPLACE_VK_CHECK(vkDeviceWaitIdle(context.device()));
 }
 
-Image Renderer::Impl::upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
-                                       const void* data, std::size_t bytes) {
+Image Renderer::Impl::upload_image_now(VkFormat format, int width, int height, int layers,
+                                       VkImageViewType view_type, const void* data, std::size_t bytes) {
   Image image(context, format, std::uint32_t(width), std::uint32_t(height), std::uint32_t(layers),
-              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT, view_type);
+              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+              view_type);
   Buffer staging(context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                  VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   std::memcpy(staging.mapped(), data, bytes);
@@ -136,11 +143,11 @@ Image Renderer::Impl::upload_image_now(VkFormat format, int width, int height, i
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, array_layers};
     region.imageExtent = {std::uint32_t(width), std::uint32_t(height), volume ? std::uint32_t(layers) : 1};
-    vkCmdCopyBufferToImage(commands, staging.handle(), image.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
-                           &region);
+    vkCmdCopyBufferToImage(commands, staging.handle(), image.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                           1, &region);
     image_barrier(commands, image.handle(), array_layers, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
-                  VK_PIPELINE_STAGE_TRANSFER_BIT,
+                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,
+                  VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                   VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
   });
   return image;
@@ -212,7 +219,8 @@ void Renderer::set_mesh(const Mesh& mesh) {
 void Renderer::set_albedo(const Albedo& albedo) {
   if (albedo.width < 1 || albedo.height < 1 || albedo.width > max_map_side || albedo.height > max_map_side ||
       albedo.rgba.size() != std::size_t(albedo.width) * albedo.height * 4) {
-    throw RenderError("albedo image must be between 1x1 and 16384x16384 pixels with 4 bytes (RGBA) per pixel");
+    throw RenderError(
+        "albedo image must be between 1x1 and 16384x16384 pixels with 4 bytes (RGBA) per pixel");
   }
   Impl& impl = *impl_;
   impl.drain();

@@ -9,8 +9,8 @@
 
 #include <algorithm>
 #include <array>
-#include <cstring>
 #include <cstdint>
+#include <cstring>
 #include <map>
 #include <string>
 #include <vector>
@@ -40,7 +40,9 @@ inline constexpr std::array<float, 4> background = {0.08f, 0.08f, 0.10f, 1.0f};
 // Layers of the cone image (BINDING_CONES, cone_format): layer k < n holds (r_k, H_c); with n > 1 sectors
 // layer n holds (min over k of r_k, H_c), the isotropic bound the quadric cone march needs near a
 // step's start; with relaxed ratios one more layer holds (relaxed ratio, H_c).
-inline int cone_layer_count(int sectors, bool relaxed) { return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0); }
+inline int cone_layer_count(int sectors, bool relaxed) {
+  return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0);
+}
 // The cone image: per layer and texel (the ratio as a half float rounded down, the apex in 1 / 65535
 // rounded up) in 16 bits each (map_pack.h), read back by the shaders' cone_value
 constexpr VkFormat cone_format = VK_FORMAT_R16G16_UINT;
@@ -52,14 +54,14 @@ void add_readback_memory(std::vector<Allocation>& list, int width, int height, u
 void add_frame_vector_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
 void add_reference_memory(std::vector<Allocation>& list, const View& view, int map_width, int map_height);
 
-void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from, VkImageLayout to,
-                   VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags src_stage,
-                   VkPipelineStageFlags dst_stage);
+void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from,
+                   VkImageLayout to, VkAccessFlags src_access, VkAccessFlags dst_access,
+                   VkPipelineStageFlags src_stage, VkPipelineStageFlags dst_stage);
 
 // A map kept on the device between frames: made again only when its shape changes.
 struct DeviceMap {
-  Image image;    // heights, cones, distance
-  Buffer buffer;  // the max pyramid
+  Image image;        // heights, cones, distance
+  Buffer buffer;      // the max pyramid
   bool held = false;  // holds the caller's map of `version`
   std::uint64_t version = 0;
   int width = 0, height = 0, layers = 0;  // the shape it was made for
@@ -134,7 +136,7 @@ struct Renderer::Impl {
   Image albedo_image;
   bool has_albedo = false;
   void create_frame_slots();
-  FrameSlot& begin_slot();     // the current slot, recording (waits for its previous frame)
+  FrameSlot& begin_slot();      // the current slot, recording (waits for its previous frame)
   void submit_slot(bool wait);  // ends, submits the current slot; moves on to the next slot
   void drain();                 // submits what is recorded, waits for every slot
   void wait_submitted();        // waits for every frame submitted (what is recorded stays so)
@@ -169,7 +171,8 @@ struct Renderer::Impl {
   std::uint32_t mesh_reference_index_count = 0;
   std::array<int, 3> mesh_reference_key{0, 0, 0};  // tile, map width, map height
   // before a frame allocates anything (targets, readback, tessellation, the caller's Frame)
-  void check_frame_memory(const View& view, const MethodInfo& info, const Frame& frame, unsigned outputs) const;
+  void check_frame_memory(const View& view, const MethodInfo& info, const Frame& frame,
+                          unsigned outputs) const;
   void ensure_targets(int width, int height);
   void ensure_reference(int tile);
   void ensure_mesh_reference(int tile);
@@ -179,7 +182,8 @@ struct Renderer::Impl {
 
 template <typename T>
 Buffer Renderer::Impl::host_buffer(const std::vector<T>& data, VkBufferUsageFlags usage) {
-  const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  const VkMemoryPropertyFlags host =
+      VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
   Buffer buffer(context, std::max<std::size_t>(data.size() * sizeof(T), 4), usage, host);
   std::memcpy(buffer.mapped(), data.data(), data.size() * sizeof(T));
   return buffer;

@@ -61,7 +61,8 @@ VKAPI_ATTR VkBool32 VKAPI_CALL on_validation_message(VkDebugUtilsMessageSeverity
                                                      const VkDebugUtilsMessengerCallbackDataEXT* data,
                                                      void* user) {
   static_cast<std::atomic<long long>*>(user)->fetch_add(1);
-  std::fprintf(stderr, "displace: vulkan validation: %s\n", data && data->pMessage ? data->pMessage : "(no text)");
+  std::fprintf(stderr, "displace: vulkan validation: %s\n",
+               data && data->pMessage ? data->pMessage : "(no text)");
   return VK_FALSE;
 }
 
@@ -100,7 +101,8 @@ VkInstance create_instance(bool validate, const std::vector<std::string>& window
   }
   if (validate) {
     if (!has_layer(validation_layer)) {
-      throw RenderError("--validate needs the Khronos validation layer: 'apt-get install vulkan-validationlayers'");
+      throw RenderError(
+          "--validate needs the Khronos validation layer: 'apt-get install vulkan-validationlayers'");
     }
     info.enabledLayerCount = 1;
     info.ppEnabledLayerNames = &validation_layer;
@@ -110,7 +112,8 @@ VkInstance create_instance(bool validate, const std::vector<std::string>& window
   info.ppEnabledExtensionNames = extensions.data();
   VkInstance instance = VK_NULL_HANDLE;
   const VkResult result = vkCreateInstance(&info, nullptr, &instance);
-  if (result == VK_ERROR_INCOMPATIBLE_DRIVER) throw RenderError(std::string("no Vulkan 1.2 driver found; ") + install_hint);
+  if (result == VK_ERROR_INCOMPATIBLE_DRIVER)
+    throw RenderError(std::string("no Vulkan 1.2 driver found; ") + install_hint);
   check_vk(result, "vkCreateInstance", __FILE__, __LINE__);
   return instance;
 }
@@ -185,8 +188,8 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
   const std::vector<Candidate> all = candidates(instance, present, &options);
   if (all.empty()) throw RenderError(std::string("no Vulkan device found; ") + install_hint);
   if (wanted.empty()) {
-    const auto best = std::max_element(all.begin(), all.end(),
-                                       [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
+    const auto best = std::max_element(
+        all.begin(), all.end(), [](const Candidate& a, const Candidate& b) { return a.rank < b.rank; });
     if (best->rank < 0) {
       throw RenderError(std::string("no Vulkan 1.2 device with graphics") +
                         (present ? " that presents to the window" : "") + " found; " + install_hint);
@@ -197,7 +200,8 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
   for (const Candidate& candidate : all) {
     int index = -1;
     const auto [end, error] = std::from_chars(wanted.data(), wanted.data() + wanted.size(), index);
-    const bool by_index = error == std::errc{} && end == wanted.data() + wanted.size() && index == candidate.info.index;
+    const bool by_index =
+        error == std::errc{} && end == wanted.data() + wanted.size() && index == candidate.info.index;
     const bool by_name = lower(candidate.info.name).find(lower(wanted)) != std::string::npos;
     if (by_index || by_name) {
       if (candidate.rank < 0)
@@ -214,8 +218,8 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
 
 void check_vk(VkResult result, const char* call, const char* file, int line) {
   if (result == VK_SUCCESS) return;
-  throw RenderError(std::string(call) + " failed with " + result_name(result) + " (" + std::to_string(int(result)) +
-                    ") at " + file + ":" + std::to_string(line));
+  throw RenderError(std::string(call) + " failed with " + result_name(result) + " (" +
+                    std::to_string(int(result)) + ") at " + file + ":" + std::to_string(line));
 }
 
 std::vector<DeviceInfo> list_devices() {
@@ -240,7 +244,8 @@ Context::Context(const RendererOptions& options) {
       VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
       info.messageSeverity =
           VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-      info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+      info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                         VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
                          VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
       info.pfnUserCallback = on_validation_message;
       info.pUserData = validation_messages_.get();
@@ -262,12 +267,14 @@ Context::Context(const RendererOptions& options) {
     vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &family_count, nullptr);
     std::vector<VkQueueFamilyProperties> families(family_count);
     vkGetPhysicalDeviceQueueFamilyProperties(physical_device_, &family_count, families.data());
-    has_timestamps_ = properties.limits.timestampComputeAndGraphics && families[queue_family_].timestampValidBits > 0;
+    has_timestamps_ =
+        properties.limits.timestampComputeAndGraphics && families[queue_family_].timestampValidBits > 0;
     timestamp_period_ns_ = properties.limits.timestampPeriod;
     info_.max_image_dimension_3d = int(properties.limits.maxImageDimension3D);
     info_.max_storage_buffer_range = properties.limits.maxStorageBufferRange;
     info_.sub_texel_precision_bits = int(properties.limits.subTexelPrecisionBits);
-    VkPhysicalDeviceMaintenance3Properties maintenance3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+    VkPhysicalDeviceMaintenance3Properties maintenance3{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
     VkPhysicalDeviceProperties2 properties2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     properties2.pNext = &maintenance3;
     vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
@@ -325,7 +332,8 @@ void Context::destroy() noexcept {
 
 std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const {
   for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
-    if ((type_bits & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
+    if ((type_bits & (1u << i)) &&
+        (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
       return i;
     }
   }
@@ -334,7 +342,8 @@ std::uint32_t Context::memory_type(std::uint32_t type_bits, VkMemoryPropertyFlag
 
 bool Context::has_memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags properties) const {
   for (std::uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
-    if ((type_bits & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
+    if ((type_bits & (1u << i)) &&
+        (memory_properties_.memoryTypes[i].propertyFlags & properties) == properties) {
       return true;
     }
   }
@@ -352,7 +361,8 @@ MemoryLimits Context::memory_limits(std::uint64_t limit, const std::string& sour
       memory_properties_.memoryTypes[memory_type(any_type, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)].heapIndex;
   const std::uint32_t visible_heap =
       memory_properties_
-          .memoryTypes[memory_type(any_type, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT)]
+          .memoryTypes[memory_type(
+              any_type, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT)]
           .heapIndex;
   limits.device_local = memory_properties_.memoryHeaps[device_heap].size;
   limits.host_visible = memory_properties_.memoryHeaps[visible_heap].size;
@@ -364,7 +374,8 @@ MemoryLimits Context::memory_limits(std::uint64_t limit, const std::string& sour
   return limits;
 }
 
-VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMemoryPropertyFlags properties) const {
+VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements,
+                                 VkMemoryPropertyFlags properties) const {
   VkMemoryAllocateInfo allocate{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   allocate.allocationSize = requirements.size;
   allocate.memoryTypeIndex = memory_type(requirements.memoryTypeBits, properties);
@@ -375,18 +386,21 @@ VkDeviceMemory Context::allocate(const VkMemoryRequirements& requirements, VkMem
 }
 
 namespace {
-constexpr VkMemoryPropertyFlags shared_memory =
-    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+constexpr VkMemoryPropertyFlags shared_memory = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT |
+                                                VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
 }  // namespace
 
-bool Context::host_images(VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers) const {
+bool Context::host_images(VkFormat format, std::uint32_t width, std::uint32_t height,
+                          std::uint32_t layers) const {
   // only the CPU driver: a discrete GPU's host-visible memory sits across the bus, and GPUs sample
   // linear images more slowly than tiled ones (an integrated GPU might still gain; not measured here)
   if (info_.type != "cpu") return false;
   if (!has_memory_type(~0u, shared_memory)) return false;
   VkImageFormatProperties properties{};
-  if (vkGetPhysicalDeviceImageFormatProperties(physical_device_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_LINEAR,
-                                               VK_IMAGE_USAGE_SAMPLED_BIT, 0, &properties) != VK_SUCCESS) {
+  if (vkGetPhysicalDeviceImageFormatProperties(physical_device_, format, VK_IMAGE_TYPE_2D,
+                                               VK_IMAGE_TILING_LINEAR, VK_IMAGE_USAGE_SAMPLED_BIT, 0,
+                                               &properties) != VK_SUCCESS) {
     return false;
   }
   return width <= properties.maxExtent.width && height <= properties.maxExtent.height &&
@@ -430,7 +444,8 @@ void Context::end_submit_wait(VkCommandBuffer commands) const {
   DISPLACE_VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
 }
 
-Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags properties)
+Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage,
+               VkMemoryPropertyFlags properties)
     : device_(context.device()), size_(size) {
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = size;
@@ -452,8 +467,9 @@ Buffer::~Buffer() {
   if (memory_) vkFreeMemory(device_, memory_, nullptr);
 }
 
-Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
-             VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type) {
+Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+             std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
+             VkImageViewType view_type) {
   if (!make(context, format, width, height, layers, usage, aspect, view_type, VK_IMAGE_TILING_OPTIMAL,
             VK_IMAGE_LAYOUT_UNDEFINED, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)) {
     vkDestroyImage(device_, image_, nullptr);  // a constructor that throws runs no destructor
@@ -462,8 +478,9 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
 }
 
 bool Image::make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
-                 std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type,
-                 VkImageTiling tiling, VkImageLayout initial_layout, VkMemoryPropertyFlags memory) {
+                 std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
+                 VkImageViewType view_type, VkImageTiling tiling, VkImageLayout initial_layout,
+                 VkMemoryPropertyFlags memory) {
   device_ = context.device();
   format_ = format;
   width_ = width;
@@ -499,8 +516,9 @@ bool Image::make(const Context& context, VkFormat format, std::uint32_t width, s
 Image Image::host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
                           std::uint32_t layers, VkImageViewType view_type) {
   Image image;
-  if (!image.make(context, format, width, height, layers, VK_IMAGE_USAGE_SAMPLED_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
-                  view_type, VK_IMAGE_TILING_LINEAR, VK_IMAGE_LAYOUT_PREINITIALIZED, shared_memory)) {
+  if (!image.make(context, format, width, height, layers, VK_IMAGE_USAGE_SAMPLED_BIT,
+                  VK_IMAGE_ASPECT_COLOR_BIT, view_type, VK_IMAGE_TILING_LINEAR,
+                  VK_IMAGE_LAYOUT_PREINITIALIZED, shared_memory)) {
     return Image();  // no shared memory type it may live in: the caller makes an optimal one
   }
   void* mapped = nullptr;

@@ -91,7 +91,8 @@ class Context {
 class Buffer {
  public:
   Buffer() = default;
-  Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags properties);
+  Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage,
+         VkMemoryPropertyFlags properties);
   ~Buffer();
   Buffer(Buffer&& other) noexcept { swap(other); }
   Buffer& operator=(Buffer&& other) noexcept {
@@ -124,15 +125,15 @@ class Buffer {
 class Image {
  public:
   Image() = default;
-  Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
-        VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type);
+  Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+        std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type);
   // A sampled 2D (array) colour image in linear tiling, in host-visible coherent device-local memory
   // mapped for as long as it lives: the host writes its texels (at row_pitch() and layer_pitch()
   // bytes) and shaders sample it in VK_IMAGE_LAYOUT_GENERAL. Made in VK_IMAGE_LAYOUT_PREINITIALIZED.
   // Only where Context::host_images says so; an empty Image (no handle) where the image may not
   // live in such memory after all.
-  static Image host_written(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
-                            std::uint32_t layers, VkImageViewType view_type);
+  static Image host_written(const Context& context, VkFormat format, std::uint32_t width,
+                            std::uint32_t height, std::uint32_t layers, VkImageViewType view_type);
   ~Image();
   Image(Image&& other) noexcept { swap(other); }
   Image& operator=(Image&& other) noexcept {
@@ -155,9 +156,10 @@ class Image {
  private:
   // Creates the image, its memory (of `memory` properties) and its view; false, with only the image
   // made, when none of the device's memory types with those properties may hold it.
-  bool make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height, std::uint32_t layers,
-            VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type, VkImageTiling tiling,
-            VkImageLayout initial_layout, VkMemoryPropertyFlags memory);
+  bool make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
+            std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
+            VkImageViewType view_type, VkImageTiling tiling, VkImageLayout initial_layout,
+            VkMemoryPropertyFlags memory);
   void swap(Image& other) noexcept {
     std::swap(mapped_, other.mapped_);
     std::swap(row_pitch_, other.row_pitch_);
@@ -190,7 +192,8 @@ class Owned {
   ~Owned() {
     if (handle_ != VK_NULL_HANDLE) destroy(device_, handle_, nullptr);
   }
-  Owned(Owned&& other) noexcept : device_(other.device_), handle_(std::exchange(other.handle_, VK_NULL_HANDLE)) {}
+  Owned(Owned&& other) noexcept
+      : device_(other.device_), handle_(std::exchange(other.handle_, VK_NULL_HANDLE)) {}
   Owned& operator=(Owned&& other) noexcept {
     Owned moved(std::move(other));
     std::swap(device_, moved.device_);

@@ -1,13 +1,13 @@
 // sim/choppy.cpp - the choppy (horizontally displaced) ocean surface resampled onto the regular grid
 // (Tessendorf, "Simulating Ocean Water", sec. 4.6 displaces the grid; a height field wants the
 // inverse map). sim.h has the contract.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <stdexcept>
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 
 #include "displace/simd_clones.h"
 #include "sim/sim.h"

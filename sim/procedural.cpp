@@ -11,15 +11,15 @@
 namespace displace::sim {
 namespace {
 
-constexpr int bricks_per_row = 4;         // bricks across the map
-constexpr int brick_rows = 8;             // rows of bricks down the map
-constexpr float mortar_width = 0.06f;     // fraction of a brick's height
-constexpr float bevel_width = 0.10f;      // fraction of a brick's height
-constexpr float brick_top = 0.92f;        // height of a brick's flat top
-constexpr float mortar_depth = 0.25f;     // height of the mortar
-constexpr float brick_roughness = 0.05f;  // amplitude of the per-texel roughness
+constexpr int bricks_per_row = 4;                       // bricks across the map
+constexpr int brick_rows = 8;                           // rows of bricks down the map
+constexpr float mortar_width = 0.06f;                   // fraction of a brick's height
+constexpr float bevel_width = 0.10f;                    // fraction of a brick's height
+constexpr float brick_top = 0.92f;                      // height of a brick's flat top
+constexpr float mortar_depth = 0.25f;                   // height of the mortar
+constexpr float brick_roughness = 0.05f;                // amplitude of the per-texel roughness
 constexpr float cliff_low = 0.15f, cliff_high = 0.75f;  // heights below and above the cliff
-constexpr int spike_spacing = 16;         // texels between spikes
+constexpr int spike_spacing = 16;                       // texels between spikes
 
 std::uint64_t hash(std::uint64_t x) {
   x += 0x9e3779b97f4a7c15ull;

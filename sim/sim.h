@@ -42,15 +42,15 @@ struct SinusoidParams {
   float wind_direction = 0.0f;    // radians, azimuth of the mean travel direction in (u, v)
   float direction_spread = 1.0f;  // radians, half-width of the uniform spread around wind_direction
   std::uint64_t seed = 1;
-  bool tileable = true;           // snap wave vectors to the patch lattice so the field tiles
-  float gravity = 9.81f;          // m/s^2
+  bool tileable = true;   // snap wave vectors to the patch lattice so the field tiles
+  float gravity = 9.81f;  // m/s^2
 };
 
 struct Wave {
-  float kx, ky;      // wave vector, radians per metre
-  float amplitude;   // metres
-  float omega;       // radians per second
-  float phase;       // radians
+  float kx, ky;     // wave vector, radians per metre
+  float amplitude;  // metres
+  float omega;      // radians per second
+  float phase;      // radians
 };
 
 // Deterministic for a given seed. Throws std::invalid_argument on absurd parameters.
@@ -71,19 +71,19 @@ HeightMapping sinusoid_mapping(std::span<const Wave> waves);
 enum class Spectrum { phillips, jonswap };
 
 struct OceanParams {
-  int size = 256;                 // N x N grid, N >= 2
-  float patch_size = 200.0f;      // metres
+  int size = 256;             // N x N grid, N >= 2
+  float patch_size = 200.0f;  // metres
   Spectrum spectrum = Spectrum::phillips;
-  float wind_speed = 12.0f;       // m/s at 10 m
-  float wind_direction = 0.0f;    // radians, azimuth in (u, v)
-  float fetch = 200.0f;           // km, JONSWAP only
-  float peak_enhancement = 3.3f;  // JONSWAP gamma
-  float spreading = 2.0f;         // directional spreading exponent s of cos^(2s)(theta / 2)
+  float wind_speed = 12.0f;          // m/s at 10 m
+  float wind_direction = 0.0f;       // radians, azimuth in (u, v)
+  float fetch = 200.0f;              // km, JONSWAP only
+  float peak_enhancement = 3.3f;     // JONSWAP gamma
+  float spreading = 2.0f;            // directional spreading exponent s of cos^(2s)(theta / 2)
   float phillips_amplitude = 3e-7f;  // Phillips constant A (m^2 scale factor)
-  float small_wave_cutoff = 0.0f; // metres; Phillips damping length l (0 = patch/N/2)
-  float choppiness = 1.0f;        // lambda, scales the horizontal displacement; > 0 sharpens crests
+  float small_wave_cutoff = 0.0f;    // metres; Phillips damping length l (0 = patch/N/2)
+  float choppiness = 1.0f;           // lambda, scales the horizontal displacement; > 0 sharpens crests
   std::uint64_t seed = 1;
-  float gravity = 9.81f;          // m/s^2
+  float gravity = 9.81f;  // m/s^2
 };
 
 // Outputs beyond heights are computed only when requested; requesting none costs nothing.
@@ -97,10 +97,10 @@ enum OceanOutput : unsigned {
 
 struct OceanFrame {
   int size = 0;
-  std::vector<float> height;               // metres, size*size, when ocean_heights requested
-  std::vector<float> slope_x, slope_y;     // when ocean_slopes requested
+  std::vector<float> height;                          // metres, size*size, when ocean_heights requested
+  std::vector<float> slope_x, slope_y;                // when ocean_slopes requested
   std::vector<float> displacement_x, displacement_y;  // when ocean_displacement requested
-  std::vector<float> jacobian;             // when ocean_foam requested
+  std::vector<float> jacobian;                        // when ocean_foam requested
 };
 
 class Ocean {

@@ -11,10 +11,10 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <map>
-#include <nlohmann/json.hpp>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <span>
 #include <sstream>
@@ -276,7 +276,8 @@ TEST(ImageIo, LoadsFromMemoryWhatItLoadsFromTheFile) {
       write_with_oiio(whole, 64, 48, 1, OIIO::TypeDesc::UINT8, pixels.data());
     }
     const std::string bytes = read_text(whole);
-    const std::span<const std::uint8_t> memory(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    const std::span<const std::uint8_t> memory(reinterpret_cast<const std::uint8_t*>(bytes.data()),
+                                               bytes.size());
     const LoadedHeights from_file = load_heights(whole, settings);
     const LoadedHeights from_memory = load_heights(memory, "memory." + extension, settings);
     EXPECT_EQ(from_memory.width, 64) << extension;
@@ -698,19 +699,22 @@ TEST(Options, RejectsWhatDoesNotApply) {
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "full", "--output", "c.exr"}));
   // shards and resumed runs need deterministic frames: no wall-clock budget; one run's preview
   for (const char* flag : {"--shard", "--resume"}) {
-    std::vector<std::string_view> args = {"sequence", "--frames", "0:3", "--output", "f_#.png", "--budget-ms", "33",
-                                          flag};
+    std::vector<std::string_view> args = {"sequence", "--frames",    "0:3", "--output",
+                                          "f_#.png",  "--budget-ms", "33",  flag};
     if (std::string_view(flag) == "--shard") args.push_back("1/2");
     EXPECT_TRUE(usage_of(args)) << flag;
     args.erase(args.begin() + 5, args.begin() + 7);  // the same without the budget
     EXPECT_FALSE(usage_of(args)) << flag;
   }
-  EXPECT_TRUE(usage({"sequence", "--frames", "0:3", "--output", "f_#.png", "--shard", "1/2", "--preview", "p.gif"}));
+  EXPECT_TRUE(
+      usage({"sequence", "--frames", "0:3", "--output", "f_#.png", "--shard", "1/2", "--preview", "p.gif"}));
   // lagged cone maps are real-time only: they need a frame budget
   EXPECT_TRUE(usage({"bench-frame", "--cone-lag", "2"}));
   EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));
   EXPECT_FALSE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}));
-  EXPECT_EQ(std::get<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"})).scene.cone_lag_frames, 2);
+  EXPECT_EQ(std::get<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}))
+                .scene.cone_lag_frames,
+            2);
   EXPECT_TRUE(usage({"play", "--frames", "3", "--cone-lag", "2"}));  // --frames is deterministic
   EXPECT_EQ(std::get<PlaySettings>(parse({"play", "--cone-lag", "2"})).cone_lag, 2);
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
@@ -753,9 +757,9 @@ TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
   EXPECT_EQ(sweep.scenes[1].name, "cliff");
   EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
   EXPECT_TRUE(std::isinf(sweep.cone_budget.milliseconds));
-  const SweepSettings starved = std::get<SweepSettings>(parse(
-      {"sweep", "--bake-budget-ms", "2.5", "--bake-tolerance", "0.4", "--methods", "csm", "--output",
-       "s.csv"}));
+  const SweepSettings starved =
+      std::get<SweepSettings>(parse({"sweep", "--bake-budget-ms", "2.5", "--bake-tolerance", "0.4",
+                                     "--methods", "csm", "--output", "s.csv"}));
   EXPECT_EQ(starved.cone_budget.milliseconds, 2.5);
   EXPECT_EQ(starved.cone_budget.tolerance, 0.4f);
   const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
@@ -791,7 +795,8 @@ TEST(Options, PlayStartsAtARealTimeBudgetUnlessTheSceneSetsOne) {
   EXPECT_TRUE(std::isinf(play_scene(fixed).frame_ms));
   const TempDir dir;
   const std::vector<std::pair<std::string, double>> files = {
-      {"[budget]\nframe_ms = 10\n", 10.0}, {"[budget]\nbake_work = 500\n", std::numeric_limits<double>::infinity()}};
+      {"[budget]\nframe_ms = 10\n", 10.0},
+      {"[budget]\nbake_work = 500\n", std::numeric_limits<double>::infinity()}};
   for (const auto& [text, expected] : files) {
     const fs::path file = dir / "scene.toml";
     std::ofstream(file) << "[source]\nkind = \"sinusoids\"\n" << text;
@@ -934,8 +939,7 @@ TEST(Cli, EachCommandsHelpShowsTheLimitsOfItsNumbers) {
       {"sim", "--map-size INT:[2, 16384]"},   {"bake", "--tolerance T:[0, 1)"},
       {"render", "--steps INT:[1, 4096]"},    {"sweep", "--repeat INT:[1, 100]"},
       {"demo", "--map-size INT:[2, 8192]"},   {"scene", "--print " + scene_names},
-      {"sim", "(ocean: even, at most 8192)"},
-      {"play", "--frames N:[1, 1000000000]"},
+      {"sim", "(ocean: even, at most 8192)"}, {"play", "--frames N:[1, 1000000000]"},
   };
   for (const auto& test : cases) {
     const RunResult help = run_displace(dir, test.command + " --help");
@@ -1233,11 +1237,13 @@ namespace {
 TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   TempDir dir;
   const std::string out = (dir / "frame.png").string();
-  const RunResult result = run_displace(
-      dir, "render --source ocean --map-size 32 --time 0 --method acm4 --steps 32 --size 48x40 --validate --output '" +
-               out + "' --aov uv='" + (dir / "uv.exr").string() + "' --aov iterations='" +
-               (dir / "it.png").string() + "' --aov depth='" + (dir / "depth.exr").string() +
-               "' --compare reference");
+  const RunResult result =
+      run_displace(dir,
+                   "render --source ocean --map-size 32 --time 0 --method acm4 --steps 32 --size 48x40 "
+                   "--validate --output '" +
+                       out + "' --aov uv='" + (dir / "uv.exr").string() + "' --aov iterations='" +
+                       (dir / "it.png").string() + "' --aov depth='" + (dir / "depth.exr").string() +
+                       "' --compare reference");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
   const FloatImage uv = read_float_image(dir / "uv.exr");
@@ -1294,8 +1300,10 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
     const std::size_t of = line.rfind(" of ", at), from = line.rfind(", ", of);
     return std::stol(line.substr(from + 2, of - from - 2));
   };
-  const std::string common = "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 "
-                             "--method acm8 --compare reference --output '" + out + "' --bake-tolerance ";
+  const std::string common =
+      "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 "
+      "--method acm8 --compare reference --output '" +
+      out + "' --bake-tolerance ";
   const RunResult tight = run_displace(dir, common + "0");
   ASSERT_EQ(tight.exit_code, 0) << tight.err;
   EXPECT_GT(searched(tight.out), 0) << tight.out;
@@ -1322,8 +1330,10 @@ TEST(Cli, RendersWithAnAlbedoImageAndShadows) {
   std::vector<std::uint8_t> red(4 * 4 * 4, 0);
   for (std::size_t p = 0; p < 16; ++p) red[p * 4] = red[p * 4 + 3] = 255;
   write_png_rgba8(dir / "red.png", 4, 4, red, {});
-  const std::string common = "render --source bricks --map-size 32 --method acm4 --steps 64 --size 40x40 --validate "
-                             "--light 1,0.5,0.4 --albedo '" + (dir / "red.png").string() + "' --output '";
+  const std::string common =
+      "render --source bricks --map-size 32 --method acm4 --steps 64 --size 40x40 --validate "
+      "--light 1,0.5,0.4 --albedo '" +
+      (dir / "red.png").string() + "' --output '";
   const RunResult plain = run_displace(dir, common + (dir / "plain.png").string() + "'");
   ASSERT_EQ(plain.exit_code, 0) << plain.err;
   const RunResult shadowed = run_displace(dir, common + (dir / "shadowed.png").string() + "' --shadows");
@@ -1355,10 +1365,10 @@ TEST(Cli, RendersAMeshFromAnObjFile) {
     bad << "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";
   }
   const std::string common = "render --source bricks --map-size 32 --size 48x48 --validate --output '" +
-                              (dir / "m.png").string() + "' --surface mesh:";
+                             (dir / "m.png").string() + "' --surface mesh:";
   for (const char* method : {"acm4", "relief", "reference"}) {
-    const RunResult result =
-        run_displace(dir, common + "'" + (dir / "quad.obj").string() + "' --method " + method + " --compare reference");
+    const RunResult result = run_displace(
+        dir, common + "'" + (dir / "quad.obj").string() + "' --method " + method + " --compare reference");
     EXPECT_EQ(result.exit_code, 0) << method << "\n" << result.err;
     EXPECT_NE(result.out.find("compare reference: rmse"), std::string::npos) << result.out;
   }
@@ -1369,7 +1379,8 @@ TEST(Cli, RendersAMeshFromAnObjFile) {
 
 TEST(Cli, RenderRejectsBadInputWithOneError) {
   TempDir dir;
-  const std::string ok = "render --source ocean --map-size 16 --time 0 --output '" + (dir / "f.png").string() + "'";
+  const std::string ok =
+      "render --source ocean --map-size 16 --time 0 --output '" + (dir / "f.png").string() + "'";
   const struct {
     std::string arguments;
     int exit_code;
@@ -1403,15 +1414,16 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
     const RunResult result = run_displace(dir, test.arguments);
     EXPECT_TRUE(result.exited) << test.arguments;
     EXPECT_EQ(result.exit_code, test.exit_code) << test.arguments << "\n" << result.err;
-    EXPECT_NE(result.err.find("displace: error: "), std::string::npos) << test.arguments << "\n" << result.err;
+    EXPECT_NE(result.err.find("displace: error: "), std::string::npos) << test.arguments << "\n"
+                                                                       << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
   }
 }
 
 TEST(Cli, RendersAQuadricAndRefusesWhatItCannot) {
   TempDir dir;
-  const std::string base = "render --source ocean --map-size 32 --time 0 --size 40x40 --output '" +
-                           (dir / "f.png").string() + "'";
+  const std::string base =
+      "render --source ocean --map-size 32 --time 0 --size 40x40 --output '" + (dir / "f.png").string() + "'";
   const RunResult result = run_displace(
       dir, base + " --surface sphere --radius 0.3 --method acm4 --validate --compare reference --aov uv='" +
                (dir / "uv.exr").string() + "'");
@@ -1434,7 +1446,7 @@ TEST(Cli, RendersAQuadricAndRefusesWhatItCannot) {
       {base + " --surface torus --method relief", 2},
       {base + " --surface cone --method parallax", 2},  // the parallax family stays on the plane
       {base + " --surface sphere --radius 20 --method relief", 2},
-      {base + " --surface sphere --depth-scale 0.2 --method relief", 1},  // D above R / 2
+      {base + " --surface sphere --depth-scale 0.2 --method relief", 1},                    // D above R / 2
       {base + " --surface cylinder --eye 0.5,0.5,0 --look-at 0.5,1,0 --method relief", 1},  // inside it
   };
   for (const auto& test : cases) {
@@ -1452,10 +1464,10 @@ TEST(Cli, RenderWithoutAnyVulkanDriverSaysWhatToInstall) {
       run_displace(dir, "render --source ocean --map-size 16 --time 0 --method pom --output '" +
                             (dir / "f.png").string() + "'");
   ASSERT_EQ(result.exit_code, 0) << result.err;  // with the real drivers it works
-  const std::string command = "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json '" +
-                              std::string(DISPLACE_BINARY) + "' render --source ocean --map-size 16 --time 0 " +
-                              "--method pom --output '" + (dir / "g.png").string() + "' 2>'" +
-                              (dir / "err.txt").string() + "'";
+  const std::string command =
+      "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json '" +
+      std::string(DISPLACE_BINARY) + "' render --source ocean --map-size 16 --time 0 " +
+      "--method pom --output '" + (dir / "g.png").string() + "' 2>'" + (dir / "err.txt").string() + "'";
   const int status = std::system(command.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 1);
@@ -1474,7 +1486,7 @@ namespace {
 TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
   TempDir dir;
   std::ofstream(dir / "small.scene") << "# a small ocean\n--source ocean\n--map-size 32\n--time 0\n"
-                                         "--size 40x32\n";
+                                        "--size 40x32\n";
   const std::string csv = (dir / "s.csv").string();
   const std::string common = "sweep --scene '" + (dir / "small.scene").string() +
                              "' --methods acm4,pom --steps 16,64 --repeat 1 --output '" + csv + "' ";
@@ -1555,12 +1567,12 @@ TEST(Obj, ReadsPolygonsWithSharedCornersAndRelativeIndices) {
 
 TEST(Obj, RejectsMalformedFilesNamingTheLine) {
   const std::pair<std::string, std::string> cases[] = {
-      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "line 4"},                // no texture coordinates
-      {"v 0 0 0\nvt 0 0\nf 1/1 2/1 1/1\n", "out of range"},            // vertex 2 is not there
-      {"v 0 0 zero\n", "line 1"},                                       // not a number
-      {"v 0 0 0\nv 1 0 nan\n", "line 2"},                               // not finite
-      {"v 0 0 0\nvt 0 0\ncurv 1 2\n", "unsupported"},                   // unknown record
-      {"v 0 0 0\nvt 0 0\nf 1/1 1/1\n", "at least 3"},                   // a face of two corners
+      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "line 4"},    // no texture coordinates
+      {"v 0 0 0\nvt 0 0\nf 1/1 2/1 1/1\n", "out of range"},  // vertex 2 is not there
+      {"v 0 0 zero\n", "line 1"},                            // not a number
+      {"v 0 0 0\nv 1 0 nan\n", "line 2"},                    // not finite
+      {"v 0 0 0\nvt 0 0\ncurv 1 2\n", "unsupported"},        // unknown record
+      {"v 0 0 0\nvt 0 0\nf 1/1 1/1\n", "at least 3"},        // a face of two corners
       {"v 0 0 0\n", "no faces"},
   };
   for (const auto& [text, expected] : cases) {
@@ -1585,11 +1597,13 @@ TEST(Cli, ReportRejectsBadFlagsAndUnreadableScenesWithOneError) {
   const RunResult invert = run_displace(dir, "report --invert --scene ocean" + output);
   EXPECT_EQ(invert.exit_code, 2);
   EXPECT_NE(invert.err.find("--invert needs a height image"), std::string::npos) << invert.err;
-  const RunResult missing = run_displace(dir, "report --scene '" + (dir / "missing.png").string() + "'" + output);
+  const RunResult missing =
+      run_displace(dir, "report --scene '" + (dir / "missing.png").string() + "'" + output);
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.err.find("missing.png"), std::string::npos) << missing.err;
   EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;
-  const RunResult bad_file = run_displace(dir, "report --scene '" + (dir / "missing.txt").string() + "'" + output);
+  const RunResult bad_file =
+      run_displace(dir, "report --scene '" + (dir / "missing.txt").string() + "'" + output);
   EXPECT_EQ(bad_file.exit_code, 1);
   EXPECT_NE(bad_file.err.find("missing.txt"), std::string::npos) << bad_file.err;
   EXPECT_FALSE(fs::exists(dir / "r")) << "a report that cannot start writes nothing";
@@ -1675,7 +1689,6 @@ std::map<std::string, std::string> frames_in(const fs::path& directory) {
 
 const char* const small_sequence = "--scene water --map-size 32 --size 48x32 --bake-work 800";
 
-
 // The whole of stderr is one line starting "displace: error: ".
 void expect_one_error_line(const RunResult& result, const std::string& arguments) {
   EXPECT_EQ(result.err.find("displace: error: "), 0u) << arguments << "\n" << result.err;
@@ -1697,7 +1710,8 @@ TEST(Cli, TruncatedImagesGetOneErrorLineAndNoLibraryNoise) {
   write_first_part(dir / "whole.png", dir / "header.png", 0.01);  // cut inside its header
   broken.push_back("header.png");
   std::string flipped = read_text(dir / "whole.png");  // damaged inside the image data
-  for (std::size_t i = flipped.size() / 2; i < flipped.size() / 2 + 64; ++i) flipped[i] = char(flipped[i] ^ 0x5a);
+  for (std::size_t i = flipped.size() / 2; i < flipped.size() / 2 + 64; ++i)
+    flipped[i] = char(flipped[i] ^ 0x5a);
   write_bytes(dir / "flipped.png", flipped);
   broken.push_back("flipped.png");
 
@@ -1730,7 +1744,8 @@ TEST(Cli, ExitStatusIsTwoForTheCommandLineAndOneForFiles) {
   const std::string missing = (dir / "missing").string();
   const std::string bake_to = " --sectors 4 --mode budgeted --output '" + (dir / "c.exr").string() + "'";
   const std::string render_to = " --method bump --size 16x16 --output '" + (dir / "f.png").string() + "'";
-  const std::string frames = " --frames 0:0 --map-size 16 --size 16x16 --output '" + (dir / "o_#.png").string() + "'";
+  const std::string frames =
+      " --frames 0:0 --map-size 16 --size 16x16 --output '" + (dir / "o_#.png").string() + "'";
   const std::string no_display = "env -u DISPLAY -u WAYLAND_DISPLAY ";
   const struct {
     std::string arguments;
@@ -1763,7 +1778,8 @@ TEST(Cli, ExitStatusIsTwoForTheCommandLineAndOneForFiles) {
     EXPECT_EQ(result.err.find("displace: error: "), 0u) << test.arguments << "\n" << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
     EXPECT_EQ(result.err.find("--help' for usage") != std::string::npos, test.exit_code == 2)
-        << test.arguments << "\n" << result.err;
+        << test.arguments << "\n"
+        << result.err;
   }
   EXPECT_FALSE(fs::exists(dir / "c.exr"));
   EXPECT_FALSE(fs::exists(dir / "f.png"));
@@ -1782,12 +1798,16 @@ TEST(Cli, MemoryGuardsRefuseWorkThatCannotFitWithOneLine) {
   } cases[] = {
       {"render --source bricks --map-size 256 --method reference --tile 64" + to_png, limit,
        "the reference's tessellation of a 256 x 256 map tiled 64 times"},
-      {"render --source bricks --map-size 256 --method acm4 --compare reference --tile 64" + to_png, limit, "--tile"},
-      {"render --source bricks --map-size 256 --method acm4 --size 16384x16384" + to_png, limit, "16384 x 16384"},
+      {"render --source bricks --map-size 256 --method acm4 --compare reference --tile 64" + to_png, limit,
+       "--tile"},
+      {"render --source bricks --map-size 256 --method acm4 --size 16384x16384" + to_png, limit,
+       "16384 x 16384"},
       {"render --source bricks --map-size 16384 --method reference --tile 64 --size 16x16" + to_png, "",
        "more than 32-bit indices address: lower --tile or --map-size"},
-      {"render --source bricks --map-size 8192 --method acm8 --size 16x16" + to_png, limit, "lower --map-size"},
-      {"bake --source bricks --map-size 16384 --sectors 8 --mode budgeted --output '" + (dir / "c.exr").string() + "'",
+      {"render --source bricks --map-size 8192 --method acm8 --size 16x16" + to_png, limit,
+       "lower --map-size"},
+      {"bake --source bricks --map-size 16384 --sectors 8 --mode budgeted --output '" +
+           (dir / "c.exr").string() + "'",
        limit, "lower --map-size"},
       {"sim --source ocean --map-size 8192 --time 0 --output '" + (dir / "h.exr").string() + "'", limit,
        "lower --map-size"},
@@ -1804,7 +1824,8 @@ TEST(Cli, MemoryGuardsRefuseWorkThatCannotFitWithOneLine) {
   EXPECT_FALSE(fs::exists(dir / "c.exr"));
   EXPECT_FALSE(fs::exists(dir / "h.exr"));
   // a limit that is not a number of megabytes is a usage error
-  const RunResult bad = run_displace(dir, "sim --source bricks --map-size 16 --output h.exr", "env DISPLACE_MEMORY_LIMIT_MB=lots ");
+  const RunResult bad = run_displace(dir, "sim --source bricks --map-size 16 --output h.exr",
+                                     "env DISPLACE_MEMORY_LIMIT_MB=lots ");
   EXPECT_EQ(bad.exit_code, 2) << bad.err;
   EXPECT_NE(bad.err.find("DISPLACE_MEMORY_LIMIT_MB"), std::string::npos) << bad.err;
 }
@@ -1835,13 +1856,14 @@ TEST(Cli, AlbedoImagesHaveTheirOwnLimitsAndWords) {
 TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
   TempDir dir;
   const std::string whole = dir.operator/("whole").string(), split = dir.operator/("split").string();
-  const RunResult one = run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" +
-                                              whole + "/w_####.png' --aov 'depth=" + whole + "/d_###.exr'");
+  const RunResult one =
+      run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + whole +
+                            "/w_####.png' --aov 'depth=" + whole + "/d_###.exr'");
   ASSERT_EQ(one.exit_code, 0) << one.err;
   for (const char* shard : {"2/2", "1/2"}) {
-    const RunResult part = run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" +
-                                                 split + "/w_####.png' --aov 'depth=" + split +
-                                                 "/d_###.exr' --shard " + shard);
+    const RunResult part =
+        run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + split +
+                              "/w_####.png' --aov 'depth=" + split + "/d_###.exr' --shard " + shard);
     ASSERT_EQ(part.exit_code, 0) << part.err;
     EXPECT_NE(part.out.find("rendered 3"), std::string::npos) << part.out;
   }
@@ -1856,14 +1878,15 @@ TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 7);  // header and six frames
 
   fs::remove(fs::path(split) / "w_0005.png");
-  const RunResult resumed = run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" +
-                                                  split + "/w_####.png' --aov 'depth=" + split + "/d_###.exr' --resume");
+  const RunResult resumed =
+      run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + split +
+                            "/w_####.png' --aov 'depth=" + split + "/d_###.exr' --resume");
   ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
   EXPECT_NE(resumed.out.find("rendered 1, skipped 5"), std::string::npos) << resumed.out;
   EXPECT_EQ(frames_in(split), expected);
 
-  EXPECT_EQ(run_displace(dir, "sequence --frames 0:3 --output out.png").exit_code, 2);   // no '#'
-  EXPECT_EQ(run_displace(dir, "sequence --frames 3:1 --output o_#.png").exit_code, 2);   // B < A
+  EXPECT_EQ(run_displace(dir, "sequence --frames 0:3 --output out.png").exit_code, 2);  // no '#'
+  EXPECT_EQ(run_displace(dir, "sequence --frames 3:1 --output o_#.png").exit_code, 2);  // B < A
   EXPECT_EQ(run_displace(dir, "sequence --frames 0:1 --output o_#.png --shard 3/2").exit_code, 2);
   EXPECT_EQ(run_displace(dir, "sequence --frames 0:1 --output o_#.png --scene missing.toml").exit_code, 1);
   const RunResult no_ffmpeg =
@@ -1886,8 +1909,8 @@ TEST(Cli, GnuParallelShardsGiveTheFilesOfOneRun) {
                 .exit_code,
             0);
   const std::string script = std::string(DISPLACE_SOURCE_DIR) + "/demos/farm/parallel.sh";
-  const std::string command = "DISPLACE='" + std::string(DISPLACE_BINARY) + "' bash '" + script + "' 3 0:4 '" + farm +
-                              "/f_##.png' " + small_sequence + " >/dev/null 2>&1";
+  const std::string command = "DISPLACE='" + std::string(DISPLACE_BINARY) + "' bash '" + script +
+                              "' 3 0:4 '" + farm + "/f_##.png' " + small_sequence + " >/dev/null 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0);
   EXPECT_TRUE(fs::exists(fs::path(farm) / "parallel.joblog"));
   EXPECT_EQ(frames_in(farm), frames_in(whole));
@@ -1899,15 +1922,17 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   TempDir dir;
   const std::string json = dir.operator/("bench.json").string();
   const RunResult run = run_displace(
-      dir, "bench-frame --scene water --map-size 32 --size 32x32 --frames 6 --warm-up 2 --budget-ms 50 --json '" +
-               json + "'");
+      dir,
+      "bench-frame --scene water --map-size 32 --size 32x32 --frames 6 --warm-up 2 --budget-ms 50 --json '" +
+          json + "'");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_NE(run.out.find("p50 ms"), std::string::npos) << run.out;
   const nlohmann::json parsed = nlohmann::json::parse(read_text(json));
   EXPECT_EQ(parsed["frames"], 6);
   EXPECT_EQ(parsed["budget_ms"], 50.0);
   for (const char* stage : {"sim", "bake", "upload", "render", "frame"}) {
-    for (const char* key : {"p50_ms", "p95_ms", "p99_ms"}) EXPECT_TRUE(parsed["stages"][stage][key].is_number());
+    for (const char* key : {"p50_ms", "p95_ms", "p99_ms"})
+      EXPECT_TRUE(parsed["stages"][stage][key].is_number());
   }
   EXPECT_TRUE(parsed["within_budget"].is_number());
   EXPECT_EQ(parsed["ffts_per_frame"], 6.0);
@@ -1920,14 +1945,16 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
   EXPECT_GT(rss["after_warmup"].get<long long>(), 0);
   EXPECT_GE(rss["max"].get<long long>(), rss["end"].get<long long>());
   EXPECT_GE(rss["max"].get<long long>(), rss["after_warmup"].get<long long>());
-  EXPECT_EQ(rss["growth"].get<long long>(), rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
+  EXPECT_EQ(rss["growth"].get<long long>(),
+            rss["end"].get<long long>() - rss["after_warmup"].get<long long>());
   EXPECT_EQ(parsed["overlapped"], true);
   EXPECT_EQ(parsed["pinned_threads"], 0);
   // --serial: the same table from the stages run one after another; --pin-threads: with the main
   // thread, TBB's worker(s) and lavapipe's rasterizers each on one CPU (none pinned on one CPU)
-  const RunResult serial = run_displace(
-      dir, "bench-frame --scene water --map-size 32 --size 32x32 --frames 3 --warm-up 2 --serial --pin-threads --json '" +
-               json + "'");
+  const RunResult serial = run_displace(dir,
+                                        "bench-frame --scene water --map-size 32 --size 32x32 --frames 3 "
+                                        "--warm-up 2 --serial --pin-threads --json '" +
+                                            json + "'");
   ASSERT_EQ(serial.exit_code, 0) << serial.err;
   EXPECT_NE(serial.out.find("stages in series"), std::string::npos) << serial.out;
   const nlohmann::json in_series = nlohmann::json::parse(read_text(json));
@@ -1946,11 +1973,13 @@ TEST(Cli, BenchFrameWritesTheTableAndItsJson) {
 // Flag limits agree with what the code accepts, and usage errors exit 2 with the project's words.
 TEST(Cli, OceanSizeAndZeroLightAreUsageErrors) {
   TempDir dir;
-  const RunResult big = run_displace(dir, "render --source ocean --map-size 16384 --time 0 --method bump --output a.png");
+  const RunResult big =
+      run_displace(dir, "render --source ocean --map-size 16384 --time 0 --method bump --output a.png");
   EXPECT_EQ(big.exit_code, 2);
   EXPECT_NE(big.err.find("at most 8192"), std::string::npos) << big.err;
   EXPECT_EQ(big.err.find("OceanParams"), std::string::npos) << big.err;
-  const RunResult dark = run_displace(dir, "render --source ocean --map-size 16 --time 0 --method bump --light 0,0,0 --output a.png");
+  const RunResult dark = run_displace(
+      dir, "render --source ocean --map-size 16 --time 0 --method bump --light 0,0,0 --output a.png");
   EXPECT_EQ(dark.exit_code, 2);
   EXPECT_NE(dark.err.find("--light"), std::string::npos) << dark.err;
 }

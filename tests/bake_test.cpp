@@ -5,8 +5,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <bit>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -613,7 +613,7 @@ TEST(LaneSweep, BakeIsaSettingPicksALevelTheCpuRuns) {
 // and maxima of 65535 included.
 TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
   const int best = detail::lane_sweep_best_level();
-  int counted = 0;  // gap terms of sub-cells above the apex
+  int counted = 0;                                // gap terms of sub-cells above the apex
   for (int width : {1, 5, 16, 21, 32, 37, 70}) {  // blocks are 16 texels (AVX2, generic) or 32 (AVX-512)
     const int columns = std::max(width, detail::near_block) + 8;
     std::vector<std::vector<std::uint16_t>> planes;
@@ -627,14 +627,17 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
           std::vector<std::uint16_t> plane(columns);
           for (int j = 0; j < columns; ++j) {
             const float r = test::hash01(61, std::uint64_t(planes.size()), std::uint64_t(j));
-            plane[j] = f == 0 ? (r > 0.97f ? 65535 : std::uint16_t(r * 65535.0f)) : std::uint16_t(1.0f + 60000.0f * r * r);
+            plane[j] = f == 0 ? (r > 0.97f ? 65535 : std::uint16_t(r * 65535.0f))
+                              : std::uint16_t(1.0f + 60000.0f * r * r);
           }
           planes.push_back(std::move(plane));
         }
         detail::NearOffset offset;
         const bool touching = g < 3;
         offset.inverse_gap =
-            touching ? 0 : std::uint16_t(20000.0f + 45535.0f * test::hash01(67, std::uint64_t(offsets.size()), 0));
+            touching
+                ? 0
+                : std::uint16_t(20000.0f + 45535.0f * test::hash01(67, std::uint64_t(offsets.size()), 0));
         offsets.push_back(offset);
         group_of.push_back(g);
       }
@@ -671,7 +674,8 @@ TEST(LaneSweep, NearRowKernelsAgreeWithTheDefinition) {
           for (const auto& [got, want] :
                {std::pair{other.first[j], generic.first[j]}, std::pair{other.second[j], generic.second[j]}}) {
             EXPECT_EQ(std::bit_cast<std::uint32_t>(got), std::bit_cast<std::uint32_t>(want))
-                << "width " << width << " level " << level << " texel " << j << ": " << got << " against " << want;
+                << "width " << width << " level " << level << " texel " << j << ": " << got << " against "
+                << want;
           }
       }
     const double infinite = std::numeric_limits<double>::infinity();
@@ -750,7 +754,8 @@ TEST(LaneSweep, ApexKernelsGiveTheFullBakesApexes) {
         const float want = expected[std::size_t(width) + std::size_t(j)];
         EXPECT_EQ(apex[std::size_t(j)], want) << "level " << level << " width " << width << " texel " << j;
         const int floor_scaled = std::clamp(int(want * 65535.0f - 0x1p-7f), 0, 65535);
-        EXPECT_EQ(bottom[std::size_t(j)], floor_scaled) << "level " << level << " width " << width << " texel " << j;
+        EXPECT_EQ(bottom[std::size_t(j)], floor_scaled)
+            << "level " << level << " width " << width << " texel " << j;
         ++compared;
       }
     }
@@ -767,14 +772,16 @@ TEST(LaneSweep, StageLCombineKernelsAgree) {
   for (int l = 0; l <= detail::lane_count; ++l) lane_ratio[l] = 0.01f * std::pow(1.15f, float(l));
   long long compared = 0;
   for (int width = 1; width <= 40; ++width) {
-    std::vector<float> apex(static_cast<std::size_t>(width)), near(static_cast<std::size_t>(width) * 4), slope3(near.size());
+    std::vector<float> apex(static_cast<std::size_t>(width)), near(static_cast<std::size_t>(width) * 4),
+        slope3(near.size());
     std::vector<std::uint8_t> passed(near.size()), passed3(near.size());
     for (int j = 0; j < width; ++j) {
       const float r = test::hash01(73, std::uint64_t(width), std::uint64_t(j));
       apex[std::size_t(j)] = j % 7 == 0 ? 0.75f : 0.75f * r;  // some at the highest cell
     }
     for (std::size_t n = 0; n < near.size(); ++n) {
-      const float a = test::hash01(79, std::uint64_t(width), n), b = test::hash01(83, std::uint64_t(width), n);
+      const float a = test::hash01(79, std::uint64_t(width), n),
+                  b = test::hash01(83, std::uint64_t(width), n);
       near[n] = n % 5 == 0 ? std::numeric_limits<float>::infinity() : 2.0f * a;
       slope3[n] = n % 3 == 0 ? std::numeric_limits<float>::infinity() : (n % 11 == 0 ? 0.0f : b);
       passed[n] = std::uint8_t((n * 7 + std::size_t(width)) % 33);
@@ -806,15 +813,20 @@ TEST(LaneSweep, StageLCombineKernelsAgree) {
         detail::stage_l_combine_avx512(job);
       for (std::size_t n = 0; n < out.size(); ++n) {
         EXPECT_EQ(std::bit_cast<std::uint32_t>(out[n]), std::bit_cast<std::uint32_t>(expected[n]))
-            << "level " << level << " width " << width << " value " << n << ": " << out[n] << " against " << expected[n];
+            << "level " << level << " width " << width << " value " << n << ": " << out[n] << " against "
+            << expected[n];
         ++compared;
       }
     }
     // and the definition, for one texel and quadrant
     const int j = width - 1, q = width % 4;
-    const float floor = apex[std::size_t(j)] < 0.75f ? float(0.5 / 512.0 / (0.75 - double(apex[std::size_t(j)])) * (1.0 - 1e-6)) : 1.0f;
-    const float beyond2 = std::max(floor, lane_ratio[job.passed[q][j]]), beyond3 = std::max(floor, lane_ratio[job.passed3[q][j]]);
-    const float want = std::max(std::min({beyond3, std::max(beyond2, job.slope3[q][j]), job.near[q][j], 1.0f}), 0.03f);
+    const float floor = apex[std::size_t(j)] < 0.75f
+                            ? float(0.5 / 512.0 / (0.75 - double(apex[std::size_t(j)])) * (1.0 - 1e-6))
+                            : 1.0f;
+    const float beyond2 = std::max(floor, lane_ratio[job.passed[q][j]]),
+                beyond3 = std::max(floor, lane_ratio[job.passed3[q][j]]);
+    const float want =
+        std::max(std::min({beyond3, std::max(beyond2, job.slope3[q][j]), job.near[q][j], 1.0f}), 0.03f);
     EXPECT_EQ(expected[std::size_t(j) * 4 + std::size_t(q)], want) << width;
   }
   if (best >= 3) {
@@ -832,7 +844,8 @@ TEST(LaneSweep, SubCellKernelsAgree) {
     std::vector<float> samples[4];
     for (int r = 0; r < 4; ++r) {
       samples[r].resize(std::size_t(count) + 2);
-      for (std::size_t k = 0; k < samples[r].size(); ++k) samples[r][k] = test::hash01(89, std::uint64_t(r), k);
+      for (std::size_t k = 0; k < samples[r].size(); ++k)
+        samples[r][k] = test::hash01(89, std::uint64_t(r), k);
     }
     samples[0][0] = 1.0f;  // a maximum above 1 by its slack: stored as 65535
     detail::SubCellRowJob job;
@@ -860,14 +873,15 @@ TEST(LaneSweep, SubCellKernelsAgree) {
     // the definition at the last even sub-cell: corners even0[k], odd0[k], even1[k], odd1[k], each
     // value above its exact 16-bit scaling and by less than 3 units
     const int k = count - 1;
-    const float a = samples[0][std::size_t(k)], b = samples[1][std::size_t(k)], c = samples[2][std::size_t(k)],
-                d = samples[3][std::size_t(k)];
+    const float a = samples[0][std::size_t(k)], b = samples[1][std::size_t(k)],
+                c = samples[2][std::size_t(k)], d = samples[3][std::size_t(k)];
     const double top = double(std::max({a, b, c, d}) + 2.4e-7f) * 65535.0;
     if (top < 65533.0) {
       EXPECT_GT(double(expected[std::size_t(k)]), top);
       EXPECT_LT(double(expected[std::size_t(k)]), top + 3.0);
     }
-    const double rate = double(std::max({0.0f, (b - a) * 1024.0f, (d - c) * 1024.0f}) * (1.0f + 0x1p-20f) + 4e-4f) * 60.0;
+    const double rate =
+        double(std::max({0.0f, (b - a) * 1024.0f, (d - c) * 1024.0f}) * (1.0f + 0x1p-20f) + 4e-4f) * 60.0;
     EXPECT_GT(double(expected[std::size_t(2 * count + k)]), rate);
     EXPECT_LT(double(expected[std::size_t(2 * count + k)]), rate + 3.0);
     EXPECT_EQ(expected[0], 65535);
@@ -923,7 +937,9 @@ TEST(LaneSweep, BilinearSecondLapStopsOnlyWhereNothingWouldChange) {
     for (int i = 0; i < H; ++i)
       for (int j = 0; j < W; ++j) {
         const float r = test::hash01(131, seed * 101 + std::uint64_t(i), std::uint64_t(j));
-        cells[std::size_t(i) * W + j] = kind == 0 ? 0.05f * r : kind == 1 ? (r > 0.9f ? r : 0.0f) : 0.5f * r * r;
+        cells[std::size_t(i) * W + j] = kind == 0   ? 0.05f * r
+                                        : kind == 1 ? (r > 0.9f ? r : 0.0f)
+                                                    : 0.5f * r * r;
       }
     // tall cells in the first and last rows and next to them, where the laps meet
     for (int s = 0; s < 3; ++s) {
@@ -950,14 +966,16 @@ TEST(LaneSweep, BilinearSecondLapStopsOnlyWhereNothingWouldChange) {
         passed[q] = counts.data() + std::size_t(q) * W * H;
         passed3[q] = counts.data() + std::size_t(4 + q) * W * H;
       }
-      detail::sweep_bilinear_quadrants(plan, W, H, bottom.data(), bonus, passed, bonus3, passed3, -1, stop_early);
+      detail::sweep_bilinear_quadrants(plan, W, H, bottom.data(), bonus, passed, bonus3, passed3, -1,
+                                       stop_early);
       return counts;
     };
     const std::vector<std::uint8_t> early = run(true);
     // the first lap leaves the box tests of as many rows to the second as it took the last time:
     // any number of rows (a guess too small, too large, past what the second lap can track)
     for (int q = 0; q < 4; ++q)
-      plan.scratch[std::size_t(q)].second_lap_rows = int(test::hash01(157, seed, std::uint64_t(q)) * float(H + 2));
+      plan.scratch[std::size_t(q)].second_lap_rows =
+          int(test::hash01(157, seed, std::uint64_t(q)) * float(H + 2));
     const std::vector<std::uint8_t> guessed = run(true);
     const std::vector<std::uint8_t> whole = run(false);
     ++maps;
@@ -2174,14 +2192,15 @@ TEST(BilinearBaker, NeverPiercedAtAnyBudget) {
           const int stride = n == 0 || n + 2 >= budgets.size() ? 1 : 3;
           const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex, stride);
           pairs += check.pairs;
-          ASSERT_EQ(check.violations, 0) << map.name << " " << map.width << "x" << map.height << " sectors "
-                                         << sectors << " " << address_name(address) << " budget " << n
-                                         << " worst " << check.worst;
+          ASSERT_EQ(check.violations, 0)
+              << map.name << " " << map.width << "x" << map.height << " sectors " << sectors << " "
+              << address_name(address) << " budget " << n << " worst " << check.worst;
           if (n + 2 == budgets.size()) {  // unlimited, tolerance 0.25: within it of the full bake
             // (searched texels are at least the full bake; certified ones at least 0.75 of a
             // certified upper bound of the best ratio, which the full bake does not exceed)
             for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
-              ASSERT_GE(b.cones.ratios[v], 0.75f * full.cones.ratios[v] * (1.0f - 1e-6f)) << map.name << " value " << v;
+              ASSERT_GE(b.cones.ratios[v], 0.75f * full.cones.ratios[v] * (1.0f - 1e-6f))
+                  << map.name << " value " << v;
           }
           if (n + 1 == budgets.size()) {  // tolerance 0, unlimited: never below the full bake
             EXPECT_EQ(b.stats.texels_fallback, 0);
@@ -2199,7 +2218,8 @@ TEST(BilinearBaker, CheckCatchesStageLRatiosTenPercentTooLarge) {
   Budget zero;
   zero.milliseconds = 0.0;
   int caught = 0, tried = 0;
-  for (const Map& map : {make_ramp(8, 6), make_noise(6, 6), test::make_fractal_cliff(10, 8), test::make_bricks(12, 8)})
+  for (const Map& map :
+       {make_ramp(8, 6), make_noise(6, 6), test::make_fractal_cliff(10, 8), test::make_bricks(12, 8)})
     for (Address address : {Address::wrap, Address::clamp}) {
       BudgetedBilinear b = bake_bilinear_budgeted(map, 4, address, zero);
       for (float& r : b.cones.ratios) r = std::min(1.0f, r * 1.1f);
@@ -2243,9 +2263,11 @@ TEST(BilinearBaker, StageLHoldsTheLipschitzFloor) {
     for (int j = 0; j < waves.width; ++j) {
       const int i1 = (i + 1) % waves.height, j1 = (j + 1) % waves.width;
       const double du = std::max(std::abs(double(waves.at(i, j1)) - waves.at(i, j)),
-                                 std::abs(double(waves.at(i1, j1)) - waves.at(i1, j))) * waves.width;
+                                 std::abs(double(waves.at(i1, j1)) - waves.at(i1, j))) *
+                        waves.width;
       const double dv = std::max(std::abs(double(waves.at(i1, j)) - waves.at(i, j)),
-                                 std::abs(double(waves.at(i1, j1)) - waves.at(i, j1))) * waves.height;
+                                 std::abs(double(waves.at(i1, j1)) - waves.at(i, j1))) *
+                        waves.height;
       steepest = std::max(steepest, std::hypot(du, dv));
     }
   const BudgetedBilinear b = bake_bilinear_budgeted(waves, 4, Address::wrap, zero);
@@ -2262,13 +2284,14 @@ TEST(BilinearBaker, RandomMapsNeverPierced) {
     Map map = test::make_flat(w, h, 0.1f);
     map.name = "sparse-spikes-" + std::to_string(n);
     for (int s = 0; s < 3; ++s)
-      map.at(int(test::hash01(41, n, s) * h), int(test::hash01(43, n, s) * w)) = 0.3f + 0.7f * test::hash01(47, n, s);
+      map.at(int(test::hash01(41, n, s) * h), int(test::hash01(43, n, s) * w)) =
+          0.3f + 0.7f * test::hash01(47, n, s);
     for (int sectors : {4, 8})
       for (Address address : {Address::wrap, Address::clamp}) {
         const BudgetedBilinear b = bake_bilinear_budgeted(map, sectors, address, zero);
         const BilinearCheck check = check_bilinear(map, address, b.cones, b.apex, 2);
-        ASSERT_EQ(check.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address)
-                                       << " worst " << check.worst;
+        ASSERT_EQ(check.violations, 0)
+            << map.name << " sectors " << sectors << " " << address_name(address) << " worst " << check.worst;
       }
   }
   for (int n = 0; n < 24; ++n) {
@@ -2319,8 +2342,9 @@ TEST(BilinearBaker, UpdateChainsStayConservative) {
             const Rect rects[] = {rect};
             baker.update(view_of(map), rects, budget, cones.view(), apex);
             const BilinearCheck check = check_bilinear(map, address, cones, apex);
-            ASSERT_EQ(check.violations, 0) << map.name << " sectors " << sectors << " " << address_name(address)
-                                           << " frame " << frame << " unlimited " << unlimited;
+            ASSERT_EQ(check.violations, 0)
+                << map.name << " sectors " << sectors << " " << address_name(address) << " frame " << frame
+                << " unlimited " << unlimited;
             const BilinearCones full = bake_bilinear(map, sectors, address);
             ASSERT_EQ(apex, full.apex) << map.name << " frame " << frame;
           }

@@ -1,7 +1,5 @@
 // tests/pipeline_test.cpp - the per-frame service: scene files, effects on demand, the frame budget
 // through an injected clock, conservative maps when the bake is starved, and reproducible frames.
-#include "pipeline/frame_pipeline.h"
-
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <tbb/parallel_for.h>
@@ -21,6 +19,7 @@
 #include <string_view>
 #include <thread>
 
+#include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
 #include "pipeline/thread_pinning.h"
 #include "render/render.h"
@@ -68,7 +67,8 @@ struct FakeClock {
 TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
   for (const std::string& name : pipeline::builtin_scene_names()) {
     Scene scene = pipeline::builtin_scene(name);
-    scene.keyframes = {{0.0, {0.5f, -0.4f, 0.5f}, {0.5f, 0.5f, 0.0f}}, {2.0, {0.2f, -0.4f, 0.6f}, {0.5f, 0.4f, 0.0f}}};
+    scene.keyframes = {{0.0, {0.5f, -0.4f, 0.5f}, {0.5f, 0.5f, 0.0f}},
+                       {2.0, {0.2f, -0.4f, 0.6f}, {0.5f, 0.4f, 0.0f}}};
     scene.frame_ms = 16.0;
     scene.bake_work = 5000;
     scene.cone_lag_frames = 3;
@@ -80,14 +80,20 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
 
 TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
   EXPECT_EQ(error_of("[render]\nsteps = 0\n"), "scene.toml:2: render.steps: must be in [1, 4096]");
-  EXPECT_EQ(error_of("[render]\nmethod = \"magic\"\n").rfind("scene.toml:2: render.method: must be one of bump", 0), 0u);
+  EXPECT_EQ(
+      error_of("[render]\nmethod = \"magic\"\n").rfind("scene.toml:2: render.method: must be one of bump", 0),
+      0u);
   EXPECT_EQ(error_of("[ocean]\nwindspeed = 3\n").rfind("scene.toml:2: ocean.windspeed: unknown key", 0), 0u);
   EXPECT_EQ(error_of("colour = 1\n").rfind("scene.toml:1: colour: unknown key", 0), 0u);
-  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"), "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff, image");
-  EXPECT_EQ(error_of("[source]\nmap_size = 255\n"), "scene.toml:2: source.map_size: must be even for the ocean");
+  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"),
+            "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff, image");
+  EXPECT_EQ(error_of("[source]\nmap_size = 255\n"),
+            "scene.toml:2: source.map_size: must be even for the ocean");
   EXPECT_EQ(error_of("[time]\nfps = \"fast\"\n"), "scene.toml:2: time.fps: must be a number");
-  EXPECT_EQ(error_of("[camera]\neye = [1, 2]\n"), "scene.toml:2: camera.eye: must be an array of 3 numbers [x, y, z]");
-  EXPECT_EQ(error_of("[render]\nsize = [0, 10]\n"), "scene.toml:2: render.size: must be between [1, 1] and [16384, 16384]");
+  EXPECT_EQ(error_of("[camera]\neye = [1, 2]\n"),
+            "scene.toml:2: camera.eye: must be an array of 3 numbers [x, y, z]");
+  EXPECT_EQ(error_of("[render]\nsize = [0, 10]\n"),
+            "scene.toml:2: render.size: must be between [1, 1] and [16384, 16384]");
   EXPECT_EQ(error_of("[render]\nshadows = 1\n"), "scene.toml:2: render.shadows: must be true or false");
   EXPECT_EQ(error_of("[render]\nmethod = \"relaxed\"\nsurface = \"sphere\"\n"),
             "scene.toml:3: render.surface: --method relaxed does not render on sphere");
@@ -95,7 +101,9 @@ TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
                      "{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}]\n")
                 .rfind("scene.toml:2: camera.keyframes: times must increase", 0),
             0u);
-  EXPECT_EQ(error_of("[camera]\neye = [0.5, 0.5, 0.5]\nlook_at = [0.5, 0.5, 0.5]\n").rfind("scene.toml:1: camera:", 0), 0u);
+  EXPECT_EQ(error_of("[camera]\neye = [0.5, 0.5, 0.5]\nlook_at = [0.5, 0.5, 0.5]\n")
+                .rfind("scene.toml:1: camera:", 0),
+            0u);
   EXPECT_EQ(error_of("[render\nsteps = 3\n").rfind("scene.toml:1: ", 0), 0u);  // malformed
   EXPECT_EQ(error_of("render = 3\n"), "scene.toml:1: render: must be a table ([render])");
   try {
@@ -110,24 +118,42 @@ TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
 // Every key, with a value of the wrong type and one out of range: one error naming that key.
 TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
   const std::pair<const char*, std::vector<const char*>> keys[] = {
-      {"source.kind", {"3", "\"lava\""}},         {"source.map_size", {"\"big\"", "1", "9000"}},
-      {"source.seed", {"-1", "1.5"}},               {"ocean.patch_size", {"\"a\"", "0"}},
-      {"ocean.spectrum", {"1", "\"pink\""}},        {"ocean.wind_speed", {"false", "1000"}},
-      {"ocean.wind_direction", {"\"n\"", "400"}},   {"ocean.choppiness", {"[1]", "-1"}},
-      {"ocean.seed", {"\"x\""}},                   {"sinusoids.wave_count", {"1.5", "0"}},
-      {"sinusoids.patch_size", {"true", "0"}},      {"sinusoids.steepness", {"\"s\"", "2"}},
-      {"sinusoids.seed", {"\"x\""}},               {"material.kind", {"1", "\"glass\""}},
-      {"material.foam", {"1"}},                     {"material.albedo", {"1"}},
-      {"ocean.size", {"7", "\"big\"", "0"}},                     {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
-      {"camera.look_at", {"[1, 2, 3, 4]"}},         {"camera.up", {"\"up\""}},
-      {"camera.fov_y", {"\"wide\"", "180"}},        {"camera.keyframes", {"3", "[1, 2]"}},
-      {"render.method", {"1", "\"magic\""}},        {"render.steps", {"\"many\"", "0", "5000"}},
-      {"render.refine", {"-1", "65"}},              {"render.size", {"1", "[0, 10]", "[10]"}},
-      {"render.surface", {"\"torus\""}},            {"render.shadows", {"\"yes\""}},
-      {"render.light", {"[0, 0, 0]", "2"}},         {"render.depth_scale", {"0", "11"}},
-      {"render.tile", {"0", "65"}},                 {"time.start", {"\"now\"", "1e13"}},
-      {"time.fps", {"0", "1e5"}},                   {"budget.frame_ms", {"-1", "\"fast\""}},
-      {"budget.bake_work", {"-2", "0.5"}},          {"budget.tolerance", {"2", "\"loose\""}},
+      {"source.kind", {"3", "\"lava\""}},
+      {"source.map_size", {"\"big\"", "1", "9000"}},
+      {"source.seed", {"-1", "1.5"}},
+      {"ocean.patch_size", {"\"a\"", "0"}},
+      {"ocean.spectrum", {"1", "\"pink\""}},
+      {"ocean.wind_speed", {"false", "1000"}},
+      {"ocean.wind_direction", {"\"n\"", "400"}},
+      {"ocean.choppiness", {"[1]", "-1"}},
+      {"ocean.seed", {"\"x\""}},
+      {"sinusoids.wave_count", {"1.5", "0"}},
+      {"sinusoids.patch_size", {"true", "0"}},
+      {"sinusoids.steepness", {"\"s\"", "2"}},
+      {"sinusoids.seed", {"\"x\""}},
+      {"material.kind", {"1", "\"glass\""}},
+      {"material.foam", {"1"}},
+      {"material.albedo", {"1"}},
+      {"ocean.size", {"7", "\"big\"", "0"}},
+      {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
+      {"camera.look_at", {"[1, 2, 3, 4]"}},
+      {"camera.up", {"\"up\""}},
+      {"camera.fov_y", {"\"wide\"", "180"}},
+      {"camera.keyframes", {"3", "[1, 2]"}},
+      {"render.method", {"1", "\"magic\""}},
+      {"render.steps", {"\"many\"", "0", "5000"}},
+      {"render.refine", {"-1", "65"}},
+      {"render.size", {"1", "[0, 10]", "[10]"}},
+      {"render.surface", {"\"torus\""}},
+      {"render.shadows", {"\"yes\""}},
+      {"render.light", {"[0, 0, 0]", "2"}},
+      {"render.depth_scale", {"0", "11"}},
+      {"render.tile", {"0", "65"}},
+      {"time.start", {"\"now\"", "1e13"}},
+      {"time.fps", {"0", "1e5"}},
+      {"budget.frame_ms", {"-1", "\"fast\""}},
+      {"budget.bake_work", {"-2", "0.5"}},
+      {"budget.tolerance", {"2", "\"loose\""}},
       {"budget.cone_lag_frames", {"-1", "65", "1.5"}},
       {"name", {"1"}}};
   for (const auto& [key, values] : keys) {
@@ -148,8 +174,10 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
 // [ocean] size is the map size; an albedo material names its image next to the scene file.
 TEST(Scene, OceanSizeAndAlbedoMaterial) {
   EXPECT_EQ(pipeline::parse_scene("[ocean]\nsize = 64\n", "s.toml").map_size, 64);
-  EXPECT_NE(error_of("[source]\nmap_size = 32\n[ocean]\nsize = 64\n").find("ocean.size: differs"), std::string::npos);
-  const Scene albedo = pipeline::parse_scene("[material]\nkind = \"albedo\"\nalbedo = \"a.png\"\n", "dir/s.toml");
+  EXPECT_NE(error_of("[source]\nmap_size = 32\n[ocean]\nsize = 64\n").find("ocean.size: differs"),
+            std::string::npos);
+  const Scene albedo =
+      pipeline::parse_scene("[material]\nkind = \"albedo\"\nalbedo = \"a.png\"\n", "dir/s.toml");
   EXPECT_EQ(albedo.albedo, std::filesystem::path("dir/a.png"));
   EXPECT_EQ(pipeline::parse_scene(pipeline::scene_toml(albedo), "x").albedo, albedo.albedo);
   EXPECT_NE(error_of("[material]\nkind = \"albedo\"\n").find("material.albedo"), std::string::npos);
@@ -192,7 +220,8 @@ TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
   EXPECT_EQ(pipeline::scene_view(scene, -5.0).camera.eye, scene.keyframes.front().eye);
   EXPECT_EQ(pipeline::scene_view(scene, 9.0).camera.eye, scene.keyframes.back().eye);
   // smooth: no jump between two close times inside a segment
-  const glm::vec3 a = pipeline::scene_view(scene, 1.999).camera.eye, b = pipeline::scene_view(scene, 2.001).camera.eye;
+  const glm::vec3 a = pipeline::scene_view(scene, 1.999).camera.eye,
+                  b = pipeline::scene_view(scene, 2.001).camera.eye;
   EXPECT_LT(glm::length(a - b), 0.01f);
 }
 
@@ -284,7 +313,8 @@ TEST(Pipeline, WaterReflectsTheSkyByFresnelAndFoamIsWhite) {
   const glm::vec3 foam = mean_colour({0.5f, 0.5f, 3.0f}, true);
   EXPECT_LT(down.r + down.g + down.b, 3 * 40.0f) << down.r << " " << down.g << " " << down.b;
   // at 4.6 degrees Fresnel reflects about 2/3 of the near-horizon sky: measured (96, 120, 143)
-  EXPECT_GT(grazing.r + grazing.g + grazing.b, 3 * 100.0f) << grazing.r << " " << grazing.g << " " << grazing.b;
+  EXPECT_GT(grazing.r + grazing.g + grazing.b, 3 * 100.0f)
+      << grazing.r << " " << grazing.g << " " << grazing.b;
   EXPECT_GT(grazing.r + grazing.g + grazing.b, 3.0f * (down.r + down.g + down.b));
   EXPECT_GT(grazing.b, grazing.r);  // the sky is blue
   EXPECT_GT(foam.r + foam.g + foam.b, 3 * 180.0f);
@@ -324,7 +354,8 @@ namespace {
 
 // Every cone ray of `pipeline`'s frames ends at or before its exact first crossing (render::cpu_trace
 // on the frame's heights).
-void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames, pipeline::HeightLoader loader = {}) {
+void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames,
+                                           pipeline::HeightLoader loader = {}) {
   FramePipeline pipeline(scene, shared_renderer(), {}, std::move(loader));
   render::Frame frame;
   long long compared = 0, beyond = 0;
@@ -368,9 +399,11 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
   const pipeline::HeightLoader loader = [](const std::filesystem::path& file) {
     const int frame = std::stoi(file.stem().string().substr(2));
     if (file.string().find("checkers") != std::string::npos) {
-      return displace::testing::field_of(32, 32, [&](int i, int j) { return ((i + frame) / 4 + j / 4) % 2 ? 0.9 : 0.1; });
+      return displace::testing::field_of(
+          32, 32, [&](int i, int j) { return ((i + frame) / 4 + j / 4) % 2 ? 0.9 : 0.1; });
     }
-    return displace::testing::field_of(32, 32, [&](int i, int j) { return 0.1 + 0.2 * (((i + 2 * j + frame) / 5) % 5); });
+    return displace::testing::field_of(
+        32, 32, [&](int i, int j) { return 0.1 + 0.2 * (((i + 2 * j + frame) / 5) % 5); });
   };
   for (const char* pattern : {"checkers/c_##.png", "terraces/t_##.png"}) {
     for (const render::Method method : {render::Method::csm, render::Method::acm4, render::Method::acm8}) {
@@ -396,14 +429,15 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
 // frames; a share that fits the whole stage serves each frame its own map, and so does a lag of 0.
 TEST(Pipeline, LaggedConesServeTheLastMapRaisedWhileTheNextIsMade) {
   const int lag = 4;
-  auto bake_alone = [](const render::HeightField& field, std::vector<float>& ratios, std::vector<float>& apex) {
+  auto bake_alone = [](const render::HeightField& field, std::vector<float>& ratios,
+                       std::vector<float>& apex) {
     bake::BilinearBaker baker(field.width, field.height, 4, bake::Address::wrap);
     ratios.resize(field.heights.size() * 4);
     apex.resize(field.heights.size());
     bake::Budget none;
     none.milliseconds = 0.0;
-    baker.bake({field.heights.data(), field.width, field.height}, none, {ratios.data(), field.width, field.height, 4},
-               apex);
+    baker.bake({field.heights.data(), field.width, field.height}, none,
+               {ratios.data(), field.width, field.height, 4}, apex);
   };
   FakeClock clock;
   Scene scene = small_scene("calm", 128, 16);  // 128 rows: every step has work
@@ -445,7 +479,8 @@ TEST(Pipeline, LaggedConesServeTheLastMapRaisedWhileTheNextIsMade) {
     for (std::size_t t = 0; t < apex.size(); ++t) {
       const float raised = lift > 0.0f ? std::min(1.0f, std::nextafter(apex[t] + lift, 2.0f)) : apex[t];
       ASSERT_EQ(cones.apex[t], raised) << "frame " << n << " texel " << t;
-      ASSERT_TRUE(cones.apex[t] == 1.0f || double(cones.apex[t]) >= double(apex[t]) + double(lift))  // 1: above all
+      ASSERT_TRUE(cones.apex[t] == 1.0f ||
+                  double(cones.apex[t]) >= double(apex[t]) + double(lift))  // 1: above all
           << "frame " << n << " texel " << t;
     }
   }
@@ -454,7 +489,8 @@ TEST(Pipeline, LaggedConesServeTheLastMapRaisedWhileTheNextIsMade) {
   scene.cone_lag_frames = 1;  // maps begun on frames 1, 3, 5, ... and served from the frame after
   FramePipeline two_frames(scene, shared_renderer(), std::ref(clock));
   for (int n = 0; n < 7; ++n) {
-    EXPECT_EQ(two_frames.run(n, frame, render::output_color).cone_lag, n < 2 ? n : 1 + n % 2) << "frame " << n;
+    EXPECT_EQ(two_frames.run(n, frame, render::output_color).cone_lag, n < 2 ? n : 1 + n % 2)
+        << "frame " << n;
   }
   for (const auto& [frame_ms, frames_of_lag] : {std::pair{1e9, 4}, std::pair{0.0, 0}}) {
     scene.frame_ms = frame_ms;  // the whole stage fits, or no lag: every frame its own map
@@ -517,7 +553,8 @@ TEST(Pipeline, RefiningAStaticSceneMovesExactPixelsByAtMostOne) {
   for (int n = 1; n < 6; ++n) {
     record = pipeline.run(n, frame, render::output_color);
     int worst = 0;
-    for (std::size_t i = 0; i < frame.color.size(); ++i) worst = std::max(worst, std::abs(int(frame.color[i]) - int(previous.color[i])));
+    for (std::size_t i = 0; i < frame.color.size(); ++i)
+      worst = std::max(worst, std::abs(int(frame.color[i]) - int(previous.color[i])));
     EXPECT_LE(worst, 1) << "frame " << n;
     previous = frame;
   }
@@ -558,12 +595,13 @@ TEST(Pipeline, AnimatedOceanFlickersNoMoreThanTheReference) {
   };
   const double reference = sequence_matd(render::Method::reference, 1);
   EXPECT_GT(reference, 0.5);  // the water moves
-  for (const auto& [method, steps] : {std::pair{render::Method::acm4, 8}, std::pair{render::Method::relief, 16},
-                                      std::pair{render::Method::qdm, 16}, std::pair{render::Method::csm, 8},
-                                      std::pair{render::Method::pom, 16}}) {
+  for (const auto& [method, steps] :
+       {std::pair{render::Method::acm4, 8}, std::pair{render::Method::relief, 16},
+        std::pair{render::Method::qdm, 16}, std::pair{render::Method::csm, 8},
+        std::pair{render::Method::pom, 16}}) {
     const double value = sequence_matd(method, steps);
-    std::printf("MATD %-8s %2d steps %.3f (reference %.3f, ratio %.3f)\n", render::method_info(method).name, steps,
-                value, reference, value / reference);
+    std::printf("MATD %-8s %2d steps %.3f (reference %.3f, ratio %.3f)\n", render::method_info(method).name,
+                steps, value, reference, value / reference);
     EXPECT_LE(value, 1.1 * reference + 0.25) << render::method_info(method).name;
   }
 }
@@ -578,12 +616,13 @@ TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
   std::vector<render::Frame> expected(5);
   for (int n = 0; n < 5; ++n) sequential.run(10 + n, expected[std::size_t(n)], render::output_all);
   long long seen = 0;
-  overlapped.run_frames(10, 5, render::output_all, [&](const FrameRecord& record, const render::Frame& frame) {
-    EXPECT_EQ(record.index, 10 + seen);
-    EXPECT_EQ(frame.color, expected[std::size_t(seen)].color) << record.index;
-    EXPECT_EQ(frame.depth, expected[std::size_t(seen)].depth) << record.index;
-    ++seen;
-  });
+  overlapped.run_frames(10, 5, render::output_all,
+                        [&](const FrameRecord& record, const render::Frame& frame) {
+                          EXPECT_EQ(record.index, 10 + seen);
+                          EXPECT_EQ(frame.color, expected[std::size_t(seen)].color) << record.index;
+                          EXPECT_EQ(frame.depth, expected[std::size_t(seen)].depth) << record.index;
+                          ++seen;
+                        });
   EXPECT_EQ(seen, 5);
 
   // lagged cone maps at budget 0 (each frame its even share of a map): the same maps frame by frame,
@@ -595,7 +634,8 @@ TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
   FramePipeline in_series(lagged, shared_renderer()), in_flight(lagged, shared_renderer());
   std::vector<render::Frame> series(8);
   std::vector<long long> ages;
-  for (int n = 0; n < 8; ++n) ages.push_back(in_series.run(n, series[std::size_t(n)], render::output_all).cone_lag);
+  for (int n = 0; n < 8; ++n)
+    ages.push_back(in_series.run(n, series[std::size_t(n)], render::output_all).cone_lag);
   seen = 0;
   in_flight.run_frames(0, 8, render::output_all, [&](const FrameRecord& record, const render::Frame& frame) {
     EXPECT_EQ(record.cone_lag, ages[std::size_t(seen)]) << record.index;
@@ -614,8 +654,9 @@ TEST(Pipeline, OverlappedFramesMatchTheSequentialOnes) {
   cliff.frame_ms = 4.0;
   FramePipeline real_time(cliff, shared_renderer(), std::ref(clock));
   std::vector<long long> pending;
-  real_time.run_frames(0, 6, render::output_color,
-                       [&](const FrameRecord& record, const render::Frame&) { pending.push_back(record.pending); });
+  real_time.run_frames(0, 6, render::output_color, [&](const FrameRecord& record, const render::Frame&) {
+    pending.push_back(record.pending);
+  });
   ASSERT_EQ(pending.size(), 6u);
   for (std::size_t n = 1; n < pending.size(); ++n) EXPECT_LE(pending[n], pending[n - 1]) << n;
   EXPECT_LT(pending.back(), pending.front());
@@ -628,7 +669,8 @@ TEST(Pipeline, ImageSequencesReadTheFileOfEachFrame) {
   EXPECT_EQ(pipeline::image_for_frame("maps/h_####.exr", 7), std::filesystem::path("maps/h_0007.exr"));
   EXPECT_EQ(pipeline::image_for_frame("h_#_#.png", 12), std::filesystem::path("h_12_12.png"));
   EXPECT_FALSE(pipeline::is_image_sequence("maps/h.exr"));
-  const Scene parsed = pipeline::parse_scene("[source]\nkind = \"image\"\npath = \"h_##.png\"\n", "dir/scene.toml");
+  const Scene parsed =
+      pipeline::parse_scene("[source]\nkind = \"image\"\npath = \"h_##.png\"\n", "dir/scene.toml");
   EXPECT_EQ(parsed.image, std::filesystem::path("dir/h_##.png"));
   EXPECT_NE(error_of("[source]\nkind = \"image\"\n").find("source.path"), std::string::npos);
   EXPECT_NE(error_of("[source]\npath = \"a.png\"\n").find("source.path"), std::string::npos);
@@ -637,7 +679,8 @@ TEST(Pipeline, ImageSequencesReadTheFileOfEachFrame) {
   pipeline::HeightLoader loader = [&](const std::filesystem::path& file) {
     read.push_back(file.string());
     const int frame = std::stoi(file.stem().string().substr(2));
-    return displace::testing::field_of(24, 16, [&](int i, int j) { return 0.5 + 0.4 * std::sin(0.3 * (i + j + frame)); });
+    return displace::testing::field_of(
+        24, 16, [&](int i, int j) { return 0.5 + 0.4 * std::sin(0.3 * (i + j + frame)); });
   };
   Scene scene = small_scene("bricks", 32, 16);
   scene.source = pipeline::SourceKind::image;
@@ -652,7 +695,7 @@ TEST(Pipeline, ImageSequencesReadTheFileOfEachFrame) {
   scene.image = "h_05.png";
   FramePipeline still(scene, shared_renderer(), {}, loader);
   for (int n : {0, 1, 2}) still.run(n, frame);
-  EXPECT_EQ(read.size(), 3u);  // one more read for all three frames
+  EXPECT_EQ(read.size(), 3u);                                         // one more read for all three frames
   EXPECT_THROW(FramePipeline(scene, shared_renderer()), SceneError);  // no loader
 }
 

@@ -26,7 +26,8 @@ inline render::RendererOptions headless_options(bool validate, std::string pipel
 }
 
 inline render::Renderer& shared_renderer() {
-  static std::unique_ptr<render::Renderer> renderer = std::make_unique<render::Renderer>(headless_options(true));
+  static std::unique_ptr<render::Renderer> renderer =
+      std::make_unique<render::Renderer>(headless_options(true));
   return *renderer;
 }
 

@@ -5,6 +5,7 @@
 #include "render/render.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -20,8 +21,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
 
 #include "render/map_pack.h"
 #include "render/mesh.h"
@@ -58,7 +57,7 @@ struct HitError {
   double max_texels = 0.0;        // worst |uv - truth| over pixels both hit, in texels
   long long over_half_texel = 0;  // pixels whose hit is more than half a texel from the truth
   long long compared = 0;
-  long long hit_mismatch = 0;     // pixels where exactly one of GPU and CPU hit the patch
+  long long hit_mismatch = 0;  // pixels where exactly one of GPU and CPU hit the patch
 };
 
 HitError hit_error(const Frame& frame, const HeightField& field, const View& view) {
@@ -80,8 +79,8 @@ HitError hit_error(const Frame& frame, const HeightField& field, const View& vie
       if (texels > 0.5) {
         ++error.over_half_texel;
         if (std::getenv("DISPLACE_DEBUG_HITS") && error.over_half_texel < 6)
-          std::printf("  pixel %d,%d gpu %.5f,%.5f truth %.5f,%.5f,%.5f\n", px, py, frame.uv[p * 3], frame.uv[p * 3 + 1],
-                      truth.texture.x, truth.texture.y, truth.texture.z);
+          std::printf("  pixel %d,%d gpu %.5f,%.5f truth %.5f,%.5f,%.5f\n", px, py, frame.uv[p * 3],
+                      frame.uv[p * 3 + 1], truth.texture.x, truth.texture.y, truth.texture.z);
       }
       ++error.compared;
     }
@@ -114,7 +113,8 @@ TEST(CpuTrace, FirstCrossingMatchesADenseMarchAndNeverSkipsAClip) {
         return p.x < 0.0 || p.x > tile || p.y < 0.0 || p.y > tile;
       };
       // march in steps of 1/512 texel of travel until the surface or the patch side
-      const double step = 1.0 / (std::max(std::abs(descent.x) * width, std::abs(descent.y) * height) * 512.0 + 1.0);
+      const double step =
+          1.0 / (std::max(std::abs(descent.x) * width, std::abs(descent.y) * height) * 512.0 + 1.0);
       double marched = 1.0;
       bool left = false;
       for (double s = 0.0; s <= 1.0; s += step) {
@@ -146,7 +146,7 @@ TEST(CpuTrace, CompareCountsPixelsEitherFrameHitAndNeedsColourAndUv) {
   frame.height = reference.height = 1;
   frame.color = {10, 10, 10, 255, 0, 0, 0, 255};
   reference.color = {10, 10, 10, 255, 30, 30, 30, 255};
-  frame.uv = {0.5f, 0.5f, 1.0f, 0, 0, 0};      // pixel 0 hit, pixel 1 off the relief
+  frame.uv = {0.5f, 0.5f, 1.0f, 0, 0, 0};         // pixel 0 hit, pixel 1 off the relief
   reference.uv = {0.5f, 0.5f, 1.0f, 0, 0, 1.0f};  // the reference hit both
   const render::ImageError error = render::compare(frame, reference);
   EXPECT_EQ(error.pixels, 2);
@@ -192,11 +192,14 @@ TEST(Renderer, ShadersReadHeightsOnlyWithExactWeights) {
     ++files;
     std::ifstream in(entry.path());
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    for (const char* filtered : {"texture(height_map", "textureLod(height_map", "textureGrad(height_map",
-                                 "textureProj(height_map", "textureOffset(height_map", "textureLodOffset(height_map"}) {
-      EXPECT_EQ(text.find(filtered), std::string::npos) << entry.path().filename() << " reads " << filtered << ")";
+    for (const char* filtered :
+         {"texture(height_map", "textureLod(height_map", "textureGrad(height_map", "textureProj(height_map",
+          "textureOffset(height_map", "textureLodOffset(height_map"}) {
+      EXPECT_EQ(text.find(filtered), std::string::npos)
+          << entry.path().filename() << " reads " << filtered << ")";
     }
-    for (std::size_t at = text.find("textureGather("); at != std::string::npos; at = text.find("textureGather(", at + 1)) {
+    for (std::size_t at = text.find("textureGather("); at != std::string::npos;
+         at = text.find("textureGather(", at + 1)) {
       ++gathers;
     }
   }
@@ -255,7 +258,8 @@ TEST(Renderer, ParallaxFamilyMatchesItsFormulaOnConstantHeight) {
       const double descent = (1.0 - h0) * view.depth_scale;  // world depth below the polygon
       const double s_world = descent / -ray.direction.z;
       const glm::dvec3 parallax_point = entry + s_world * ray.direction;
-      if (parallax_point.x < 0.0 || parallax_point.x > 1.0 || parallax_point.y < 0.0 || parallax_point.y > 1.0) {
+      if (parallax_point.x < 0.0 || parallax_point.x > 1.0 || parallax_point.y < 0.0 ||
+          parallax_point.y > 1.0) {
         continue;  // the offset leaves the patch: discarded, like a ray leaving through a side
       }
       EXPECT_NEAR(parallax.uv[p * 3 + 0], parallax_point.x, 1e-4);
@@ -352,8 +356,8 @@ std::vector<std::pair<std::string, View>> hard_views() {
     View view;
     const double a = glm::radians(azimuth_degrees), e = glm::radians(elevation_degrees);
     const glm::dvec3 target(0.5, 0.5, 0.0);
-    const glm::dvec3 eye = target - distance * glm::dvec3(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a),
-                                                          -std::sin(e));
+    const glm::dvec3 eye =
+        target - distance * glm::dvec3(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), -std::sin(e));
     view.camera.eye = glm::vec3(eye);
     view.camera.look_at = glm::vec3(target);
     view.camera.up = elevation_degrees >= 89.999 ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
@@ -367,7 +371,8 @@ std::vector<std::pair<std::string, View>> hard_views() {
   views.emplace_back("along-u", aimed(0.0, 35.0, 1.0));
   views.emplace_back("along-v", aimed(90.0, 35.0, 1.0));
   views.emplace_back("against-u", aimed(180.0, 35.0, 1.0));
-  for (int k = 0; k < 8; ++k) views.emplace_back("sector-boundary-" + std::to_string(k * 45), aimed(k * 45.0, 20.0, 1.0));
+  for (int k = 0; k < 8; ++k)
+    views.emplace_back("sector-boundary-" + std::to_string(k * 45), aimed(k * 45.0, 20.0, 1.0));
   return views;
 }
 
@@ -544,7 +549,8 @@ TEST(Renderer, ExactClassMethodsConvergeToTheReference) {
       const Frame frame = draw(view, {info.method, steps, 16});
       const render::ImageError error = render::compare(frame, reference);
       std::printf("%-7s %-14s %4d steps: rmse %.3f, %lld of %lld pixels off by more than 10\n", name.c_str(),
-                  info.name, steps, error.rmse, (long long)(error.fraction_over_10 * error.pixels + 0.5), error.pixels);
+                  info.name, steps, error.rmse, (long long)(error.fraction_over_10 * error.pixels + 0.5),
+                  error.pixels);
       EXPECT_LE(error.rmse, 1.0) << name << " / " << info.name;
     }
   }
@@ -612,10 +618,11 @@ TEST(Renderer, ShadowsFallWhereTheStepHeightPutsThem) {
   const HeightField step = step_field(size);  // 0.2 for u < 0.5, 0.8 beyond, a one-texel ramp between
   const HeightField flat = constant_field(size, 0.4f);
   View view = top_down_view(128);
-  view.light_direction = {1.0f, 0.0f, 0.25f};  // from +u, low: the plateau shades the floor below it
+  view.light_direction = {1.0f, 0.0f, 0.25f};    // from +u, low: the plateau shades the floor below it
   const double slope = 0.25 / view.depth_scale;  // heights gained per uv along the light ray
   const double ramp_start = (size / 2 - 0.5) / size, ramp_end = (size / 2 + 0.5) / size;
-  const double shadow_start = ramp_end - 0.6 / slope;  // the floor point whose light ray grazes the ramp's top
+  const double shadow_start =
+      ramp_end - 0.6 / slope;  // the floor point whose light ray grazes the ramp's top
   const double texel = 1.0 / size;
   for (const MethodInfo& info : render::method_table()) {
     if (!info.exact_class) continue;
@@ -770,7 +777,8 @@ render::Mesh uv_sphere(glm::vec3 centre, float radius, int segments, int rings) 
     for (int s = 0; s <= segments; ++s) {
       const double u = double(s) / segments, v = double(r) / rings;
       const double phi = 2.0 * std::numbers::pi * u, theta = std::numbers::pi * v;
-      const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                              std::cos(theta));
       mesh.positions.push_back(centre + radius * glm::vec3(radial));
       mesh.uvs.emplace_back(float(u), float(v));
     }
@@ -811,10 +819,13 @@ TEST(Mesh, TangentFramesAndCurvatureOfASphereMatchItsParameterisation) {
     const double u = vertex.u, v = vertex.v;
     if (v < 0.15 || v > 0.85 || u <= 0.0 || u >= 1.0) continue;  // away from the poles and the seam
     const double phi = 2.0 * std::numbers::pi * u, theta = std::numbers::pi * v;
-    const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
-    const glm::dvec3 dp_du = 2.0 * std::numbers::pi * radius * std::sin(theta) * glm::dvec3(-std::sin(phi), std::cos(phi), 0);
-    const glm::dvec3 dp_dv = std::numbers::pi * radius *
-                             glm::dvec3(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi), -std::sin(theta));
+    const glm::dvec3 radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                            std::cos(theta));
+    const glm::dvec3 dp_du =
+        2.0 * std::numbers::pi * radius * std::sin(theta) * glm::dvec3(-std::sin(phi), std::cos(phi), 0);
+    const glm::dvec3 dp_dv =
+        std::numbers::pi * radius *
+        glm::dvec3(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi), -std::sin(theta));
     EXPECT_LT(glm::length(glm::dvec3(vertex.dp_du) - dp_du), 0.01 * glm::length(dp_du));
     EXPECT_LT(glm::length(glm::dvec3(vertex.dp_dv) - dp_dv), 0.01 * glm::length(dp_dv));
     EXPECT_LT(glm::length(glm::dvec3(vertex.normal) - radial), 5e-3);  // area-weighted face normals
@@ -973,7 +984,6 @@ TEST(Mesh, SphereSilhouetteWhereTheAnalyticRadiusPutsIt) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
-
 namespace {
 
 // Over 1..64 steps of each of `methods`, on sharp and smooth fields with wrap and clamp, the rays
@@ -1055,8 +1065,8 @@ TEST(Mesh, NoNanOrInfOnHardViewsOfASphereMesh) {
   render::Renderer& renderer = shared_renderer();
   renderer.set_mesh(uv_sphere({0.5f, 0.5f, 0.0f}, 0.3f, 48, 24));
   std::vector<View> views;
-  for (const glm::vec3 eye : {glm::vec3(0.5f, 0.5f, 1.5f), glm::vec3(0.5f, -1.5f, 0.0f), glm::vec3(2.0f, 0.5f, 0.0f),
-                              glm::vec3(0.5f, 0.5f, -1.5f)}) {
+  for (const glm::vec3 eye : {glm::vec3(0.5f, 0.5f, 1.5f), glm::vec3(0.5f, -1.5f, 0.0f),
+                              glm::vec3(2.0f, 0.5f, 0.0f), glm::vec3(0.5f, 0.5f, -1.5f)}) {
     View view;
     view.surface = render::Surface::mesh;
     view.depth_scale = 0.03f;
@@ -1100,8 +1110,8 @@ sim::Ocean small_ocean(int size) {
 
 // The methods that read each kind of map: heights only, 4-sector cones, relaxed cones, the max
 // pyramid, the distance map, and the tessellated reference.
-const Method kept_methods[] = {Method::relief, Method::acm4, Method::relaxed, Method::qdm, Method::sphere,
-                               Method::reference};
+const Method kept_methods[] = {Method::relief, Method::acm4,   Method::relaxed,
+                               Method::qdm,    Method::sphere, Method::reference};
 
 // Versions of hand-made map sets, far from pipeline::MapMaker's counter.
 constexpr std::uint64_t hand_made = std::uint64_t(1) << 62;
@@ -1110,7 +1120,6 @@ bool same_frame(const Frame& a, const Frame& b) {
   return a.color == b.color && a.uv == b.uv && a.depth == b.depth && a.iterations == b.iterations &&
          a.fetches == b.fetches;
 }
-
 
 // ---------------------------------------------------------------------------------------------
 // memory guards: estimates before anything is allocated, and refusals that say what to lower
@@ -1149,7 +1158,8 @@ TEST(MemoryGuard, FrameMemoryCountsTargetsReadbackAndTessellation) {
   const auto reference = render::frame_memory(view, {Method::reference, 1, 0}, 64, 32, render::output_color);
   const std::uint64_t vertices = (64 * 3 + 2) * (32 * 3 + 2), triangles = (64 * 3 + 1) * (32 * 3 + 1) * 2;
   EXPECT_EQ(bytes_of(reference, render::MemoryKind::host), pixels * 4 + vertices * 8 + triangles * 12);
-  EXPECT_EQ(bytes_of(reference, render::MemoryKind::host_visible), pixels * 4 + vertices * 8 + triangles * 12);
+  EXPECT_EQ(bytes_of(reference, render::MemoryKind::host_visible),
+            pixels * 4 + vertices * 8 + triangles * 12);
   // compared with the reference: a second readback and Frame, and the tessellation
   view.tile = 1;
   const auto compared = render::frame_memory(view, {Method::acm4, 8, 0}, 64, 32, render::output_all, true);
@@ -1182,7 +1192,9 @@ TEST(MemoryGuard, RefusesWhatDoesNotFitAndSaysWhatToLower) {
   render::MemoryLimits small_allocations = gpu;
   small_allocations.max_allocation = 200'000'000ull;
   const std::string one = refusal(frame, small_allocations);
-  EXPECT_NE(one.find("the hit target of a 4096 x 4096 frame needs one allocation of 268 MB"), std::string::npos) << one;
+  EXPECT_NE(one.find("the hit target of a 4096 x 4096 frame needs one allocation of 268 MB"),
+            std::string::npos)
+      << one;
   EXPECT_NE(one.find("at most 200 MB"), std::string::npos) << one;
   EXPECT_NE(one.find("lower --size"), std::string::npos) << one;
   render::MemoryLimits small_device = gpu;
@@ -1197,8 +1209,10 @@ TEST(MemoryGuard, RefusesWhatDoesNotFitAndSaysWhatToLower) {
   cpu.host = 1'000'000'000ull;  // the frame needs 1.5 GB in all
   cpu.limited_by = "DISPLACE_MEMORY_LIMIT_MB";
   const std::string host = refusal(frame, cpu);
-  EXPECT_NE(host.find("with the rest) of host memory; 1.00 GB is available (DISPLACE_MEMORY_LIMIT_MB): lower --size"),
-            std::string::npos)
+  EXPECT_NE(
+      host.find(
+          "with the rest) of host memory; 1.00 GB is available (DISPLACE_MEMORY_LIMIT_MB): lower --size"),
+      std::string::npos)
       << host;
   // host work only (no device): a host limit
   const render::MemoryLimits host_only = render::host_memory_limits(1 << 20, "a test");
@@ -1315,8 +1329,8 @@ TEST(Maps, DirtyRectangleUploadsMatchWholeUploads) {
     }
   ASSERT_LT(cone_rect.x0, cone_rect.x1);
 
-  auto map_set = [&](const HeightField& field, const std::vector<float>& ratios, const std::vector<float>& apex,
-                     std::uint64_t version) {
+  auto map_set = [&](const HeightField& field, const std::vector<float>& ratios,
+                     const std::vector<float>& apex, std::uint64_t version) {
     render::MapSet set;
     set.width = set.height = size;
     set.heights = field.heights;
@@ -1401,8 +1415,8 @@ TEST(Maps, AFrameLoopKeepsResidentMemoryFlat) {
   shared_maps().set_heights(waves_field(32));
   const View view = oblique_view(24);
   render::Renderer& renderer = shared_renderer();
-  const std::array<render::MethodSettings, 3> methods = {{{Method::relief, 16, 4}, {Method::acm4, 16, 4},
-                                                          {Method::bump, 1, 0}}};
+  const std::array<render::MethodSettings, 3> methods = {
+      {{Method::relief, 16, 4}, {Method::acm4, 16, 4}, {Method::bump, 1, 0}}};
   Frame frame;
   auto frames = [&](int count) {
     for (int n = 0; n < count; ++n) {
@@ -1453,7 +1467,8 @@ TEST(Maps, AMethodWithoutItsMapsIsRefusedNamingTheMap) {
     return std::string("(rendered)");
   };
   EXPECT_EQ(error_of(Method::relief, view), "(rendered)");  // heights are enough
-  EXPECT_NE(error_of(Method::acm4, view).find("4-sector cone map"), std::string::npos) << error_of(Method::acm4, view);
+  EXPECT_NE(error_of(Method::acm4, view).find("4-sector cone map"), std::string::npos)
+      << error_of(Method::acm4, view);
   EXPECT_NE(error_of(Method::csm, view).find("1-sector cone map"), std::string::npos);
   EXPECT_NE(error_of(Method::maxmip, view).find("max pyramid"), std::string::npos);
   EXPECT_NE(error_of(Method::sphere, view).find("distance map"), std::string::npos);
@@ -1509,19 +1524,24 @@ TEST(MapPack, VectorisedEqualsScalar) {
     const int x0 = uniform(0, width - 1), y0 = uniform(0, height - 1);
     const bake::Rect rect{x0, y0, uniform(x0 + 1, width), uniform(y0 + 1, height)};
     const std::size_t columns = std::size_t(rect.x1 - rect.x0), rows = std::size_t(rect.y1 - rect.y0);
-    const std::size_t row_values = columns * 2 + 6, layer_values = row_values * rows + 10;  // padded, as images are
+    const std::size_t row_values = columns * 2 + 6,
+                      layer_values = row_values * rows + 10;  // padded, as images are
     const render::ConeMapView cones{sectors, bake::Address::wrap, ratios, apex, relaxed_ratios, 1, 0, {}};
     std::vector<std::uint16_t> fast(layer_values * 10, 0x7777), slow(fast);
-    const bool fast_ok = render::detail::pack_cones(cones, width, rect, fast.data(), row_values, layer_values, true);
-    const bool slow_ok = render::detail::pack_cones(cones, width, rect, slow.data(), row_values, layer_values, false);
+    const bool fast_ok =
+        render::detail::pack_cones(cones, width, rect, fast.data(), row_values, layer_values, true);
+    const bool slow_ok =
+        render::detail::pack_cones(cones, width, rect, slow.data(), row_values, layer_values, false);
     EXPECT_EQ(fast_ok, slow_ok) << "round " << round;
     if (slow_ok) {  // a refused map's bytes are never drawn (NaN meets min in another order)
       EXPECT_EQ(fast, slow) << "round " << round;
     }
     const std::size_t row_floats = columns + 3;
     std::vector<float> fast_heights(row_floats * rows, -7.0f), slow_heights(fast_heights);
-    const bool fast_heights_ok = render::detail::pack_heights(heights, width, rect, fast_heights.data(), row_floats, true);
-    const bool slow_heights_ok = render::detail::pack_heights(heights, width, rect, slow_heights.data(), row_floats, false);
+    const bool fast_heights_ok =
+        render::detail::pack_heights(heights, width, rect, fast_heights.data(), row_floats, true);
+    const bool slow_heights_ok =
+        render::detail::pack_heights(heights, width, rect, slow_heights.data(), row_floats, false);
     EXPECT_EQ(fast_heights_ok, slow_heights_ok) << "round " << round;
     EXPECT_EQ(std::memcmp(fast_heights.data(), slow_heights.data(), fast_heights.size() * sizeof(float)), 0);
     ++compared;
@@ -1552,7 +1572,8 @@ TEST(MapPack, ConeEncodingIsConservativeAndTight) {
   EXPECT_EQ(loose, 0);
   long long below = 0, high = 0;
   for (int n = 0; n <= 1000000; ++n) {
-    const float apex = n <= 100000 ? float(n) / 100000.0f : std::uniform_real_distribution<float>(0.0f, 1.0f)(random);
+    const float apex =
+        n <= 100000 ? float(n) / 100000.0f : std::uniform_real_distribution<float>(0.0f, 1.0f)(random);
     const double read = render::detail::decode_apex(render::detail::encode_apex(apex));
     below += read < double(apex);
     high += read > double(apex) + 3.0 / 65535.0;

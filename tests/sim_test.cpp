@@ -586,8 +586,8 @@ TEST(Choppy, ResamplingInvertsTheDisplacement) {
   EXPECT_LT(ocean_residual, 1e-3 * params.patch_size / 64);
   const auto [lo, hi] = std::minmax_element(frame.height.begin(), frame.height.end());
   for (float h : choppy) EXPECT_TRUE(h >= *lo - 1e-4f && h <= *hi + 1e-4f);
-  EXPECT_THROW(resample_displaced(64, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 6,
-                                  std::span<float>(choppy.data(), 10)),
+  EXPECT_THROW(resample_displaced(64, params.patch_size, frame.height, frame.displacement_x,
+                                  frame.displacement_y, 6, std::span<float>(choppy.data(), 10)),
                std::invalid_argument);
 }
 
@@ -613,13 +613,14 @@ ScalarSample scalar_bilinear(const std::vector<float>& grid, int size, float x, 
   const float* row1 = grid.data() + std::size_t(y1) * size;
   const float top = row0[x0] + (row0[x1] - row0[x0]) * tx;
   const float bottom = row1[x0] + (row1[x1] - row1[x0]) * tx;
-  return {top + (bottom - top) * ty, (row0[x1] - row0[x0]) + ((row1[x1] - row1[x0]) - (row0[x1] - row0[x0])) * ty,
-          bottom - top};
+  return {top + (bottom - top) * ty,
+          (row0[x1] - row0[x0]) + ((row1[x1] - row1[x0]) - (row0[x1] - row0[x0])) * ty, bottom - top};
 }
 
-double scalar_resample(int size, float patch_size, const std::vector<float>& height, const std::vector<float>& dx,
-                       const std::vector<float>& dy, int iterations, std::vector<float>& out,
-                       const std::vector<float>& extra, std::vector<float>& extra_out) {
+double scalar_resample(int size, float patch_size, const std::vector<float>& height,
+                       const std::vector<float>& dx, const std::vector<float>& dy, int iterations,
+                       std::vector<float>& out, const std::vector<float>& extra,
+                       std::vector<float>& extra_out) {
   const float texels_per_metre = float(size) / patch_size;
   auto tame = [](float v) { return std::max(-16777216.0f, std::min(16777216.0f, v)); };
   std::vector<float> last_x(size), last_y(size), move_x(size), move_y(size);
@@ -687,11 +688,12 @@ TEST(Choppy, BlockedResamplingEqualsTheScalarOneBitForBit) {
     dxs.push_back(far_x);
     dys.push_back(far_y);
     for (std::size_t d = 0; d < dxs.size(); ++d) {
-      std::vector<float> out(far_x.size()), extra_out(far_x.size()), want(far_x.size()), want_extra(far_x.size());
+      std::vector<float> out(far_x.size()), extra_out(far_x.size()), want(far_x.size()),
+          want_extra(far_x.size());
       const double residual = resample_displaced(n, params.patch_size, frame.height, dxs[d], dys[d], 6, out,
                                                  frame.jacobian, extra_out);
-      const double want_residual = scalar_resample(n, params.patch_size, frame.height, dxs[d], dys[d], 6, want,
-                                                   frame.jacobian, want_extra);
+      const double want_residual = scalar_resample(n, params.patch_size, frame.height, dxs[d], dys[d], 6,
+                                                   want, frame.jacobian, want_extra);
       EXPECT_EQ(out, want) << n << " texels, displacement " << d;
       EXPECT_EQ(extra_out, want_extra) << n << " texels, displacement " << d;
       EXPECT_NEAR(residual, want_residual, 1e-6 * std::max(1.0, want_residual)) << n << ", " << d;
@@ -709,13 +711,15 @@ TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
     OceanParams params;
     const OceanFrame frame = choppy_frame(n, 1.0, params);
     const std::size_t texels = frame.height.size();
-    std::vector<float> converged(texels), settled(texels), fixed(texels), extra(texels), settled_extra(texels);
-    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 40, converged,
-                       frame.jacobian, extra);
+    std::vector<float> converged(texels), settled(texels), fixed(texels), extra(texels),
+        settled_extra(texels);
+    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 40,
+                       converged, frame.jacobian, extra);
     const double six = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
                                           frame.displacement_y, 6, fixed, frame.jacobian, extra);
-    const double residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
-                                               frame.displacement_y, 8, settled, frame.jacobian, settled_extra, 3e-4f);
+    const double residual =
+        resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 8,
+                           settled, frame.jacobian, settled_extra, 3e-4f);
     EXPECT_LT(residual * n / params.patch_size, 3e-4) << n;  // texels: within the settle
     std::vector<float> eight(texels);
     const double eight_residual = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
@@ -725,17 +729,19 @@ TEST(Choppy, SettledResamplingStopsNearTheFixedPoint) {
     const double range = double(*high) - double(*low);
     auto farthest = [&](const std::vector<float>& heights) {
       double worst = 0.0;
-      for (std::size_t t = 0; t < texels; ++t) worst = std::max(worst, std::abs(double(heights[t]) - converged[t]));
+      for (std::size_t t = 0; t < texels; ++t)
+        worst = std::max(worst, std::abs(double(heights[t]) - converged[t]));
       return worst;
     };
     EXPECT_LT(farthest(settled), 1e-4 * range) << n;
     std::vector<float> loose(texels);
-    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 8, loose,
-                       frame.jacobian, settled_extra, 0.003f);
+    resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 8,
+                       loose, frame.jacobian, settled_extra, 0.003f);
     EXPECT_GT(farthest(loose), farthest(settled)) << n;
     // a settle of 0 runs every step
-    const double all = resample_displaced(n, params.patch_size, frame.height, frame.displacement_x,
-                                          frame.displacement_y, 6, settled, frame.jacobian, settled_extra, 0.0f);
+    const double all =
+        resample_displaced(n, params.patch_size, frame.height, frame.displacement_x, frame.displacement_y, 6,
+                           settled, frame.jacobian, settled_extra, 0.0f);
     EXPECT_EQ(all, six);
     EXPECT_EQ(settled, fixed);
   }
@@ -759,8 +765,9 @@ TEST(Choppy, SteepSeasStayFiniteAndConverge) {
     OceanFrame frame;
     ocean.evaluate(3.0, ocean_heights | ocean_displacement | ocean_foam, frame);
     std::vector<float> out(frame.height.size()), extra(frame.height.size());
-    const double residual = resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
-                                               frame.displacement_y, 8, out, frame.jacobian, extra, 3e-4f);
+    const double residual =
+        resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
+                           frame.displacement_y, 8, out, frame.jacobian, extra, 3e-4f);
     const auto [lo, hi] = std::minmax_element(frame.height.begin(), frame.height.end());
     for (float h : out) ASSERT_TRUE(std::isfinite(h) && h >= *lo - 1e-4f && h <= *hi + 1e-4f) << choppiness;
     for (float j : extra) ASSERT_TRUE(std::isfinite(j)) << choppiness;

@@ -67,7 +67,8 @@ inline Map make_fractal_cliff(int w, int h, std::uint64_t seed = 3) {
   for (int i = 0; i < h; ++i)
     for (int j = 0; j < w; ++j) {
       float sum = 0.0f, amplitude = 0.5f;
-      for (int octave = 0, cell = std::max(2, std::max(w, h) / 2); octave < 5 && cell >= 1; ++octave, cell /= 2) {
+      for (int octave = 0, cell = std::max(2, std::max(w, h) / 2); octave < 5 && cell >= 1;
+           ++octave, cell /= 2) {
         const float fi = float(i) / cell, fj = float(j) / cell;
         const int i0 = int(fi), j0 = int(fj);
         const float ti = fi - i0, tj = fj - j0;

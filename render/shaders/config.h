@@ -35,21 +35,25 @@ using mat4 = glm::mat4;
 #define SURFACE_SPHERE 1
 #define SURFACE_CYLINDER 2
 #define SURFACE_CONE 3
-#define SURFACE_MESH 4  // render/mesh.h, mesh.vert.glsl, mesh.inc.glsl
-#define QUADRIC_AXIS_X 0.5    // every quadric's axis is the vertical line x = y = 0.5 (world units)
+#define SURFACE_MESH 4      // render/mesh.h, mesh.vert.glsl, mesh.inc.glsl
+#define QUADRIC_AXIS_X 0.5  // every quadric's axis is the vertical line x = y = 0.5 (world units)
 #define QUADRIC_AXIS_Y 0.5
 #define CONE_APEX_HEIGHT 1.5  // the cone's apex is at z = 1.5 R
 #define CONE_SLOPE 0.5        // tan of the cone's half-angle: radius gained per unit of descent
 
 // descriptor bindings (set 0)
-#define BINDING_FRAME 0    // read-only storage buffer: FrameUniforms (frame_block.inc.glsl)
-#define BINDING_HEIGHT 1   // sampler2D, R32F heights, linear, the address mode
-#define BINDING_CONES 2    // usampler2DArray, RG16UI: layer k = (ratio of sector k, apex height) encoded, nearest
-#define RELAXED_CONE_SECTORS 4  // relaxed: layers 0-3 its bilinear cones, 4 their minimum, 5 (relaxed ratio, apex)
-#define BINDING_DISTANCE 3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
+#define BINDING_FRAME 0   // read-only storage buffer: FrameUniforms (frame_block.inc.glsl)
+#define BINDING_HEIGHT 1  // sampler2D, R32F heights, linear, the address mode
+#define BINDING_CONES \
+  2  // usampler2DArray, RG16UI: layer k = (ratio of sector k, apex height) encoded, nearest
+#define RELAXED_CONE_SECTORS \
+  4  // relaxed: layers 0-3 its bilinear cones, 4 their minimum, 5 (relaxed ratio, apex)
+#define BINDING_DISTANCE \
+  3  // sampler3D, R32F distance map (u, v, h), trilinear, the address mode in u, v, clamp in h
 #define BINDING_MAX_PYRAMID 4  // storage buffer: MaxPyramidHeader, then float values[] (bake::DualMaxPyramid)
-#define BINDING_ALBEDO 5   // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
-#define BINDING_FOAM 6     // sampler2D, R32F foam coverage in [0, 1] (the water material), linear, the address mode
+#define BINDING_ALBEDO 5       // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
+#define BINDING_FOAM \
+  6  // sampler2D, R32F foam coverage in [0, 1] (the water material), linear, the address mode
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
@@ -70,13 +74,14 @@ using mat4 = glm::mat4;
 
 struct FrameUniforms {
   mat4 view_projection;
-  vec4 eye;          // xyz: world position of the eye
-  vec4 light;        // xyz: unit direction towards the light
-  vec4 surface;      // x: tile K, y: depth scale D, z: 1 / K, w: linear filtering's weight step 2^-subTexelPrecisionBits
-  vec4 map_size;     // x: W, y: H, z: 1 / W, w: 1 / H
-  ivec4 counts;      // x: steps, y: refine, z: flags, w: cone sectors
-  vec4 background;   // rgba of pixels off the relief
-  vec4 quadric;      // x: radius R of the quadric's outer surface, yzw: unused (quadric surfaces only)
+  vec4 eye;         // xyz: world position of the eye
+  vec4 light;       // xyz: unit direction towards the light
+  vec4 surface;     // x: tile K, y: depth scale D, z: 1 / K, w: linear filtering's weight step
+                    // 2^-subTexelPrecisionBits
+  vec4 map_size;    // x: W, y: H, z: 1 / W, w: 1 / H
+  ivec4 counts;     // x: steps, y: refine, z: flags, w: cone sectors
+  vec4 background;  // rgba of pixels off the relief
+  vec4 quadric;     // x: radius R of the quadric's outer surface, yzw: unused (quadric surfaces only)
   // the camera's pixel rays (Camera::pixel_rays): the direction through gl_FragCoord (x, y) is
   // ray_corner + x ray_along_x + y ray_along_y, unnormalised (xyz; w unused)
   vec4 ray_corner;

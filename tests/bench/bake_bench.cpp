@@ -228,11 +228,14 @@ const OceanFrames& ocean_frames(int size, MapKind kind = MapKind::ocean) {
 // for each quadrant k holding x - p (both on a boundary). Returns the pairs that fail by over 1e-6.
 long long sampled_violations(const std::vector<float>& heights, int size, const std::vector<float>& cones,
                              const std::vector<float>& apex) {
-  auto h = [&](int i, int j) { return double(heights[std::size_t((i % size + size) % size) * size + (j % size + size) % size]); };
+  auto h = [&](int i, int j) {
+    return double(heights[std::size_t((i % size + size) % size) * size + (j % size + size) % size]);
+  };
   auto s = [&](int y, int x) {  // at half-texel coordinates (x / 2, y / 2) from texel centres
     const int i0 = y >= 0 ? y / 2 : -((1 - y) / 2), j0 = x >= 0 ? x / 2 : -((1 - x) / 2);
     const double fy = (y - 2 * i0) * 0.5, fx = (x - 2 * j0) * 0.5;
-    return (h(i0, j0) * (1 - fx) + h(i0, j0 + 1) * fx) * (1 - fy) + (h(i0 + 1, j0) * (1 - fx) + h(i0 + 1, j0 + 1) * fx) * fy;
+    return (h(i0, j0) * (1 - fx) + h(i0, j0 + 1) * fx) * (1 - fy) +
+           (h(i0 + 1, j0) * (1 - fx) + h(i0 + 1, j0 + 1) * fx) * fy;
   };
   constexpr int reach = 24;  // half texels
   long long violations = 0;
@@ -256,8 +259,8 @@ long long sampled_violations(const std::vector<float>& heights, int size, const 
   return violations;
 }
 
-void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std::numeric_limits<double>::infinity(),
-                  MapKind kind = MapKind::ocean) {
+void run_bilinear(benchmark::State& state, bool budgeted,
+                  double budget_ms = std::numeric_limits<double>::infinity(), MapKind kind = MapKind::ocean) {
   const int size = int(state.range(0));
   const OceanFrames& frames = ocean_frames(size, kind);
   std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
@@ -280,7 +283,8 @@ void run_bilinear(benchmark::State& state, bool budgeted, double budget_ms = std
     benchmark::DoNotOptimize(cones.data());
     ++frame;
   }
-  if (!std::isnan(frames.full_mean[last])) state.counters["mean_ratio_vs_full"] = stats.mean_ratio / frames.full_mean[last];
+  if (!std::isnan(frames.full_mean[last]))
+    state.counters["mean_ratio_vs_full"] = stats.mean_ratio / frames.full_mean[last];
   state.counters["mean_ratio"] = stats.mean_ratio;
   state.counters["violations"] = double(sampled_violations(frames.heights[last], size, cones, apex));
   state.counters["searched_frac"] = double(stats.texels_refined) / double(size * size);
@@ -300,7 +304,8 @@ void run_bilinear_map(benchmark::State& state, MapKind kind, int width, int heig
   bake::BilinearBaker baker(width, height, 4, bake::Address::wrap);
   bake::Budget budget;
   budget.milliseconds = 0.0;
-  bake::BakeStats stats = baker.bake({heights->data(), width, height}, budget, {cones.data(), width, height, 4}, apex);
+  bake::BakeStats stats =
+      baker.bake({heights->data(), width, height}, budget, {cones.data(), width, height, 4}, apex);
   for (auto _ : state) {
     stats = baker.bake({heights->data(), width, height}, budget, {cones.data(), width, height, 4}, apex);
     benchmark::DoNotOptimize(cones.data());
@@ -314,13 +319,13 @@ struct Registration {
     for (MapKind kind : {MapKind::ocean, MapKind::bricks})
       for (const auto& [width, height] : {std::pair{2048, 1024}, std::pair{1024, 2048}, std::pair{1448, 1448},
                                           std::pair{4096, 256}, std::pair{1024, 1024}}) {
-        auto* b = benchmark::RegisterBenchmark(
-            (std::string("BM_BakeBilinearNonSquare/") + kind_name(kind) + "/" + std::to_string(width) + "x" +
-             std::to_string(height))
-                .c_str(),
-            [kind, width = width, height = height](benchmark::State& state) {
-              run_bilinear_map(state, kind, width, height);
-            });
+        auto* b =
+            benchmark::RegisterBenchmark((std::string("BM_BakeBilinearNonSquare/") + kind_name(kind) + "/" +
+                                          std::to_string(width) + "x" + std::to_string(height))
+                                             .c_str(),
+                                         [kind, width = width, height = height](benchmark::State& state) {
+                                           run_bilinear_map(state, kind, width, height);
+                                         });
         b->Unit(benchmark::kMillisecond)->UseRealTime();
       }
     for (bool budgeted : {true, false})
@@ -343,7 +348,8 @@ struct Registration {
     for (MapKind kind : {MapKind::sinusoids, MapKind::bricks})
       for (bool budgeted : {true, false}) {
         auto* b = benchmark::RegisterBenchmark(
-            (std::string("BM_BakeBilinear/") + kind_name(kind) + "/" + (budgeted ? "budgeted-0ms" : "full")).c_str(),
+            (std::string("BM_BakeBilinear/") + kind_name(kind) + "/" + (budgeted ? "budgeted-0ms" : "full"))
+                .c_str(),
             [kind, budgeted](benchmark::State& state) { run_bilinear(state, budgeted, 0.0, kind); });
         b->Arg(256)->Arg(512)->Unit(benchmark::kMillisecond)->UseRealTime();
         if (!budgeted) b->Iterations(2);

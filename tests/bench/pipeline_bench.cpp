@@ -97,8 +97,8 @@ void run_lagged(benchmark::State& state, int map_size, int lag) {
     baker.bake({then.heights.data(), map_size, map_size}, none, {ratios.data(), map_size, map_size, 4}, made);
     return pipeline::raise_apexes(then.heights, now.heights, made, apex);
   };
-  auto render_with = [&](const std::vector<float>& ratios, const std::vector<float>& apex, std::uint64_t version,
-                         render::Frame& frame) {
+  auto render_with = [&](const std::vector<float>& ratios, const std::vector<float>& apex,
+                         std::uint64_t version, render::Frame& frame) {
     render::MapSet maps;
     maps.width = maps.height = map_size;
     maps.heights = now.heights;
@@ -127,7 +127,8 @@ void run_lagged(benchmark::State& state, int map_size, int lag) {
     ++hits;
     fetches += frame.fetches[p];
     iterations += frame.iterations[p];
-    const double du = double(frame.uv[3 * p] - fresh.uv[3 * p]), dv = double(frame.uv[3 * p + 1] - fresh.uv[3 * p + 1]);
+    const double du = double(frame.uv[3 * p] - fresh.uv[3 * p]),
+                 dv = double(frame.uv[3 * p + 1] - fresh.uv[3 * p + 1]);
     moved += std::sqrt(du * du + dv * dv) * map_size > 0.01;
   }
   state.counters["fetches_per_pixel"] = fetches / double(std::max(hits, 1ll));
@@ -142,7 +143,8 @@ void register_frames() {
   for (int size : {256, 512}) {
     for (int lag : {0, 1, 2, 4, 8}) {
       const std::string name = "BM_LaggedCones/water/" + std::to_string(size) + "/lag:" + std::to_string(lag);
-      benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& state) { run_lagged(state, size, lag); })
+      benchmark::RegisterBenchmark(name.c_str(),
+                                   [=](benchmark::State& state) { run_lagged(state, size, lag); })
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }
@@ -152,7 +154,8 @@ void register_frames() {
       for (double budget : {16.0, 100.0}) {
         const std::string name = std::string("BM_Frame/") + scene + "/" + std::to_string(size) + "/" +
                                  std::to_string(int(budget)) + "ms";
-        benchmark::RegisterBenchmark(name.c_str(), [=](benchmark::State& state) { run_frames(state, scene, size, budget); })
+        benchmark::RegisterBenchmark(name.c_str(),
+                                     [=](benchmark::State& state) { run_frames(state, scene, size, budget); })
             ->Unit(benchmark::kMillisecond)
             ->UseRealTime()
             ->Iterations(12);

@@ -24,10 +24,7 @@ constexpr int sectors = 4;
 
 struct Maps {
   std::vector<float> heights, ratios, apex;
-  Maps()
-      : heights(std::size_t(map_side) * map_side),
-        ratios(heights.size() * sectors),
-        apex(heights.size()) {
+  Maps() : heights(std::size_t(map_side) * map_side), ratios(heights.size() * sectors), apex(heights.size()) {
     for (std::size_t t = 0; t < heights.size(); ++t) {
       heights[t] = float(t % 97) / 97.0f;
       apex[t] = std::min(1.0f, heights[t] + 0.01f);
@@ -45,8 +42,8 @@ render::MapSet map_set(const Maps& maps, std::uint64_t version, std::uint64_t si
   set.heights_version = version;
   set.heights_dirty_since = since;
   set.heights_dirty = dirty;
-  set.cones[std::size_t(render::cone_slot(sectors))] = {sectors, bake::Address::wrap, maps.ratios, maps.apex, {},
-                                                        version, since, dirty};
+  set.cones[std::size_t(render::cone_slot(sectors))] = {
+      sectors, bake::Address::wrap, maps.ratios, maps.apex, {}, version, since, dirty};
   return set;
 }
 
@@ -69,7 +66,8 @@ void run_upload(benchmark::State& state, int rect_side, bool host_written) {
   renderer.set_maps(map_set(maps, version, 0, {}));
   renderer.wait_idle();
   const bake::Rect rect{100, 200, 100 + rect_side, 200 + rect_side};
-  const std::span<const bake::Rect> dirty = rect_side > 0 ? std::span<const bake::Rect>(&rect, 1) : std::span<const bake::Rect>{};
+  const std::span<const bake::Rect> dirty =
+      rect_side > 0 ? std::span<const bake::Rect>(&rect, 1) : std::span<const bake::Rect>{};
   const long long allocations = renderer.memory_allocations();
   double host_seconds = 0.0;
   for (auto _ : state) {
@@ -99,11 +97,18 @@ void run_memcpy(benchmark::State& state) {
     benchmark::DoNotOptimize(destination.data());
     benchmark::ClobberMemory();
   }
-  state.counters["MB/s"] = benchmark::Counter(double(maps.bytes()) / 1e6, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["MB/s"] =
+      benchmark::Counter(double(maps.bytes()) / 1e6, benchmark::Counter::kIsIterationInvariantRate);
 }
 
-BENCHMARK_CAPTURE(run_upload, whole, 0, true)->Name("BM_UploadMaps/512/whole")->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(run_upload, rect64, 64, true)->Name("BM_UploadMaps/512/rect64")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(run_upload, whole, 0, true)
+    ->Name("BM_UploadMaps/512/whole")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(run_upload, rect64, 64, true)
+    ->Name("BM_UploadMaps/512/rect64")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(run_upload, whole_staged, 0, false)
     ->Name("BM_UploadMaps/512/whole-staged")
     ->Unit(benchmark::kMillisecond)

@@ -74,8 +74,9 @@ void run_choppy_resample(benchmark::State& state, int iterations, float settle) 
   std::vector<float> heights(frame.height.size()), jacobian(frame.height.size());
   double residual = 0.0;
   for (auto _ : state) {
-    residual = resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
-                                  frame.displacement_y, iterations, heights, frame.jacobian, jacobian, settle);
+    residual =
+        resample_displaced(params.size, params.patch_size, frame.height, frame.displacement_x,
+                           frame.displacement_y, iterations, heights, frame.jacobian, jacobian, settle);
     benchmark::DoNotOptimize(heights.data());
     benchmark::ClobberMemory();
   }
@@ -84,8 +85,16 @@ void run_choppy_resample(benchmark::State& state, int iterations, float settle) 
 // six fixed steps (the frame pipeline's before), and the pipeline's: up to 8, settling at 0.003 texel
 void BM_ChoppyResample(benchmark::State& state) { run_choppy_resample(state, 6, 0.0f); }
 void BM_ChoppySettled(benchmark::State& state) { run_choppy_resample(state, 8, 3e-4f); }  // the pipeline's
-BENCHMARK(BM_ChoppyResample)->RangeMultiplier(2)->Range(256, 1024)->Unit(benchmark::kMicrosecond)->UseRealTime();
-BENCHMARK(BM_ChoppySettled)->RangeMultiplier(2)->Range(256, 1024)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_ChoppyResample)
+    ->RangeMultiplier(2)
+    ->Range(256, 1024)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+BENCHMARK(BM_ChoppySettled)
+    ->RangeMultiplier(2)
+    ->Range(256, 1024)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
 
 void BM_SinusoidHeights(benchmark::State& state) {
   const int size = static_cast<int>(state.range(0));

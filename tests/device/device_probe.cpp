@@ -100,7 +100,8 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
     std::printf("%-16s %5s %9s %9s %8s %8s\n", "method", "steps", "median_ms", "rmse", "over10%", "fetches");
     render::Frame frame;
     for (const render::MethodInfo& info : render::method_table()) {
-      if (info.method == render::Method::reference || !render::supports_surface(info.method, view.surface)) continue;
+      if (info.method == render::Method::reference || !render::supports_surface(info.method, view.surface))
+        continue;
       for (int steps : plan.steps) {
         const render::MethodSettings settings{info.method, steps, 8};
         frame = pipeline::render_with_maps(renderer, maps, view, settings);
@@ -111,8 +112,8 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
           renderer.render(view, settings, frame, render::output_color);
           times.push_back(frame.gpu_milliseconds);
         }
-        std::printf("%-16s %5d %9.4f %9.3f %8.3f %8.2f\n", info.name, steps, percentile(times, 0.5), error.rmse,
-                    100.0 * error.fraction_over_10, fetches);
+        std::printf("%-16s %5d %9.4f %9.3f %8.3f %8.2f\n", info.name, steps, percentile(times, 0.5),
+                    error.rmse, 100.0 * error.fraction_over_10, fetches);
         if (std::string(name) == "water" && info.method == render::Method::acm4 && steps == 32) {
           write_ppm(frame, directory + "/water_acm4.ppm");
         }
@@ -153,11 +154,12 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
         }
         std::printf(
-            "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f render %.3f "
+            "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f "
+            "render %.3f "
             "frame %.3f ms, frame p95 %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
-            size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5), percentile(bake, 0.5),
-            percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
-            percentile(age, 0.5), renderer.memory_allocations() - allocations);
+            size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5),
+            percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5),
+            percentile(total, 0.95), percentile(age, 0.5), renderer.memory_allocations() - allocations);
         std::fflush(stdout);
       }
     }

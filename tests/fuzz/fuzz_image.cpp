@@ -27,7 +27,8 @@
 
 namespace {
 
-constexpr std::array<const char*, 6> names = {"fuzz.png", "fuzz.jpg", "fuzz.exr", "fuzz.tif", "fuzz.bmp", "fuzz.hdr"};
+constexpr std::array<const char*, 6> names = {"fuzz.png", "fuzz.jpg", "fuzz.exr",
+                                              "fuzz.tif", "fuzz.bmp", "fuzz.hdr"};
 
 const bool one_reader = OIIO::attribute("try_all_readers", 0);
 
