@@ -120,28 +120,32 @@ double percentile(std::vector<double> values, double fraction) {
 
 }  // namespace
 
-void run_sequence(const SequenceSettings& settings, std::ostream& out) {
-  // the frames of this shard (round robin over A..B:STEP)
+namespace {
+
+// The frames of this shard (round robin over A..B:STEP).
+std::vector<long long> shard_frames(const SequenceSettings& settings) {
   std::vector<long long> frames;
   long long position = 0;
   for (long long n = settings.first; n <= settings.last; n += settings.step, ++position) {
     if (position % settings.shard_count == settings.shard_index - 1) frames.push_back(n);
   }
+  return frames;
+}
+
+// The directories of the frame and AOV patterns, made before the first frame.
+void make_output_directories(const SequenceSettings& settings) {
+  std::vector<std::filesystem::path> patterns{settings.output};
+  for (const AovOutput& aov : settings.aovs) patterns.push_back(aov.file);
   std::error_code error;
-  for (const std::filesystem::path& pattern : [&] {
-         std::vector<std::filesystem::path> patterns{settings.output};
-         for (const AovOutput& aov : settings.aovs) patterns.push_back(aov.file);
-         return patterns;
-       }()) {
+  for (const std::filesystem::path& pattern : patterns) {
     if (!pattern.parent_path().empty()) std::filesystem::create_directories(pattern.parent_path(), error);
     if (error)
       throw runtime_error(fmt::format("cannot create the directory '{}'", pattern.parent_path().string()));
   }
-  if (!settings.video.empty() && !on_path("ffmpeg")) {
-    throw runtime_error(
-        "--video needs ffmpeg on the PATH (apt-get install ffmpeg); the frames alone need no --video");
-  }
+}
 
+// The render outputs the frame and its AOVs read back.
+unsigned sequence_outputs(const SequenceSettings& settings) {
   unsigned outputs = render::output_color;
   for (const AovOutput& aov : settings.aovs) {
     outputs |= aov.aov == Aov::uv           ? render::output_uv
@@ -149,25 +153,91 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                : aov.aov == Aov::iterations ? render::output_uv | render::output_iterations
                                             : render::output_uv | render::output_fetches;
   }
+  return outputs;
+}
+
+// ffmpeg reading raw RGBA frames for --video; null without --video.
+std::FILE* start_video(const SequenceSettings& settings) {
+  if (settings.video.empty()) return nullptr;
+  const pipeline::Scene& scene = settings.scene;
+  const std::string command = fmt::format(
+      "ffmpeg -loglevel error -y -f rawvideo -pix_fmt rgba -s {}x{} -r {} -i - -pix_fmt yuv420p '{}'",
+      scene.camera.width, scene.camera.height, scene.fps, settings.video.string());
+  std::FILE* video = ::popen(command.c_str(), "w");
+  if (!video) throw runtime_error("cannot start ffmpeg for --video");
+  return video;
+}
+
+constexpr const char* sequence_csv_header =
+    "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
+    "mean_ratio,pending_texels,cone_lag_frames,cone_lift\n";
+
+std::string sequence_csv_row(long long n, const pipeline::FrameRecord& record) {
+  return fmt::format(
+      "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
+      record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
+      std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
+      record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
+      record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
+}
+
+// Frame n's picture and AOVs, each written atomically.
+void write_sequence_frame(const SequenceSettings& settings, long long n, const pipeline::FrameRecord& record,
+                          const render::Frame& frame, const std::filesystem::path& picture,
+                          const std::vector<AovOutput>& aovs) {
+  const pipeline::Scene& scene = settings.scene;
+  Metadata metadata = {{"displace:scene", scene.name},
+                       {"displace:frame", int(n)},
+                       {"displace:time", fmt::format("{:.17g}", record.time)},
+                       {"displace:method", std::string(render::method_info(scene.method).name)},
+                       {"displace:steps", scene.steps}};
+  write_atomically(picture,
+                   [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
+  for (const AovOutput& aov : aovs) {
+    write_atomically(aov.file, [&](const std::filesystem::path& file) {
+      write_aov({aov.aov, file}, frame, metadata);
+    });
+  }
+}
+
+// Progress: a bar on a terminal, one line a frame otherwise.
+void report_sequence_progress(std::ostream& out, bool terminal, long long n, long long finished,
+                              std::size_t total, double rate, const pipeline::FrameRecord& record,
+                              const std::filesystem::path& picture) {
+  if (terminal) {
+    const int width = 30;
+    const int filled = int(width * double(finished) / double(total));
+    const double left = double((long long)total - finished);
+    std::fprintf(stderr, "\r[%s%s] frame %lld of %zu, %.2f frames/s, %.0f s left ",
+                 std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), finished, total,
+                 rate, left / std::max(rate, 1e-9));
+    std::fflush(stderr);
+  } else {
+    out << fmt::format(
+        "frame {} ({} of {}): {:.1f} ms (sim {:.1f}, bake {:.1f}, upload {:.1f}, render {:.1f}) -> {}\n", n,
+        finished, total, record.frame_ms, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
+        picture.string());
+  }
+}
+
+}  // namespace
+
+void run_sequence(const SequenceSettings& settings, std::ostream& out) {
+  const std::vector<long long> frames = shard_frames(settings);
+  make_output_directories(settings);
+  if (!settings.video.empty() && !on_path("ffmpeg")) {
+    throw runtime_error(
+        "--video needs ffmpeg on the PATH (apt-get install ffmpeg); the frames alone need no --video");
+  }
+  const unsigned outputs = sequence_outputs(settings);
   render::Renderer renderer(settings.renderer);
   require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
   pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
   const pipeline::Scene& scene = settings.scene;
-
-  std::FILE* video = nullptr;
-  if (!settings.video.empty()) {
-    const std::string command = fmt::format(
-        "ffmpeg -loglevel error -y -f rawvideo -pix_fmt rgba -s {}x{} -r {} -i - -pix_fmt yuv420p '{}'",
-        scene.camera.width, scene.camera.height, scene.fps, settings.video.string());
-    video = ::popen(command.c_str(), "w");
-    if (!video) throw runtime_error("cannot start ffmpeg for --video");
-  }
+  std::FILE* video = start_video(settings);
 
   const std::filesystem::path csv_path = csv_file(settings);
-  std::string csv =
-      "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
-      "mean_ratio,"
-      "pending_texels,cone_lag_frames,cone_lift\n";
+  std::string csv = sequence_csv_header;
   const bool terminal = stderr_is_terminal();
   const double start = seconds_now();
   render::Frame frame;
@@ -185,46 +255,16 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
       continue;
     }
     const pipeline::FrameRecord record = pipeline.run(n, frame, outputs);
-    Metadata metadata = {{"displace:scene", scene.name},
-                         {"displace:frame", int(n)},
-                         {"displace:time", fmt::format("{:.17g}", record.time)},
-                         {"displace:method", std::string(render::method_info(scene.method).name)},
-                         {"displace:steps", scene.steps}};
-    write_atomically(picture,
-                     [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
-    for (const AovOutput& aov : aovs) {
-      write_atomically(aov.file, [&](const std::filesystem::path& file) {
-        write_aov({aov.aov, file}, frame, metadata);
-      });
-    }
+    write_sequence_frame(settings, n, record, frame, picture, aovs);
     if (!settings.preview.empty()) preview.push_back(frame.color);
     if (video && std::fwrite(frame.color.data(), 1, frame.color.size(), video) != frame.color.size()) {
       ::pclose(video);
       throw runtime_error("ffmpeg stopped taking frames for --video");
     }
-    csv += fmt::format(
-        "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
-        record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
-        std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
-        record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
-        record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
+    csv += sequence_csv_row(n, record);
     ++done;
-    const double elapsed = seconds_now() - start;
-    const double rate = double(done) / std::max(elapsed, 1e-9);
-    const long long left = (long long)frames.size() - done - skipped;
-    if (terminal) {
-      const int width = 30;
-      const int filled = int(width * double(done + skipped) / double(frames.size()));
-      std::fprintf(stderr, "\r[%s%s] frame %lld of %zu, %.2f frames/s, %.0f s left ",
-                   std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), done + skipped,
-                   frames.size(), rate, double(left) / std::max(rate, 1e-9));
-      std::fflush(stderr);
-    } else {
-      out << fmt::format(
-          "frame {} ({} of {}): {:.1f} ms (sim {:.1f}, bake {:.1f}, upload {:.1f}, render {:.1f}) -> {}\n", n,
-          done + skipped, frames.size(), record.frame_ms, record.sim_ms, record.bake_ms, record.upload_ms,
-          record.render_ms, picture.string());
-    }
+    const double rate = double(done) / std::max(seconds_now() - start, 1e-9);
+    report_sequence_progress(out, terminal, n, done + skipped, frames.size(), rate, record, picture);
   }
   if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
   if (video && ::pclose(video) != 0) throw runtime_error("ffmpeg failed to encode --video");
@@ -255,43 +295,52 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   }
 }
 
-void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
-  render::Renderer renderer(settings.renderer);
-  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
-  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
-  const pipeline::Scene& scene = settings.scene;
+namespace {
+
+// What bench-frame measures over the timed frames (those after the warm-up).
+struct BenchSamples {
   std::vector<double> sim, bake, upload, draw, frame_ms, interval, lag, lift;
-  for (std::vector<double>* times : {&sim, &bake, &upload, &draw, &frame_ms, &interval, &lag, &lift}) {
-    times->reserve(std::size_t(settings.frames));  // made before the loop: not counted as growth
-  }
   long long ffts = 0, within = 0;
   unsigned effects = 0;
-  long long allocations_after_warm_up = 0;
   bool cones = false;  // a cone map was baked (the records' cone stats)
+  long long allocations_after_warm_up = 0;
   // resident memory: after the warm-up, the most seen after it, at the end (a soak's growth)
-  long long rss_after_warm_up = -1, rss_max = -1;
+  long long rss_after_warm_up = -1, rss_max = -1, rss_end = -1;
+  long long allocations = 0;  // Vulkan allocations after the warm-up
+  int pinned_threads = 0, pinned_cpus = 0;
+};
+
+// Runs the warm-up and the timed frames, collecting every frame's record as it comes back.
+BenchSamples run_bench_frames(const BenchFrameSettings& settings, render::Renderer& renderer,
+                              pipeline::FramePipeline& pipeline) {
+  const pipeline::Scene& scene = settings.scene;
+  BenchSamples samples;
+  for (std::vector<double>* times : {&samples.sim, &samples.bake, &samples.upload, &samples.draw,
+                                     &samples.frame_ms, &samples.interval, &samples.lag, &samples.lift}) {
+    times->reserve(std::size_t(settings.frames));  // made before the loop: not counted as growth
+  }
   double last_done = 0.0;
   long long seen = 0;
   auto take = [&](const pipeline::FrameRecord& record) {
     const double now = seconds_now() * 1e3;
     if (seen == settings.warm_up) {
-      allocations_after_warm_up = renderer.memory_allocations();
-      rss_after_warm_up = resident_kilobytes();
+      samples.allocations_after_warm_up = renderer.memory_allocations();
+      samples.rss_after_warm_up = resident_kilobytes();
     }
     if (seen >= settings.warm_up) {
-      rss_max = std::max(rss_max, resident_kilobytes());
-      sim.push_back(record.sim_ms);
-      bake.push_back(record.bake_ms);
-      upload.push_back(record.upload_ms);
-      draw.push_back(record.render_ms);
-      frame_ms.push_back(record.frame_ms);
-      cones |= record.cones.sector_count > 0;
-      lag.push_back(double(record.cone_lag));
-      lift.push_back(double(record.cone_lift));
-      if (seen > settings.warm_up) interval.push_back(now - last_done);
-      ffts += record.ffts;
-      effects |= record.effects;
-      within += std::isfinite(scene.frame_ms) ? (now - last_done <= scene.frame_ms) : 1;
+      samples.rss_max = std::max(samples.rss_max, resident_kilobytes());
+      samples.sim.push_back(record.sim_ms);
+      samples.bake.push_back(record.bake_ms);
+      samples.upload.push_back(record.upload_ms);
+      samples.draw.push_back(record.render_ms);
+      samples.frame_ms.push_back(record.frame_ms);
+      samples.cones |= record.cones.sector_count > 0;
+      samples.lag.push_back(double(record.cone_lag));
+      samples.lift.push_back(double(record.cone_lift));
+      if (seen > settings.warm_up) samples.interval.push_back(now - last_done);
+      samples.ffts += record.ffts;
+      samples.effects |= record.effects;
+      samples.within += std::isfinite(scene.frame_ms) ? (now - last_done <= scene.frame_ms) : 1;
     }
     last_done = now;
     ++seen;
@@ -310,20 +359,31 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
                         [&](const pipeline::FrameRecord& record, const render::Frame&) { take(record); });
   }
   renderer.wait_idle();
-  const int pinned_threads = pinning ? pinning->pinned_threads() : 0,
-            pinned_cpus = pinning ? pinning->cpu_count() : 0;
+  samples.pinned_threads = pinning ? pinning->pinned_threads() : 0;
+  samples.pinned_cpus = pinning ? pinning->cpu_count() : 0;
   pinning.reset();
-  const long long allocations = renderer.memory_allocations() - allocations_after_warm_up;
-  const long long rss_end = resident_kilobytes();
-  rss_max = std::max(rss_max, rss_end);
-  const long long frames_rendered = (long long)frame_ms.size();  // timed frames that came back
-  if (interval.empty()) interval = frame_ms;
+  samples.allocations = renderer.memory_allocations() - samples.allocations_after_warm_up;
+  samples.rss_end = resident_kilobytes();
+  samples.rss_max = std::max(samples.rss_max, samples.rss_end);
+  if (samples.interval.empty()) samples.interval = samples.frame_ms;
+  return samples;
+}
+
+double largest(const std::vector<double>& values) {
+  return values.empty() ? 0.0 : *std::max_element(values.begin(), values.end());
+}
+
+// The human table; returns the stages' percentiles as JSON for --json.
+nlohmann::ordered_json print_bench_table(const BenchFrameSettings& settings, const BenchSamples& samples,
+                                         const std::string& device, std::ostream& out) {
+  const pipeline::Scene& scene = settings.scene;
   struct Row {
     const char* name;
     const std::vector<double>* values;
   };
-  const Row rows[] = {{"sim", &sim},     {"bake", &bake},      {"upload", &upload},
-                      {"render", &draw}, {"frame", &interval}, {"latency", &frame_ms}};
+  const Row rows[] = {{"sim", &samples.sim},        {"bake", &samples.bake},
+                      {"upload", &samples.upload},  {"render", &samples.draw},
+                      {"frame", &samples.interval}, {"latency", &samples.frame_ms}};
   out << fmt::format(
       "displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
       "budget {}, {}, on {}\n",
@@ -331,12 +391,13 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
       scene.camera.width, scene.camera.height, render::method_info(scene.method).name, scene.steps,
       settings.frames, settings.warm_up,
       std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
-      settings.serial ? "stages in series" : "stages overlapped", renderer.device().name);
+      settings.serial ? "stages in series" : "stages overlapped", device);
   if (settings.pin_threads) {
-    out << (pinned_cpus > 0
-                ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", pinned_threads, pinned_cpus)
-                : std::string(
-                      "  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity here)\n"));
+    out << (samples.pinned_cpus > 0
+                ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", samples.pinned_threads,
+                              samples.pinned_cpus)
+                : std::string("  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity "
+                              "here)\n"));
   }
   out << "  stage     p50 ms   p95 ms   p99 ms\n";
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
@@ -346,7 +407,6 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
     out << fmt::format("  {:<8} {:8.2f} {:8.2f} {:8.2f}\n", row.name, p50, p95, p99);
     stages[row.name] = {{"p50_ms", p50}, {"p95_ms", p95}, {"p99_ms", p99}};
   }
-  const double within_budget = double(within) / double(settings.frames);
   if (settings.serial) {
     out << fmt::format(
         "  frame = the time between finished frames (the stages one after another, each with the\n"
@@ -359,48 +419,66 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   out << fmt::format(
       "  within budget: {:.1f}% of frames; FFTs per frame: {:.2f}; effects: {}; Vulkan allocations "
       "after warm-up: {}\n",
-      100.0 * within_budget, double(ffts) / double(settings.frames), fmt::join(effect_names(effects), ", "),
-      allocations);
-  const double lag_p50 = percentile(lag, 0.50),
-               lag_max = lag.empty() ? 0.0 : *std::max_element(lag.begin(), lag.end());
-  const double lift_p50 = percentile(lift, 0.50),
-               lift_max = lift.empty() ? 0.0 : *std::max_element(lift.begin(), lift.end());
-  if (cones) {
+      100.0 * double(samples.within) / double(settings.frames),
+      double(samples.ffts) / double(settings.frames), fmt::join(effect_names(samples.effects), ", "),
+      samples.allocations);
+  if (samples.cones) {
     out << fmt::format(
         "  cone maps: made from the heights of {:g} frames before (p50; at most {:g}), apexes raised by "
         "{:.4f} (p50; at most {:.4f}) of the height range\n",
-        lag_p50, lag_max, lift_p50, lift_max);
+        percentile(samples.lag, 0.50), largest(samples.lag), percentile(samples.lift, 0.50),
+        largest(samples.lift));
   }
-  if (rss_end >= 0) {
+  if (samples.rss_end >= 0) {
     out << fmt::format(
         "  {} of {} frames rendered; resident memory {} kB after warm-up, {} kB at the end ({:+} kB), "
         "at most {} kB\n",
-        frames_rendered, settings.frames, rss_after_warm_up, rss_end, rss_end - rss_after_warm_up, rss_max);
+        samples.frame_ms.size(), settings.frames, samples.rss_after_warm_up, samples.rss_end,
+        samples.rss_end - samples.rss_after_warm_up, samples.rss_max);
   }
+  return stages;
+}
+
+// The --json document: the table's figures under snake_case keys.
+nlohmann::ordered_json bench_json(const BenchFrameSettings& settings, const BenchSamples& samples,
+                                  nlohmann::ordered_json stages, const std::string& device) {
+  const pipeline::Scene& scene = settings.scene;
+  using json = nlohmann::ordered_json;
+  const auto p50_and_max = [&](const std::vector<double>& values) {
+    return samples.cones ? json{{"p50", percentile(values, 0.50)}, {"max", largest(values)}} : json(nullptr);
+  };
+  return {{"frames", settings.frames},
+          {"budget_ms", std::isfinite(scene.frame_ms) ? json(scene.frame_ms) : json(nullptr)},
+          {"stages", std::move(stages)},
+          {"within_budget", double(samples.within) / double(settings.frames)},
+          {"ffts_per_frame", double(samples.ffts) / double(settings.frames)},
+          {"effects", effect_names(samples.effects)},
+          {"vulkan_allocations_after_warmup", samples.allocations},
+          {"frames_rendered", (long long)samples.frame_ms.size()},
+          {"cone_lag_frames", p50_and_max(samples.lag)},
+          {"cone_lift", p50_and_max(samples.lift)},
+          {"overlapped", !settings.serial},
+          {"pinned_threads", samples.pinned_threads},
+          {"rss_kb", samples.rss_end < 0 ? json(nullptr)
+                                         : json{{"after_warmup", samples.rss_after_warm_up},
+                                                {"end", samples.rss_end},
+                                                {"growth", samples.rss_end - samples.rss_after_warm_up},
+                                                {"max", samples.rss_max}}},
+          {"scene", scene.name},
+          {"device", device}};
+}
+
+}  // namespace
+
+void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
+  render::Renderer renderer(settings.renderer);
+  require_memory(pipeline_memory(settings.scene), renderer.memory_limits());
+  pipeline::FramePipeline pipeline(settings.scene, renderer, {}, image_loader(), albedo_loader());
+  const BenchSamples samples = run_bench_frames(settings, renderer, pipeline);
+  const std::string device = renderer.device().name;
+  nlohmann::ordered_json stages = print_bench_table(settings, samples, device, out);
   if (!settings.json.empty()) {
-    nlohmann::ordered_json json = {
-        {"frames", settings.frames},
-        {"budget_ms", std::isfinite(scene.frame_ms) ? nlohmann::ordered_json(scene.frame_ms)
-                                                    : nlohmann::ordered_json(nullptr)},
-        {"stages", stages},
-        {"within_budget", within_budget},
-        {"ffts_per_frame", double(ffts) / double(settings.frames)},
-        {"effects", effect_names(effects)},
-        {"vulkan_allocations_after_warmup", allocations},
-        {"frames_rendered", frames_rendered},
-        {"cone_lag_frames", cones ? nlohmann::ordered_json{{"p50", lag_p50}, {"max", lag_max}}
-                                  : nlohmann::ordered_json(nullptr)},
-        {"cone_lift", cones ? nlohmann::ordered_json{{"p50", lift_p50}, {"max", lift_max}}
-                            : nlohmann::ordered_json(nullptr)},
-        {"overlapped", !settings.serial},
-        {"pinned_threads", pinned_threads},
-        {"rss_kb", rss_end < 0 ? nlohmann::ordered_json(nullptr)
-                               : nlohmann::ordered_json{{"after_warmup", rss_after_warm_up},
-                                                        {"end", rss_end},
-                                                        {"growth", rss_end - rss_after_warm_up},
-                                                        {"max", rss_max}}},
-        {"scene", scene.name},
-        {"device", renderer.device().name}};
+    const nlohmann::ordered_json json = bench_json(settings, samples, std::move(stages), device);
     write_atomically(settings.json, [&](const std::filesystem::path& file) {
       std::ofstream stream(file);
       stream << json.dump(2) << '\n';

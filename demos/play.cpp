@@ -293,6 +293,46 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
   return scene;
 }
 
+namespace {
+
+// The renderer's options with what presenting to a GLFW window needs.
+render::RendererOptions presenting_options(const PlaySettings& settings, const Glfw& glfw) {
+  render::RendererOptions options = settings.renderer;
+  options.instance_extensions = glfw.instance_extensions();
+  options.can_present = [](VkInstance instance, VkPhysicalDevice device, std::uint32_t family) {
+    return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
+  };
+  return options;
+}
+
+// The window's Vulkan surface, made when the swapchain asks for it.
+render::SurfaceFactory window_surface(GLFWwindow* window) {
+  return [window](VkInstance instance) {
+    VkSurfaceKHR surface = VK_NULL_HANDLE;
+    const VkResult result = glfwCreateWindowSurface(instance, window, nullptr, &surface);
+    if (result != VK_SUCCESS) {
+      throw runtime_error(fmt::format("glfwCreateWindowSurface failed with VkResult {}", int(result)));
+    }
+    return surface;
+  };
+}
+
+// The last line: frames shown, the device allocations after the warm-up, the screenshot.
+void print_play_summary(std::ostream& out, const PlaySettings& settings, const pipeline::Scene& scene,
+                        long long frames_shown, const pipeline::FrameRecord& record,
+                        long long warm_allocations, long long settled_allocations) {
+  out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", frames_shown, scene.name,
+                     scene.camera.width, scene.camera.height, scene.map_size, record.time);
+  if (warm_allocations >= 0 && settled_allocations >= 0 && frames_shown - 2 >= warm_up_frames) {
+    out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
+                       warm_up_frames, frames_shown - 2);
+  }
+  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string())
+      << '\n';
+}
+
+}  // namespace
+
 void run_play(const PlaySettings& settings, std::ostream& out) {
   pipeline::Scene scene = play_scene(settings);
   const bool fixed = settings.frames > 0;
@@ -300,28 +340,14 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
 
   // window system, renderer (able to present), window, swapchain - destroyed in reverse
   Glfw glfw;
-  render::RendererOptions renderer_options = settings.renderer;
-  renderer_options.instance_extensions = glfw.instance_extensions();
-  renderer_options.can_present = [](VkInstance instance, VkPhysicalDevice device, std::uint32_t family) {
-    return glfwGetPhysicalDevicePresentationSupport(instance, device, family) == GLFW_TRUE;
-  };
-  render::Renderer renderer(renderer_options);
+  render::Renderer renderer(presenting_options(settings, glfw));
   require_memory(pipeline_memory(scene), renderer.memory_limits());
   Controls controls;
   Window window(scene.camera.width, scene.camera.height, "displace play", controls);
   int framebuffer_width = 0, framebuffer_height = 0;
   glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
-  render::Swapchain swapchain(
-      renderer,
-      [&](VkInstance instance) {
-        VkSurfaceKHR surface = VK_NULL_HANDLE;
-        const VkResult result = glfwCreateWindowSurface(instance, window.get(), nullptr, &surface);
-        if (result != VK_SUCCESS) {
-          throw runtime_error(fmt::format("glfwCreateWindowSurface failed with VkResult {}", int(result)));
-        }
-        return surface;
-      },
-      framebuffer_width, framebuffer_height, settings.vsync);
+  render::Swapchain swapchain(renderer, window_surface(window.get()), framebuffer_width, framebuffer_height,
+                              settings.vsync);
 
   auto pipeline =
       std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{}, image_loader());
@@ -408,14 +434,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     throw runtime_error(std::to_string(renderer.validation_messages()) +
                         " Vulkan validation messages (printed above)");
   }
-  out << fmt::format("play: {} frames of {} ({}x{}, map {}), last at t {:.4f} s", index, scene.name,
-                     scene.camera.width, scene.camera.height, scene.map_size, record.time);
-  if (warm_allocations >= 0 && settled_allocations >= 0 && index - 2 >= warm_up_frames) {
-    out << fmt::format(", {} device allocations in frames {}..{}", settled_allocations - warm_allocations,
-                       warm_up_frames, index - 2);
-  }
-  out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string())
-      << '\n';
+  print_play_summary(out, settings, scene, index, record, warm_allocations, settled_allocations);
 }
 
 }  // namespace displace::app

@@ -243,21 +243,11 @@ Scene builtin_scene(std::string_view name) {
   return scene;
 }
 
-Scene parse_scene(std::string_view text, const std::string& source_name) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source_name);
-  } catch (const toml::parse_error& error) {
-    throw SceneError(source_name + ":" + std::to_string(error.source().begin.line) + ": " +
-                     std::string(error.description()));
-  }
-  const Reader read(source_name);
-  read.known_keys(root, "",
-                  {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
-  Scene scene;
-  scene.name = read.word(&root, "", "name", "scene", {});
+namespace {
 
-  // [source]
+// A scene file's sections, one reader each (parse_scene calls them in this order).
+
+void read_source(const Reader& read, const toml::table& root, const std::string& source_name, Scene& scene) {
   const toml::table* source = read.section(root, "source");
   if (source) read.known_keys(*source, "source", {"kind", "map_size", "seed", "path"});
   const std::string kind =
@@ -286,15 +276,18 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   }
   scene.seed =
       std::uint64_t(read.integer(source, "source", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+}
 
-  // [ocean]
+// [ocean]: the ocean's spectrum; [ocean] size is the ocean's grid, the same as [source] map_size
+// (either may be given; not both, differing)
+void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
+  const toml::table* source = read.section(root, "source");
   const toml::table* ocean = read.section(root, "ocean");
   if (ocean) {
     read.known_keys(*ocean, "ocean",
                     {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "choppiness", "seed"});
   }
   sim::OceanParams& params = scene.ocean;
-  // [ocean] size: the ocean's grid, the same as [source] map_size (either may be given; not both, differing)
   if (const toml::node* size = ocean ? ocean->get("size") : nullptr) {
     const int ocean_size =
         int(read.integer(ocean, "ocean", "size", scene.map_size, min_map_size, max_map_size));
@@ -316,8 +309,9 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   params.choppiness = float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, 4.0));
   params.seed =
       std::uint64_t(read.integer(ocean, "ocean", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+}
 
-  // [sinusoids]
+void read_sinusoids(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* waves = read.section(root, "sinusoids");
   if (waves) read.known_keys(*waves, "sinusoids", {"wave_count", "patch_size", "steepness", "seed"});
   scene.sinusoids.wave_count =
@@ -328,8 +322,10 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
       float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
   scene.sinusoids.seed =
       std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+}
 
-  // [material]
+void read_material(const Reader& read, const toml::table& root, const std::string& source_name,
+                   Scene& scene) {
   const toml::table* material = read.section(root, "material");
   if (material) read.known_keys(*material, "material", {"kind", "foam", "albedo"});
   const std::string material_kind =
@@ -350,8 +346,10 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   if (scene.foam && (scene.material != render::Material::water || scene.source != SourceKind::ocean)) {
     read.fail(material->get("foam"), "material.foam", "foam needs kind = \"water\" and the ocean source");
   }
+}
 
-  // [camera]
+// [camera]; returns the section (the camera's own check runs after every section is read)
+const toml::table* read_camera(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* camera = read.section(root, "camera");
   if (camera) read.known_keys(*camera, "camera", {"eye", "look_at", "up", "fov_y", "keyframes"});
   scene.camera.eye = read.vector3(camera ? camera->get("eye") : nullptr, "camera.eye", scene.camera.eye);
@@ -382,7 +380,10 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
     }
   }
 
-  // [render]
+  return camera;
+}
+
+void read_render(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* render_table = read.section(root, "render");
   if (render_table) {
     read.known_keys(
@@ -433,8 +434,9 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
         render_table ? render_table->get("surface") : nullptr, "render.surface",
         std::string("--method ") + render::method_info(scene.method).name + " does not render on " + surface);
   }
+}
 
-  // [time], [budget]
+void read_time_and_budget(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* time = read.section(root, "time");
   if (time) read.known_keys(*time, "time", {"start", "fps"});
   scene.start = read.number(time, "time", "start", scene.start, -max_abs_time, max_abs_time);
@@ -446,7 +448,30 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   scene.tolerance = float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, 1.0));
   scene.cone_lag_frames =
       int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
+}
 
+}  // namespace
+
+Scene parse_scene(std::string_view text, const std::string& source_name) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source_name);
+  } catch (const toml::parse_error& error) {
+    throw SceneError(source_name + ":" + std::to_string(error.source().begin.line) + ": " +
+                     std::string(error.description()));
+  }
+  const Reader read(source_name);
+  read.known_keys(root, "",
+                  {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
+  Scene scene;
+  scene.name = read.word(&root, "", "name", "scene", {});
+  read_source(read, root, source_name, scene);
+  read_ocean(read, root, scene);
+  read_sinusoids(read, root, scene);
+  read_material(read, root, source_name, scene);
+  const toml::table* camera = read_camera(read, root, scene);
+  read_render(read, root, scene);
+  read_time_and_budget(read, root, scene);
   try {
     scene_view(scene, scene.start).camera.validate();
   } catch (const render::RenderError& error) {
