@@ -39,6 +39,8 @@ struct BakeError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+inline constexpr int max_map_side = 32768;  // texels a side of a height map (and of a distance map)
+
 struct HeightView {
   const float* data = nullptr;
   int width = 0;
@@ -113,6 +115,8 @@ BakeStats bake_paper_adaptive(HeightView heights, Address address, const PaperAd
 // unlimited budget ends with them); tolerance 0 refines to the exact map.
 // progress: reports of the call's progress (see Progress), for a user watching a long bake; for
 // BilinearBaker, which is to report through it. BudgetedBaker ignores it (it ends in milliseconds).
+inline constexpr float max_tolerance = 1.0f;  // Budget::tolerance lies in [0, max_tolerance), exclusive
+
 struct Budget {
   double milliseconds = std::numeric_limits<double>::infinity();
   std::function<double()> clock;
@@ -182,8 +186,10 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
 // texel next to a higher neighbour from a ratio of 0. The proof is in
 // bake/cone_bilinear.cpp. Ratios are lower bounds, not the tightest r_k: a brute-force test checks
 // the claim on dense samples of p and x. Stats as bake_exact's (mode bilinear).
+inline constexpr int max_slope_window = 64;  // cells, BilinearConeSettings::slope_window, from 0
+
 struct BilinearConeSettings {
-  int slope_window = 4;  // cells: radius around a texel where the slope bound applies, 0 to 64 (0: none)
+  int slope_window = 4;  // cells: radius around a texel where the slope bound applies (0: none)
   std::function<void(double fraction_done)> progress = {};  // see Progress: rows done over all rows
   // false: the search skips nothing that cannot lower a ratio only by its bound - every block of the
   // pyramid opened, every window piece bounded. The same maps bit for bit, far slower: for tests.
@@ -277,6 +283,9 @@ DualMaxPyramid build_dual_max_pyramid(HeightView heights, Address address);
 // ch. 8), for sphere tracing. W x H x D voxels, stored data[(k * H + i) * W + j]; voxel (k, i, j)
 // has its centre at u = (j + 0.5) / W, v = (i + 0.5) / H, h = (k + 0.5) / D. W and H need not
 // match the height map's size.
+inline constexpr int max_distance_depth = 1024;              // voxels along h, DistanceView::depth
+inline constexpr long long max_distance_voxels = 1ll << 30;  // voxels in one distance map (4 GiB of floats)
+
 struct DistanceView {
   float* data = nullptr;
   int width = 0, height = 0, depth = 0;

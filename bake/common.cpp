@@ -10,22 +10,17 @@ bool is_valid_sector_count(int sector_count) {
   return sector_count == 1 || sector_count == 4 || sector_count == 8;
 }
 
-namespace {
-
-constexpr int max_map_size = 1 << 15;                 // texels (or voxels) along u or v
-constexpr int max_distance_depth = 1024;              // voxels along h
-constexpr long long max_distance_voxels = 1ll << 30;  // voxels in one distance map (4 GiB of floats)
-
-}  // namespace
+namespace {}  // namespace
 
 void validate_heights(HeightView heights, const char* product) {
   if (heights.width <= 0 || heights.height <= 0 || heights.data == nullptr) {
     throw BakeError("height map is empty (" + std::to_string(heights.width) + "x" +
                     std::to_string(heights.height) + "): " + product + " needs at least one texel");
   }
-  if (heights.width > max_map_size || heights.height > max_map_size) {
+  if (heights.width > max_map_side || heights.height > max_map_side) {
     throw BakeError("height map " + std::to_string(heights.width) + "x" + std::to_string(heights.height) +
-                    " is larger than the supported 32768x32768");
+                    " is larger than the supported " + std::to_string(max_map_side) + "x" +
+                    std::to_string(max_map_side));
   }
   const std::size_t count = std::size_t(heights.width) * heights.height;
   // one branch-free pass (NaN fails both comparisons), then the slow one only to name the texel
@@ -64,14 +59,17 @@ void validate(HeightView heights, const DistanceView& out) {
     throw BakeError("distance map " + size + " is empty: it needs at least one voxel along each axis");
   }
   if (out.data == nullptr) throw BakeError("distance map output " + size + " has no memory (null data)");
-  if (out.width > max_map_size || out.height > max_map_size) {
-    throw BakeError("distance map " + size + " is wider than the supported 32768 voxels along u or v");
+  if (out.width > max_map_side || out.height > max_map_side) {
+    throw BakeError("distance map " + size + " is wider than the supported " + std::to_string(max_map_side) +
+                    " voxels along u or v");
   }
   if (out.depth > max_distance_depth) {
-    throw BakeError("distance map " + size + " is deeper than the supported 1024 layers");
+    throw BakeError("distance map " + size + " is deeper than the supported " +
+                    std::to_string(max_distance_depth) + " layers");
   }
   if ((long long)out.width * out.height * out.depth > max_distance_voxels) {
-    throw BakeError("distance map " + size + " has more than the supported 2^30 voxels");
+    throw BakeError("distance map " + size + " has more than the supported " +
+                    std::to_string(max_distance_voxels) + " voxels");
   }
 }
 

@@ -61,7 +61,6 @@ namespace displace::bake {
 namespace {
 
 constexpr double ratio_margin = 1e-9;  // relative: covers double rounding in distances, slopes and divisions
-constexpr int max_slope_window = 64;   // cells: largest accepted BilinearConeSettings::slope_window
 constexpr double height_margin = 1e-12;  // height units: covers double rounding of s at piece and Q_c points
 constexpr double infinite_ratio = std::numeric_limits<double>::infinity();
 
@@ -514,8 +513,9 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                     " values for " + std::to_string(texels) + " texels");
   }
   if (settings.slope_window < 0 || settings.slope_window > max_slope_window) {
-    throw BakeError("bilinear cone map: slope window " + std::to_string(settings.slope_window) +
-                    " is outside [0, " + std::to_string(max_slope_window) + "] cells");
+    throw BakeError("bilinear cone map: BilinearConeSettings::slope_window " +
+                    std::to_string(settings.slope_window) + " is outside [0, " +
+                    std::to_string(max_slope_window) + "] cells");
   }
   const auto start = std::chrono::steady_clock::now();
   const int sectors = out.sector_count;

@@ -71,6 +71,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -455,137 +456,145 @@ int near_part_first_row(int height, int part) {
 
 void emit_rows(State& state, int first_row, int last_row, float* out, float* apex);
 
-// `merged`: the step and the ones of its kind after it at once (the apexes, the two sweeps, the near
-// field's parts), as bake() runs them: fewer joins of the threads, the same bits.
-void run_stage_l_step(State& state, int step, bool merged = false) {
+// stage L's apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below: part
+// `step` of apex_parts of the rows (with `merged`, the rest of them)
+void stage_l_apexes(State& state, int step, bool merged) {
   const int W = state.width, H = state.height;
   const bool wrap = state.address == Address::wrap;
   const std::size_t texels = std::size_t(W) * H;
   const int level = detail::lane_sweep_best_level();
-  static_assert(stage_l_sweeps == 1, "the steps and stage_l_combine_kernel take one sweep's lanes");
-  if (step < apex_parts) {
-    if (step == 0) {
-      // apexes (exactly bake_bilinear_cones'), and floor(apex * 65535) a little below
-      state.apex.resize(texels);
-      state.apex_bottom.resize(texels);
-      // the neighbouring columns of every column (wrapped or clamped)
-      state.column_before.resize(W);
-      state.column_after.resize(W);
-      for (int j = 0; j < W; ++j) {
-        state.column_before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
-        state.column_after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
-      }
-    }
-    const std::vector<int>& before = state.column_before;
-    const std::vector<int>& after = state.column_after;
-    const HeightView view{state.heights.data(), W, H};
-    const int block_texels = detail::apex_block_texels(level);
-    const int first = int(std::int64_t(H) * step / apex_parts),
-              last = merged ? H : int(std::int64_t(H) * (step + 1) / apex_parts);
-    tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
-      for (int i = rows.begin(); i < rows.end(); ++i) {
-        const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1),
-                  down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
-        const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W,
-                                       view.data + std::size_t(up) * W};
-        float* apex_row = state.apex.data() + std::size_t(i) * W;
-        std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
-        // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
-        // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
-        // rounded up to float (to the next float's bits where the nearest is below)
-        auto apex_at = [&](int j, int left, int right) {
-          const int columns[3] = {left, j, right};
-          double h[3][3];
-          for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
-          const double highest = detail::highest_sample(h);
-          const float nearest = float(highest);
-          std::uint32_t bits;
-          std::memcpy(&bits, &nearest, sizeof bits);
-          bits += double(nearest) < highest ? 1u : 0u;
-          float apex;
-          std::memcpy(&apex, &bits, sizeof apex);
-          apex_row[j] = apex;
-          const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
-          bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
-        };
-        apex_at(0, before[0], after[0]);
-        // the columns whose neighbours lie in the row: a vector of texels at a time, the same arithmetic
-        const int blocks = std::max(W - 2, 0) / block_texels;
-        switch (level) {
-          case 0: detail::apex_blocks_generic(rows3, 1, blocks, apex_row, bottom_row); break;
-          case 3: detail::apex_blocks_avx2(rows3, 1, blocks, apex_row, bottom_row); break;
-          default: detail::apex_blocks_avx512(rows3, 1, blocks, apex_row, bottom_row); break;
-        }
-        int j = 1 + blocks * block_texels;
-        for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
-        if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
-      }
-    });
-    return;
-  }
-  step -= apex_parts;
-  const double t = 1.0 / double(std::max(W, H));
   if (step == 0) {
-    state.lipschitz = make_cells(state);
-    const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
-    detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false,
-                           state.plan);
-    // the lanes (of every sweep, interleaved): from the smallest ratio a map can have (one texel over
-    // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
-    // above 1, 1.3x apart below lane_knee and evenly geometric above
-    double lanes[stage_l_sweeps * detail::lane_count];
-    const double range =
-        double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
-    const double smallest = std::clamp(
-        std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)),
-        1.0 / 8192.0, 0.5);
-    const int total = stage_l_sweeps * detail::lane_count;
-    const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
-    const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
-    for (int l = 0; l < total; ++l)
-      lanes[l] = l <= low ? lowest * std::pow(1.3, l)
-                          : lowest * std::pow(1.3, low) *
-                                std::pow(1.0001 / (lowest * std::pow(1.3, low)),
-                                         double(l - low) / (total - 1 - low));
-    state.lanes.assign(lanes, lanes + total);
-    double ratios[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l];
-    detail::set_lane_ratios(state.plan, ratios);
-    for (int l = 0; l < detail::lane_count; ++l) {
-      // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down; for the
-      // box {0, ..., 3}^2 the gap beyond its far faces is at least 1.5 texels more
-      const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
-      state.bonus[l] = std::uint16_t(
-          std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
-      state.bonus3[l] = std::uint16_t(
-          std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+    state.apex.resize(texels);
+    state.apex_bottom.resize(texels);
+    // the neighbouring columns of every column (wrapped or clamped)
+    state.column_before.resize(W);
+    state.column_after.resize(W);
+    for (int j = 0; j < W; ++j) {
+      state.column_before[j] = wrap ? wrap_index(j - 1, W) : std::max(j - 1, 0);
+      state.column_after[j] = wrap ? wrap_index(j + 1, W) : std::min(j + 1, W - 1);
     }
-    for (int q = 0; q < 4; ++q) {
-      state.passed[0][q].resize(texels);
-      state.passed3[0][q].resize(texels);
-    }
-    return;
   }
-  if (step <= 2) {
-    const int first_quadrant = 2 * (step - 1), quadrant_count = merged ? 4 - first_quadrant : 2;
-    std::uint8_t* passed[4];
-    std::uint8_t* passed3[4];
-    for (int q = 0; q < 4; ++q) {
-      passed[q] = state.passed[0][q].data();
-      passed3[q] = state.passed3[0][q].data();
+  const std::vector<int>& before = state.column_before;
+  const std::vector<int>& after = state.column_after;
+  const HeightView view{state.heights.data(), W, H};
+  const int block_texels = detail::apex_block_texels(level);
+  const int first = int(std::int64_t(H) * step / apex_parts),
+            last = merged ? H : int(std::int64_t(H) * (step + 1) / apex_parts);
+  tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1),
+                down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
+      const float* const rows3[3] = {view.data + std::size_t(down) * W, view.data + std::size_t(i) * W,
+                                     view.data + std::size_t(up) * W};
+      float* apex_row = state.apex.data() + std::size_t(i) * W;
+      std::uint16_t* bottom_row = state.apex_bottom.data() + std::size_t(i) * W;
+      // bake_bilinear_cones' apex with its arithmetic, term for term: the largest of s at Q_c's
+      // corners, edge midpoints and centre (0.25 (h11 + h1a + hb1 + hba) for a, b in {0, 1, 2}),
+      // rounded up to float (to the next float's bits where the nearest is below)
+      auto apex_at = [&](int j, int left, int right) {
+        const int columns[3] = {left, j, right};
+        double h[3][3];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) h[r][c] = rows3[r][columns[c]];
+        const double highest = detail::highest_sample(h);
+        const float nearest = float(highest);
+        std::uint32_t bits;
+        std::memcpy(&bits, &nearest, sizeof bits);
+        bits += double(nearest) < highest ? 1u : 0u;
+        float apex;
+        std::memcpy(&apex, &bits, sizeof apex);
+        apex_row[j] = apex;
+        const int floor_scaled = int(apex * float(detail::height_scale) - 0x1p-7f);
+        bottom_row[j] = std::uint16_t(std::clamp(floor_scaled, 0, 65535));
+      };
+      apex_at(0, before[0], after[0]);
+      // the columns whose neighbours lie in the row: a vector of texels at a time, the same arithmetic
+      const int blocks = std::max(W - 2, 0) / block_texels;
+      switch (level) {
+        case 0: detail::apex_blocks_generic(rows3, 1, blocks, apex_row, bottom_row); break;
+        case 3: detail::apex_blocks_avx2(rows3, 1, blocks, apex_row, bottom_row); break;
+        default: detail::apex_blocks_avx512(rows3, 1, blocks, apex_row, bottom_row); break;
+      }
+      int j = 1 + blocks * block_texels;
+      for (; j + 1 < W; ++j) apex_at(j, j - 1, j + 1);
+      if (W > 1) apex_at(W - 1, before[W - 1], after[W - 1]);
     }
-    state.stage_l_work +=
-        detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus, passed,
-                                         state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
-    if (first_quadrant + quadrant_count == 4) {
-      std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
-      state.upper_ready = false;
-      state.stage_l.resize(texels * 4);
-    }
-    return;
+  });
+}
+
+// stage L's cells, Lipschitz bound, lane plan and lanes
+void stage_l_lanes(State& state) {
+  const int W = state.width, H = state.height;
+  const bool wrap = state.address == Address::wrap;
+  const std::size_t texels = std::size_t(W) * H;
+  const double t = 1.0 / double(std::max(W, H));
+  state.lipschitz = make_cells(state);
+  const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
+  detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false,
+                         state.plan);
+  // the lanes (of every sweep, interleaved): from the smallest ratio a map can have (one texel over
+  // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
+  // above 1, 1.3x apart below lane_knee and evenly geometric above
+  double lanes[stage_l_sweeps * detail::lane_count];
+  const double range =
+      double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
+  const double smallest = std::clamp(
+      std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)),
+      1.0 / 8192.0, 0.5);
+  const int total = stage_l_sweeps * detail::lane_count;
+  const int low = std::clamp(int(std::ceil(std::log(lane_knee / smallest) / std::log(1.3))), 0, 12);
+  const double lowest = std::max(smallest, lane_knee / std::pow(1.3, low));
+  for (int l = 0; l < total; ++l)
+    lanes[l] =
+        l <= low ? lowest * std::pow(1.3, l)
+                 : lowest * std::pow(1.3, low) *
+                       std::pow(1.0001 / (lowest * std::pow(1.3, low)), double(l - low) / (total - 1 - low));
+  state.lanes.assign(lanes, lanes + total);
+  double ratios[detail::lane_count];
+  for (int l = 0; l < detail::lane_count; ++l) ratios[l] = lanes[stage_l_sweeps * l];
+  detail::set_lane_ratios(state.plan, ratios);
+  for (int l = 0; l < detail::lane_count; ++l) {
+    // the bonus t / (2 r) of each lane, from a ratio at least the lane's, rounded down; for the
+    // box {0, ..., 3}^2 the gap beyond its far faces is at least 1.5 texels more
+    const double ratio_above = double(state.plan.lane_ratio[l + 1]) * (1.0 + 2e-5);
+    state.bonus[l] = std::uint16_t(
+        std::min(65535.0, std::floor(0.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
+    state.bonus3[l] = std::uint16_t(
+        std::min(65535.0, std::floor(1.5 * t / ratio_above * detail::height_scale * (1.0 - 1e-9))));
   }
-  const int part = step - 3;
+  for (int q = 0; q < 4; ++q) {
+    state.passed[0][q].resize(texels);
+    state.passed3[0][q].resize(texels);
+  }
+}
+
+// stage L's lane sweeps: quadrants 0 and 1 (step 1), 2 and 3 (step 2; with `merged`, all four at step 1)
+void stage_l_sweep_quadrants(State& state, int step, bool merged) {
+  const int W = state.width, H = state.height;
+  const std::size_t texels = std::size_t(W) * H;
+  const int first_quadrant = 2 * (step - 1), quadrant_count = merged ? 4 - first_quadrant : 2;
+  std::uint8_t* passed[4];
+  std::uint8_t* passed3[4];
+  for (int q = 0; q < 4; ++q) {
+    passed[q] = state.passed[0][q].data();
+    passed3[q] = state.passed3[0][q].data();
+  }
+  state.stage_l_work +=
+      detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus, passed,
+                                       state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
+  if (first_quadrant + quadrant_count == 4) {
+    std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
+    state.upper_ready = false;
+    state.stage_l.resize(texels * 4);
+  }
+}
+
+// stage L's near field and the join of it all, row by row: part `part` of near_parts (with `merged`,
+// the rest of them)
+void stage_l_near(State& state, int part, bool merged) {
+  const int W = state.width, H = state.height;
+  const int level = detail::lane_sweep_best_level();
+  const double t = 1.0 / double(std::max(W, H));
   const int first = near_part_first_row(H, part),
             last = near_part_first_row(H, merged ? near_parts : part + 1);
   const float highest = state.plan.highest;
@@ -632,6 +641,21 @@ void run_stage_l_step(State& state, int step, bool merged = false) {
         }
       });
   state.stage_l_work += (long long)(last - first) * W * 4;
+}
+
+// `merged`: the step and the ones of its kind after it at once (the apexes, the two sweeps, the near
+// field's parts), as bake() runs them: fewer joins of the threads, the same bits.
+void run_stage_l_step(State& state, int step, bool merged = false) {
+  static_assert(stage_l_sweeps == 1, "the steps and stage_l_combine_kernel take one sweep's lanes");
+  if (step < apex_parts) {
+    stage_l_apexes(state, step, merged);
+  } else if (step == apex_parts) {
+    stage_l_lanes(state);
+  } else if (step <= apex_parts + 2) {
+    stage_l_sweep_quadrants(state, step - apex_parts, merged);
+  } else {
+    stage_l_near(state, step - apex_parts - 3, merged);
+  }
 }
 
 // Whether a step has anything to do (the near field's last parts have no rows on a small map).
@@ -1132,9 +1156,9 @@ void emit_all(State& state, ConeView out, std::span<float> apex) {
 
 BilinearBaker::BilinearBaker(int width, int height, int sector_count, Address address)
     : state_(std::make_unique<State>()) {
-  if (width < 1 || height < 1 || width > 32768 || height > 32768) {
+  if (width < 1 || height < 1 || width > max_map_side || height > max_map_side) {
     throw BakeError("bilinear baker: a " + std::to_string(width) + " x " + std::to_string(height) +
-                    " map (each side must be 1 to 32768 texels)");
+                    " map (each side must be 1 to " + std::to_string(max_map_side) + " texels)");
   }
   if (!is_valid_sector_count(sector_count)) {
     throw BakeError("bilinear baker: " + std::to_string(sector_count) + " sectors (use 1, 4 or 8)");
@@ -1151,8 +1175,11 @@ BilinearBaker& BilinearBaker::operator=(BilinearBaker&&) noexcept = default;
 namespace {
 
 void check_tolerance(const Budget& budget) {
-  if (!(budget.tolerance >= 0.0f && budget.tolerance < 1.0f)) {
-    throw BakeError("bilinear baker: tolerance " + std::to_string(budget.tolerance) + " is outside [0, 1)");
+  if (!(budget.tolerance >= 0.0f && budget.tolerance < max_tolerance)) {
+    char text[96];
+    std::snprintf(text, sizeof text, "bilinear baker: Budget::tolerance %g is outside [0, %g)",
+                  double(budget.tolerance), double(max_tolerance));
+    throw BakeError(text);
   }
 }
 

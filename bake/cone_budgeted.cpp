@@ -493,8 +493,11 @@ void set_heights(BudgetedBaker::State& state, HeightView heights) {
 }
 
 float keep_of(const Budget& budget) {
-  if (!(budget.tolerance >= 0.0f && budget.tolerance < 1.0f))
-    throw BakeError("budget tolerance must be in [0, 1)");
+  if (!(budget.tolerance >= 0.0f && budget.tolerance < max_tolerance)) {
+    char text[64];
+    std::snprintf(text, sizeof text, "Budget::tolerance must be in [0, %g)", double(max_tolerance));
+    throw BakeError(text);
+  }
   return 1.0f - budget.tolerance;
 }
 
@@ -738,21 +741,26 @@ BakeStats BudgetedBaker::refine(const Budget& budget, ConeView out) {
   return finish(state, clock, keep, refined, out.data);
 }
 
-BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget,
-                                ConeView out, UpdatePolicy policy) {
-  State& state = *state_;
-  if (state.heights.empty()) return bake(heights, budget, out);
-  check_view(state, heights, out);
-  ensure_slack(state);  // from the previous frame's stage L, before its heights go
-  const float keep = keep_of(budget);
-  detail::BudgetClock clock(budget);
-  const Grid& grid = state.grid;
-  const int sectors = grid.sector_count;
-  const int width = grid.width, height = grid.height;
+namespace {
 
-  // clip the dirty rectangles, and check that nothing changed outside them
+// A dirty rectangle's largest new height, and the largest height that fell in it (its old value).
+struct DirtyInfo {
+  Rect rect;
+  float new_max = 0.0f;
+  float fallen_max = -1.0f;  // < 0: nothing fell
+};
+
+// What an update reaches, per group: its own heights changed, a raised texel can lower its ratios
+// (repair now), or a lowered texel may have been its blocker (refine later).
+enum Reach : std::uint8_t { touched = 1, raised = 2, fell = 4 };
+
+// The dirty rectangles clipped to the map, with `inside` marking their texels; throws when a height
+// changed outside them.
+std::vector<Rect> clip_dirty(const BudgetedBaker::State& state, HeightView heights,
+                             std::span<const Rect> dirty, std::vector<std::uint8_t>& inside) {
+  const int width = state.grid.width, height = state.grid.height;
   std::vector<Rect> rects;
-  std::vector<std::uint8_t> inside(state.heights.size(), 0);
+  inside.assign(state.heights.size(), 0);
   for (Rect r : dirty) {
     r.x0 = std::clamp(r.x0, 0, width), r.x1 = std::clamp(r.x1, 0, width);
     r.y0 = std::clamp(r.y0, 0, height), r.y1 = std::clamp(r.y1, 0, height);
@@ -764,13 +772,13 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
     if (!inside[t] && heights.data[t] != state.heights[t])
       throw BakeError("height changed outside the dirty region at texel (" + std::to_string(t / width) +
                       ", " + std::to_string(t % width) + ")");
+  return rects;
+}
 
-  // per rectangle: the largest new height, and the largest height that fell (old value)
-  struct DirtyInfo {
-    Rect rect;
-    float new_max = 0.0f;
-    float fallen_max = -1.0f;  // < 0: nothing fell
-  };
+// per rectangle: the largest new height, and the largest height that fell (old value)
+std::vector<DirtyInfo> dirty_infos(const BudgetedBaker::State& state, HeightView heights,
+                                   const std::vector<Rect>& rects) {
+  const int width = state.grid.width;
   std::vector<DirtyInfo> infos;
   for (const Rect& r : rects) {
     DirtyInfo info{r};
@@ -782,26 +790,33 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
       }
     infos.push_back(info);
   }
-  const int groups = group_count(grid);
-  const int tiles = grid.address == Address::wrap ? 1 : 0;
-  // group-level bound of a dirty rectangle with height `top` against texels of height >= group_min
-  auto rect_bound = [&](const GroupRect& g, const Rect& r, float top, float group_min) {
-    float bound = 1.0f;
-    if (!(top > group_min)) return bound;
-    for (int ty = -tiles; ty <= tiles; ++ty)
-      for (int tx = -tiles; tx <= tiles; ++tx) {
-        const int x0 = r.x0 + tx * width, x1 = r.x1 - 1 + tx * width;
-        const int y0 = r.y0 + ty * height, y1 = r.y1 - 1 + ty * height;
-        const int gap_x = detail::interval_gap(x0 - g.j1, x1 - g.j0);
-        const int gap_y = detail::interval_gap(y0 - g.i1, y1 - g.i0);
-        bound = std::min(bound, detail::pair_ratio(grid.distance(gap_x, gap_y), top - group_min));
-      }
-    return bound;
-  };
+  return infos;
+}
 
-  // What the change reaches, per group: its own heights changed, a raised texel can lower its ratios
-  // (repair now), or a lowered texel may have been its blocker (refine later).
-  enum : std::uint8_t { touched = 1, raised = 2, fell = 4 };
+// group-level bound of a dirty rectangle with height `top` against texels of height >= group_min
+float rect_bound(const Grid& grid, const GroupRect& g, const Rect& r, float top, float group_min) {
+  const int width = grid.width, height = grid.height;
+  const int tiles = grid.address == Address::wrap ? 1 : 0;
+  float bound = 1.0f;
+  if (!(top > group_min)) return bound;
+  for (int ty = -tiles; ty <= tiles; ++ty)
+    for (int tx = -tiles; tx <= tiles; ++tx) {
+      const int x0 = r.x0 + tx * width, x1 = r.x1 - 1 + tx * width;
+      const int y0 = r.y0 + ty * height, y1 = r.y1 - 1 + ty * height;
+      const int gap_x = detail::interval_gap(x0 - g.j1, x1 - g.j0);
+      const int gap_y = detail::interval_gap(y0 - g.i1, y1 - g.i0);
+      bound = std::min(bound, detail::pair_ratio(grid.distance(gap_x, gap_y), top - group_min));
+    }
+  return bound;
+}
+
+// What the change reaches, per group (Reach flags), from the new heights and the stored ratios.
+std::vector<std::uint8_t> update_reach(const BudgetedBaker::State& state, HeightView heights,
+                                       const float* ratios, const std::vector<std::uint8_t>& inside,
+                                       const std::vector<DirtyInfo>& infos) {
+  const Grid& grid = state.grid;
+  const int sectors = grid.sector_count, width = grid.width;
+  const int groups = group_count(grid);
   std::vector<std::uint8_t> reach(groups, 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, groups, 16), [&](const tbb::blocked_range<int>& range) {
     for (int group = range.begin(); group < range.end(); ++group) {
@@ -814,80 +829,118 @@ BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty,
           touches |= inside[t] != 0;
           group_min = std::min(group_min, heights.data[t]);
           for (int k = 0; k < sectors; ++k)
-            group_max_ratio = std::max(group_max_ratio, out.data[t * sectors + k]);
+            group_max_ratio = std::max(group_max_ratio, ratios[t * sectors + k]);
         }
       std::uint8_t flags = touches ? touched : 0;
       if (!touches)
         for (const DirtyInfo& info : infos) {
-          if (rect_bound(g, info.rect, info.new_max, group_min) < group_max_ratio) flags |= raised;
+          if (rect_bound(grid, g, info.rect, info.new_max, group_min) < group_max_ratio) flags |= raised;
           if (info.fallen_max >= 0.0f &&
-              rect_bound(g, info.rect, info.fallen_max, group_min) <= group_max_ratio)
+              rect_bound(grid, g, info.rect, info.fallen_max, group_min) <= group_max_ratio)
             flags |= fell;
         }
       reach[group] = flags;
     }
   });
+  return reach;
+}
+
+// Rough cost of the incremental update in pyramid-node visits: stage L about 2 per texel; the repair
+// of a raised group one search over the dirty blocks per texel; a texel left to refine (touched or
+// fell) about 500, what stage B spends per texel on the ocean.
+long long incremental_cost(const Grid& grid, const std::vector<DirtyInfo>& infos,
+                           const std::vector<std::uint8_t>& reach) {
+  const int tiles = grid.address == Address::wrap ? 1 : 0;
+  long long dirty_nodes = 0;  // group-level blocks over the rectangles, with their wrap images
+  for (const DirtyInfo& info : infos)
+    dirty_nodes += (long long)(((info.rect.x1 - 1) >> group_level) - (info.rect.x0 >> group_level) + 1) *
+                   (((info.rect.y1 - 1) >> group_level) - (info.rect.y0 >> group_level) + 1) *
+                   (tiles ? 9 : 1);
+  long long incremental = 0;
+  for (std::uint8_t flags : reach) {
+    if (flags & (touched | fell)) incremental += group_size * group_size * 500ll;
+    if (flags & raised) incremental += group_size * group_size * 2 * dirty_nodes;
+  }
+  return incremental;
+}
+
+// Per group, as reached: touched groups get their floor now, raised ones an exact search over the
+// dirty blocks from the stored ratios, those a fallen blocker may have served are left to refine.
+void repair_groups(BudgetedBaker::State& state, HeightView heights, float* ratios,
+                   const std::vector<std::uint8_t>& reach, const std::vector<DirtyInfo>& infos,
+                   detail::BudgetClock& clock) {
+  const Grid& grid = state.grid;
+  const int sectors = grid.sector_count, width = grid.width;
+  const SearchContext context{grid, state.pyramid};
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, group_count(grid), 4), [&](const tbb::blocked_range<int>& range) {
+        std::vector<Node> dirty_nodes;
+        long long work = 0;
+        float best[8];
+        for (int group = range.begin(); group < range.end(); ++group) {
+          const GroupRect g = group_rect(grid, group);
+          if (reach[group] &
+              touched) {  // the group's own heights changed: its floor now, the rest within the budget
+            stage0_group(state, group, ratios);
+            continue;
+          }
+          work += (long long)infos.size();
+          if (reach[group] &
+              raised) {  // repair now: exact search over the dirty blocks, from the stored ratios
+            for (const DirtyInfo& info : infos) {
+              const std::vector<Node> nodes = detail::nodes_covering(context, info.rect, group_level);
+              dirty_nodes.insert(dirty_nodes.end(), nodes.begin(), nodes.end());
+            }
+            for (int i = g.i0; i <= g.i1; ++i)
+              for (int j = g.j0; j <= g.j1; ++j) {
+                const std::size_t t = std::size_t(i) * width + j;
+                std::copy_n(ratios + t * sectors, sectors, best);
+                work += detail::search_texel(context, i, j, heights.data[t], dirty_nodes, best);
+                std::copy_n(best, sectors, ratios + t * sectors);
+              }
+            dirty_nodes.clear();
+          }
+          if (reach[group] & fell) {  // stale ratios stay conservative; tighten them later
+            for (int i = g.i0; i <= g.i1; ++i)
+              for (int j = g.j0; j <= g.j1; ++j) state.slack[std::size_t(i) * width + j] = 0.0f;
+            state.group_slack[group] = 0.0f;
+          }
+        }
+        clock.work += work;
+      });
+}
+
+}  // namespace
+
+BakeStats BudgetedBaker::update(HeightView heights, std::span<const Rect> dirty, const Budget& budget,
+                                ConeView out, UpdatePolicy policy) {
+  State& state = *state_;
+  if (state.heights.empty()) return bake(heights, budget, out);
+  check_view(state, heights, out);
+  ensure_slack(state);  // from the previous frame's stage L, before its heights go
+  const float keep = keep_of(budget);
+  detail::BudgetClock clock(budget);
+
+  // what changed, and what the change reaches
+  std::vector<std::uint8_t> inside;
+  const std::vector<Rect> rects = clip_dirty(state, heights, dirty, inside);
+  const std::vector<DirtyInfo> infos = dirty_infos(state, heights, rects);
+  const std::vector<std::uint8_t> reach = update_reach(state, heights, out.data, inside, infos);
   if (policy != UpdatePolicy::incremental) {
-    // Rough costs in pyramid-node visits: stage L about 2 per texel; the repair of a raised group
-    // one search over the dirty blocks per texel; a texel left to refine (touched or fell) about
-    // 500, what stage B spends per texel on the ocean.
-    long long dirty_nodes = 0;  // group-level blocks over the rectangles, with their wrap images
-    for (const DirtyInfo& info : infos)
-      dirty_nodes += (long long)(((info.rect.x1 - 1) >> group_level) - (info.rect.x0 >> group_level) + 1) *
-                     (((info.rect.y1 - 1) >> group_level) - (info.rect.y0 >> group_level) + 1) *
-                     (tiles ? 9 : 1);
-    long long incremental = 0;
-    for (std::uint8_t flags : reach) {
-      if (flags & (touched | fell)) incremental += group_size * group_size * 500ll;
-      if (flags & raised) incremental += group_size * group_size * 2 * dirty_nodes;
-    }
-    if (policy == UpdatePolicy::rebake || incremental > 2 * (long long)state.heights.size()) {
-      clock.work += groups;
+    if (policy == UpdatePolicy::rebake ||
+        incremental_cost(state.grid, infos, reach) > 2 * (long long)state.heights.size()) {
+      clock.work += group_count(state.grid);
       return bake(heights, budget, out);
     }
   }
 
+  // repair what the change reached, then refine within the budget
   set_heights(state, heights);
-  const SearchContext context{grid, state.pyramid};
   // a blocker that fell may have been some texel's best upper bound: forget them all
   if (std::any_of(infos.begin(), infos.end(), [](const DirtyInfo& info) { return info.fallen_max >= 0.0f; }))
     std::fill(state.upper.begin(), state.upper.end(), 1.0f);
-
+  repair_groups(state, heights, out.data, reach, infos, clock);
   long long refined = 0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, groups, 4), [&](const tbb::blocked_range<int>& range) {
-    std::vector<Node> dirty_nodes;
-    long long work = 0;
-    float best[8];
-    for (int group = range.begin(); group < range.end(); ++group) {
-      const GroupRect g = group_rect(grid, group);
-      if (reach[group] &
-          touched) {  // the group's own heights changed: its floor now, the rest within the budget
-        stage0_group(state, group, out.data);
-        continue;
-      }
-      work += (long long)infos.size();
-      if (reach[group] & raised) {  // repair now: exact search over the dirty blocks, from the stored ratios
-        for (const DirtyInfo& info : infos) {
-          const std::vector<Node> nodes = detail::nodes_covering(context, info.rect, group_level);
-          dirty_nodes.insert(dirty_nodes.end(), nodes.begin(), nodes.end());
-        }
-        for (int i = g.i0; i <= g.i1; ++i)
-          for (int j = g.j0; j <= g.j1; ++j) {
-            const std::size_t t = std::size_t(i) * width + j;
-            std::copy_n(out.data + t * sectors, sectors, best);
-            work += detail::search_texel(context, i, j, heights.data[t], dirty_nodes, best);
-            std::copy_n(best, sectors, out.data + t * sectors);
-          }
-        dirty_nodes.clear();
-      }
-      if (reach[group] & fell) {  // stale ratios stay conservative; tighten them later
-        for (int i = g.i0; i <= g.i1; ++i)
-          for (int j = g.j0; j <= g.j1; ++j) state.slack[std::size_t(i) * width + j] = 0.0f;
-        state.group_slack[group] = 0.0f;
-      }
-    }
-    clock.work += work;
-  });
   run_refinement(state, clock, keep, out.data, refined);
   return finish(state, clock, keep, refined, out.data);
 }

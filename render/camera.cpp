@@ -2,6 +2,7 @@
 // (pixel rays for tests and the exact reference trace). Both use the same basis, so a pixel's ray on
 // the CPU is the ray its fragment traces on the GPU.
 #include <cmath>
+#include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <string>
 
@@ -9,10 +10,6 @@
 
 namespace displace::render {
 namespace {
-
-constexpr int max_image_side = 16384;  // pixels
-constexpr float min_fov_degrees = 0.01f;
-constexpr float max_fov_degrees = 179.0f;
 
 bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
@@ -30,19 +27,23 @@ Basis basis(const Camera& camera) {
 
 void Camera::validate() const {
   if (width < 1 || height < 1 || width > max_image_side || height > max_image_side) {
-    throw RenderError("image size must be between 1x1 and " + std::to_string(max_image_side) + "x" +
+    throw RenderError("Camera::width and Camera::height must be between 1 and " +
                       std::to_string(max_image_side) + ", got " + std::to_string(width) + "x" +
                       std::to_string(height));
   }
-  if (!finite(eye) || !finite(look_at) || !finite(up)) throw RenderError("camera vectors must be finite");
-  if (!(fov_y_degrees >= min_fov_degrees && fov_y_degrees <= max_fov_degrees)) {
-    throw RenderError("--fov-y must be between 0.01 and 179 degrees");
+  if (!finite(eye) || !finite(look_at) || !finite(up))
+    throw RenderError("Camera::eye, look_at and up must be finite");
+  if (!(fov_y_degrees >= min_fov_y_degrees && fov_y_degrees <= max_fov_y_degrees)) {
+    char message[96];
+    std::snprintf(message, sizeof message, "Camera::fov_y_degrees must be between %g and %g degrees",
+                  double(min_fov_y_degrees), double(max_fov_y_degrees));
+    throw RenderError(message);
   }
   const glm::dvec3 forward = glm::dvec3(look_at) - glm::dvec3(eye);
-  if (glm::length(forward) < 1e-9) throw RenderError("--eye and --look-at must differ");
+  if (glm::length(forward) < 1e-9) throw RenderError("Camera::eye and Camera::look_at must differ");
   if (glm::length(glm::cross(glm::normalize(forward), glm::dvec3(up))) < 1e-6 * glm::length(glm::dvec3(up)) ||
       glm::length(glm::dvec3(up)) < 1e-12) {
-    throw RenderError("--up must not be zero or parallel to the view direction");
+    throw RenderError("Camera::up must not be zero or parallel to the view direction");
   }
 }
 

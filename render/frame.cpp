@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -118,58 +119,65 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
-void Renderer::Impl::render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs) {
-  // validate the view
-  if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
+namespace {
+
+// The background: the sky's horizon over water, else the grid's dark grey.
+std::array<float, 4> clear_colour(const View& view) {
+  return view.material == Material::water
+             ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f}
+             : background;
+}
+
+std::string limits_text(const char* field, double low, double high, const char* unit) {
+  char text[160];
+  std::snprintf(text, sizeof text, "%s must be between %g and %g%s", field, low, high, unit);
+  return text;
+}
+
+}  // namespace
+
+void Renderer::Impl::validate_frame(const View& view, const MethodSettings& method, unsigned outputs) const {
   view.camera.validate();
   if (view.tile < 1 || view.tile > max_tile)
-    throw RenderError("--tile must be between 1 and " + std::to_string(max_tile));
+    throw RenderError("View::tile must be between 1 and " + std::to_string(max_tile));
   if (view.tile > 1 && view.address != bake::Address::wrap)
-    throw RenderError("--tile above 1 needs --address wrap");
-  if (!(view.depth_scale > 0.0f && view.depth_scale <= max_depth_scale)) {
-    throw RenderError("--depth-scale must be above 0 and at most 10");
+    throw RenderError("View::tile above 1 needs View::address = Address::wrap");
+  if (!(view.depth_scale >= min_depth_scale && view.depth_scale <= max_depth_scale)) {
+    throw RenderError(
+        limits_text("View::depth_scale", double(min_depth_scale), double(max_depth_scale), " world units"));
   }
   if (!std::isfinite(view.light_direction.x) || !std::isfinite(view.light_direction.y) ||
       !std::isfinite(view.light_direction.z) || glm::length(view.light_direction) < 1e-6f) {
-    throw RenderError("the light direction must be finite and non-zero");
+    throw RenderError("View::light_direction must be finite and non-zero");
   }
-  if (method.steps < 1 || method.steps > max_steps) throw RenderError("--steps must be between 1 and 4096");
-  if (method.refine < 0 || method.refine > max_refine) throw RenderError("--refine must be between 0 and 64");
+  if (method.steps < 1 || method.steps > max_steps)
+    throw RenderError("MethodSettings::steps must be between 1 and " + std::to_string(max_steps));
+  if (method.refine < 0 || method.refine > max_refine)
+    throw RenderError("MethodSettings::refine must be between 0 and " + std::to_string(max_refine));
   if (outputs > output_all) throw RenderError("render: unknown outputs requested");
-  const MethodInfo& info = method_info(method.method);
-  const Camera& camera = view.camera;
-  const bool quadric = is_quadric(view.surface);
-  const bool mesh = view.surface == Surface::mesh;
-  if (mesh && mesh_index_count == 0) throw RenderError("--surface mesh: no mesh was set");
-  if (!supports_surface(info.method, view.surface)) {
+  if (view.surface == Surface::mesh && mesh_index_count == 0)
+    throw RenderError("View::surface mesh: no mesh was set (Renderer::set_mesh)");
+  if (!supports_surface(method.method, view.surface)) {
     std::string supported;
     for (const MethodInfo& other : method_table()) {
       if (!supports_surface(other.method, view.surface)) continue;
       supported += (supported.empty() ? "" : ", ") + std::string(other.name);
     }
-    throw RenderError(std::string("--method ") + info.name + " does not support --surface " +
-                      surface_name(view.surface) + " (methods there: " + supported + ")");
+    throw RenderError(std::string("MethodSettings::method ") + method_info(method.method).name +
+                      " does not support View::surface " + surface_name(view.surface) +
+                      " (methods there: " + supported + ")");
   }
-  if (quadric) quadric::validate(view);
-  require_maps(map_needs(method.method, view), info);
-  check_frame_memory(view, info, frame, outputs);
+  if (is_quadric(view.surface)) quadric::validate(view);
+}
 
-  // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
-  const VkPipeline pipeline_handle = pipeline(info, view.surface);
-  const bool reference = info.family == MethodFamily::reference;
-  if (reference) {
-    if (mesh) {
-      ensure_mesh_reference(view.tile);
-    } else {
-      ensure_reference(view.tile);
-    }
-  }
-  ensure_targets(camera.width, camera.height);
-
-  // frame uniforms: near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
+// near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
+void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, const MethodSettings& method,
+                                    const MethodInfo& info) const {
+  const Camera& camera = view.camera;
+  const bool quadric = is_quadric(view.surface);
   glm::dvec3 box_lo(0.0, 0.0, -double(view.depth_scale)), box_hi(1.0, 1.0, 0.0);
   if (quadric) quadric::relief_box(quadric::shape_of(view), box_lo, box_hi);
-  if (mesh) {
+  if (view.surface == Surface::mesh) {
     box_lo = mesh_lo - glm::dvec3(view.depth_scale);
     box_hi = mesh_hi + glm::dvec3(view.depth_scale);
   }
@@ -196,50 +204,50 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
                     (view.shadows ? FLAG_SHADOWS : 0) | (has_albedo ? FLAG_ALBEDO : 0) |
                     (water ? FLAG_WATER : 0) | (water && foam.held ? FLAG_FOAM : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
-  const std::array<float, 4> clear_colour =
-      water ? std::array<float, 4>{float(SKY_HORIZON_R), float(SKY_HORIZON_G), float(SKY_HORIZON_B), 1.0f}
-            : background;
-  uniforms.background = glm::vec4(clear_colour[0], clear_colour[1], clear_colour[2], clear_colour[3]);
+  const std::array<float, 4> clear = clear_colour(view);
+  uniforms.background = glm::vec4(clear[0], clear[1], clear[2], clear[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
   const Camera::PixelRays rays = camera.pixel_rays();
   uniforms.ray_corner = glm::vec4(glm::vec3(rays.corner), 0.0f);
   uniforms.ray_along_x = glm::vec4(glm::vec3(rays.along_x), 0.0f);
   uniforms.ray_along_y = glm::vec4(glm::vec3(rays.along_y), 0.0f);
-
-  FrameSlot& frame_slot = begin_slot();
-  const int slot_index = slot;
   std::memcpy(frame_slot.uniforms.mapped(), &uniforms, sizeof uniforms);
-  write_descriptors(frame_slot, view, info);
+}
 
-  // readback buffers of the outputs asked for (made per target size; the slot's frame has finished)
-  const auto width = std::uint32_t(camera.width), height = std::uint32_t(camera.height);
-  const VkDeviceSize pixels = VkDeviceSize(width) * height;
-  if (frame_slot.readback_width != camera.width || frame_slot.readback_height != camera.height) {
+// readback buffers of the outputs asked for (made per target size; the slot's frame has finished)
+void Renderer::Impl::ensure_readbacks(FrameSlot& frame_slot, int width, int height, unsigned outputs) {
+  const VkDeviceSize pixels = VkDeviceSize(std::uint32_t(width)) * std::uint32_t(height);
+  if (frame_slot.readback_width != width || frame_slot.readback_height != height) {
     frame_slot.color_readback = Buffer{};
     frame_slot.hit_readback = Buffer{};
     frame_slot.counters_readback = Buffer{};
-    frame_slot.readback_width = camera.width;
-    frame_slot.readback_height = camera.height;
+    frame_slot.readback_width = width;
+    frame_slot.readback_height = height;
   }
-  const bool read_color = outputs & output_color;
-  const bool read_hit = outputs & (output_uv | output_depth);
-  const bool read_counters = outputs & (output_iterations | output_fetches);
   const VkMemoryPropertyFlags host =
       VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
   auto ensure_readback = [&](Buffer& buffer, VkDeviceSize bytes) {
     if (!buffer.handle()) buffer = Buffer(context, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, host);
   };
-  if (read_color) ensure_readback(frame_slot.color_readback, pixels * 4);
-  if (read_hit) ensure_readback(frame_slot.hit_readback, pixels * 16);
-  if (read_counters) ensure_readback(frame_slot.counters_readback, pixels * 8);
+  if (outputs & output_color) ensure_readback(frame_slot.color_readback, pixels * 4);
+  if (outputs & (output_uv | output_depth)) ensure_readback(frame_slot.hit_readback, pixels * 16);
+  if (outputs & (output_iterations | output_fetches))
+    ensure_readback(frame_slot.counters_readback, pixels * 8);
+}
 
-  // record
+// the draw between two timestamps, then the copies of the outputs asked for
+void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const View& view,
+                                  const MethodInfo& info, VkPipeline pipeline_handle, unsigned outputs) {
+  const auto width = std::uint32_t(view.camera.width), height = std::uint32_t(view.camera.height);
+  const bool mesh = view.surface == Surface::mesh;
+  const bool reference = info.family == MethodFamily::reference;
   const VkCommandBuffer commands = frame_slot.commands;
   const VkQueryPool queries = timestamps.get();
   const auto first_query = std::uint32_t(2 * slot_index);
   if (queries) vkCmdResetQueryPool(commands, queries, first_query, 2);
+  const std::array<float, 4> clear_color = clear_colour(view);
   std::array<VkClearValue, 4> clears{};
-  std::memcpy(clears[0].color.float32, clear_colour.data(), sizeof(float) * 4);
+  std::memcpy(clears[0].color.float32, clear_color.data(), sizeof(float) * 4);
   clears[3].depthStencil = {1.0f, 0};
   VkRenderPassBeginInfo begin{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
   begin.renderPass = render_pass.get();
@@ -269,22 +277,23 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
     vkCmdBindIndexBuffer(commands, reference_indices.handle(), 0, VK_INDEX_TYPE_UINT32);
     vkCmdDrawIndexed(commands, reference_index_count, 1, 0, 0, 0);
   } else {
-    vkCmdDraw(commands, quadric ? 36 : 6, 1, 0, 0);  // the proxy box, or the plane's two triangles
+    // the proxy box, or the plane's two triangles
+    vkCmdDraw(commands, is_quadric(view.surface) ? 36 : 6, 1, 0, 0);
   }
   vkCmdEndRenderPass(commands);
   if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, first_query + 1);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
   region.imageExtent = {width, height, 1};
-  if (read_color) {
+  if (outputs & output_color) {
     vkCmdCopyImageToBuffer(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                            frame_slot.color_readback.handle(), 1, &region);
   }
-  if (read_hit) {
+  if (outputs & (output_uv | output_depth)) {
     vkCmdCopyImageToBuffer(commands, targets.hit.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                            frame_slot.hit_readback.handle(), 1, &region);
   }
-  if (read_counters) {
+  if (outputs & (output_iterations | output_fetches)) {
     vkCmdCopyImageToBuffer(commands, targets.counters.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                            frame_slot.counters_readback.handle(), 1, &region);
   }
@@ -295,14 +304,12 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
     vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
                          0, nullptr, 0, nullptr);
   }
+}
 
-  // submit; wait only for a frame that is read back
-  submit_slot(outputs != output_none);
-
-  // read back (vectors keep their capacity)
-  frame.width = camera.width;
-  frame.height = camera.height;
-  frame.gpu_milliseconds = 0.0;
+// the caller's Frame from the slot's readback buffers (vectors keep their capacity)
+void Renderer::Impl::read_back(const FrameSlot& frame_slot, int slot_index, unsigned outputs,
+                               Frame& frame) const {
+  const std::size_t pixels = std::size_t(std::uint32_t(frame.width)) * std::uint32_t(frame.height);
   auto keep = [](auto& values, bool wanted, std::size_t size) {
     if (wanted) {
       values.resize(size);
@@ -310,15 +317,14 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
       values.clear();
     }
   };
-  keep(frame.color, outputs & output_color, std::size_t(pixels) * 4);
-  keep(frame.uv, outputs & output_uv, std::size_t(pixels) * 3);
-  keep(frame.depth, outputs & output_depth, std::size_t(pixels));
-  keep(frame.iterations, outputs & output_iterations, std::size_t(pixels));
-  keep(frame.fetches, outputs & output_fetches, std::size_t(pixels));
+  keep(frame.color, outputs & output_color, pixels * 4);
+  keep(frame.uv, outputs & output_uv, pixels * 3);
+  keep(frame.depth, outputs & output_depth, pixels);
+  keep(frame.iterations, outputs & output_iterations, pixels);
+  keep(frame.fetches, outputs & output_fetches, pixels);
   if (outputs == output_none) return;
-  if (read_color)
-    std::memcpy(frame.color.data(), frame_slot.color_readback.mapped(), std::size_t(pixels) * 4);
-  if (read_hit) {
+  if (outputs & output_color) std::memcpy(frame.color.data(), frame_slot.color_readback.mapped(), pixels * 4);
+  if (outputs & (output_uv | output_depth)) {
     const auto* hit = static_cast<const float*>(frame_slot.hit_readback.mapped());
     const bool uv = outputs & output_uv, depth = outputs & output_depth;
     for (std::size_t p = 0; p < pixels; ++p) {
@@ -330,7 +336,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
       if (depth) frame.depth[p] = hit[p * 4 + 3];
     }
   }
-  if (read_counters) {
+  if (outputs & (output_iterations | output_fetches)) {
     const auto* counters = static_cast<const float*>(frame_slot.counters_readback.mapped());
     const bool iterations = outputs & output_iterations, fetches = outputs & output_fetches;
     for (std::size_t p = 0; p < pixels; ++p) {
@@ -338,13 +344,46 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
       if (fetches) frame.fetches[p] = counters[p * 2 + 1];
     }
   }
+  const VkQueryPool queries = timestamps.get();
   if (queries) {
+    const auto first_query = std::uint32_t(2 * slot_index);
     std::array<std::uint64_t, 2> ticks{};
     if (vkGetQueryPoolResults(context.device(), queries, first_query, 2, sizeof ticks, ticks.data(),
                               sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
       frame.gpu_milliseconds = double(ticks[1] - ticks[0]) * context.timestamp_period_ns() * 1e-6;
     }
   }
+}
+
+void Renderer::Impl::render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs) {
+  if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
+  validate_frame(view, method, outputs);
+  const MethodInfo& info = method_info(method.method);
+  require_maps(map_needs(method.method, view), info);
+  check_frame_memory(view, info, frame, outputs);
+
+  // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
+  const VkPipeline pipeline_handle = pipeline(info, view.surface);
+  if (info.family == MethodFamily::reference) {
+    if (view.surface == Surface::mesh) {
+      ensure_mesh_reference(view.tile);
+    } else {
+      ensure_reference(view.tile);
+    }
+  }
+  ensure_targets(view.camera.width, view.camera.height);
+
+  FrameSlot& frame_slot = begin_slot();
+  const int slot_index = slot;
+  write_uniforms(frame_slot, view, method, info);
+  write_descriptors(frame_slot, view, info);
+  ensure_readbacks(frame_slot, view.camera.width, view.camera.height, outputs);
+  record_frame(frame_slot, slot_index, view, info, pipeline_handle, outputs);
+  submit_slot(outputs != output_none);  // waits only for a frame that is read back
+  frame.width = view.camera.width;
+  frame.height = view.camera.height;
+  frame.gpu_milliseconds = 0.0;
+  read_back(frame_slot, slot_index, outputs, frame);
 }
 
 }  // namespace displace::render

@@ -107,20 +107,24 @@ MapNeeds map_needs(Method method, const View& view) {
   return needs;
 }
 
-void Renderer::Impl::take_maps(const MapSet& maps) {
-  // validate the sizes
+namespace {
+
+// How each map of a MapSet is brought up to date (take_maps).
+struct MapCopies {
+  Copy heights = Copy::none, foam = Copy::none;
+  std::array<Copy, 3> cones{Copy::none, Copy::none, Copy::none};
+  Copy pyramid = Copy::none, distance = Copy::none;
+};
+
+// The rectangles a copy writes: the dirty ones, the whole map, or none.
+std::span<const bake::Rect> rects_of(Copy copy, std::span<const bake::Rect> dirty,
+                                     std::span<const bake::Rect> whole_map) {
+  return copy == Copy::rects ? dirty : (copy == Copy::whole ? whole_map : std::span<const bake::Rect>{});
+}
+
+// The cone maps' sizes and slots, checked before anything is made.
+void validate_cone_sizes(const MapSet& maps) {
   const int width = maps.width, height = maps.height;
-  if (width < 1 || height < 1 || width > max_map_side || height > max_map_side ||
-      maps.heights.size() != std::size_t(width) * std::size_t(height)) {
-    throw RenderError(
-        "maps: the height map must be between 1x1 and 16384x16384 texels with one height per texel (got " +
-        size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
-  }
-  check_rects(maps.heights_dirty, width, height, "heights");
-  if (!maps.foam.empty() && maps.foam.size() != std::size_t(width) * std::size_t(height)) {
-    throw RenderError("maps: foam coverage must hold one value per texel of the " + size_text(width, height) +
-                      " heights");
-  }
   const std::size_t texels = std::size_t(width) * std::size_t(height);
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& given = maps.cones[index];
@@ -140,6 +144,24 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     }
     check_rects(given.dirty, width, height, name);
   }
+}
+
+// Every map's size against the heights' and the device's limits; returns the max pyramid's bytes
+// (header and values; 0 without one).
+VkDeviceSize validate_map_sizes(const MapSet& maps, const DeviceInfo& device) {
+  const int width = maps.width, height = maps.height;
+  if (width < 1 || height < 1 || width > max_map_side || height > max_map_side ||
+      maps.heights.size() != std::size_t(width) * std::size_t(height)) {
+    throw RenderError("MapSet::width and MapSet::height must be between 1 and " +
+                      std::to_string(max_map_side) + " texels, with one height per texel (got " +
+                      size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
+  }
+  check_rects(maps.heights_dirty, width, height, "heights");
+  if (!maps.foam.empty() && maps.foam.size() != std::size_t(width) * std::size_t(height)) {
+    throw RenderError("maps: foam coverage must hold one value per texel of the " + size_text(width, height) +
+                      " heights");
+  }
+  validate_cone_sizes(maps);
   const bake::DualMaxPyramid* pyramid = maps.max_pyramid.pyramid;
   VkDeviceSize pyramid_bytes = 0;
   if (pyramid) {
@@ -151,15 +173,15 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
           "maps: the max pyramid is not one of bake::build_dual_max_pyramid with its address mode");
     }
     pyramid_bytes = sizeof(gpu::MaxPyramidHeader) + pyramid->values.size() * sizeof(float);
-    if (pyramid_bytes > context.info().max_storage_buffer_range) {
+    if (pyramid_bytes > device.max_storage_buffer_range) {
       throw RenderError("the max pyramid of a " + size_text(width, height) + " map needs " +
                         std::to_string(pyramid_bytes) + " bytes, more than this device's " +
-                        std::to_string(context.info().max_storage_buffer_range) + "-byte storage buffers");
+                        std::to_string(device.max_storage_buffer_range) + "-byte storage buffers");
     }
   }
   const DistanceMapView& distance_view = maps.distance;
   if (distance_view.width != 0) {
-    const int limit = context.info().max_image_dimension_3d;
+    const int limit = device.max_image_dimension_3d;
     if (distance_view.width < 1 || distance_view.height < 1 || distance_view.depth < 1 ||
         distance_view.width > limit || distance_view.height > limit || distance_view.depth > limit ||
         distance_view.values.size() != std::size_t(distance_view.width) * std::size_t(distance_view.height) *
@@ -168,36 +190,37 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
                         " voxels a side (this device's 3D images) and one value per voxel");
     }
   }
+  return pyramid_bytes;
+}
 
-  check_map_memory(maps);
-
-  // what changes, and device images of the right shape (made again only when the shape changed)
+// Device images of the right shape, made again only when the shape changed; the first map made
+// again waits for the frames in flight (once per take_maps).
+struct Reshaper {
+  Renderer::Impl& impl;
   bool drained = false;
-  auto reshape = [&](DeviceMap& map, int w, int h, int layers) {
+
+  void drain_once() {
+    if (drained) return;
+    impl.drain();  // an earlier frame, or copies recorded for this one, may still use the old image
+    drained = true;
+  }
+  // whether `map` is to be made again at this shape (its image is then still to be made)
+  bool reshape(DeviceMap& map, int w, int h, int layers) {
     if (map.image.handle() && map.width == w && map.height == h && map.layers == layers) return false;
-    if (!drained && (map.image.handle() || map.buffer.handle())) {
-      drain();  // an earlier frame, or copies recorded for this one, may still use the old image
-      drained = true;
-    }
+    if (map.image.handle() || map.buffer.handle()) drain_once();
     map.held = false;
     map.width = w;
     map.height = h;
     map.layers = layers;
     return true;
-  };
-  map_width = width;
-  map_height = height;
-
-  const Copy heights_copy =
-      copy_kind(heights, heights.width == width && heights.height == height, maps.heights_version,
-                maps.heights_dirty_since, maps.heights_dirty.size());
+  }
   // a map's image: written by the host where the device shares its memory, else copied into
-  auto make_image = [&](DeviceMap& map, VkFormat format, int w, int h, int layers,
-                        VkImageViewType view_type) {
+  void make_image(DeviceMap& map, VkFormat format, int w, int h, int layers, VkImageViewType view_type) {
     const auto image_width = std::uint32_t(w), image_height = std::uint32_t(h),
                image_layers = std::uint32_t(layers);
+    Context& context = impl.context;
     map.general = false;
-    map.image = host_written_maps && context.host_images(format, image_width, image_height, image_layers)
+    map.image = impl.host_written_maps && context.host_images(format, image_width, image_height, image_layers)
                     ? Image::host_written(context, format, image_width, image_height, image_layers, view_type)
                     : Image();
     map.host_written = map.image.handle() != VK_NULL_HANDLE;
@@ -206,21 +229,33 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
                         VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
                         VK_IMAGE_ASPECT_COLOR_BIT, view_type);
     }
-  };
-  if (reshape(heights, width, height, 1))
-    make_image(heights, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
-  Copy foam_copy = Copy::none;
+  }
+};
+
+// heights and foam: what changes, and their images
+void reshape_values(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
+  Renderer::Impl& impl = reshaper.impl;
+  const int width = maps.width, height = maps.height;
+  copies.heights = copy_kind(impl.heights, impl.heights.width == width && impl.heights.height == height,
+                             maps.heights_version, maps.heights_dirty_since, maps.heights_dirty.size());
+  if (reshaper.reshape(impl.heights, width, height, 1))
+    reshaper.make_image(impl.heights, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
+  DeviceMap& foam = impl.foam;
   if (!maps.foam.empty()) {
-    foam_copy = copy_kind(foam, foam.width == width && foam.height == height, maps.foam_version, 0, 0);
-    if (reshape(foam, width, height, 1))
-      make_image(foam, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
+    copies.foam = copy_kind(foam, foam.width == width && foam.height == height, maps.foam_version, 0, 0);
+    if (reshaper.reshape(foam, width, height, 1))
+      reshaper.make_image(foam, VK_FORMAT_R32_SFLOAT, width, height, 1, VK_IMAGE_VIEW_TYPE_2D);
   } else {
     foam.held = false;
   }
-  std::array<Copy, 3> cone_copies{Copy::none, Copy::none, Copy::none};
-  for (std::size_t index = 0; index < cones.size(); ++index) {
+}
+
+// the cone maps: what changes, and their images (one layer per sector, and more: cone_layer_count)
+void reshape_cones(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
+  const int width = maps.width, height = maps.height;
+  for (std::size_t index = 0; index < reshaper.impl.cones.size(); ++index) {
     const ConeMapView& view = maps.cones[index];
-    DeviceMap& map = cones[index];
+    DeviceMap& map = reshaper.impl.cones[index];
     if (view.sector_count == 0) {
       map.held = false;
       continue;
@@ -230,43 +265,47 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     const bool same = map.width == width && map.height == height && map.layers == layers &&
                       map.sectors == view.sector_count && map.relaxed == relaxed &&
                       map.address == view.address;
-    cone_copies[index] = copy_kind(map, same, view.version, view.dirty_since, view.dirty.size());
-    if (reshape(map, width, height, layers)) {
-      make_image(map, cone_format, width, height, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
+    copies.cones[index] = copy_kind(map, same, view.version, view.dirty_since, view.dirty.size());
+    if (reshaper.reshape(map, width, height, layers)) {
+      reshaper.make_image(map, cone_format, width, height, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
     }
-    if (cone_copies[index] == Copy::whole) map.held = false;
+    if (copies.cones[index] == Copy::whole) map.held = false;
     map.sectors = view.sector_count;
     map.relaxed = relaxed;
     map.address = view.address;
   }
-  Copy pyramid_copy = Copy::none;
-  if (pyramid) {
+}
+
+// the max pyramid's buffer and the distance map's 3D image: what changes, and their memory
+void reshape_pyramid_and_distance(Reshaper& reshaper, const MapSet& maps, VkDeviceSize pyramid_bytes,
+                                  MapCopies& copies) {
+  Renderer::Impl& impl = reshaper.impl;
+  DeviceMap& max_pyramid = impl.max_pyramid;
+  if (maps.max_pyramid.pyramid) {
     const int bytes = int(std::min<VkDeviceSize>(pyramid_bytes, 0x7fffffff));
     const bool same = max_pyramid.width == bytes && max_pyramid.address == maps.max_pyramid.address;
-    pyramid_copy = copy_kind(max_pyramid, same, maps.max_pyramid.version, 0, 0);
+    copies.pyramid = copy_kind(max_pyramid, same, maps.max_pyramid.version, 0, 0);
     if (max_pyramid.width != bytes || !max_pyramid.buffer.handle()) {
-      if (!drained && max_pyramid.buffer.handle()) {
-        drain();
-        drained = true;
-      }
-      max_pyramid.buffer = Buffer(context, pyramid_bytes,
+      if (max_pyramid.buffer.handle()) reshaper.drain_once();
+      max_pyramid.buffer = Buffer(impl.context, pyramid_bytes,
                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                   VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
       max_pyramid.width = bytes;
       max_pyramid.held = false;
-      pyramid_copy = Copy::whole;
+      copies.pyramid = Copy::whole;
     }
     max_pyramid.address = maps.max_pyramid.address;
   } else {
     max_pyramid.held = false;
   }
-  Copy distance_copy = Copy::none;
+  const DistanceMapView& distance_view = maps.distance;
+  DeviceMap& distance = impl.distance;
   if (distance_view.width != 0) {
     const bool same = distance.width == distance_view.width && distance.height == distance_view.height &&
                       distance.layers == distance_view.depth && distance.address == distance_view.address;
-    distance_copy = copy_kind(distance, same, distance_view.version, 0, 0);
-    if (reshape(distance, distance_view.width, distance_view.height, distance_view.depth)) {
-      distance.image = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(distance_view.width),
+    copies.distance = copy_kind(distance, same, distance_view.version, 0, 0);
+    if (reshaper.reshape(distance, distance_view.width, distance_view.height, distance_view.depth)) {
+      distance.image = Image(impl.context, VK_FORMAT_R32_SFLOAT, std::uint32_t(distance_view.width),
                              std::uint32_t(distance_view.height), std::uint32_t(distance_view.depth),
                              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
                              VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_3D);
@@ -275,39 +314,242 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   } else {
     distance.held = false;
   }
+}
 
-  // the whole map as one rectangle
-  const bake::Rect whole{0, 0, width, height};
-  const std::span<const bake::Rect> whole_map(&whole, 1);
-  auto rects_of = [&](Copy copy, std::span<const bake::Rect> dirty) {
-    return copy == Copy::rects ? dirty : (copy == Copy::whole ? whole_map : std::span<const bake::Rect>{});
-  };
-
-  // staging bytes, then room in the current slot's part of the ring
+// The staging bytes the copies need, and whether a host-written map changes (the host then waits
+// for the frames that may read it).
+VkDeviceSize staging_bytes(const Renderer::Impl& impl, const MapSet& maps, const MapCopies& copies,
+                           VkDeviceSize pyramid_bytes, std::span<const bake::Rect> whole_map,
+                           bool& host_writes) {
   VkDeviceSize bytes = 0;
-  bool host_writes = false;  // a host-written map changes: wait for the frames that may read it
-  if (heights.host_written) {
-    host_writes |= heights_copy != Copy::none;
+  host_writes = false;
+  if (impl.heights.host_written) {
+    host_writes |= copies.heights != Copy::none;
   } else {
-    for (const bake::Rect& rect : rects_of(heights_copy, maps.heights_dirty))
+    for (const bake::Rect& rect : rects_of(copies.heights, maps.heights_dirty, whole_map))
       bytes += align_up(rect_texels(rect) * 4);
   }
-  if (foam.host_written) {
-    host_writes |= foam_copy != Copy::none;
-  } else if (foam_copy != Copy::none) {
-    bytes += align_up(texels * 4);
+  if (impl.foam.host_written) {
+    host_writes |= copies.foam != Copy::none;
+  } else if (copies.foam != Copy::none) {
+    bytes += align_up(std::size_t(maps.width) * std::size_t(maps.height) * 4);
   }
-  for (std::size_t index = 0; index < cones.size(); ++index) {
-    if (cones[index].host_written) {
-      host_writes |= cone_copies[index] != Copy::none;
+  for (std::size_t index = 0; index < impl.cones.size(); ++index) {
+    if (impl.cones[index].host_written) {
+      host_writes |= copies.cones[index] != Copy::none;
       continue;
     }
-    for (const bake::Rect& rect : rects_of(cone_copies[index], maps.cones[index].dirty)) {
-      bytes += align_up(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(cones[index].layers));
+    for (const bake::Rect& rect : rects_of(copies.cones[index], maps.cones[index].dirty, whole_map)) {
+      bytes += align_up(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(impl.cones[index].layers));
     }
   }
-  if (pyramid_copy != Copy::none) bytes += align_up(pyramid_bytes);
-  if (distance_copy != Copy::none) bytes += align_up(distance_view.values.size() * sizeof(float));
+  if (copies.pyramid != Copy::none) bytes += align_up(pyramid_bytes);
+  if (copies.distance != Copy::none) bytes += align_up(maps.distance.values.size() * sizeof(float));
+  return bytes;
+}
+
+// Where this take_maps' copies go: the current slot's staging and command buffer.
+struct Upload {
+  FrameSlot* frame_slot = nullptr;
+  std::byte* staging = nullptr;
+  VkCommandBuffer commands = VK_NULL_HANDLE;
+  int width = 0;  // of the maps
+  std::span<const bake::Rect> whole_map;
+  std::vector<VkBufferImageCopy>& regions;  // Renderer::Impl::copy_regions, reused
+
+  VkDeviceSize reserve(VkDeviceSize size) {
+    const VkDeviceSize offset = frame_slot->staging_used;
+    frame_slot->staging_used += align_up(size);
+    return offset;
+  }
+  // a host-written image made this time: to GENERAL layout before the frame's shaders read it (the
+  // host's writes before the submission are visible to it without a barrier of their own)
+  void to_general(DeviceMap& map, std::uint32_t layers) const {
+    if (map.general) return;
+    image_barrier(commands, map.image.handle(), layers, VK_IMAGE_LAYOUT_PREINITIALIZED,
+                  VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_HOST_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
+                  VK_PIPELINE_STAGE_HOST_BIT,
+                  VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
+    map.general = true;
+  }
+  // the regions gathered, copied into `map` between its barriers
+  void copy_regions_into(DeviceMap& map, std::uint32_t layers, bool fresh) const {
+    to_transfer(commands, map, layers, fresh);
+    if (!regions.empty()) {
+      vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()),
+                             regions.data());
+    }
+    to_shader(commands, map, layers);
+  }
+};
+
+VkBufferImageCopy rect_region(VkDeviceSize offset, const bake::Rect& rect, std::uint32_t layers) {
+  VkBufferImageCopy region{};
+  region.bufferOffset = offset;
+  region.bufferRowLength = std::uint32_t(rect.x1 - rect.x0);
+  region.bufferImageHeight = std::uint32_t(rect.y1 - rect.y0);
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, layers};
+  region.imageOffset = {rect.x0, rect.y0, 0};
+  region.imageExtent = {std::uint32_t(rect.x1 - rect.x0), std::uint32_t(rect.y1 - rect.y0), 1};
+  return region;
+}
+
+// heights and foam: one R32F value per texel in [0, 1]
+void upload_values(Upload& upload, DeviceMap& map, Copy copy, std::span<const float> values,
+                   std::span<const bake::Rect> dirty, std::uint64_t version, const char* what) {
+  if (copy == Copy::none) return;
+  const bool fresh = !map.held;
+  map.held = false;
+  if (map.host_written) {
+    for (const bake::Rect& rect : rects_of(copy, dirty, upload.whole_map)) {
+      if (rect_texels(rect) == 0) continue;
+      if (!detail::pack_heights(values, upload.width, rect, texel_of(map, rect.x0, rect.y0, 4),
+                                map.image.row_pitch() / 4)) {
+        throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
+      }
+    }
+    upload.to_general(map, 1);
+    map.held = true;
+    map.version = version;
+    return;
+  }
+  upload.regions.clear();
+  for (const bake::Rect& rect : rects_of(copy, dirty, upload.whole_map)) {
+    if (rect_texels(rect) == 0) continue;
+    const VkDeviceSize offset = upload.reserve(rect_texels(rect) * 4);
+    if (!detail::pack_heights(values, upload.width, rect, reinterpret_cast<float*>(upload.staging + offset),
+                              std::size_t(rect.x1 - rect.x0))) {
+      throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
+    }
+    upload.regions.push_back(rect_region(offset, rect, 1));
+  }
+  upload.copy_regions_into(map, 1, fresh);
+  map.held = true;
+  map.version = version;
+}
+
+// a cone map: every layer of a rectangle in one region (layer after layer in the staging)
+void upload_cones(Upload& upload, DeviceMap& map, Copy copy, const ConeMapView& view) {
+  if (copy == Copy::none) return;
+  const bool fresh = !map.held;
+  map.held = false;
+  auto invalid = [&] {  // made only when thrown: a frame builds no strings
+    return RenderError(
+        "maps: the " + std::to_string(view.sector_count) +
+        "-sector cone map holds a negative or non-finite ratio or an apex height outside [0, 1]");
+  };
+  if (map.host_written) {
+    for (const bake::Rect& rect : rects_of(copy, view.dirty, upload.whole_map)) {
+      if (rect_texels(rect) == 0) continue;
+      auto* origin = reinterpret_cast<std::uint16_t*>(texel_of(map, rect.x0, rect.y0, cone_texel_bytes));
+      if (!detail::pack_cones(view, upload.width, rect, origin, map.image.row_pitch() / 2,
+                              map.image.layer_pitch() / 2)) {
+        throw invalid();
+      }
+    }
+    upload.to_general(map, std::uint32_t(map.layers));
+    map.held = true;
+    map.version = view.version;
+    return;
+  }
+  upload.regions.clear();
+  for (const bake::Rect& rect : rects_of(copy, view.dirty, upload.whole_map)) {
+    if (rect_texels(rect) == 0) continue;
+    const VkDeviceSize offset =
+        upload.reserve(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(map.layers));
+    if (!detail::pack_cones(view, upload.width, rect,
+                            reinterpret_cast<std::uint16_t*>(upload.staging + offset),
+                            std::size_t(rect.x1 - rect.x0) * 2, std::size_t(rect_texels(rect)) * 2)) {
+      throw invalid();
+    }
+    upload.regions.push_back(rect_region(offset, rect, std::uint32_t(map.layers)));
+  }
+  upload.copy_regions_into(map, std::uint32_t(map.layers), fresh);
+  map.held = true;
+  map.version = view.version;
+}
+
+// the max pyramid: header and values, as the shader reads them at BINDING_MAX_PYRAMID
+void upload_pyramid(Upload& upload, DeviceMap& max_pyramid, const MaxPyramidView& view,
+                    VkDeviceSize pyramid_bytes) {
+  const bake::DualMaxPyramid* pyramid = view.pyramid;
+  max_pyramid.held = false;
+  const VkDeviceSize offset = upload.reserve(pyramid_bytes);
+  gpu::MaxPyramidHeader header{};
+  const std::size_t levels = pyramid->widths.size();
+  header.shape = glm::ivec4(int(levels), pyramid->origin, 0, 0);
+  for (std::size_t level = 0; level < levels; ++level) {
+    header.levels[level] =
+        glm::ivec4(int(pyramid->offsets[level]), pyramid->widths[level], pyramid->heights[level], 0);
+  }
+  std::memcpy(upload.staging + offset, &header, sizeof header);
+  std::memcpy(upload.staging + offset + sizeof header, pyramid->values.data(),
+              pyramid->values.size() * sizeof(float));
+  const VkCommandBuffer commands = upload.commands;
+  VkBufferMemoryBarrier barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
+  barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  barrier.buffer = max_pyramid.buffer.handle();
+  barrier.size = VK_WHOLE_SIZE;
+  barrier.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0,
+                       nullptr, 1, &barrier, 0, nullptr);
+  const VkBufferCopy region{offset, 0, pyramid_bytes};
+  vkCmdCopyBuffer(commands, upload.frame_slot->staging.handle(), max_pyramid.buffer.handle(), 1, &region);
+  barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 0,
+                       nullptr, 1, &barrier, 0, nullptr);
+  max_pyramid.held = true;
+  max_pyramid.version = view.version;
+}
+
+// the distance map (3D)
+void upload_distance(Upload& upload, DeviceMap& distance, const DistanceMapView& view) {
+  const bool fresh = !distance.held;
+  distance.held = false;
+  const VkDeviceSize offset = upload.reserve(view.values.size() * sizeof(float));
+  float* out = reinterpret_cast<float*>(upload.staging + offset);
+  bool valid = true;
+  for (std::size_t v = 0; v < view.values.size(); ++v) {
+    const float value = view.values[v];
+    valid &= value >= 0.0f && value <= 1e30f;
+    out[v] = value;
+  }
+  if (!valid) throw RenderError("maps: the distance map holds a negative or non-finite distance");
+  to_transfer(upload.commands, distance, 1, fresh);
+  VkBufferImageCopy region{};
+  region.bufferOffset = offset;
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {std::uint32_t(view.width), std::uint32_t(view.height), std::uint32_t(view.depth)};
+  vkCmdCopyBufferToImage(upload.commands, upload.frame_slot->staging.handle(), distance.image.handle(),
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+  to_shader(upload.commands, distance, 1);
+  distance.held = true;
+  distance.version = view.version;
+}
+
+}  // namespace
+
+void Renderer::Impl::take_maps(const MapSet& maps) {
+  const VkDeviceSize pyramid_bytes = validate_map_sizes(maps, context.info());
+  check_map_memory(maps);
+
+  // what changes, and device images of the right shape (made again only when the shape changed)
+  Reshaper reshaper{*this};
+  map_width = maps.width;
+  map_height = maps.height;
+  MapCopies copies;
+  reshape_values(reshaper, maps, copies);
+  reshape_cones(reshaper, maps, copies);
+  reshape_pyramid_and_distance(reshaper, maps, pyramid_bytes, copies);
+
+  // staging bytes, then room in the current slot's part of the ring
+  const bake::Rect whole{0, 0, maps.width, maps.height};
+  const std::span<const bake::Rect> whole_map(&whole, 1);
+  bool host_writes = false;  // a host-written map changes: wait for the frames that may read it
+  const VkDeviceSize bytes = staging_bytes(*this, maps, copies, pyramid_bytes, whole_map, host_writes);
   if (bytes == 0 && !host_writes) return;
   if (host_writes) wait_submitted();
   FrameSlot* frame_slot = &begin_slot();
@@ -319,189 +561,25 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     frame_slot->staging = Buffer(context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                  VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   }
-  auto* staging = static_cast<std::byte*>(frame_slot->staging.mapped());
-  const VkCommandBuffer commands = frame_slot->commands;
-  auto reserve = [&](VkDeviceSize size) {
-    const VkDeviceSize offset = frame_slot->staging_used;
-    frame_slot->staging_used += align_up(size);
-    return offset;
-  };
-  std::vector<VkBufferImageCopy>& regions = copy_regions;
-  // a host-written image made this time: to GENERAL layout before the frame's shaders read it (the
-  // host's writes before the submission are visible to it without a barrier of their own)
-  auto to_general = [&](DeviceMap& map, std::uint32_t layers) {
-    if (map.general) return;
-    image_barrier(commands, map.image.handle(), layers, VK_IMAGE_LAYOUT_PREINITIALIZED,
-                  VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_HOST_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
-                  VK_PIPELINE_STAGE_HOST_BIT,
-                  VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
-    map.general = true;
-  };
 
-  // heights and foam: one R32F value per texel in [0, 1]
-  auto upload_values = [&](DeviceMap& map, Copy copy, std::span<const float> values,
-                           std::span<const bake::Rect> dirty, std::uint64_t version, const char* what) {
-    if (copy == Copy::none) return;
-    const bool fresh = !map.held;
-    map.held = false;
-    if (map.host_written) {
-      for (const bake::Rect& rect : rects_of(copy, dirty)) {
-        if (rect_texels(rect) == 0) continue;
-        if (!detail::pack_heights(values, width, rect, texel_of(map, rect.x0, rect.y0, 4),
-                                  map.image.row_pitch() / 4)) {
-          throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
-        }
-      }
-      to_general(map, 1);
-      map.held = true;
-      map.version = version;
-      return;
-    }
-    regions.clear();
-    for (const bake::Rect& rect : rects_of(copy, dirty)) {
-      if (rect_texels(rect) == 0) continue;
-      const VkDeviceSize offset = reserve(rect_texels(rect) * 4);
-      if (!detail::pack_heights(values, width, rect, reinterpret_cast<float*>(staging + offset),
-                                std::size_t(rect.x1 - rect.x0))) {
-        throw RenderError(std::string("maps: ") + what + " must be finite and in [0, 1]");
-      }
-      VkBufferImageCopy region{};
-      region.bufferOffset = offset;
-      region.bufferRowLength = std::uint32_t(rect.x1 - rect.x0);
-      region.bufferImageHeight = std::uint32_t(rect.y1 - rect.y0);
-      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-      region.imageOffset = {rect.x0, rect.y0, 0};
-      region.imageExtent = {std::uint32_t(rect.x1 - rect.x0), std::uint32_t(rect.y1 - rect.y0), 1};
-      regions.push_back(region);
-    }
-    to_transfer(commands, map, 1, fresh);
-    if (!regions.empty()) {
-      vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
-                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()),
-                             regions.data());
-    }
-    to_shader(commands, map, 1);
-    map.held = true;
-    map.version = version;
-  };
-  upload_values(heights, heights_copy, maps.heights, maps.heights_dirty, maps.heights_version, "heights");
-  upload_values(foam, foam_copy, maps.foam, {}, maps.foam_version, "foam coverage");
-
-  // cone maps: every layer of a rectangle in one region (layer after layer in the staging)
-  for (std::size_t index = 0; index < cones.size(); ++index) {
-    if (cone_copies[index] == Copy::none) continue;
-    DeviceMap& map = cones[index];
-    const ConeMapView& view = maps.cones[index];
-    const bool fresh = !map.held;
-    map.held = false;
-    auto invalid = [&] {  // made only when thrown: a frame builds no strings
-      return RenderError(
-          "maps: the " + std::to_string(view.sector_count) +
-          "-sector cone map holds a negative or non-finite ratio or an apex height outside [0, 1]");
-    };
-    if (map.host_written) {
-      for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
-        if (rect_texels(rect) == 0) continue;
-        auto* origin = reinterpret_cast<std::uint16_t*>(texel_of(map, rect.x0, rect.y0, cone_texel_bytes));
-        if (!detail::pack_cones(view, width, rect, origin, map.image.row_pitch() / 2,
-                                map.image.layer_pitch() / 2)) {
-          throw invalid();
-        }
-      }
-      to_general(map, std::uint32_t(map.layers));
-      map.held = true;
-      map.version = view.version;
-      continue;
-    }
-    regions.clear();
-    for (const bake::Rect& rect : rects_of(cone_copies[index], view.dirty)) {
-      if (rect_texels(rect) == 0) continue;
-      const VkDeviceSize offset = reserve(rect_texels(rect) * cone_texel_bytes * VkDeviceSize(map.layers));
-      if (!detail::pack_cones(view, width, rect, reinterpret_cast<std::uint16_t*>(staging + offset),
-                              std::size_t(rect.x1 - rect.x0) * 2, std::size_t(rect_texels(rect)) * 2)) {
-        throw invalid();
-      }
-      VkBufferImageCopy region{};
-      region.bufferOffset = offset;
-      region.bufferRowLength = std::uint32_t(rect.x1 - rect.x0);
-      region.bufferImageHeight = std::uint32_t(rect.y1 - rect.y0);
-      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, std::uint32_t(map.layers)};
-      region.imageOffset = {rect.x0, rect.y0, 0};
-      region.imageExtent = {std::uint32_t(rect.x1 - rect.x0), std::uint32_t(rect.y1 - rect.y0), 1};
-      regions.push_back(region);
-    }
-    to_transfer(commands, map, std::uint32_t(map.layers), fresh);
-    if (!regions.empty()) {
-      vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), map.image.handle(),
-                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, std::uint32_t(regions.size()),
-                             regions.data());
-    }
-    to_shader(commands, map, std::uint32_t(map.layers));
-    map.held = true;
-    map.version = view.version;
-  }
-
-  // the max pyramid: header and values, as the shader reads them at BINDING_MAX_PYRAMID
-  if (pyramid_copy != Copy::none) {
-    max_pyramid.held = false;
-    const VkDeviceSize offset = reserve(pyramid_bytes);
-    gpu::MaxPyramidHeader header{};
-    const std::size_t levels = pyramid->widths.size();
-    header.shape = glm::ivec4(int(levels), pyramid->origin, 0, 0);
-    for (std::size_t level = 0; level < levels; ++level) {
-      header.levels[level] =
-          glm::ivec4(int(pyramid->offsets[level]), pyramid->widths[level], pyramid->heights[level], 0);
-    }
-    std::memcpy(staging + offset, &header, sizeof header);
-    std::memcpy(staging + offset + sizeof header, pyramid->values.data(),
-                pyramid->values.size() * sizeof(float));
-    VkBufferMemoryBarrier barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
-    barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    barrier.buffer = max_pyramid.buffer.handle();
-    barrier.size = VK_WHOLE_SIZE;
-    barrier.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
-                         0, nullptr, 1, &barrier, 0, nullptr);
-    const VkBufferCopy region{offset, 0, pyramid_bytes};
-    vkCmdCopyBuffer(commands, frame_slot->staging.handle(), max_pyramid.buffer.handle(), 1, &region);
-    barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
-    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0,
-                         0, nullptr, 1, &barrier, 0, nullptr);
-    max_pyramid.held = true;
-    max_pyramid.version = maps.max_pyramid.version;
-  }
-
-  // the distance map (3D)
-  if (distance_copy != Copy::none) {
-    const bool fresh = !distance.held;
-    distance.held = false;
-    const VkDeviceSize offset = reserve(distance_view.values.size() * sizeof(float));
-    float* out = reinterpret_cast<float*>(staging + offset);
-    bool valid = true;
-    for (std::size_t v = 0; v < distance_view.values.size(); ++v) {
-      const float value = distance_view.values[v];
-      valid &= value >= 0.0f && value <= 1e30f;
-      out[v] = value;
-    }
-    if (!valid) throw RenderError("maps: the distance map holds a negative or non-finite distance");
-    to_transfer(commands, distance, 1, fresh);
-    VkBufferImageCopy region{};
-    region.bufferOffset = offset;
-    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-    region.imageExtent = {std::uint32_t(distance_view.width), std::uint32_t(distance_view.height),
-                          std::uint32_t(distance_view.depth)};
-    vkCmdCopyBufferToImage(commands, frame_slot->staging.handle(), distance.image.handle(),
-                           VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-    to_shader(commands, distance, 1);
-    distance.held = true;
-    distance.version = distance_view.version;
-  }
+  // pack and record the copies
+  Upload upload{frame_slot,
+                static_cast<std::byte*>(frame_slot->staging.mapped()),
+                frame_slot->commands,
+                maps.width,
+                whole_map,
+                copy_regions};
+  upload_values(upload, heights, copies.heights, maps.heights, maps.heights_dirty, maps.heights_version,
+                "heights");
+  upload_values(upload, foam, copies.foam, maps.foam, {}, maps.foam_version, "foam coverage");
+  for (std::size_t index = 0; index < cones.size(); ++index)
+    upload_cones(upload, cones[index], copies.cones[index], maps.cones[index]);
+  if (copies.pyramid != Copy::none) upload_pyramid(upload, max_pyramid, maps.max_pyramid, pyramid_bytes);
+  if (copies.distance != Copy::none) upload_distance(upload, distance, maps.distance);
 }
 
 void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info) const {
-  const std::string method = std::string("--method ") + info.name;
+  const std::string method = std::string("MethodSettings::method ") + info.name;
   if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
   if (needs.cone_sectors > 0) {
     const DeviceMap& map = cones[std::size_t(cone_slot(needs.cone_sectors))];

@@ -143,24 +143,29 @@ void check_memory(std::span<const Allocation> allocations, const MemoryLimits& l
 void add_target_memory(std::vector<Allocation>& list, int width, int height) {
   const std::uint64_t pixels = pixels_of(width, height);
   const std::string frame = " of a " + size_text(std::uint64_t(width), std::uint64_t(height)) + " frame";
-  list.push_back({"the colour target" + frame, pixels * color_bytes, MemoryKind::device_local, "--size"});
-  list.push_back({"the hit target" + frame, pixels * hit_bytes, MemoryKind::device_local, "--size"});
-  list.push_back({"the counter target" + frame, pixels * counters_bytes, MemoryKind::device_local, "--size"});
-  list.push_back({"the depth buffer" + frame, pixels * depth_bytes, MemoryKind::device_local, "--size"});
+  list.push_back(
+      {"the colour target" + frame, pixels * color_bytes, MemoryKind::device_local, lower_frame_size});
+  list.push_back({"the hit target" + frame, pixels * hit_bytes, MemoryKind::device_local, lower_frame_size});
+  list.push_back(
+      {"the counter target" + frame, pixels * counters_bytes, MemoryKind::device_local, lower_frame_size});
+  list.push_back(
+      {"the depth buffer" + frame, pixels * depth_bytes, MemoryKind::device_local, lower_frame_size});
 }
 
 void add_readback_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs) {
   const std::uint64_t pixels = pixels_of(width, height);
   const std::string frame = " of a " + size_text(std::uint64_t(width), std::uint64_t(height)) + " frame";
   if (outputs & output_color) {
-    list.push_back({"the colour readback" + frame, pixels * color_bytes, MemoryKind::host_visible, "--size"});
+    list.push_back(
+        {"the colour readback" + frame, pixels * color_bytes, MemoryKind::host_visible, lower_frame_size});
   }
   if (outputs & (output_uv | output_depth)) {
-    list.push_back({"the hit readback" + frame, pixels * hit_bytes, MemoryKind::host_visible, "--size"});
+    list.push_back(
+        {"the hit readback" + frame, pixels * hit_bytes, MemoryKind::host_visible, lower_frame_size});
   }
   if (outputs & (output_iterations | output_fetches)) {
-    list.push_back(
-        {"the counter readback" + frame, pixels * counters_bytes, MemoryKind::host_visible, "--size"});
+    list.push_back({"the counter readback" + frame, pixels * counters_bytes, MemoryKind::host_visible,
+                    lower_frame_size});
   }
 }
 
@@ -176,7 +181,7 @@ void add_frame_vector_memory(std::vector<Allocation>& list, int width, int heigh
   if (bytes == 0) return;
   list.push_back(
       {"the pixels read back from a " + size_text(std::uint64_t(width), std::uint64_t(height)) + " frame",
-       bytes, MemoryKind::host, "--size"});
+       bytes, MemoryKind::host, lower_frame_size});
 }
 
 void add_reference_memory(std::vector<Allocation>& list, const View& view, int map_width, int map_height) {
@@ -186,16 +191,16 @@ void add_reference_memory(std::vector<Allocation>& list, const View& view, int m
     const std::uint64_t vertex_bytes = vertices * sizeof(MeshVertex);
     const std::uint64_t index_bytes = vertices * mesh_triangles_per_vertex * triangle_bytes;
     list.push_back({"the reference's tessellation of the mesh", vertex_bytes + index_bytes, MemoryKind::host,
-                    "--map-size"});
-    list.push_back({"the reference's vertex buffer", vertex_bytes, MemoryKind::host_visible, "--map-size"});
-    list.push_back({"the reference's index buffer", index_bytes, MemoryKind::host_visible, "--map-size"});
+                    lower_map_size});
+    list.push_back({"the reference's vertex buffer", vertex_bytes, MemoryKind::host_visible, lower_map_size});
+    list.push_back({"the reference's index buffer", index_bytes, MemoryKind::host_visible, lower_map_size});
     return;
   }
   const PlaneTessellation mesh = plane_tessellation(map_width, map_height, view.tile);
   const std::string what = "the reference's tessellation of a " +
                            size_text(std::uint64_t(map_width), std::uint64_t(map_height)) + " map" +
                            (view.tile > 1 ? " tiled " + std::to_string(view.tile) + " times" : std::string());
-  const std::string lower = view.tile > 1 ? "--tile or --map-size" : "--map-size";
+  const std::string lower = view.tile > 1 ? lower_tile_or_map_size : lower_map_size;
   if (mesh.vertices > std::uint64_t(UINT32_MAX)) {
     throw RenderError(what + " would have " + std::to_string(mesh.vertices) +
                       " vertices, more than 32-bit indices address: lower " + lower);
@@ -214,7 +219,7 @@ std::vector<Allocation> map_memory(const MapShape& shape) {
       " of a " + size_text(std::uint64_t(shape.width), std::uint64_t(shape.height)) + " map";
   std::uint64_t staging = 0;
   auto add = [&](std::string what, std::uint64_t bytes) {
-    list.push_back({std::move(what), bytes, MemoryKind::device_local, "--map-size"});
+    list.push_back({std::move(what), bytes, MemoryKind::device_local, lower_map_size});
     staging += bytes;
   };
   add("the height image" + map, texels * height_texel_bytes);
@@ -231,7 +236,7 @@ std::vector<Allocation> map_memory(const MapShape& shape) {
     add("the distance map" + map, pixels_of(shape.distance_width, shape.distance_height) *
                                       std::uint64_t(shape.distance_depth) * sizeof(float));
   }
-  list.push_back({"the staging of the maps" + map, staging, MemoryKind::host_visible, "--map-size"});
+  list.push_back({"the staging of the maps" + map, staging, MemoryKind::host_visible, lower_map_size});
   return list;
 }
 
@@ -331,7 +336,7 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
                                 std::uint64_t(cone_layer_count(view.sector_count, !view.relaxed.empty())) *
                                 cone_layer_texel_bytes;
     needed.push_back({"the " + std::to_string(view.sector_count) + "-sector cone image", bytes,
-                      MemoryKind::device_local, "--map-size"});
+                      MemoryKind::device_local, lower_map_size});
     for (Allocation& allocation : needed) {
       if (allocation.kind == MemoryKind::host_visible)
         allocation.bytes += bytes;  // the staging carries it too

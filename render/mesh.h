@@ -1,5 +1,5 @@
 // render/mesh.h - triangle meshes as base surfaces of the per-pixel methods: the mesh with texture
-// coordinates is the top of the relief (height 1); height 0 lies --depth-scale world units inside it,
+// coordinates is the top of the relief (height 1); height 0 lies View::depth_scale world units inside it,
 // along the normal. Each vertex carries the tangent frame the methods trace in (Premecz, "Iterative
 // Parallax Mapping with Slope Information", sec. 2: the texture-space basis is the pair of partial
 // derivatives dP/du, dP/dv of the surface point with respect to the texture coordinates, found per

@@ -1,4 +1,4 @@
-// render/methods.cpp - the method table: the --method words, their shader ids and what they need.
+// render/methods.cpp - the method table: the method names, their shader ids and what they need.
 #include <algorithm>
 #include <iterator>
 #include <stdexcept>

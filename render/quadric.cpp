@@ -15,9 +15,6 @@
 namespace displace::render::quadric {
 namespace {
 
-constexpr double min_radius = 0.01;         // world units
-constexpr double max_radius = 10.0;         // world units
-constexpr double max_depth_fraction = 0.5;  // D / R: the inner surface keeps half the radius
 const double cone_sin = 1.0 / std::sqrt(1.0 + 1.0 / (CONE_SLOPE * CONE_SLOPE));
 const double cone_cos = cone_sin / CONE_SLOPE;
 
@@ -28,11 +25,15 @@ Shape shape_of(const View& view) { return {view.surface, view.radius, view.depth
 void validate(const View& view) {
   const char* name = surface_name(view.surface);
   if (!(view.radius >= min_radius && view.radius <= max_radius)) {
-    throw RenderError(std::string("--radius must be between 0.01 and 10 for --surface ") + name);
+    char message[128];
+    std::snprintf(message, sizeof message,
+                  "View::radius must be between %g and %g world units on View::surface %s",
+                  double(min_radius), double(max_radius), name);
+    throw RenderError(message);
   }
-  if (!(view.depth_scale <= max_depth_fraction * view.radius)) {
-    throw RenderError(std::string("--depth-scale must be at most half the --radius on --surface ") + name +
-                      " (the inner surface keeps R - D >= R / 2)");
+  if (!(view.depth_scale <= max_depth_per_radius * view.radius)) {
+    throw RenderError(std::string("View::depth_scale must be at most half View::radius on View::surface ") +
+                      name + " (the inner surface keeps R - D >= R / 2)");
   }
   const Shape shape = shape_of(view);
   glm::dvec3 lo, hi;
@@ -42,8 +43,8 @@ void validate(const View& view) {
   if (in_box && texture_point(shape, eye - anchor(shape)).z <= 1.0) {
     char radius[32];
     std::snprintf(radius, sizeof radius, "%g", double(view.radius));
-    throw RenderError(std::string("--eye must be outside the ") + name + " (its outer surface, radius " +
-                      radius + ")");
+    throw RenderError(std::string("Camera::eye must be outside the ") + name +
+                      " (its outer surface, radius " + radius + ")");
   }
 }
 

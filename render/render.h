@@ -33,7 +33,7 @@
 //   outer surface (the eye must be outside the quadric), and only if it enters within the finite
 //   part (v in [0, K]); its hit must stay in that part (caps are not drawn). It ends where it enters
 //   the inner surface (it has hit the relief by then) or leaves the outer one (a miss).
-// - Address modes: u always wraps around the axis; --address clamp clamps v only (each pole of the
+// - Address modes: u always wraps around the axis; Address::clamp clamps v only (each pole of the
 //   sphere, each end of the cylinder and cone takes its edge row). Cone maps are baked with wrap
 //   for quadrics, which is conservative for a clamped v as well.
 // - D must be at most R / 2. Methods that do not support quadrics are refused (supports_surface).
@@ -99,11 +99,11 @@ enum class Surface { plane, sphere, cylinder, cone, mesh };
 inline bool is_quadric(Surface surface) {
   return surface == Surface::sphere || surface == Surface::cylinder || surface == Surface::cone;
 }
-const char* surface_name(Surface surface);  // the --surface word
+const char* surface_name(Surface surface);  // "plane", "sphere", ...: the name a caller shows
 
 struct MethodInfo {
   Method method;
-  const char* name;  // the --method word
+  const char* name;  // the method's name ("relief", "acm4"), the word a caller spells it with
   int shader_id;     // METHOD_* in render/shaders/config.h
   MethodFamily family;
   int cone_sectors;            // 0: the method reads no cone map
@@ -124,6 +124,11 @@ struct Ray {
   glm::dvec3 direction;  // unit length
 };
 
+// Limits Camera::validate checks (a front end bounds its own input with these too).
+inline constexpr int max_image_side = 16384;       // pixels, Camera::width and Camera::height
+inline constexpr float min_fov_y_degrees = 0.01f;  // degrees, Camera::fov_y_degrees
+inline constexpr float max_fov_y_degrees = 179.0f;
+
 struct Camera {
   glm::vec3 eye{0.5f, -0.35f, 0.75f};
   glm::vec3 look_at{0.5f, 0.45f, -0.05f};
@@ -132,7 +137,8 @@ struct Camera {
   int width = 512;
   int height = 512;
 
-  // Throws RenderError when the camera is degenerate (eye at look_at, up parallel to the view, bad fov).
+  // Throws RenderError, naming the field, when the camera is degenerate: a size or fov_y_degrees outside
+  // the limits above, eye at look_at, up zero or parallel to the view.
   void validate() const;
   // Vulkan clip space: depth in [0, 1], y down (row 0 of the image is the top).
   glm::mat4 view_projection(float near_plane, float far_plane) const;
@@ -153,6 +159,14 @@ struct Camera {
 // deeper water) and foam where MapSet::foam says so.
 enum class Material { grid, water };
 
+// Limits render() checks on a View (quadric::validate for the radius), the same for every caller.
+inline constexpr int max_tile = 64;                  // View::tile, texture repeats, from 1
+inline constexpr float min_depth_scale = 1e-4f;      // world units, View::depth_scale
+inline constexpr float max_depth_scale = 10.0f;      // world units
+inline constexpr float min_radius = 0.01f;           // world units, View::radius (quadrics)
+inline constexpr float max_radius = 10.0f;           // world units
+inline constexpr float max_depth_per_radius = 0.5f;  // View::depth_scale / View::radius on quadrics
+
 struct View {
   Camera camera;
   Material material = Material::grid;
@@ -164,6 +178,9 @@ struct View {
   float radius = 0.25f;  // the quadric's outer radius R, world units (quadrics only)
   bool shadows = false;  // self-shadowing, traced towards the light with the frame's method
 };
+
+inline constexpr int max_steps = 4096;  // MethodSettings::steps, from 1
+inline constexpr int max_refine = 64;   // MethodSettings::refine, from 0
 
 struct MethodSettings {
   Method method = Method::relief;
@@ -283,6 +300,8 @@ struct DistanceMapView {
   std::uint64_t version = 0;
 };
 
+inline constexpr int max_map_side = 16384;  // texels, MapSet::width and height (and Albedo's pixels)
+
 struct MapSet {
   int width = 0, height = 0;       // of the height map and of every cone map
   std::span<const float> heights;  // W x H in [0, 1], bake conventions; every method reads them
@@ -342,8 +361,14 @@ struct Allocation {
   std::string what;  // the item, with its size: "the hit target of a 16384 x 16384 frame"
   std::uint64_t bytes = 0;
   MemoryKind kind = MemoryKind::host;
-  std::string lower;  // what to lower when it does not fit: "--size"
+  std::string lower;  // what to lower when it does not fit: one of the lower_* names below
 };
+
+// Allocation::lower as render/ writes it: the fields of its own types, never a front end's flags (a
+// CLI that shows the message maps each name to its flag: lower_frame_size to its image size flag).
+inline constexpr const char* lower_frame_size = "Camera::width x Camera::height";
+inline constexpr const char* lower_map_size = "MapSet::width x MapSet::height";
+inline constexpr const char* lower_tile_or_map_size = "View::tile or MapSet::width x MapSet::height";
 
 // What the machine offers. A CPU device (lavapipe) allocates from the process's own memory and
 // reports a nominal heap (2 GiB on Mesa 22.3, whatever the machine has): there every byte counts
@@ -384,7 +409,7 @@ std::vector<Allocation> map_memory(const MapShape& shape);
 // What render() allocates for its first frame of this view and method on a map_width x map_height
 // map: the render targets, a readback buffer per output read back, the caller's Frame vectors, and
 // for the reference its tessellation (on the CPU, then in buffers). `with_reference`: a frame of the
-// reference follows (--compare reference), in the other frame slot: its readback, Frame and
+// reference follows (a comparison with the reference), in the other frame slot: its readback, Frame and
 // tessellation too. Throws RenderError when the reference's tessellation would have more vertices
 // than 32-bit indices address.
 std::vector<Allocation> frame_memory(const View& view, const MethodSettings& method, int map_width,

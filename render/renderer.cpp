@@ -219,8 +219,8 @@ void Renderer::set_mesh(const Mesh& mesh) {
 void Renderer::set_albedo(const Albedo& albedo) {
   if (albedo.width < 1 || albedo.height < 1 || albedo.width > max_map_side || albedo.height > max_map_side ||
       albedo.rgba.size() != std::size_t(albedo.width) * albedo.height * 4) {
-    throw RenderError(
-        "albedo image must be between 1x1 and 16384x16384 pixels with 4 bytes (RGBA) per pixel");
+    throw RenderError("Albedo::width and Albedo::height must be between 1 and " +
+                      std::to_string(max_map_side) + " pixels, with 4 bytes (RGBA) per pixel");
   }
   Impl& impl = *impl_;
   impl.drain();

@@ -24,13 +24,6 @@ namespace displace::render {
 using OwnedFence = Owned<VkFence, vkDestroyFence>;
 using OwnedPipelineCache = Owned<VkPipelineCache, vkDestroyPipelineCache>;
 
-// limits on what a frame and a map may be
-inline constexpr int max_tile = 64;
-inline constexpr float max_depth_scale = 10.0f;  // world units
-inline constexpr int max_steps = 4096;
-inline constexpr int max_refine = 64;
-inline constexpr int max_map_side = 16384;
-
 inline constexpr VkFormat color_format = VK_FORMAT_R8G8B8A8_UNORM;
 inline constexpr VkFormat hit_format = VK_FORMAT_R32G32B32A32_SFLOAT;
 inline constexpr VkFormat counters_format = VK_FORMAT_R32G32_SFLOAT;
@@ -116,7 +109,7 @@ struct Renderer::Impl {
   OwnedShaderModule relief_vertex, reference_vertex, surface_fragment;
   OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex, mesh_vertex;
   OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
-  OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with --address clamp: u wraps, v clamps
+  OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with Address::clamp: u wraps, v clamps
   std::map<int, OwnedPipeline> pipelines;      // by shader id * 8 + surface id
   std::string pipeline_cache_file;             // empty: the cache is off
   OwnedPipelineCache pipeline_cache;
@@ -176,7 +169,15 @@ struct Renderer::Impl {
   void ensure_targets(int width, int height);
   void ensure_reference(int tile);
   void ensure_mesh_reference(int tile);
+  // one frame (render), by its stages: validate, write the uniforms and descriptors, record, read back
+  void validate_frame(const View& view, const MethodSettings& method, unsigned outputs) const;
+  void write_uniforms(FrameSlot& frame_slot, const View& view, const MethodSettings& method,
+                      const MethodInfo& info) const;
   void write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info);
+  void ensure_readbacks(FrameSlot& frame_slot, int width, int height, unsigned outputs);
+  void record_frame(FrameSlot& frame_slot, int slot_index, const View& view, const MethodInfo& info,
+                    VkPipeline pipeline_handle, unsigned outputs);
+  void read_back(const FrameSlot& frame_slot, int slot_index, unsigned outputs, Frame& frame) const;
   void render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs);
 };
 

@@ -71,7 +71,7 @@ Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, boo
   if (!supported) {
     throw RenderError("device '" + context.info().name +
                       "' cannot present to this window (its graphics queue has no "
-                      "present support); pick another with --device");
+                      "present support); pick another with RendererOptions::device");
   }
 
   // surface format: an 8-bit UNORM one the blit can write

@@ -102,7 +102,8 @@ VkInstance create_instance(bool validate, const std::vector<std::string>& window
   if (validate) {
     if (!has_layer(validation_layer)) {
       throw RenderError(
-          "--validate needs the Khronos validation layer: 'apt-get install vulkan-validationlayers'");
+          "RendererOptions::validate needs the Khronos validation layer: 'apt-get install "
+          "vulkan-validationlayers'");
     }
     info.enabledLayerCount = 1;
     info.ppEnabledLayerNames = &validation_layer;
@@ -211,7 +212,7 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
     }
     names += (names.empty() ? "" : ", ") + std::to_string(candidate.info.index) + ": " + candidate.info.name;
   }
-  throw RenderError("--device '" + wanted + "' matches no Vulkan device (have " + names + ")");
+  throw RenderError("RendererOptions::device '" + wanted + "' matches no Vulkan device (have " + names + ")");
 }
 
 }  // namespace

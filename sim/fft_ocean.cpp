@@ -24,6 +24,7 @@
 #include <bit>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <cstring>
 #include <mutex>
 #include <new>
@@ -37,8 +38,6 @@
 namespace displace::sim {
 namespace {
 
-constexpr int max_ocean_size = 8192;                 // samples along one side
-constexpr float max_spreading = 100.0f;              // exponent s of cos^{2s}(theta / 2)
 constexpr double jonswap_alpha_coefficient = 0.076;  // Phillips constant alpha = 0.076 (U^2 / (F g))^0.22
 constexpr double jonswap_alpha_exponent = 0.22;
 constexpr double jonswap_peak_coefficient = 22.0;  // peak w_p = 22 (g^2 / (U F))^(1/3), rad/s
@@ -91,30 +90,43 @@ std::complex<double> gaussian_pair(std::uint64_t seed, int m, int n) {
 
 bool positive_finite(float value) { return std::isfinite(value) && value > 0.0f; }
 
+// "[0.01, 100000]", or one value: "1"
+std::string range_text(float low, float high) {
+  char text[64];
+  std::snprintf(text, sizeof text, "[%g, %g]", double(low), double(high));
+  return text;
+}
+std::string range_text(float value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", double(value));
+  return text;
+}
+
 void validate(const OceanParams& params) {
   auto fail = [](const std::string& message) { throw std::invalid_argument("OceanParams: " + message); };
-  if (params.size < 2 || params.size > max_ocean_size || params.size % 2 != 0) {
-    fail("size must be even and in [2, " + std::to_string(max_ocean_size) + "], got " +
-         std::to_string(params.size));
+  if (params.size < min_ocean_size || params.size > max_ocean_size || params.size % 2 != 0) {
+    fail("size must be even and in [" + std::to_string(min_ocean_size) + ", " +
+         std::to_string(max_ocean_size) + "], got " + std::to_string(params.size));
   }
-  if (!positive_finite(params.patch_size)) fail("patch_size must be a positive finite length in metres");
+  if (!(params.patch_size >= min_patch_size && params.patch_size <= max_patch_size))
+    fail("patch_size must be in " + range_text(min_patch_size, max_patch_size) + " metres");
   if (params.spectrum != Spectrum::phillips && params.spectrum != Spectrum::jonswap) fail("unknown spectrum");
-  if (!positive_finite(params.wind_speed)) fail("wind_speed must be positive and finite (m/s)");
+  if (!(params.wind_speed >= min_wind_speed && params.wind_speed <= max_wind_speed))
+    fail("wind_speed must be in " + range_text(min_wind_speed, max_wind_speed) + " m/s");
   if (!std::isfinite(params.wind_direction)) fail("wind_direction must be finite");
-  if (!positive_finite(params.fetch)) fail("fetch must be positive and finite (km)");
-  if (!std::isfinite(params.peak_enhancement) || params.peak_enhancement < 1.0f) {
-    fail("peak_enhancement (JONSWAP gamma) must be finite and >= 1");
+  if (!(params.fetch >= min_fetch && params.fetch <= max_fetch))
+    fail("fetch must be in " + range_text(min_fetch, max_fetch) + " km");
+  if (!std::isfinite(params.peak_enhancement) || params.peak_enhancement < min_peak_enhancement) {
+    fail("peak_enhancement (JONSWAP gamma) must be finite and >= " + range_text(min_peak_enhancement));
   }
-  if (!std::isfinite(params.spreading) || params.spreading < 0.0f || params.spreading > max_spreading) {
-    fail("spreading must be in [0, " + std::to_string(max_spreading) + "]");
-  }
+  if (!(params.spreading >= 0.0f && params.spreading <= max_spreading))
+    fail("spreading must be in " + range_text(0.0f, max_spreading));
   if (!positive_finite(params.phillips_amplitude)) fail("phillips_amplitude must be positive and finite");
   if (!std::isfinite(params.small_wave_cutoff) || params.small_wave_cutoff < 0.0f) {
     fail("small_wave_cutoff must be finite and >= 0 (metres)");
   }
-  if (!std::isfinite(params.choppiness) || params.choppiness < 0.0f) {
-    fail("choppiness must be finite and >= 0");
-  }
+  if (!(params.choppiness >= 0.0f && params.choppiness <= max_choppiness))
+    fail("choppiness must be in " + range_text(0.0f, max_choppiness));
   if (!positive_finite(params.gravity)) fail("gravity must be positive and finite");
 }
 

@@ -30,9 +30,16 @@ struct HeightMapping {
 // Applies the mapping to `raw` in place of `out` (same length). Returns how many samples were clamped.
 std::size_t apply_mapping(const HeightMapping& mapping, std::span<const float> raw, std::span<float> out);
 
+// Limits the parameter checks below hold every caller to (a front end bounds its input with them too).
+inline constexpr float min_patch_size = 0.01f;  // metres, SinusoidParams and OceanParams::patch_size
+inline constexpr float max_patch_size = 1e5f;   // metres
+
 // ---------------------------------------------------------------------------------------------
 // Sinusoid water (Chen & Chuang's dynamic displacement example): a seeded sum of directional
 // sinusoids h(x, t) = sum_i a_i sin(k_i . x - w_i t + phi_i), deep-water dispersion w_i^2 = g |k_i|.
+inline constexpr int max_wave_count = 4096;   // SinusoidParams::wave_count, from 1
+inline constexpr float max_steepness = 1.0f;  // SinusoidParams::steepness, in (0, max_steepness]
+
 struct SinusoidParams {
   int wave_count = 12;
   float patch_size = 4.0f;        // metres covered by the map along u and along v
@@ -70,8 +77,18 @@ HeightMapping sinusoid_mapping(std::span<const Wave> waves);
 // FFT ocean (Tessendorf, "Simulating Ocean Water").
 enum class Spectrum { phillips, jonswap };
 
+inline constexpr int min_ocean_size = 2;             // OceanParams::size, samples a side, even
+inline constexpr int max_ocean_size = 8192;          // samples a side
+inline constexpr float min_wind_speed = 0.1f;        // m/s, OceanParams::wind_speed
+inline constexpr float max_wind_speed = 100.0f;      // m/s
+inline constexpr float min_fetch = 0.1f;             // km, OceanParams::fetch
+inline constexpr float max_fetch = 1e5f;             // km
+inline constexpr float max_spreading = 100.0f;       // OceanParams::spreading, exponent s, from 0
+inline constexpr float max_choppiness = 10.0f;       // OceanParams::choppiness, lambda, from 0
+inline constexpr float min_peak_enhancement = 1.0f;  // OceanParams::peak_enhancement, JONSWAP gamma
+
 struct OceanParams {
-  int size = 256;             // N x N grid, N >= 2
+  int size = 256;             // N x N grid, N even in [min_ocean_size, max_ocean_size]
   float patch_size = 200.0f;  // metres
   Spectrum spectrum = Spectrum::phillips;
   float wind_speed = 12.0f;          // m/s at 10 m

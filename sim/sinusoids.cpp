@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -16,7 +17,6 @@
 namespace displace::sim {
 namespace {
 
-constexpr int max_wave_count = 4096;
 // relative spread of the per-wave steepness shares: each share is drawn from [1 - x, 1]
 constexpr double steepness_share_spread = 0.5;
 
@@ -44,7 +44,12 @@ void validate(const SinusoidParams& params) {
     fail("wave_count must be in [1, " + std::to_string(max_wave_count) + "], got " +
          std::to_string(params.wave_count));
   }
-  if (!positive_finite(params.patch_size)) fail("patch_size must be a positive finite length in metres");
+  if (!(params.patch_size >= min_patch_size && params.patch_size <= max_patch_size)) {
+    char text[96];
+    std::snprintf(text, sizeof text, "patch_size must be in [%g, %g] metres", double(min_patch_size),
+                  double(max_patch_size));
+    fail(text);
+  }
   if (!positive_finite(params.wavelength_min) || !positive_finite(params.wavelength_max)) {
     fail("wavelength_min and wavelength_max must be positive finite lengths in metres");
   }
@@ -52,8 +57,11 @@ void validate(const SinusoidParams& params) {
   if (params.tileable && params.wavelength_min > params.patch_size) {
     fail("tileable waves cannot be longer than the patch, but wavelength_min exceeds patch_size");
   }
-  if (!positive_finite(params.steepness) || params.steepness > 1.0f) {
-    fail("steepness must be in (0, 1] (sum of a_i |k_i|)");
+  if (!positive_finite(params.steepness) || params.steepness > max_steepness) {
+    char text[64];
+    std::snprintf(text, sizeof text, "steepness must be in (0, %g] (sum of a_i |k_i|)",
+                  double(max_steepness));
+    fail(text);
   }
   if (!std::isfinite(params.wind_direction)) fail("wind_direction must be finite");
   if (!std::isfinite(params.direction_spread) || params.direction_spread < 0.0f ||

@@ -707,7 +707,7 @@ TEST(Quadric, RefusesWhatItCannotRenderWithAClearError) {
       draw(sphere, {info.method, 8, 4});
       ADD_FAILURE() << info.name << " rendered a sphere";
     } catch (const render::RenderError& error) {
-      EXPECT_NE(std::string(error.what()).find("does not support --surface sphere"), std::string::npos)
+      EXPECT_NE(std::string(error.what()).find("does not support View::surface sphere"), std::string::npos)
           << error.what();
     }
   }

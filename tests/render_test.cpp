@@ -1171,7 +1171,7 @@ TEST(MemoryGuard, FrameMemoryCountsTargetsReadbackAndTessellation) {
     ADD_FAILURE() << "a tessellation of 2^40 vertices was estimated";
   } catch (const render::RenderError& error) {
     EXPECT_NE(std::string(error.what()).find("32-bit indices"), std::string::npos) << error.what();
-    EXPECT_NE(std::string(error.what()).find("--tile"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("View::tile"), std::string::npos) << error.what();
   }
 }
 
@@ -1196,7 +1196,7 @@ TEST(MemoryGuard, RefusesWhatDoesNotFitAndSaysWhatToLower) {
             std::string::npos)
       << one;
   EXPECT_NE(one.find("at most 200 MB"), std::string::npos) << one;
-  EXPECT_NE(one.find("lower --size"), std::string::npos) << one;
+  EXPECT_NE(one.find("lower Camera::width x Camera::height"), std::string::npos) << one;
   render::MemoryLimits small_device = gpu;
   small_device.device_local = 300'000'000ull;  // the targets need 537 MB
   const std::string device = refusal(frame, small_device);
@@ -1209,10 +1209,9 @@ TEST(MemoryGuard, RefusesWhatDoesNotFitAndSaysWhatToLower) {
   cpu.host = 1'000'000'000ull;  // the frame needs 1.5 GB in all
   cpu.limited_by = "DISPLACE_MEMORY_LIMIT_MB";
   const std::string host = refusal(frame, cpu);
-  EXPECT_NE(
-      host.find(
-          "with the rest) of host memory; 1.00 GB is available (DISPLACE_MEMORY_LIMIT_MB): lower --size"),
-      std::string::npos)
+  EXPECT_NE(host.find("with the rest) of host memory; 1.00 GB is available (DISPLACE_MEMORY_LIMIT_MB): lower "
+                      "Camera::width x Camera::height"),
+            std::string::npos)
       << host;
   // host work only (no device): a host limit
   const render::MemoryLimits host_only = render::host_memory_limits(1 << 20, "a test");
@@ -1242,7 +1241,7 @@ TEST(MemoryGuard, ARendererRefusesBeforeItAllocates) {
   } catch (const render::RenderError& error) {
     const std::string message = error.what();
     EXPECT_NE(message.find("2048 x 2048"), std::string::npos) << message;
-    EXPECT_NE(message.find("lower --size"), std::string::npos) << message;
+    EXPECT_NE(message.find("lower Camera::width x Camera::height"), std::string::npos) << message;
   }
   EXPECT_EQ(renderer.memory_allocations(), before);
   // a 4096 x 4096 height map: a 67 MB image and its staging
