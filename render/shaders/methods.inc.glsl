@@ -5,19 +5,21 @@
 // Every method traces in texture space (u, v, h): the ray enters the relief on the top plane (h = 1)
 // and is written p(s) = origin + s * descent, where `descent` has z = -1, so s is the height the ray
 // has descended and s = 1 reaches the bottom (h = 0). Because heights are >= 0, every ray meets the
-// relief by s = 1. A trace returns the texture-space point it settled on.
+// relief by s = 1. A trace returns the texture-space point it settled on. pom, relief, interval,
+// csm, acm and acm4-interval are the root searches every surface shares (root_search.inc.glsl), with
+// the plane's cone step and cell steps below; the other methods are the plane's own.
 
 // numerical guards
 const float min_descent = 1e-6;    // smallest |dh| per unit world distance: grazing rays stay finite
 const float min_denominator = 1e-12;  // interpolation weights when two height differences coincide
-const float cone_gap_epsilon = 1e-5;  // cone stepping stops this close (in height units) above the surface
+const float cone_gap_epsilon = 1e-5;  // cone stepping that reads gaps (quadrics) stops this close (height units) above the surface
 
 // tuning constants of the secant-refined methods (interval, acm4-interval)
 const float secant_gap_epsilon = 1e-6;  // height units: secant refinement stops this close (Risser et al. use 0.01)
 const float bracket_first_gap_factor = 2.0;  // first bracketing step after cone stepping, in gaps left above the surface
-const float bracket_min_step = 1e-6;    // height units (s): smallest first bracketing step, for a gap of 0
+const float bracket_min_step = 1e-6;    // height units: smallest first bracketing step, for a gap of 0
 const float bracket_growth = 2.0;       // ratio between consecutive bracketing steps (unitless)
-const int bracket_max_steps = 32;       // bracketing steps; the last one always reaches s = 1 (a count)
+const int bracket_max_steps = 32;       // bracketing steps; the last one always reaches the search's end (a count)
 
 float fetch_height(vec2 uv) {
   g_fetches += 1u;
@@ -36,66 +38,6 @@ int cone_sector(vec2 d, int sectors) {
 float crossing_fraction(float above, float below) {
   return clamp(above / max(above - below, min_denominator), 0.0, 1.0);
 }
-
-// Linear search: the first of `steps` equal steps of s that ends at or below the surface. Returns the
-// bracket [s_above, s_below] and the ray-minus-surface differences at its ends.
-struct Bracket {
-  float s_above, s_below;
-  float gap_above, gap_below;
-};
-
-// One search step: reads the surface at ray parameter s. At or below it, s closes the bracket
-// (returns true); above it, s becomes the bracket's upper end.
-bool probe_bracket(vec3 origin, vec3 descent, float s, inout Bracket b) {
-  g_iterations += 1u;
-  vec3 p = origin + s * descent;
-  float gap = p.z - fetch_height(p.xy);
-  if (gap <= 0.0) {
-    b.s_below = s;
-    b.gap_below = gap;
-    return true;
-  }
-  b.s_above = s;
-  b.gap_above = gap;
-  return false;
-}
-
-Bracket linear_search(vec3 origin, vec3 descent, int steps) {
-  Bracket b;
-  b.s_above = 0.0;
-  b.gap_above = origin.z - fetch_height(origin.xy);
-  b.s_below = 0.0;
-  b.gap_below = b.gap_above;
-  if (b.gap_above <= 0.0) return b;
-  for (int i = 1; i <= steps; ++i) {
-    if (probe_bracket(origin, descent, float(i) / float(steps), b)) return b;  // the last step is s = 1
-  }
-  b.s_below = 1.0;  // not reached: the ray is at h = 0 at s = 1
-  b.gap_below = 0.0;
-  return b;
-}
-
-// Binary search inside a bracket (relief mapping's refinement).
-float binary_refine(vec3 origin, vec3 descent, Bracket b, int refine) {
-  float lo = b.s_above, hi = b.s_below;
-  for (int i = 0; i < refine; ++i) {
-    g_iterations += 1u;
-    float mid = 0.5 * (lo + hi);
-    vec3 p = origin + mid * descent;
-    if (p.z - fetch_height(p.xy) > 0.0) lo = mid; else hi = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
-// Cone stepping (Dummer): from a point at height gap g above the surface, a cone of ratio r
-// (horizontal over vertical) with its apex on the surface below lets the ray descend
-// r * g / (r + L), L = horizontal travel per unit descent, without entering the relief.
-// Returns where it stopped: on the exact crossing (exact), or where the steps ran out, never below
-// the surface (every step below is safe).
-struct ConeMarch {
-  float s;
-  bool exact;  // s is the exact crossing, found by a cell step
-};
 
 // Cone stepping that is conservative for the BILINEAR surface the rays sample. The cone maps are
 // baked for it (bake::bake_bilinear_cones): texel c holds an apex height H_c, the maximum of the
@@ -167,90 +109,21 @@ ivec2 cone_texel(vec2 uv) {
   return clamp(texel, ivec2(0), size - 1);
 }
 
-ConeMarch cone_march(vec3 origin, vec3 descent, int steps, int sectors) {
+// The plane's safe cone step from s (cone_march in root_search.inc.glsl): one fetch of the cone of
+// the texel under the ray point in the sector of the ray's azimuth, and `stall`, a quarter texel of
+// travel, below which the march takes an exact cell step instead.
+float plane_safe_cone_step(vec3 origin, vec3 descent, float s, int sectors, out float stall) {
   float travel = length(descent.xy);
   vec2 texel = frame.map_size.zw;
   int sector = cone_sector(descent.xy, sectors);
-  float fallback = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
-  ConeMarch m = ConeMarch(0.0, false);
-  bool walking = false;  // the last step was a cell step: `cell` is the cell the ray entered
-  ivec2 cell = ivec2(0);
-  for (int i = 0; i < steps; ++i) {
-    if (m.s >= 1.0) break;  // on the floor h = 0: the ray cannot be above the surface there
-    g_iterations += 1u;
-    vec3 p = origin + m.s * descent;
-    g_fetches += 1u;
-    vec2 cone = cone_value(ivec3(cone_texel(p.xy), sector));  // (r_k, H_c)
-    float step = max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
-    if (step >= fallback) {
-      m.s = min(m.s + step, 1.0);
-      walking = false;
-      continue;
-    }
-    if (!walking) cell = cell_at(origin, descent, m.s);
-    walking = true;
-    bool exact = false;
-    m.s = cell_step(origin, descent, m.s, cell, exact);
-    if (exact) {
-      m.exact = true;
-      break;
-    }
-  }
-  return m;
+  stall = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
+  vec3 p = origin + s * descent;
+  g_fetches += 1u;
+  vec2 cone = cone_value(ivec3(cone_texel(p.xy), sector));  // (r_k, H_c)
+  return max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
 }
 
-// Interval mapping's refinement (Risser, Shah & Pattanaik, "Interval Mapping", sec. 3): join the
-// surface points under the two ends of the bracket with a line, intersect it with the ray, and let
-// that point replace the end on its side of the surface (a secant step that keeps a valid bracket:
-// regula falsi). On the ray the line's crossing is the zero of the gaps interpolated linearly,
-// s = s_above + (s_below - s_above) * g_above / (g_above - g_below); crossing_fraction guards the
-// division (an all-flat bracket makes it 0 / 0). Like their shader it stops early once a new point
-// is within secant_gap_epsilon of the surface. Their shader ends on the ray point at the height last
-// read; this returns the secant point of the final bracket instead, which costs no read and stays
-// inside the bracket.
-float secant_refine(vec3 origin, vec3 descent, Bracket b, int refine) {
-  for (int i = 0; i < refine && b.s_below > b.s_above; ++i) {
-    g_iterations += 1u;
-    float s = mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
-    vec3 p = origin + s * descent;
-    float gap = p.z - fetch_height(p.xy);
-    if (gap > 0.0) {
-      b.s_above = s;
-      b.gap_above = gap;
-    } else {
-      b.s_below = s;
-      b.gap_below = gap;
-    }
-    if (abs(gap) <= secant_gap_epsilon) return s;
-  }
-  return mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
-}
-
-// A bracket after cone stepping (Chen & Chuang's suggested combination of ACM with a root search),
-// for a march that ran out of steps above the surface: the last cone point is the upper end; the
-// lower end is found by stepping on along the ray: the first step is twice the gap left (a flat
-// surface is crossed after one gap), each next step twice the previous, and the last one reaches
-// s = 1, where the ray is at h = 0 and so never above the surface. A point that the filtered read
-// puts at or below the surface (it differs from the exact bilinear value by rounding) is an empty
-// bracket there.
-Bracket bracket_after_cones(vec3 origin, vec3 descent, ConeMarch m) {
-  Bracket b;
-  vec3 p = origin + m.s * descent;
-  float gap = p.z - fetch_height(p.xy);
-  b.s_above = m.s;
-  b.gap_above = max(gap, 0.0);
-  b.s_below = gap <= 0.0 ? m.s : 1.0;  // replaced below; the ray is at h = 0 at s = 1
-  b.gap_below = min(gap, 0.0);
-  if (gap <= 0.0) return b;
-  float step = max(bracket_first_gap_factor * gap, bracket_min_step);
-  for (int i = 0; i < bracket_max_steps; ++i) {
-    float s = (i == bracket_max_steps - 1) ? 1.0 : min(b.s_above + step, 1.0);
-    if (probe_bracket(origin, descent, s, b)) return b;
-    step *= bracket_growth;
-  }
-  return b;
-}
-
+#include "root_search.inc.glsl"
 #include "relaxed_march.inc.glsl"
 
 // Iterative parallax mapping with slope information (Premecz, sec. 3): the surface near the current
@@ -306,25 +179,7 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
     return result;
   }
   float s = 0.0;
-  if (METHOD == METHOD_POM) {
-    Bracket b = linear_search(origin, descent, frame.counts.x);
-    s = mix(b.s_above, b.s_below, crossing_fraction(b.gap_above, b.gap_below));
-  } else if (METHOD == METHOD_RELIEF) {
-    Bracket b = linear_search(origin, descent, frame.counts.x);
-    s = binary_refine(origin, descent, b, frame.counts.y);
-  } else if (METHOD == METHOD_INTERVAL) {
-    Bracket b = linear_search(origin, descent, frame.counts.x);
-    s = secant_refine(origin, descent, b, frame.counts.y);
-  } else if (METHOD == METHOD_CSM) {
-    s = cone_march(origin, descent, frame.counts.x, 1).s;
-  } else if (METHOD == METHOD_ACM4) {
-    s = cone_march(origin, descent, frame.counts.x, 4).s;
-  } else if (METHOD == METHOD_ACM8) {
-    s = cone_march(origin, descent, frame.counts.x, 8).s;
-  } else if (METHOD == METHOD_ACM4_INTERVAL) {
-    ConeMarch m = cone_march(origin, descent, frame.counts.x, 4);
-    s = m.exact ? m.s : secant_refine(origin, descent, bracket_after_cones(origin, descent, m), frame.counts.y);
-  } else if (METHOD == METHOD_RELAXED) {
+  if (METHOD == METHOD_RELAXED) {
     s = relaxed_march(origin, descent, frame.counts.x);
   } else if (METHOD == METHOD_MAXMIP) {
     s = max_pyramid_trace(origin, descent, frame.counts.x, false);
@@ -334,6 +189,10 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
     s = sphere_trace(origin, descent, frame.counts.x);
   } else if (METHOD == METHOD_PARALLAX_SLOPE) {
     s = parallax_slope(origin, descent, dz, frame.counts.x);
+  } else {
+    // pom, relief, interval, csm, acm: the searches shared with the quadrics, over s in [0, 1], where
+    // every ray meets the relief
+    root_search(SearchRay(origin, descent, 0.0, 1.0, true), s);
   }
   result.p = origin + s * descent;
   return result;

@@ -1,6 +1,6 @@
 // render/shaders/relaxed_march.inc.glsl - relaxed cone stepping (Policarpo & Oliveira, "Relaxed Cone
 // Stepping for Relief Mapping", GPU Gems 3 ch. 18), made exact on the bilinear surface. Included by
-// methods.inc.glsl after cone_march (it uses cone_sector, cone_texel, cell_at and cell_step).
+// methods.inc.glsl after root_search.inc.glsl (it uses cone_sector, cone_texel, cell_at and cell_step).
 //
 // The one fact: a relaxed cone only promises that a ray through its texel centre's apex crosses the
 // relief at most once inside it. Rays sample the BILINEAR surface from arbitrary points, so a relaxed

@@ -40,9 +40,9 @@ vec2 cone_value(ivec3 texel) {
 }
 
 #include "bilinear_cell.inc.glsl"
+#include "quadric.inc.glsl"
 #include "methods.inc.glsl"
 #include "shading.inc.glsl"
-#include "quadric.inc.glsl"
 
 // The reference's triangles interpolate the texel heights linearly over two triangles per texel
 // square, while every method samples the bilinear surface: they differ inside a square by up to a
