@@ -14,11 +14,11 @@
 // be rendered in any order and on any machine. A wall-clock budget is real-time use:
 // - a static source carries refinement over from frame to frame;
 // - heights that change make each frame's cone map whole (its first stage always completes), or,
-//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed): the baker's
-//   first stage runs in steps (bake::BilinearBaker::begin / advance) on the heights of the frame it
-//   began on, spread over at most N + 1 frames - each frame runs steps until an even share of the
-//   stage is done (BilinearBaker::first_stage_done) and more while the bake's share of the budget
-//   lasts - and each frame serves the map made last with every
+//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed; MapMaker with
+//   ConeSchedule::lag_frames): the baker's first stage runs in steps (bake::BilinearBaker::begin /
+//   advance) on the heights of the frame it began on, spread over at most N + 1 frames - each frame
+//   runs steps until an even share of the stage is done (BilinearBaker::first_stage_done) and more
+//   while the bake's share of the budget lasts - and each frame serves the map made last with every
 //   apex raised by the most any texel rose since (FrameRecord::cone_lag, cone_lift), which keeps
 //   every cone conservative for the frame's own heights. A share that fits the whole stage still
 //   gives each frame its own map; a smaller one costs the renderer steps instead of the bake time

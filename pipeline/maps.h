@@ -13,6 +13,8 @@
 // Two ways in. One-off: set_heights() then maps(needs) (slot 0, the cone budget of set_cone_budget).
 // Per frame: make(slot, heights, needs, schedule) with the frame's heights, its cone budget and how
 // cones carry over between frames (ConeSchedule: refinement of unchanged heights, lagged maps).
+// MapHeights is the seam: FramePipeline hands a HeightSource's frame to make() through it, so a
+// device path can replace who makes the heights, or who makes the maps, each on its own.
 #pragma once
 
 #include <array>
@@ -58,18 +60,19 @@ float raise_apexes(std::span<const float> made_from, std::span<const float> now,
 struct MapHeights {
   std::span<const float> heights;  // width x height in [0, 1], bake conventions
   int width = 0, height = 0;
-  std::uint64_t version = 0;          // names the content (next_map_version): equal versions, equal heights
-  std::uint64_t dirty_since = 0;      // passed to the renderer: what changed since version
-  std::span<const bake::Rect> dirty;  // `dirty_since` (empty: all of it)
-  std::span<const float> foam;        // the source's foam coverage, passed on (empty: none)
+  std::uint64_t version = 0;  // names the content (next_map_version): equal versions, equal heights
+  // the rectangles that changed since version `dirty_since` (empty: all of it), for the renderer
+  std::uint64_t dirty_since = 0;
+  std::span<const bake::Rect> dirty;
+  std::span<const float> foam;  // the source's foam coverage, passed on (empty: none)
   std::uint64_t foam_version = 0;
 };
 
 // How make() bakes a frame's cone map.
 struct ConeSchedule {
   bake::Budget budget;  // the cone bake's budget for this frame
-  // Heights the slot's cone map was made for (or another slot's, copied): refine that map further
-  // within the budget, where the baker stopped last (real time on a static source).
+  // Heights the slot already holds a cone map for (or copied one from another slot): refine it
+  // further within the budget, from where the baker stopped last (real time on a static source).
   bool refine = false;
   // > 0: lagged cone maps (moving heights, no relaxed layer; frame_pipeline.h): the baker's first
   // stage runs in steps on the heights of the frame it began on, an even share of it a frame over
