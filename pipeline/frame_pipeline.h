@@ -4,8 +4,9 @@
 //
 // Stages, each a function a test can call alone: simulate(time) -> bake(budget) -> upload() ->
 // draw(view). run(index) chains them for frame `index` at scene time start + index / fps (double).
-// State made once and kept for the whole run: the source (sim::Ocean with its FFT plans, or the
-// waves), the height and map buffers, the budgeted bilinear baker, the renderer's device maps.
+// State made once and kept for the whole run: the source (a HeightSource: sim::Ocean with its FFT
+// plans, or the waves), the map maker (a MapMaker with two slots: the budgeted bilinear baker, the map
+// buffers of two frames in flight), the heights of two frames, the renderer's device maps.
 //
 // Budget: the bake gets what the frame budget leaves after the other stages of the previous frame,
 // through the scene's clock; a work budget (scene.bake_work) or none keeps every frame reproducible
@@ -13,11 +14,11 @@
 // be rendered in any order and on any machine. A wall-clock budget is real-time use:
 // - a static source carries refinement over from frame to frame;
 // - heights that change make each frame's cone map whole (its first stage always completes), or,
-//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed): the baker's
-//   first stage runs in steps (bake::BilinearBaker::begin / advance) on the heights of the frame it
-//   began on, spread over at most N + 1 frames - each frame runs steps until an even share of the
-//   stage is done (BilinearBaker::first_stage_done) and more while the bake's share of the budget
-//   lasts - and each frame serves the map made last with every
+//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed; MapMaker with
+//   ConeSchedule::lag_frames): the baker's first stage runs in steps (bake::BilinearBaker::begin /
+//   advance) on the heights of the frame it began on, spread over at most N + 1 frames - each frame
+//   runs steps until an even share of the stage is done (BilinearBaker::first_stage_done) and more
+//   while the bake's share of the budget lasts - and each frame serves the map made last with every
 //   apex raised by the most any texel rose since (FrameRecord::cone_lag, cone_lift), which keeps
 //   every cone conservative for the frame's own heights. A share that fits the whole stage still
 //   gives each frame its own map; a smaller one costs the renderer steps instead of the bake time
@@ -31,30 +32,12 @@
 #include <span>
 
 #include "bake/bake.h"
+#include "pipeline/height_source.h"
+#include "pipeline/maps.h"
 #include "pipeline/scene.h"
 #include "render/render.h"
 
 namespace displace::pipeline {
-
-// The effects sim computes for a scene: only what something consumes.
-enum Effect : unsigned {
-  effect_heights = 1u << 0,  // always
-  effect_choppy = 1u << 1,   // the ocean's horizontal displacement, resampled onto the grid (choppiness > 0)
-  effect_foam = 1u << 2,     // the Jacobian of the displacement, as foam coverage (water material with foam)
-};
-// Foam coverage from the Jacobian J of the choppy map: none at J >= foam_start, full at J <= foam_full,
-// linear between (J = 1 on a flat sea, < 0 where the surface folds over). Measured on the default
-// ocean (256 texels, 200 m, 12 m/s): J spans [0.70, 1.34] at choppiness 1 and [0.35, 1.94] at 2.5, so
-// foam starts on the most compressed crests.
-inline constexpr float foam_start = 0.85f;
-inline constexpr float foam_full = 0.45f;
-unsigned scene_effects(const Scene& scene);
-
-// The lagged cone maps' raise: lift = max(0, largest now[t] - made_from[t]), and `raised` = each apex
-// + lift rounded up (at most 1), so that a cone map made from `made_from` holds for `now` (proof in
-// frame_pipeline.cpp). Returns the lift. All four spans one texel each, as many.
-float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
-                   std::span<float> raised);
 
 struct FrameRecord {
   long long index = 0;
@@ -71,9 +54,6 @@ struct FrameRecord {
   double choppy_residual = 0.0;  // metres: the resampling's largest |p + D(p) - x|
 };
 
-// Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
-// (demos/ uses OpenImageIO); it throws for a file it cannot read.
-using HeightLoader = std::function<render::HeightField(const std::filesystem::path& file)>;
 // Reads an albedo image (Scene::albedo) as RGBA8: the application's reader.
 using AlbedoLoader = std::function<render::Albedo(const std::filesystem::path& file)>;
 

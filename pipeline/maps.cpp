@@ -1,11 +1,24 @@
-// pipeline/maps.cpp - the renderer's maps baked on demand from one height field (maps.h).
+// pipeline/maps.cpp - the one map maker (maps.h): cone maps (whole, refined across frames or lagged),
+// the relaxed layer, the dual max pyramid and the distance map, per slot, from one height field.
 #include "pipeline/maps.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <optional>
 
 namespace displace::pipeline {
+namespace {
+
+constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
+constexpr int sector_counts[3] = {1, 4, 8};  // by render::cone_slot
+
+}  // namespace
+
 void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_side, DistanceMap& out) {
   const int side = std::min(distance_max_side, max_3d_side);
   out.width = std::min(heights.width, side);
@@ -20,57 +33,342 @@ std::uint64_t next_map_version() {
   return ++counter;
 }
 
+// The lift and the raise. Conservative: the bilinear surface rose by at most lift = max over texels
+// of (h - h_made) anywhere (it interpolates the texels' differences), so s(x) <= s_made(x) + lift <=
+// (H_c + lift) + |x - p| / r_k for every p in Q_c and x in sector k - the same ratios hold from the
+// raised apex. apex + lift is rounded up past both roundings by taking the next float above the
+// rounded sum (both positive, so its bits plus one); 1 is above every height. The largest rise is
+// taken in eight independent maxima per task (a vector's worth).
+float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
+                   std::span<float> raised) {
+  const float lift = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, now.size(), lift_grain), 0.0f,
+      [&](const tbb::blocked_range<std::size_t>& range, float largest) {
+        float rise[8] = {};
+        const std::size_t first = range.begin(), whole = first + (range.size() / 8) * 8;
+        for (std::size_t t = first; t < whole; t += 8) {
+          for (int k = 0; k < 8; ++k) {
+            const float d = now[t + k] - made_from[t + k];
+            rise[k] = d > rise[k] ? d : rise[k];
+          }
+        }
+        for (std::size_t t = whole; t < range.end(); ++t) rise[0] = std::max(rise[0], now[t] - made_from[t]);
+        return std::max(largest, *std::max_element(std::begin(rise), std::end(rise)));
+      },
+      [](float a, float b) { return std::max(a, b); });
+  if (!(lift > 0.0f)) {
+    std::copy(apex.begin(), apex.end(), raised.begin());
+    return 0.0f;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, apex.size(), lift_grain),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t < range.end(); ++t) {
+                        raised[t] = std::min(
+                            1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
+                      }
+                    });
+  return lift;
+}
+
+namespace {
+
+// One slot's cone map of one sector count. `made_for` and `relaxed_for` name the heights they were
+// made from (0: none); `served` is what the set hands over: `ratios`, or a lagged map's.
+struct SlotCones {
+  std::uint64_t made_for = 0, relaxed_for = 0;
+  bake::Address address = bake::Address::wrap;
+  std::vector<float> ratios, apex, relaxed;
+  std::span<const float> served;
+  std::uint64_t version = 0;
+  bake::BakeStats stats;
+};
+
+// The maps of one frame in flight.
+struct Slot {
+  std::array<SlotCones, 3> cones;  // by render::cone_slot
+  std::uint64_t pyramid_for = 0;
+  bake::Address pyramid_address = bake::Address::wrap;
+  bake::DualMaxPyramid pyramid;
+  std::uint64_t pyramid_version = 0;
+  std::uint64_t distance_for = 0;
+  bake::Address distance_address = bake::Address::wrap;
+  DistanceMap distance;
+  std::uint64_t distance_version = 0;
+  render::MapSet set;
+};
+
+// A lagged cone map (ConeSchedule::lag_frames): as the baker emitted it (apexes not raised), with the
+// heights it was made from. Two per baker, the one served and the one the baker emits into, so that a
+// frame still uploading a map never sees it change.
+struct LaggedCones {
+  std::vector<float> ratios, apex;
+  std::vector<float> heights;
+  bake::BakeStats stats;
+  long long frame = 0;  // whose heights
+};
+
+// The baker of one sector count, kept between frames with where it emitted last.
+struct ConeBaker {
+  std::optional<bake::BilinearBaker> baker;
+  int width = 0, height = 0;
+  bake::Address address = bake::Address::wrap;
+  int last_slot = -1;  // the slot it emitted into last (refinement continues from its map)
+  std::array<LaggedCones, 2> lagged;
+  int served = -1, building = 0;  // lagged maps: served (-1: none yet) and the one being made
+  int build_frames = 0;           // frames the map being made has had so far
+};
+
+bool holds(std::uint64_t made_for, bake::Address address, const MapHeights& heights, bake::Address wanted) {
+  return made_for == heights.version && address == wanted;
+}
+
+}  // namespace
+
 struct MapMaker::State {
   int max_3d_side = distance_max_side;
+  std::vector<Slot> slots;
+  std::array<ConeBaker, 3> bakers;  // by render::cone_slot
+
+  // the one-off heights (slot 0)
   render::HeightField field;
   std::uint64_t heights_version = 0;
   std::uint64_t heights_dirty_since = 0;  // the version `heights_dirty` is relative to
   std::vector<bake::Rect> heights_dirty;
   bake::Budget cone_budget;
 
-  struct Cones {
-    bool made = false;
-    bool relaxed_made = false;
-    bake::Address address = bake::Address::wrap;
-    std::vector<float> ratios, apex, relaxed;
-    std::uint64_t version = 0;
-    std::optional<bake::BilinearBaker> baker;  // kept while the map size and address stay
-    int baker_width = 0, baker_height = 0;
-    bake::BakeStats stats;
-  };
-  std::array<Cones, 3> cones;  // by render::cone_slot
-
-  bool pyramid_made = false;
-  bake::DualMaxPyramid pyramid;
-  bake::Address pyramid_address = bake::Address::wrap;
-  std::uint64_t pyramid_version = 0;
-
-  bool distance_made = false;
-  bake::Address distance_address = bake::Address::wrap;
-  DistanceMap distance;
-  std::uint64_t distance_version = 0;
-
-  render::MapSet set;
-
-  void heights_changed() {
-    heights_dirty_since = heights_version;
-    heights_version = next_map_version();
-    for (Cones& c : cones) {
-      c.made = false;
-      c.relaxed_made = false;
-    }
-    pyramid_made = false;
-    distance_made = false;
-  }
-  bake::HeightView view() const { return {field.heights.data(), field.width, field.height}; }
+  ConeBaker& baker_for(const render::MapNeeds& needs, int width, int height);
+  void copy_from_other_slots(int slot, const MapHeights& heights, const render::MapNeeds& needs);
+  void make_cones(int slot, const MapHeights& heights, const render::MapNeeds& needs,
+                  const ConeSchedule& schedule, MapStats& stats);
+  void make_lagged(int slot, const MapHeights& heights, const render::MapNeeds& needs,
+                   const ConeSchedule& schedule, MapStats& stats);
+  void make_pyramid_and_distance(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs);
+  const render::MapSet& assemble(Slot& slot, const MapHeights& heights);
 };
 
-MapMaker::MapMaker(int max_3d_side) : state_(std::make_unique<State>()) {
+namespace {
+
+bake::HeightView view_of(const MapHeights& heights) {
+  return {heights.heights.data(), heights.width, heights.height};
+}
+
+}  // namespace
+
+ConeBaker& MapMaker::State::baker_for(const render::MapNeeds& needs, int width, int height) {
+  ConeBaker& k = bakers[std::size_t(render::cone_slot(needs.cone_sectors))];
+  if (!k.baker || k.width != width || k.height != height || k.address != needs.cone_address) {
+    k.baker.emplace(width, height, needs.cone_sectors, needs.cone_address);
+    k.width = width;
+    k.height = height;
+    k.address = needs.cone_address;
+    k.last_slot = -1;
+  }
+  return k;
+}
+
+// Maps another slot made for the same heights (a static source's, two frames in flight): copied
+// rather than baked again, the cone baker's progress with them.
+void MapMaker::State::copy_from_other_slots(int index, const MapHeights& heights,
+                                            const render::MapNeeds& needs) {
+  Slot& slot = slots[std::size_t(index)];
+  for (std::size_t other_index = 0; other_index < slots.size(); ++other_index) {
+    if (int(other_index) == index) continue;
+    const Slot& other = slots[other_index];
+    if (needs.cone_sectors > 0) {
+      const std::size_t cone_slot = std::size_t(render::cone_slot(needs.cone_sectors));
+      SlotCones& cones = slot.cones[cone_slot];
+      const SlotCones& theirs = other.cones[cone_slot];
+      if (!holds(cones.made_for, cones.address, heights, needs.cone_address) &&
+          holds(theirs.made_for, theirs.address, heights, needs.cone_address) &&
+          theirs.served.data() == theirs.ratios.data()) {
+        cones.ratios = theirs.ratios;
+        cones.apex = theirs.apex;
+        cones.served = cones.ratios;
+        cones.relaxed = theirs.relaxed;
+        cones.relaxed_for = theirs.relaxed_for;
+        cones.made_for = theirs.made_for;
+        cones.address = theirs.address;
+        cones.version = theirs.version;
+        cones.stats = theirs.stats;
+      }
+    }
+    if (needs.max_pyramid && !holds(slot.pyramid_for, slot.pyramid_address, heights, needs.address) &&
+        holds(other.pyramid_for, other.pyramid_address, heights, needs.address)) {
+      slot.pyramid = other.pyramid;
+      slot.pyramid_for = other.pyramid_for;
+      slot.pyramid_address = other.pyramid_address;
+      slot.pyramid_version = other.pyramid_version;
+    }
+    if (needs.distance && !holds(slot.distance_for, slot.distance_address, heights, needs.address) &&
+        holds(other.distance_for, other.distance_address, heights, needs.address)) {
+      slot.distance = other.distance;
+      slot.distance_for = other.distance_for;
+      slot.distance_address = other.distance_address;
+      slot.distance_version = other.distance_version;
+    }
+  }
+}
+
+// A lagged frame: the stage under way advances within the budget (a new one starts on this frame's
+// heights when none is), and the map made last is served, raised (raise_apexes).
+void MapMaker::State::make_lagged(int index, const MapHeights& heights, const render::MapNeeds& needs,
+                                  const ConeSchedule& schedule, MapStats& stats) {
+  const int width = heights.width, height = heights.height;
+  const std::size_t texels = heights.heights.size();
+  const int sectors = needs.cone_sectors;
+  ConeBaker& k = baker_for(needs, width, height);
+  SlotCones& cones = slots[std::size_t(index)].cones[std::size_t(render::cone_slot(sectors))];
+  if (k.served >= 0 && k.lagged[std::size_t(k.served)].heights.size() != texels) k.served = -1;  // a new size
+  if (!k.baker->in_progress()) {
+    k.building = k.served < 0 ? 0 : 1 - k.served;
+    LaggedCones& next = k.lagged[std::size_t(k.building)];
+    next.heights.assign(heights.heights.begin(), heights.heights.end());
+    next.frame = schedule.frame_index;
+    next.ratios.resize(texels * std::size_t(sectors));
+    next.apex.resize(texels);
+    k.baker->begin(view_of(heights));
+    k.build_frames = 0;
+  }
+  LaggedCones& next = k.lagged[std::size_t(k.building)];
+  const bake::ConeView out{next.ratios.data(), width, height, sectors};
+  // an even share of the stage a frame (made by its begin frame + lag frames), more while the budget
+  // lasts; with no map to serve yet the first is made whole
+  const double due = k.served < 0 ? 1.0 : double(k.build_frames + 1) / double(schedule.lag_frames + 1);
+  const bool made = k.baker->advance(schedule.budget, out, next.apex, next.stats, std::min(due, 1.0));
+  ++k.build_frames;
+  if (made) k.served = k.building;
+  const LaggedCones& served = k.lagged[std::size_t(k.served)];
+  cones.apex.resize(texels);
+  const float lift = raise_apexes(served.heights, heights.heights, served.apex, cones.apex);
+  cones.served = served.ratios;
+  cones.stats = served.stats;
+  cones.made_for = heights.version;
+  cones.address = needs.cone_address;
+  cones.relaxed_for = 0;
+  cones.version = next_map_version();
+  k.last_slot = index;
+  stats.cone_lag = schedule.frame_index - served.frame;
+  stats.cone_lift = lift;
+}
+
+void MapMaker::State::make_cones(int index, const MapHeights& heights, const render::MapNeeds& needs,
+                                 const ConeSchedule& schedule, MapStats& stats) {
+  const int width = heights.width, height = heights.height, sectors = needs.cone_sectors;
+  const std::size_t texels = heights.heights.size();
+  const std::size_t cone_slot = std::size_t(render::cone_slot(sectors));
+  SlotCones& cones = slots[std::size_t(index)].cones[cone_slot];
+  ConeBaker& k = baker_for(needs, width, height);
+  if (schedule.lag_frames > 0) {
+    make_lagged(index, heights, needs, schedule, stats);
+  } else if (!holds(cones.made_for, cones.address, heights, needs.cone_address)) {
+    // new heights: a whole bake within the budget
+    cones.ratios.resize(texels * std::size_t(sectors));
+    cones.apex.resize(texels);
+    cones.stats = k.baker->bake(view_of(heights), schedule.budget,
+                                {cones.ratios.data(), width, height, sectors}, cones.apex);
+    cones.served = cones.ratios;
+    cones.made_for = heights.version;
+    cones.address = needs.cone_address;
+    cones.relaxed_for = 0;
+    cones.version = next_map_version();
+    k.last_slot = index;
+  } else if (schedule.refine && k.baker->pending() > 0 && k.last_slot >= 0 &&
+             slots[std::size_t(k.last_slot)].cones[cone_slot].made_for == heights.version) {
+    // the same heights: refinement goes on where the baker stopped, from the map it emitted last
+    if (k.last_slot != index) {
+      const SlotCones& last = slots[std::size_t(k.last_slot)].cones[cone_slot];
+      std::copy(last.ratios.begin(), last.ratios.end(), cones.ratios.begin());
+      std::copy(last.apex.begin(), last.apex.end(), cones.apex.begin());
+    }
+    cones.stats = k.baker->refine(schedule.budget, {cones.ratios.data(), width, height, sectors}, cones.apex);
+    cones.version = next_map_version();
+    k.last_slot = index;
+  }
+  if (needs.relaxed && cones.relaxed_for != heights.version) {
+    cones.relaxed.resize(texels);
+    bake::bake_relaxed(view_of(heights), needs.cone_address, {cones.relaxed.data(), width, height, 1});
+    cones.relaxed_for = heights.version;
+    cones.version = next_map_version();
+  }
+  stats.cones = cones.stats;
+  stats.pending = k.baker->pending();
+}
+
+void MapMaker::State::make_pyramid_and_distance(Slot& slot, const MapHeights& heights,
+                                                const render::MapNeeds& needs) {
+  if (needs.max_pyramid && !holds(slot.pyramid_for, slot.pyramid_address, heights, needs.address)) {
+    slot.pyramid = bake::build_dual_max_pyramid(view_of(heights), needs.address);
+    slot.pyramid_for = heights.version;
+    slot.pyramid_address = needs.address;
+    slot.pyramid_version = next_map_version();
+  }
+  if (needs.distance && !holds(slot.distance_for, slot.distance_address, heights, needs.address)) {
+    bake_distance(view_of(heights), needs.address, max_3d_side, slot.distance);
+    slot.distance_for = heights.version;
+    slot.distance_address = needs.address;
+    slot.distance_version = next_map_version();
+  }
+}
+
+// The set: every map the slot holds for these heights.
+const render::MapSet& MapMaker::State::assemble(Slot& slot, const MapHeights& heights) {
+  render::MapSet& set = slot.set;
+  set = render::MapSet{};
+  set.width = heights.width;
+  set.height = heights.height;
+  set.heights = heights.heights;
+  set.heights_version = heights.version;
+  set.heights_dirty = heights.dirty;
+  set.heights_dirty_since = heights.dirty_since;
+  for (std::size_t cone_slot = 0; cone_slot < slot.cones.size(); ++cone_slot) {
+    const SlotCones& c = slot.cones[cone_slot];
+    if (c.made_for != heights.version) continue;
+    render::ConeMapView& view = set.cones[cone_slot];
+    view.sector_count = sector_counts[cone_slot];
+    view.address = c.address;
+    view.ratios = c.served;
+    view.apex = c.apex;
+    if (c.relaxed_for == heights.version) view.relaxed = c.relaxed;
+    view.version = c.version;
+  }
+  if (slot.pyramid_for == heights.version) {
+    set.max_pyramid = {&slot.pyramid, slot.pyramid_address, slot.pyramid_version};
+  }
+  if (slot.distance_for == heights.version) {
+    set.distance = {slot.distance.width,   slot.distance.height, slot.distance.depth,
+                    slot.distance_address, slot.distance.values, slot.distance_version};
+  }
+  if (!heights.foam.empty()) {
+    set.foam = heights.foam;
+    set.foam_version = heights.foam_version;
+  }
+  return set;
+}
+
+MapMaker::MapMaker(int max_3d_side, int frames_in_flight) : state_(std::make_unique<State>()) {
   state_->max_3d_side = std::max(1, max_3d_side);
+  state_->slots.resize(std::size_t(std::max(1, frames_in_flight)));
 }
 MapMaker::~MapMaker() = default;
 MapMaker::MapMaker(MapMaker&&) noexcept = default;
 MapMaker& MapMaker::operator=(MapMaker&&) noexcept = default;
+
+const render::MapSet& MapMaker::make(int slot, const MapHeights& heights, const render::MapNeeds& needs,
+                                     const ConeSchedule& schedule, MapStats& stats) {
+  State& s = *state_;
+  stats = MapStats{};
+  s.copy_from_other_slots(slot, heights, needs);
+  if (needs.cone_sectors > 0) s.make_cones(slot, heights, needs, schedule, stats);
+  Slot& made = s.slots[std::size_t(slot)];
+  s.make_pyramid_and_distance(made, heights, needs);
+  return s.assemble(made, heights);
+}
+
+const render::MapSet& MapMaker::made(int slot) const { return state_->slots[std::size_t(slot)].set; }
+
+void MapMaker::reserve(const render::MapNeeds& needs, int width, int height) {
+  if (needs.cone_sectors > 0) state_->baker_for(needs, width, height);
+}
 
 void MapMaker::set_heights(const render::HeightField& field, std::span<const bake::Rect> dirty) {
   render::HeightField copy = field;
@@ -84,7 +382,8 @@ void MapMaker::set_heights(render::HeightField&& field, std::span<const bake::Re
   s.field = std::move(field);
   s.heights_dirty.assign(dirty.begin(), dirty.end());
   if (!same_size) s.heights_dirty.clear();
-  s.heights_changed();
+  s.heights_dirty_since = s.heights_version;
+  s.heights_version = next_map_version();
 }
 
 void MapMaker::set_cone_budget(const bake::Budget& budget) { state_->cone_budget = budget; }
@@ -92,84 +391,23 @@ void MapMaker::set_cone_budget(const bake::Budget& budget) { state_->cone_budget
 const render::HeightField& MapMaker::heights() const { return state_->field; }
 
 const bake::BakeStats& MapMaker::cone_stats(int sector_count) const {
-  return state_->cones[std::size_t(render::cone_slot(sector_count))].stats;
+  return state_->slots[0].cones[std::size_t(render::cone_slot(sector_count))].stats;
 }
 
 const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
   State& s = *state_;
   if (s.field.heights.empty()) throw bake::BakeError("maps: no heights were set");
-  const int width = s.field.width, height = s.field.height;
-  const std::size_t texels = s.field.heights.size();
-
-  // cones (and the relaxed layer)
-  if (needs.cone_sectors > 0) {
-    State::Cones& c = s.cones[std::size_t(render::cone_slot(needs.cone_sectors))];
-    if (!c.made || c.address != needs.cone_address) {
-      if (!c.baker || c.address != needs.cone_address || c.baker_width != width || c.baker_height != height) {
-        c.baker.emplace(width, height, needs.cone_sectors, needs.cone_address);
-        c.baker_width = width;
-        c.baker_height = height;
-      }
-      c.ratios.resize(texels * std::size_t(needs.cone_sectors));
-      c.apex.resize(texels);
-      c.stats = c.baker->bake(s.view(), s.cone_budget, {c.ratios.data(), width, height, needs.cone_sectors},
-                              c.apex);
-      c.made = true;
-      c.relaxed_made = false;
-      c.address = needs.cone_address;
-      c.version = next_map_version();
-    }
-    if (needs.relaxed && !c.relaxed_made) {
-      c.relaxed.resize(texels);
-      bake::bake_relaxed(s.view(), needs.cone_address, {c.relaxed.data(), width, height, 1});
-      c.relaxed_made = true;
-      c.version = next_map_version();
-    }
-  }
-
-  // the dual max pyramid
-  if (needs.max_pyramid && (!s.pyramid_made || s.pyramid_address != needs.address)) {
-    s.pyramid = bake::build_dual_max_pyramid(s.view(), needs.address);
-    s.pyramid_address = needs.address;
-    s.pyramid_made = true;
-    s.pyramid_version = next_map_version();
-  }
-
-  // the distance map
-  if (needs.distance && (!s.distance_made || s.distance_address != needs.address)) {
-    bake_distance(s.view(), needs.address, s.max_3d_side, s.distance);
-    s.distance_address = needs.address;
-    s.distance_made = true;
-    s.distance_version = next_map_version();
-  }
-
-  // the set: every map made for these heights
-  render::MapSet& set = s.set;
-  set = render::MapSet{};
-  set.width = width;
-  set.height = height;
-  set.heights = s.field.heights;
-  set.heights_version = s.heights_version;
-  set.heights_dirty = s.heights_dirty;
-  set.heights_dirty_since = s.heights_dirty_since;
-  const int sector_counts[3] = {1, 4, 8};
-  for (std::size_t slot = 0; slot < s.cones.size(); ++slot) {
-    const State::Cones& c = s.cones[slot];
-    if (!c.made) continue;
-    render::ConeMapView& view = set.cones[slot];
-    view.sector_count = sector_counts[slot];
-    view.address = c.address;
-    view.ratios = c.ratios;
-    view.apex = c.apex;
-    if (c.relaxed_made) view.relaxed = c.relaxed;
-    view.version = c.version;
-  }
-  if (s.pyramid_made) set.max_pyramid = {&s.pyramid, s.pyramid_address, s.pyramid_version};
-  if (s.distance_made) {
-    set.distance = {s.distance.width,   s.distance.height, s.distance.depth,
-                    s.distance_address, s.distance.values, s.distance_version};
-  }
-  return set;
+  MapHeights heights;
+  heights.heights = s.field.heights;
+  heights.width = s.field.width;
+  heights.height = s.field.height;
+  heights.version = s.heights_version;
+  heights.dirty = s.heights_dirty;
+  heights.dirty_since = s.heights_dirty_since;
+  ConeSchedule schedule;
+  schedule.budget = s.cone_budget;
+  MapStats stats;
+  return make(0, heights, needs, schedule, stats);
 }
 
 render::Frame render_with_maps(render::Renderer& renderer, MapMaker& maps, const render::View& view,

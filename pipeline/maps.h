@@ -1,12 +1,20 @@
-// pipeline/maps.h - the maps the renderer's methods read, baked from one height field on demand
-// (bake/) and handed over as a render::MapSet: the one place that bakes for the renderer, shared by
-// the CLI, the tests and the frame pipeline.
+// pipeline/maps.h - the one map maker: heights -> the maps the renderer's methods read (bake/),
+// handed over as a render::MapSet. The CLI's one-off renders, the tests and the frame pipeline all
+// make their maps here; "who makes the maps" is this one choice, as pipeline/height_source.h's
+// HeightSource is "who makes the heights".
 //
 // Conventions: maps are made the first time a method needs them (render::map_needs) and kept, with
-// their version, until the heights change; new heights bump every version and drop what was baked
-// for the old ones. Cone maps come from bake::BilinearBaker within the cone budget (conservative at
-// any budget: a starved bake costs cone steps, never a wrong hit); one BilinearBaker per sector
-// count is kept between height fields of the same size.
+// their version, for as long as the heights keep theirs; new heights bump every version and drop what
+// was baked for the old ones. Cone maps come from bake::BilinearBaker within the cone budget
+// (conservative at any budget: a starved bake costs cone steps, never a wrong hit). State kept between
+// frames: one BilinearBaker per sector count (kept while the map size and address stay, its refinement
+// queue and its lagged first stage with them), and the maps of each frame in flight (slots).
+//
+// Two ways in. One-off: set_heights() then maps(needs) (slot 0, the cone budget of set_cone_budget).
+// Per frame: make(slot, heights, needs, schedule) with the frame's heights, its cone budget and how
+// cones carry over between frames (ConeSchedule: refinement of unchanged heights, lagged maps).
+// MapHeights is the seam: FramePipeline hands a HeightSource's frame to make() through it, so a
+// device path can replace who makes the heights, or who makes the maps, each on its own.
 #pragma once
 
 #include <array>
@@ -41,14 +49,70 @@ void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_s
 // and frame pipelines that share a renderer.
 std::uint64_t next_map_version();
 
+// The lagged cone maps' raise: lift = max(0, largest now[t] - made_from[t]), and `raised` = each apex
+// + lift rounded up (at most 1), so that a cone map made from `made_from` holds for `now` (proof in
+// maps.cpp). Returns the lift. All four spans one texel each, as many.
+float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
+                   std::span<float> raised);
+
+// One frame's heights as make() reads them: views that must stay valid while the returned set is used
+// (the set views the heights and the foam).
+struct MapHeights {
+  std::span<const float> heights;  // width x height in [0, 1], bake conventions
+  int width = 0, height = 0;
+  std::uint64_t version = 0;  // names the content (next_map_version): equal versions, equal heights
+  // the rectangles that changed since version `dirty_since` (empty: all of it), for the renderer
+  std::uint64_t dirty_since = 0;
+  std::span<const bake::Rect> dirty;
+  std::span<const float> foam;  // the source's foam coverage, passed on (empty: none)
+  std::uint64_t foam_version = 0;
+};
+
+// How make() bakes a frame's cone map.
+struct ConeSchedule {
+  bake::Budget budget;  // the cone bake's budget for this frame
+  // Heights the slot already holds a cone map for (or copied one from another slot): refine it
+  // further within the budget, from where the baker stopped last (real time on a static source).
+  bool refine = false;
+  // > 0: lagged cone maps (moving heights, no relaxed layer; frame_pipeline.h): the baker's first
+  // stage runs in steps on the heights of the frame it began on, an even share of it a frame over
+  // at most lag_frames + 1 frames and more while the budget lasts, and each frame is served the map
+  // made last with every apex raised by raise_apexes for its own heights. The first map is made whole.
+  int lag_frames = 0;
+  long long frame_index = 0;  // the frame the heights belong to (a lagged map's age)
+};
+
+// What make() did.
+struct MapStats {
+  bake::BakeStats cones;   // the cone map served (sector_count 0: none)
+  long long pending = 0;   // texels the cone baker would still refine
+  long long cone_lag = 0;  // frames since the heights the served cone map was made from (lagged maps)
+  float cone_lift = 0.0f;  // how far its apexes were raised for these heights
+};
+
 class MapMaker {
  public:
   // max_3d_side: the device's largest 3D image side (render::DeviceInfo::max_image_dimension_3d).
-  explicit MapMaker(int max_3d_side = distance_max_side);
+  // frames_in_flight: the slots make() may fill (at least 1), each with maps of its own.
+  explicit MapMaker(int max_3d_side = distance_max_side, int frames_in_flight = 1);
   ~MapMaker();
   MapMaker(MapMaker&&) noexcept;
   MapMaker& operator=(MapMaker&&) noexcept;
 
+  // ---- per frame
+  // Makes what `needs` lists for `heights` into `slot` (0 .. frames_in_flight - 1): a map the slot
+  // holds for these heights (version and address) is kept - refined with schedule.refine - one
+  // another slot holds is copied, and the rest is baked (cones within schedule.budget). Fills
+  // `stats`. The set views the slot's memory and `heights`, and holds until the next make() into the
+  // slot; another slot's set may be read (uploaded) meanwhile, but make() is never called twice at once.
+  const render::MapSet& make(int slot, const MapHeights& heights, const render::MapNeeds& needs,
+                             const ConeSchedule& schedule, MapStats& stats);
+  // The set the last make() into `slot` returned (empty before the first).
+  const render::MapSet& made(int slot) const;
+  // Makes the cone baker for heights of this size now instead of at the first make().
+  void reserve(const render::MapNeeds& needs, int width, int height);
+
+  // ---- one-off (slot 0)
   // New heights (validated as the bakers do; throws bake::BakeError). `dirty`: the rectangles that
   // changed since the last heights of the same size (empty: all of it), passed on to the renderer.
   void set_heights(const render::HeightField& field, std::span<const bake::Rect> dirty = {});
@@ -64,7 +128,7 @@ class MapMaker {
   }
 
   const render::HeightField& heights() const;
-  // Statistics of the last cone bake per sector count (cone_slot order); sector_count 0 when none.
+  // Statistics of slot 0's last cone bake per sector count (cone_slot order); sector_count 0 when none.
   const bake::BakeStats& cone_stats(int sector_count) const;
 
   struct State;

@@ -1,0 +1,174 @@
+// pipeline/height_source.cpp - the one source switch (height_source.h): the ocean (heights, choppy
+// crests resampled onto the grid, foam from the Jacobian), sinusoids, bricks, cliff and height images.
+#include "pipeline/height_source.h"
+
+#include <algorithm>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "pipeline/maps.h"
+
+namespace displace::pipeline {
+namespace {
+
+// resample_displaced's Newton steps: at most 8, a block of texels stopping once every residual is
+// within 3e-4 texel (0.003 leaves heights 2.5e-4 of their range off where J is small; this, 2.5e-5).
+// On the water scene's ocean (choppiness 1.5) a block measures its residual 2.5 times on average.
+constexpr int choppy_iterations = 8;
+constexpr float choppy_settle = 3e-4f;  // texels
+
+}  // namespace
+
+unsigned scene_effects(const Scene& scene) {
+  unsigned effects = effect_heights;
+  if (scene.source == SourceKind::ocean && scene.ocean.choppiness > 0.0f) effects |= effect_choppy;
+  if (scene.source == SourceKind::ocean && scene.foam && scene.material == render::Material::water) {
+    effects |= effect_foam;
+  }
+  return effects;
+}
+
+SourceSettings source_settings(const Scene& scene) {
+  SourceSettings settings;
+  settings.kind = scene.source;
+  settings.map_size = scene.map_size;
+  settings.seed = scene.seed;
+  settings.image = scene.image;
+  settings.ocean = scene.ocean;
+  settings.sinusoids = scene.sinusoids;
+  return settings;
+}
+
+struct HeightSource::State {
+  SourceSettings settings;
+  unsigned effects = effect_heights;
+  HeightLoader loader;
+  bool is_static = false;
+  std::uint64_t static_version = 0;  // a static source's heights, drawn at the first make()
+  sim::HeightMapping mapping{1.0f, 0.0f};
+  std::optional<sim::Ocean> ocean;
+  std::vector<sim::Wave> waves;
+
+  void make_ocean(double time, HeightFrame& out);
+  void make_image(long long frame_index, HeightFrame& out);
+};
+
+HeightSource::HeightSource(const SourceSettings& settings, unsigned effects, HeightLoader loader)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.settings = settings;
+  s.effects = effect_heights | (settings.kind == SourceKind::ocean ? effects : 0u);
+  s.loader = std::move(loader);
+  const int n = settings.map_size;
+  if (settings.kind != SourceKind::image && (n < 2 || n > max_source_map_size)) {
+    throw SceneError("source.map_size must be between 2 and " + std::to_string(max_source_map_size));
+  }
+  try {
+    switch (settings.kind) {
+      case SourceKind::ocean: {
+        sim::OceanParams params = settings.ocean;
+        params.size = n;
+        s.ocean.emplace(params);
+        s.mapping = s.ocean->mapping();
+        break;
+      }
+      case SourceKind::sinusoids:
+        s.waves = sim::make_sinusoid_waves(settings.sinusoids);
+        s.mapping = sim::sinusoid_mapping(s.waves);
+        break;
+      case SourceKind::bricks:
+      case SourceKind::cliff: s.is_static = true; break;
+      case SourceKind::image:
+        if (!s.loader)
+          throw SceneError("an image scene needs a height loader (the application's image reader)");
+        s.is_static = !is_image_sequence(settings.image);
+        break;
+    }
+  } catch (const std::invalid_argument& error) {
+    throw SceneError(std::string("the scene's source: ") + error.what());
+  }
+}
+
+HeightSource::~HeightSource() = default;
+HeightSource::HeightSource(HeightSource&&) noexcept = default;
+HeightSource& HeightSource::operator=(HeightSource&&) noexcept = default;
+
+bool HeightSource::is_static() const { return state_->is_static; }
+unsigned HeightSource::effects() const { return state_->effects; }
+sim::HeightMapping HeightSource::mapping() const { return state_->mapping; }
+
+void HeightSource::State::make_image(long long frame_index, HeightFrame& out) {
+  out.field = loader(is_static ? settings.image : image_for_frame(settings.image, frame_index));
+  out.raw = out.field.heights;
+  out.clamped = 0;
+}
+
+void HeightSource::State::make_ocean(double time, HeightFrame& out) {
+  const int n = settings.map_size;
+  const long long ffts = ocean->fft_count();
+  const bool choppy = (effects & effect_choppy) != 0;
+  const bool foam = (effects & effect_foam) != 0;
+  ocean->evaluate(
+      time, sim::ocean_heights | (choppy ? sim::ocean_displacement : 0u) | (foam ? sim::ocean_foam : 0u),
+      out.ocean);
+  out.ffts = ocean->fft_count() - ffts;
+  if (foam) out.jacobian.resize(out.field.heights.size());
+  if (choppy) {
+    // the choppy crests: heights resampled where the displaced surface lands on the grid
+    out.choppy_residual =
+        sim::resample_displaced(n, ocean->patch_size(), out.ocean.height, out.ocean.displacement_x,
+                                out.ocean.displacement_y, choppy_iterations, out.raw_values,
+                                foam ? std::span<const float>(out.ocean.jacobian) : std::span<const float>{},
+                                foam ? std::span<float>(out.jacobian) : std::span<float>{}, choppy_settle);
+    out.raw = out.raw_values;
+  } else {
+    if (foam) out.jacobian = out.ocean.jacobian;
+    out.raw = out.ocean.height;
+  }
+  out.clamped = sim::apply_mapping(mapping, out.raw, out.field.heights);
+  if (foam) {
+    out.foam.resize(out.jacobian.size());
+    for (std::size_t t = 0; t < out.foam.size(); ++t) {
+      out.foam[t] = std::clamp((foam_start - out.jacobian[t]) / (foam_start - foam_full), 0.0f, 1.0f);
+    }
+    out.foam_version = next_map_version();
+  }
+}
+
+void HeightSource::make(double time, long long frame_index, HeightFrame& out) {
+  State& s = *state_;
+  if (s.is_static && s.static_version != 0 && out.version == s.static_version) return;  // made already
+  out.ffts = 0;
+  out.choppy_residual = 0.0;
+  if (s.settings.kind == SourceKind::image) {
+    s.make_image(frame_index, out);
+  } else {
+    const int n = s.settings.map_size;
+    const std::size_t texels = std::size_t(n) * std::size_t(n);
+    out.field.width = out.field.height = n;
+    out.field.heights.resize(texels);
+    out.raw_values.resize(texels);
+    switch (s.settings.kind) {
+      case SourceKind::ocean: s.make_ocean(time, out); break;
+      case SourceKind::sinusoids:
+        sim::sinusoid_heights(s.waves, s.settings.sinusoids.patch_size, time, n, n, out.raw_values);
+        break;
+      case SourceKind::bricks: sim::brick_heights(n, n, s.settings.seed, out.raw_values); break;
+      case SourceKind::cliff: sim::cliff_heights(n, n, s.settings.seed, out.raw_values); break;
+      case SourceKind::image: break;
+    }
+    if (s.settings.kind != SourceKind::ocean) {
+      out.raw = out.raw_values;
+      out.clamped = sim::apply_mapping(s.mapping, out.raw, out.field.heights);
+    }
+  }
+  if (s.is_static) {
+    if (s.static_version == 0) s.static_version = next_map_version();
+    out.version = s.static_version;
+  } else {
+    out.version = next_map_version();
+  }
+}
+
+}  // namespace displace::pipeline

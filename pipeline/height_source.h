@@ -1,0 +1,103 @@
+// pipeline/height_source.h - the one source switch: a scene's source settings (ocean, sinusoids,
+// bricks, cliff or height images) -> heights in [0, 1] for a time, with only the effects asked for
+// (choppy crests, foam). "Who makes the heights" is this one choice; pipeline/maps.h's MapMaker is
+// "who makes the maps" from them. The frame pipeline and one-off commands both use it.
+//
+// State made once (sim::Ocean with its FFT plans, the waves, the mapping) and kept; make() writes
+// into a HeightFrame the caller keeps (one per frame in flight), reusing its memory: no allocation
+// per frame once each frame has been made into at its size (height images excepted: the loader's).
+// Versions: each make() of moving heights draws a new version (next_map_version); a static source
+// (bricks, cliff, one image) gives every frame the same heights under one version, so that a map
+// maker sees them as the same heights, and make() into a frame that holds them does nothing.
+//
+//   pipeline::HeightSource source(pipeline::source_settings(scene), pipeline::scene_effects(scene));
+//   pipeline::HeightFrame heights;
+//   source.make(/*time*/ 2.5, /*frame_index*/ 0, heights);  // heights.field in [0, 1], heights.raw metres
+//   maps.set_heights(heights.field);                         // a pipeline::MapMaker
+//   renderer.set_maps(maps.maps_for(method, view));
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "pipeline/scene.h"
+#include "render/render.h"
+#include "sim/sim.h"
+
+namespace displace::pipeline {
+
+// The effects a source computes: only what something consumes.
+enum Effect : unsigned {
+  effect_heights = 1u << 0,  // always
+  effect_choppy = 1u << 1,   // the ocean's horizontal displacement, resampled onto the grid (choppiness > 0)
+  effect_foam = 1u << 2,     // the Jacobian of the displacement, as foam coverage (water material with foam)
+};
+// Foam coverage from the Jacobian J of the choppy map: none at J >= foam_start, full at J <= foam_full,
+// linear between (J = 1 on a flat sea, < 0 where the surface folds over). Measured on the default
+// ocean (256 texels, 200 m, 12 m/s): J spans [0.70, 1.34] at choppiness 1 and [0.35, 1.94] at 2.5, so
+// foam starts on the most compressed crests.
+inline constexpr float foam_start = 0.85f;
+inline constexpr float foam_full = 0.45f;
+// What a scene consumes: choppy crests for an ocean with choppiness, foam for the water material.
+unsigned scene_effects(const Scene& scene);
+
+// Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
+// (demos/ uses OpenImageIO); it throws for a file it cannot read.
+using HeightLoader = std::function<render::HeightField(const std::filesystem::path& file)>;
+
+// A source's settings: Scene's [source], [ocean] and [sinusoids] (source_settings(scene)).
+struct SourceSettings {
+  SourceKind kind = SourceKind::ocean;
+  int map_size = 256;           // texels a side (image: the image's)
+  std::uint64_t seed = 1;       // bricks and cliff roughness
+  std::filesystem::path image;  // image: one file, or a numbered sequence (image_for_frame)
+  sim::OceanParams ocean;       // its size is map_size
+  sim::SinusoidParams sinusoids;
+};
+SourceSettings source_settings(const Scene& scene);
+inline constexpr int max_source_map_size = 8192;  // SourceSettings::map_size, at least 2
+
+// One frame's heights and what came with them. The caller keeps it; make() reuses its memory.
+struct HeightFrame {
+  render::HeightField field;   // [0, 1], the source's fixed mapping applied
+  std::uint64_t version = 0;   // names the content (0: nothing made yet)
+  std::span<const float> raw;  // before the mapping (metres; images: `field`), views this frame's memory
+  std::size_t clamped = 0;     // texels the mapping clamped into [0, 1]
+  std::vector<float> foam;     // effect_foam: coverage in [0, 1] per texel, else empty
+  std::uint64_t foam_version = 0;
+  long long ffts = 0;            // inverse FFTs the last make() took
+  double choppy_residual = 0.0;  // effect_choppy, metres: the resampling's largest |p + D(p) - x|
+
+  // working memory
+  sim::OceanFrame ocean;
+  std::vector<float> raw_values, jacobian;
+};
+
+class HeightSource {
+ public:
+  // effects: Effect bits (effect_heights is implied; choppy and foam only for an ocean). loader: needed
+  // by image sources. Throws SceneError for settings that cannot make heights.
+  explicit HeightSource(const SourceSettings& settings, unsigned effects = effect_heights,
+                        HeightLoader loader = {});
+  ~HeightSource();
+  HeightSource(HeightSource&&) noexcept;
+  HeightSource& operator=(HeightSource&&) noexcept;
+
+  // The heights at `time` (seconds) into `out`; `frame_index` picks an image sequence's file.
+  void make(double time, long long frame_index, HeightFrame& out);
+
+  bool is_static() const;              // the same heights at every time (bricks, cliff, one image)
+  unsigned effects() const;            // what make() computes
+  sim::HeightMapping mapping() const;  // raw -> [0, 1] (images: the identity)
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace displace::pipeline
