@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "demos/cli/flags.h"
 #include "demos/commands.h"
 #include "demos/error.h"
 #include "demos/options.h"
@@ -21,8 +22,9 @@ constexpr int exit_runtime_error = 1;
 constexpr int exit_usage_error = 2;
 
 // `command`: the command the user ran, for the help hint of a usage error; empty when none.
+// The libraries' messages name their fields; the user sees the flags that set them.
 int report(std::string_view message, int status, std::string_view command = {}) {
-  std::cerr << "displace: error: " << message << '\n';
+  std::cerr << "displace: error: " << displace::app::cli::flag_words(message) << '\n';
   if (status == exit_usage_error) {
     std::cerr << "run 'displace " << command << (command.empty() ? "" : " ") << "--help' for usage\n";
   }

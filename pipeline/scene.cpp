@@ -245,6 +245,22 @@ Scene builtin_scene(std::string_view name) {
 
 namespace {
 
+// The renderer's message in the scene file's words: the fields it names become their keys.
+std::string key_words(std::string text) {
+  static const std::pair<std::string_view, std::string_view> fields[] = {
+      {"Camera::width and Camera::height", "render.size"},
+      {"Camera::fov_y_degrees", "camera.fov_y"},
+      {"Camera::look_at", "camera.look_at"},
+      {"Camera::eye", "camera.eye"},
+      {"Camera::up", "camera.up"}};
+  for (const auto& [field, key] : fields) {
+    for (std::size_t at = text.find(field); at != std::string::npos; at = text.find(field, at + key.size())) {
+      text.replace(at, field.size(), key);
+    }
+  }
+  return text;
+}
+
 // A scene file's sections, one reader each (parse_scene calls them in this order).
 
 void read_source(const Reader& read, const toml::table& root, const std::string& source_name, Scene& scene) {
@@ -475,7 +491,7 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   try {
     scene_view(scene, scene.start).camera.validate();
   } catch (const render::RenderError& error) {
-    read.fail(camera, "camera", error.what());
+    read.fail(camera, "camera", key_words(error.what()));
   }
   return scene;
 }
