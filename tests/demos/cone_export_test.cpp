@@ -39,9 +39,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace displace::app;
 
-// ---------------------------------------------------------------------------------------------
-// cone_export
-
 std::vector<float> awkward_ratios() {
   std::vector<float> ratios = {0.0f,
                                1.0f,

@@ -101,14 +101,6 @@ inline void write_first_part(const fs::path& file, const fs::path& cut, double f
 }
 
 // ---------------------------------------------------------------------------------------------
-// options
-
-inline CommandSettings parse(std::initializer_list<std::string_view> args) {
-  const std::vector<std::string_view> list(args);
-  return parse_command_line(list);
-}
-
-// ---------------------------------------------------------------------------------------------
 // the binary
 
 struct RunResult {

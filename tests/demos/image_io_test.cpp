@@ -39,9 +39,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace displace::app;
 
-// ---------------------------------------------------------------------------------------------
-// image_io
-
 TEST(ImageIo, Loads8BitWithValueOverMax) {
   TempDir dir;
   const std::vector<std::uint8_t> values = {0, 1, 2, 127, 128, 200, 254, 255};

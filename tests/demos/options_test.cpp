@@ -39,6 +39,11 @@ namespace {
 namespace fs = std::filesystem;
 using namespace displace::app;
 
+CommandSettings parse(std::initializer_list<std::string_view> args) {
+  const std::vector<std::string_view> list(args);
+  return parse_command_line(list);
+}
+
 TEST(Options, ParsesABakeCommandIntoTypedSettings) {
   const CommandSettings settings =
       parse({"bake", "--input", "h.exr", "--channel", "2", "--height-range=-1,3", "--sectors", "8", "--mode",

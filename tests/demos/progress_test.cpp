@@ -39,9 +39,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace displace::app;
 
-// ---------------------------------------------------------------------------------------------
-// progress line
-
 // A fake clock in seconds.
 struct FakeClock {
   double now = 0.0;
