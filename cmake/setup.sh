@@ -58,7 +58,7 @@ run_sanitize() {
   cmake --build "$root/build-asan" -j "$jobs"
   # leaks are checked where no Vulkan instance is made: the loader unloads lavapipe when the
   # instance goes, and what lavapipe keeps until then can no longer be named (or suppressed)
-  local leak_checked='^(sim|bake|budgeted|bilinear|app|fuzz_.*_replay)$'
+  local leak_checked='^((sim|bake)/.*|render/cpu_trace|demos|fuzz_.*_replay)$'
   (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R "$leak_checked")
   (cd "$root/build-asan" && ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --output-on-failure -j "$jobs" -E "$leak_checked|^report\$|^soak\$")
@@ -118,7 +118,7 @@ run_tsan() {
   cmake --build "$tsan_build" -j "$jobs"
   # a run against Debian's uninstrumented libtbb would report every handoff: refuse it
   local program
-  for program in "$tsan_build/tests/displace_tests" "$tsan_build/displace"; do
+  for program in "$tsan_build/tests/displace_demos_tests" "$tsan_build/displace"; do
     if ! loads_library "$program" "$tbb_root/install/lib/libtbb"; then
       echo "setup: $program does not load the instrumented libtbb from $tbb_root" >&2
       exit 1

@@ -145,8 +145,7 @@ CLI::Validator finite_number() {
       "");
 }
 
-CLI::Validator text_check(std::function<std::string(const std::string&)> problem,
-                          std::string description) {
+CLI::Validator text_check(std::function<std::string(const std::string&)> problem, std::string description) {
   return CLI::Validator([problem](std::string& text) { return problem(text); }, std::move(description));
 }
 

@@ -1,5 +1,8 @@
-// tests/pipeline_test.cpp - the per-frame service: scene files, effects on demand, the frame budget
-// through an injected clock, conservative maps when the bake is starved, and reproducible frames.
+// tests/pipeline/frame_pipeline_test.cpp - the per-frame service (pipeline/frame_pipeline.cpp): effects on
+// demand, the frame budget through an injected clock, conservative maps when the bake is starved,
+// reproducible frames.
+#include "pipeline/frame_pipeline.h"
+
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <tbb/parallel_for.h>
@@ -19,10 +22,10 @@
 #include <string_view>
 #include <thread>
 
-#include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
 #include "pipeline/thread_pinning.h"
 #include "render/render.h"
+#include "tests/pipeline/pipeline_checks.h"
 #include "tests/render_fixtures.h"
 
 namespace {
@@ -34,26 +37,6 @@ using pipeline::FrameRecord;
 using pipeline::Scene;
 using pipeline::SceneError;
 
-// A small scene for tests: map_size texels, size x size pixels, an oblique camera.
-Scene small_scene(const char* builtin, int map_size, int pixels) {
-  Scene scene = pipeline::builtin_scene(builtin);
-  scene.map_size = map_size;
-  scene.camera.width = scene.camera.height = pixels;
-  scene.camera.eye = {0.5f, -0.3f, 0.6f};
-  scene.camera.look_at = {0.5f, 0.5f, -0.05f};
-  scene.camera.fov_y_degrees = 30.0f;
-  return scene;
-}
-
-std::string error_of(const std::string& text) {
-  try {
-    pipeline::parse_scene(text, "scene.toml");
-  } catch (const SceneError& error) {
-    return error.what();
-  }
-  return "(accepted)";
-}
-
 // A clock that moves only when asked: each call advances it by `tick` milliseconds (atomic: the
 // overlapped stages read it from two threads).
 struct FakeClock {
@@ -61,169 +44,6 @@ struct FakeClock {
   double tick = 0.01;
   double operator()() { return now.fetch_add(tick) + tick; }
 };
-
-}  // namespace
-
-TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
-  for (const std::string& name : pipeline::builtin_scene_names()) {
-    Scene scene = pipeline::builtin_scene(name);
-    scene.keyframes = {{0.0, {0.5f, -0.4f, 0.5f}, {0.5f, 0.5f, 0.0f}},
-                       {2.0, {0.2f, -0.4f, 0.6f}, {0.5f, 0.4f, 0.0f}}};
-    scene.frame_ms = 16.0;
-    scene.bake_work = 5000;
-    scene.cone_lag_frames = 3;
-    const std::string text = pipeline::scene_toml(scene);
-    const Scene back = pipeline::parse_scene(text, name);
-    EXPECT_EQ(pipeline::scene_toml(back), text) << name;
-  }
-}
-
-TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
-  EXPECT_EQ(error_of("[render]\nsteps = 0\n"), "scene.toml:2: render.steps: must be in [1, 4096]");
-  EXPECT_EQ(
-      error_of("[render]\nmethod = \"magic\"\n").rfind("scene.toml:2: render.method: must be one of bump", 0),
-      0u);
-  EXPECT_EQ(error_of("[ocean]\nwindspeed = 3\n").rfind("scene.toml:2: ocean.windspeed: unknown key", 0), 0u);
-  EXPECT_EQ(error_of("colour = 1\n").rfind("scene.toml:1: colour: unknown key", 0), 0u);
-  EXPECT_EQ(error_of("[source]\nkind = \"lava\"\n"),
-            "scene.toml:2: source.kind: 'lava' is not one of ocean, sinusoids, bricks, cliff, image");
-  EXPECT_EQ(error_of("[source]\nmap_size = 255\n"),
-            "scene.toml:2: source.map_size: must be even for the ocean");
-  EXPECT_EQ(error_of("[time]\nfps = \"fast\"\n"), "scene.toml:2: time.fps: must be a number");
-  EXPECT_EQ(error_of("[camera]\neye = [1, 2]\n"),
-            "scene.toml:2: camera.eye: must be an array of 3 numbers [x, y, z]");
-  EXPECT_EQ(error_of("[render]\nsize = [0, 10]\n"),
-            "scene.toml:2: render.size: must be between [1, 1] and [16384, 16384]");
-  EXPECT_EQ(error_of("[render]\nshadows = 1\n"), "scene.toml:2: render.shadows: must be true or false");
-  EXPECT_EQ(error_of("[render]\nmethod = \"relaxed\"\nsurface = \"sphere\"\n"),
-            "scene.toml:3: render.surface: --method relaxed does not render on sphere");
-  EXPECT_EQ(error_of("[camera]\nkeyframes = [{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}, "
-                     "{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}]\n")
-                .rfind("scene.toml:2: camera.keyframes: times must increase", 0),
-            0u);
-  EXPECT_EQ(error_of("[camera]\neye = [0.5, 0.5, 0.5]\nlook_at = [0.5, 0.5, 0.5]\n")
-                .rfind("scene.toml:1: camera:", 0),
-            0u);
-  EXPECT_EQ(error_of("[render\nsteps = 3\n").rfind("scene.toml:1: ", 0), 0u);  // malformed
-  EXPECT_EQ(error_of("render = 3\n"), "scene.toml:1: render: must be a table ([render])");
-  try {
-    pipeline::read_scene_file("/nonexistent/scene.toml");
-    ADD_FAILURE() << "a missing file was read";
-  } catch (const SceneError& error) {
-    EXPECT_EQ(std::string(error.what()), "/nonexistent/scene.toml: cannot open the scene file");
-  }
-  EXPECT_THROW(pipeline::builtin_scene("lava"), SceneError);
-}
-
-// Every key, with a value of the wrong type and one out of range: one error naming that key.
-TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
-  const std::pair<const char*, std::vector<const char*>> keys[] = {
-      {"source.kind", {"3", "\"lava\""}},
-      {"source.map_size", {"\"big\"", "1", "9000"}},
-      {"source.seed", {"-1", "1.5"}},
-      {"ocean.patch_size", {"\"a\"", "0"}},
-      {"ocean.spectrum", {"1", "\"pink\""}},
-      {"ocean.wind_speed", {"false", "1000"}},
-      {"ocean.wind_direction", {"\"n\"", "400"}},
-      {"ocean.choppiness", {"[1]", "-1"}},
-      {"ocean.seed", {"\"x\""}},
-      {"sinusoids.wave_count", {"1.5", "0"}},
-      {"sinusoids.patch_size", {"true", "0"}},
-      {"sinusoids.steepness", {"\"s\"", "2"}},
-      {"sinusoids.seed", {"\"x\""}},
-      {"material.kind", {"1", "\"glass\""}},
-      {"material.foam", {"1"}},
-      {"material.albedo", {"1"}},
-      {"ocean.size", {"7", "\"big\"", "0"}},
-      {"camera.eye", {"1", "[1, 2]", "[\"a\", 1, 2]"}},
-      {"camera.look_at", {"[1, 2, 3, 4]"}},
-      {"camera.up", {"\"up\""}},
-      {"camera.fov_y", {"\"wide\"", "180"}},
-      {"camera.keyframes", {"3", "[1, 2]"}},
-      {"render.method", {"1", "\"magic\""}},
-      {"render.steps", {"\"many\"", "0", "5000"}},
-      {"render.refine", {"-1", "65"}},
-      {"render.size", {"1", "[0, 10]", "[10]"}},
-      {"render.surface", {"\"torus\""}},
-      {"render.shadows", {"\"yes\""}},
-      {"render.light", {"[0, 0, 0]", "2"}},
-      {"render.depth_scale", {"0", "11"}},
-      {"render.tile", {"0", "65"}},
-      {"time.start", {"\"now\"", "1e13"}},
-      {"time.fps", {"0", "1e5"}},
-      {"budget.frame_ms", {"-1", "\"fast\""}},
-      {"budget.bake_work", {"-2", "0.5"}},
-      {"budget.tolerance", {"2", "\"loose\""}},
-      {"budget.cone_lag_frames", {"-1", "65", "1.5"}},
-      {"name", {"1"}}};
-  for (const auto& [key, values] : keys) {
-    const std::string path = key;
-    const std::size_t dot = path.find('.');
-    for (const char* value : values) {
-      // appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on "[" + std::string
-      std::string text;
-      if (dot != std::string::npos) text.append("[").append(path, 0, dot).append("]\n");
-      text.append(path, dot == std::string::npos ? 0 : dot + 1).append(" = ").append(value).append("\n");
-      const std::string error = error_of(text);
-      EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
-      EXPECT_EQ(error.rfind("scene.toml:", 0), 0u) << text << " -> " << error;
-    }
-  }
-}
-
-// [ocean] size is the map size; an albedo material names its image next to the scene file.
-TEST(Scene, OceanSizeAndAlbedoMaterial) {
-  EXPECT_EQ(pipeline::parse_scene("[ocean]\nsize = 64\n", "s.toml").map_size, 64);
-  EXPECT_NE(error_of("[source]\nmap_size = 32\n[ocean]\nsize = 64\n").find("ocean.size: differs"),
-            std::string::npos);
-  const Scene albedo =
-      pipeline::parse_scene("[material]\nkind = \"albedo\"\nalbedo = \"a.png\"\n", "dir/s.toml");
-  EXPECT_EQ(albedo.albedo, std::filesystem::path("dir/a.png"));
-  EXPECT_EQ(pipeline::parse_scene(pipeline::scene_toml(albedo), "x").albedo, albedo.albedo);
-  EXPECT_NE(error_of("[material]\nkind = \"albedo\"\n").find("material.albedo"), std::string::npos);
-  EXPECT_NE(error_of("[material]\nalbedo = \"a.png\"\n").find("material.albedo"), std::string::npos);
-  // the pipeline hands the image to the renderer: a red albedo shades the bricks red
-  Scene scene = small_scene("bricks", 16, 16);
-  scene.method = render::Method::relief;
-  scene.albedo = "red.png";
-  std::vector<std::string> read;
-  const pipeline::AlbedoLoader loader = [&](const std::filesystem::path& file) {
-    read.push_back(file.string());
-    return render::Albedo{1, 1, {255, 0, 0, 255}};
-  };
-  EXPECT_THROW(FramePipeline(scene, shared_renderer()), SceneError);
-  FramePipeline red(scene, shared_renderer(), {}, {}, loader);
-  render::Frame frame;
-  red.run(0, frame, render::output_all);
-  EXPECT_EQ(read, std::vector<std::string>{"red.png"});
-  long long reddish = 0, hit = 0;
-  for (std::size_t p = 0; p < frame.uv.size() / 3; ++p) {
-    if (frame.uv[p * 3 + 2] < 0.5f) continue;
-    ++hit;
-    reddish += frame.color[p * 4] > 2 * frame.color[p * 4 + 1] + 10;
-  }
-  EXPECT_GT(hit, 50);
-  EXPECT_EQ(reddish, hit);
-  shared_renderer().clear_albedo();
-}
-
-TEST(Scene, CameraKeyframesPassThroughEveryKeyAndHoldOutside) {
-  Scene scene = pipeline::builtin_scene("calm");
-  scene.keyframes = {{0.0, {0.0f, -1.0f, 1.0f}, {0.5f, 0.5f, 0.0f}},
-                     {1.0, {1.0f, -1.0f, 1.0f}, {0.5f, 0.5f, 0.0f}},
-                     {3.0, {1.0f, 0.0f, 2.0f}, {0.4f, 0.5f, 0.0f}}};
-  for (const pipeline::CameraKey& key : scene.keyframes) {
-    const render::View view = pipeline::scene_view(scene, key.time);
-    EXPECT_LT(glm::length(view.camera.eye - key.eye), 1e-6f);
-    EXPECT_LT(glm::length(view.camera.look_at - key.look_at), 1e-6f);
-  }
-  EXPECT_EQ(pipeline::scene_view(scene, -5.0).camera.eye, scene.keyframes.front().eye);
-  EXPECT_EQ(pipeline::scene_view(scene, 9.0).camera.eye, scene.keyframes.back().eye);
-  // smooth: no jump between two close times inside a segment
-  const glm::vec3 a = pipeline::scene_view(scene, 1.999).camera.eye,
-                  b = pipeline::scene_view(scene, 2.001).camera.eye;
-  EXPECT_LT(glm::length(a - b), 0.01f);
-}
 
 // Only what the scene consumes runs: the calm ocean costs exactly one FFT a frame (heights); choppy
 // crests add the two displacement FFTs and resample the displaced surface onto the grid; foam (the
@@ -350,8 +170,6 @@ TEST(Pipeline, TheBakeKeepsToItsShareOfTheFrameBudget) {
   }
 }
 
-namespace {
-
 // Every cone ray of `pipeline`'s frames ends at or before its exact first crossing (render::cpu_trace
 // on the frame's heights).
 void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames,
@@ -375,8 +193,6 @@ void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames,
   EXPECT_GT(compared, frames * frame.width * frame.height / 4) << scene.name;
   EXPECT_EQ(beyond, 0) << scene.name << " / " << render::method_info(scene.method).name;
 }
-
-}  // namespace
 
 // An animated sequence whose bake budget is 0 (every frame over budget: static maps from the first
 // stage only, moving ones lagged by up to 4 frames - the last map served with raised apexes, over
@@ -699,81 +515,4 @@ TEST(Pipeline, ImageSequencesReadTheFileOfEachFrame) {
   EXPECT_THROW(FramePipeline(scene, shared_renderer()), SceneError);  // no loader
 }
 
-// --pin-threads: while a ThreadPinning lives, every TBB thread that works and every lavapipe
-// rasterizer thread runs on one CPU of its own (llvmpipe-N on the N-th), and afterwards each has
-// the CPUs it had.
-TEST(ThreadPinning, GivesEachThreadItsOwnCpuAndGivesItBack) {
-  cpu_set_t original;
-  ASSERT_EQ(sched_getaffinity(0, sizeof original, &original), 0);
-  std::vector<int> cpus;
-  for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu)
-    if (CPU_ISSET(cpu, &original)) cpus.push_back(cpu);
-  if (cpus.size() < 2) GTEST_SKIP() << "one CPU: nothing to pin";
-  shared_renderer();  // its rasterizer threads exist before the pinning
-  auto affinity = [](pid_t thread) {
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    EXPECT_EQ(sched_getaffinity(thread, sizeof set, &set), 0) << thread;
-    return set;
-  };
-  auto rasterizers = [] {
-    std::vector<std::pair<pid_t, int>> found;  // thread, N
-    for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
-      std::ifstream comm(entry.path() / "comm");
-      std::string name;
-      if (std::getline(comm, name) && name.rfind("llvmpipe-", 0) == 0) {
-        found.emplace_back(pid_t(std::atoi(entry.path().filename().c_str())), std::atoi(name.c_str() + 9));
-      }
-    }
-    return found;
-  };
-  // the threads that take part in a parallel loop, with their CPU sets (each task waits a little,
-  // so that every thread of the arena gets some)
-  auto workers = [] {
-    std::mutex mutex;
-    std::map<pid_t, cpu_set_t> seen;
-    tbb::parallel_for(0, 64, [&](int) {
-      cpu_set_t set;
-      sched_getaffinity(0, sizeof set, &set);
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      const std::lock_guard<std::mutex> lock(mutex);
-      seen[gettid()] = set;
-    });
-    return seen;
-  };
-  const int threads = std::min(tbb::this_task_arena::max_concurrency(), int(cpus.size()));
-  ASSERT_GE(threads, 2);
-  std::map<pid_t, cpu_set_t> pinned;
-  {
-    pipeline::ThreadPinning pinning;
-    EXPECT_EQ(pinning.cpu_count(), int(cpus.size()));
-    pinned = workers();
-    EXPECT_EQ(int(pinned.size()), threads);
-    std::set<int> used;
-    for (const auto& [thread, set] : pinned) {
-      ASSERT_EQ(CPU_COUNT(&set), 1) << thread;
-      for (int cpu : cpus)
-        if (CPU_ISSET(cpu, &set)) {
-          EXPECT_TRUE(used.insert(cpu).second) << "two threads on CPU " << cpu;
-        }
-    }
-    for (const auto& [thread, index] : rasterizers()) {
-      const cpu_set_t set = affinity(thread);
-      EXPECT_EQ(CPU_COUNT(&set), 1) << "llvmpipe-" << index;
-      EXPECT_TRUE(CPU_ISSET(cpus[std::size_t(index) % cpus.size()], &set)) << "llvmpipe-" << index;
-    }
-    EXPECT_GE(pinning.pinned_threads(), int(pinned.size()));
-  }
-  for (const auto& [thread, set] : pinned) {
-    const cpu_set_t now = affinity(thread);
-    EXPECT_TRUE(CPU_EQUAL(&now, &original)) << thread;
-  }
-  {  // a second pinning (perhaps at the first one's address) pins the same threads again
-    pipeline::ThreadPinning again;
-    for (const auto& [thread, set] : workers()) EXPECT_EQ(CPU_COUNT(&set), 1) << thread;
-  }
-  for (const auto& [thread, index] : rasterizers()) {
-    const cpu_set_t now = affinity(thread);
-    EXPECT_TRUE(CPU_EQUAL(&now, &original)) << "llvmpipe-" << index;
-  }
-}
+}  // namespace

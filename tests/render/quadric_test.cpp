@@ -1,4 +1,4 @@
-// tests/quadric_test.cpp - inverse displacement mapping on the quadrics (sphere, cylinder, cone) with
+// tests/render/quadric_test.cpp - inverse displacement mapping on the quadrics (sphere, cylinder, cone) with
 // the validation layer on: silhouettes and hits of constant-height spheres against the analytic
 // sphere, every quadric method against the exact CPU trace, no NaN and no holes on rays through the
 // poles, along the axes and through the apex region, self-shadowing (the terminator, a ring's cast
@@ -402,6 +402,7 @@ bool colour_differs(const Frame& a, const Frame& b, std::size_t p) {
   }
   return false;
 }
+
 int brightest_channel(const Frame& frame, std::size_t p) {
   return std::max({frame.color[p * 4], frame.color[p * 4 + 1], frame.color[p * 4 + 2]});
 }

@@ -1,0 +1,126 @@
+// tests/demos/cli_sequence_test.cpp - `displace sequence`, end to end: shards and resumes.
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <span>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bake/bake.h"
+#include "demos/commands.h"
+#include "demos/cone_export.h"
+#include "demos/image_io.h"
+#include "demos/obj_io.h"
+#include "demos/options.h"
+#include "demos/play.h"
+#include "demos/progress.h"
+#include "pipeline/frame_pipeline.h"
+#include "pipeline/scene.h"
+#include "render/render.h"
+#include "tests/demos/demos_fixtures.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace displace::app;
+
+std::string file_bytes(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Every file of `directory` with its bytes, except the CSVs and job logs (which hold timings).
+std::map<std::string, std::string> frames_in(const fs::path& directory) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::directory_iterator(directory)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.path().extension() == ".csv" || name.find("joblog") != std::string::npos) continue;
+    files[name] = file_bytes(entry.path());
+  }
+  return files;
+}
+
+const char* const small_sequence = "--scene water --map-size 32 --size 48x32 --bake-work 800";
+
+// Frames are deterministic: one run, two round-robin shards, and a resumed run after losing a
+// frame give the same files bit for bit; files are renamed into place (no partial file is left),
+// and a per-frame CSV of stage times comes with them.
+TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
+  TempDir dir;
+  const std::string whole = dir.operator/("whole").string(), split = dir.operator/("split").string();
+  const RunResult one =
+      run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + whole +
+                            "/w_####.png' --aov 'depth=" + whole + "/d_###.exr'");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  for (const char* shard : {"2/2", "1/2"}) {
+    const RunResult part =
+        run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + split +
+                              "/w_####.png' --aov 'depth=" + split + "/d_###.exr' --shard " + shard);
+    ASSERT_EQ(part.exit_code, 0) << part.err;
+    EXPECT_NE(part.out.find("rendered 3"), std::string::npos) << part.out;
+  }
+  const auto expected = frames_in(whole);
+  EXPECT_EQ(expected.size(), 12u);
+  EXPECT_TRUE(expected.count("w_0002.png") && expected.count("w_0007.png") && expected.count("d_007.exr"));
+  EXPECT_EQ(frames_in(split), expected);
+  EXPECT_TRUE(fs::exists(fs::path(whole) / "w.csv"));
+  EXPECT_TRUE(fs::exists(fs::path(split) / "w.shard1of2.csv"));
+  const std::string csv = read_text(fs::path(whole) / "w.csv");
+  EXPECT_EQ(csv.rfind("frame,time_s,sim_ms,bake_ms", 0), 0u);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 7);  // header and six frames
+
+  fs::remove(fs::path(split) / "w_0005.png");
+  const RunResult resumed =
+      run_displace(dir, std::string("sequence ") + small_sequence + " --frames 2:7 --output '" + split +
+                            "/w_####.png' --aov 'depth=" + split + "/d_###.exr' --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(resumed.out.find("rendered 1, skipped 5"), std::string::npos) << resumed.out;
+  EXPECT_EQ(frames_in(split), expected);
+
+  EXPECT_EQ(run_displace(dir, "sequence --frames 0:3 --output out.png").exit_code, 2);  // no '#'
+  EXPECT_EQ(run_displace(dir, "sequence --frames 3:1 --output o_#.png").exit_code, 2);  // B < A
+  EXPECT_EQ(run_displace(dir, "sequence --frames 0:1 --output o_#.png --shard 3/2").exit_code, 2);
+  EXPECT_EQ(run_displace(dir, "sequence --frames 0:1 --output o_#.png --scene missing.toml").exit_code, 1);
+  const RunResult no_ffmpeg =
+      run_displace(dir, "sequence --frames 0:1 --output o_#.png --video v.mp4 --map-size 8 --size 8x8");
+  if (no_ffmpeg.exit_code == 1) {
+    EXPECT_NE(no_ffmpeg.err.find("ffmpeg"), std::string::npos);
+  }
+}
+
+// The GNU parallel recipe (demos/farm/parallel.sh) on this machine: three shards as parallel jobs
+// give the files of one run.
+TEST(Cli, GnuParallelShardsGiveTheFilesOfOneRun) {
+  if (std::system("command -v parallel >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "GNU parallel is not installed (cmake/setup.sh installs it)";
+  }
+  TempDir dir;
+  const std::string whole = dir.operator/("whole").string(), farm = dir.operator/("farm").string();
+  ASSERT_EQ(run_displace(dir, std::string("sequence ") + small_sequence + " --frames 0:4 --output '" + whole +
+                                  "/f_##.png'")
+                .exit_code,
+            0);
+  const std::string script = std::string(DISPLACE_SOURCE_DIR) + "/demos/farm/parallel.sh";
+  const std::string command = "DISPLACE='" + std::string(DISPLACE_BINARY) + "' bash '" + script +
+                              "' 3 0:4 '" + farm + "/f_##.png' " + small_sequence + " >/dev/null 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  EXPECT_TRUE(fs::exists(fs::path(farm) / "parallel.joblog"));
+  EXPECT_EQ(frames_in(farm), frames_in(whole));
+  EXPECT_EQ(frames_in(whole).size(), 5u);
+}
+
+}  // namespace
