@@ -11,10 +11,9 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "demos/cli/command.h"
 #include "demos/cli/flags.h"
-#include "demos/commands.h"
 #include "demos/error.h"
-#include "demos/options.h"
 
 namespace {
 
@@ -37,12 +36,14 @@ int main(int argc, char** argv) {
   using namespace displace;
   const std::vector<std::string_view> args(argv + 1, argv + argc);
   if (args.empty()) {
-    std::cerr << app::usage_text();
+    std::cerr << app::overview();
     return exit_usage_error;
   }
   try {
-    const app::CommandSettings settings = app::parse_command_line(args);
-    return app::run_command(settings, std::cout);
+    const app::ParsedCommand command = app::parse_command_line(args);
+    command.run(std::cout);
+    std::cout.flush();
+    return 0;
   } catch (const app::AppError& error) {
     const std::string_view command = app::is_command(args.front()) ? args.front() : std::string_view{};
     return report(error.what(), error.kind == app::ErrorKind::usage ? exit_usage_error : exit_runtime_error,

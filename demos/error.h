@@ -10,7 +10,7 @@
 
 namespace displace::app {
 
-// The rule (demos/options.h has it in full): usage when changing the command line fixes it, runtime
+// The rule (demos/cli/command.h has it in full): usage when changing the command line fixes it, runtime
 // when the problem lies outside it.
 enum class ErrorKind {
   usage,  // the command line is wrong: flags, values, limits, a flag that does not fit its input (exit status

@@ -43,11 +43,12 @@ void add_cone_bake(std::vector<render::Allocation>& list, const render::MapNeeds
     list.push_back(
         {fmt::format("baking the {}-sector cone maps of {}", needs.cone_sectors, map_text(width, height)),
          texels * (bilinear_texel_bytes + bilinear_sector_bytes * std::uint64_t(needs.cone_sectors)),
-         render::MemoryKind::host, "--map-size"});
+         render::MemoryKind::host, render::lower_map_size});
   }
   if (needs.relaxed) {
     list.push_back({"baking the relaxed cones of " + map_text(width, height),
-                    texels * (bake_texel_bytes + bake_sector_bytes), render::MemoryKind::host, "--map-size"});
+                    texels * (bake_texel_bytes + bake_sector_bytes), render::MemoryKind::host,
+                    render::lower_map_size});
   }
 }
 
@@ -95,12 +96,13 @@ render::MemoryLimits host_limits() {
   return render::host_memory_limits(memory_limit_from_environment(), memory_limit_variable);
 }
 
-std::vector<render::Allocation> synthesis_memory(const SourceSettings& source) {
-  const std::uint64_t texels = texels_of(source.size, source.size);
-  const bool ocean = source.kind == SourceKind::ocean;
-  return {{"synthesizing the heights of " + map_text(source.size, source.size),
+std::vector<render::Allocation> synthesis_memory(const pipeline::Scene& scene) {
+  if (scene.source == pipeline::SourceKind::image) return {};
+  const std::uint64_t texels = texels_of(scene.map_size, scene.map_size);
+  const bool ocean = scene.source == pipeline::SourceKind::ocean;
+  return {{"synthesizing the heights of " + map_text(scene.map_size, scene.map_size),
            texels * (ocean ? ocean_texel_bytes : synthesis_texel_bytes), render::MemoryKind::host,
-           "--map-size"}};
+           render::lower_map_size}};
 }
 
 std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker,
@@ -111,20 +113,20 @@ std::vector<render::Allocation> bake_memory(int width, int height, int sector_co
                                            : bake_texel_bytes + bake_sector_bytes * sectors;
   return {{fmt::format("baking {}-sector {} cones ({}) of {}", sector_count, bilinear ? "bilinear" : "centre",
                        baker_name(baker), map_text(width, height)),
-           texels * per_texel, render::MemoryKind::host, "--map-size"}};
+           texels * per_texel, render::MemoryKind::host, render::lower_map_size}};
 }
 
-std::vector<render::Allocation> render_memory(const RenderSettings& settings, int width, int height) {
-  std::vector<render::Allocation> list;
-  if (const auto* source = std::get_if<SourceSettings>(&settings.input))
-    append(list, synthesis_memory(*source));
+std::vector<render::Allocation> render_memory(const pipeline::Scene& scene, int width, int height,
+                                              unsigned outputs, bool compare_reference) {
+  std::vector<render::Allocation> list = synthesis_memory(scene);
   list.push_back({"the heights of " + map_text(width, height), texels_of(width, height) * height_bytes * 2,
-                  render::MemoryKind::host, "--map-size"});
-  const render::MapNeeds needs = render::map_needs(settings.method.method, settings.view);
+                  render::MemoryKind::host, render::lower_map_size});
+  const render::View view = pipeline::scene_view(scene, scene.start);
+  const render::MapNeeds needs = render::map_needs(scene.method, view);
   add_cone_bake(list, needs, width, height);
-  append(list, render::map_memory(map_shape(needs, width, height, false)));
-  append(list, render::frame_memory(settings.view, settings.method, width, height, render::output_all,
-                                    settings.compare_reference));
+  append(list, render::map_memory(map_shape(needs, width, height, scene.foam)));
+  append(list, render::frame_memory(view, {scene.method, scene.steps, scene.refine}, width, height, outputs,
+                                    compare_reference));
   return list;
 }
 
@@ -133,7 +135,8 @@ std::vector<render::Allocation> pipeline_memory(const pipeline::Scene& scene) {
   if (scene.source == pipeline::SourceKind::image) return list;
   const int size = scene.map_size;
   list.push_back({"the frame pipeline's buffers and bakes for " + map_text(size, size),
-                  texels_of(size, size) * pipeline_texel_bytes, render::MemoryKind::host, "--map-size"});
+                  texels_of(size, size) * pipeline_texel_bytes, render::MemoryKind::host,
+                  render::lower_map_size});
   // the image size and what the method reads do not change over the frames: frame 0's view will do
   const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, 0));
   const render::MapNeeds needs = render::map_needs(scene.method, view);

@@ -12,7 +12,6 @@
 #include <vector>
 
 #include "demos/cone_export.h"
-#include "demos/options.h"
 #include "pipeline/scene.h"
 #include "render/render.h"
 
@@ -27,14 +26,16 @@ std::uint64_t memory_limit_from_environment();
 // The host's memory with that limit applied (commands that use no device: sim, bake).
 render::MemoryLimits host_limits();
 
-// Synthesizing `source`: the generator's state and the heights.
-std::vector<render::Allocation> synthesis_memory(const SourceSettings& source);
+// Synthesizing the heights of `scene` (none for an image scene: its size is the image's).
+std::vector<render::Allocation> synthesis_memory(const pipeline::Scene& scene);
 // Baking a width x height map to a cone map: heights, the baker's working memory, the export.
 std::vector<render::Allocation> bake_memory(int width, int height, int sector_count, Baker baker,
                                             ConeKind cones);
-// `displace render` on a width x height map: the maps it bakes (pipeline::MapMaker), their device
-// copies and the frame (with the reference's when it compares).
-std::vector<render::Allocation> render_memory(const RenderSettings& settings, int width, int height);
+// Rendering `scene`'s method on a width x height map: the heights, the maps it bakes
+// (pipeline::MapMaker), their device copies and the frame with `outputs` (and the reference's when
+// it compares).
+std::vector<render::Allocation> render_memory(const pipeline::Scene& scene, int width, int height,
+                                              unsigned outputs, bool compare_reference);
 // The frame pipeline's loop on a synthesized scene: two frames of buffers, the bake, the maps on the
 // device and the frame. Empty for an image scene (its size is the images').
 std::vector<render::Allocation> pipeline_memory(const pipeline::Scene& scene);

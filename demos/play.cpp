@@ -22,8 +22,10 @@
 #include <string>
 
 #include "demos/error.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/memory.h"
+#include "demos/play_controls.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/thread_pinning.h"
 #include "render/render.h"
@@ -31,20 +33,12 @@
 namespace displace::app {
 namespace {
 
-constexpr double status_period_seconds = 1.0;      // terminal and title updates
-constexpr float orbit_radians_per_pixel = 0.005f;  // mouse drag
-constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel step
-constexpr float min_elevation = 0.02f;             // radians above the look-at point's horizon
-constexpr float max_elevation = 1.5f;
-constexpr int max_play_steps = 4096;
+constexpr double status_period_seconds = 1.0;  // terminal and title updates
 // frames before nothing is allocated any more: every frame slot has made its targets and readback
 // buffers, and the staging ring's parts have grown to a frame's uploads (frame 0's are smaller)
 constexpr long long warm_up_frames = render::frames_in_flight + 1;
-// the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
-constexpr std::array<double, 10> budget_levels = {
-    0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
-static_assert(std::find(budget_levels.begin(), budget_levels.end(), interactive_budget_ms) !=
-              budget_levels.end());
+constexpr float orbit_radians_per_pixel = 0.005f;  // mouse drag
+constexpr float zoom_per_wheel_step = 0.9f;        // distance factor per wheel step
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -79,23 +73,6 @@ class Glfw {
     if (!names) throw runtime_error("the window system names no Vulkan surface extensions");
     return {names, names + count};
   }
-};
-
-// The user's input between frames.
-struct Controls {
-  bool paused = false;
-  bool step = false;          // one frame forward while paused
-  bool screenshot = false;    // read the next frame back and write it
-  int method_delta = 0;       // methods to move by in the table
-  int steps_factor = 0;       // +1: double, -1: halve
-  int budget_delta = 0;       // budget levels to move by
-  int lag_delta = 0;          // frames to add to the cone maps' lag
-  bool camera_moved = false;  // draw the shown frame again (while paused)
-  bool dragging = false;
-  double last_x = 0.0, last_y = 0.0;
-  float yaw = 0.0f, pitch = 0.0f;  // radians added to the scene camera's azimuth and elevation
-  float zoom = 1.0f;               // factor on its distance
-  bool orbited = false;            // the camera is not the scene's
 };
 
 void on_key(GLFWwindow* window, int key, int, int action, int mods) {
@@ -172,66 +149,6 @@ class Window {
   GLFWwindow* window_ = nullptr;
 };
 
-// The scene camera turned by the orbit controls around its look-at point.
-render::View orbit_view(render::View view, const Controls& controls) {
-  if (!controls.orbited) return view;
-  render::Camera& camera = view.camera;
-  const glm::vec3 offset = camera.eye - camera.look_at;
-  const float distance = glm::length(offset) * controls.zoom;
-  const float azimuth = std::atan2(offset.y, offset.x) + controls.yaw;
-  const float elevation =
-      std::clamp(std::asin(std::clamp(offset.z / glm::length(offset), -1.0f, 1.0f)) + controls.pitch,
-                 min_elevation, max_elevation);
-  camera.eye =
-      camera.look_at + distance * glm::vec3(std::cos(elevation) * std::cos(azimuth),
-                                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
-  return view;
-}
-
-// The methods M cycles through: those the scene's surface supports, in the table's order.
-const render::MethodInfo& next_method(render::Method current, int delta, render::Surface surface) {
-  std::vector<const render::MethodInfo*> usable;
-  for (const render::MethodInfo& info : render::method_table()) {
-    if (render::supports_surface(info.method, surface)) usable.push_back(&info);
-  }
-  const auto at =
-      std::find_if(usable.begin(), usable.end(), [&](auto* info) { return info->method == current; });
-  const int count = int(usable.size());
-  const int index = at == usable.end() ? 0 : int(at - usable.begin());
-  return *usable[std::size_t(((index + delta) % count + count) % count)];
-}
-
-// Applies the keys that change the scene; true when the pipeline must be made again.
-bool apply_scene_keys(Controls& controls, pipeline::Scene& scene) {
-  bool changed = false;
-  if (controls.method_delta != 0) {
-    scene.method = next_method(scene.method, controls.method_delta, scene.surface).method;
-    controls.method_delta = 0;
-    changed = true;
-  }
-  if (controls.steps_factor != 0) {
-    const int steps = controls.steps_factor > 0 ? scene.steps * 2 : scene.steps / 2;
-    scene.steps = std::clamp(steps, 1, max_play_steps);
-    controls.steps_factor = 0;
-    changed = true;
-  }
-  if (controls.budget_delta != 0) {
-    const auto level = std::lower_bound(budget_levels.begin(), budget_levels.end(), scene.frame_ms);
-    const int index = std::clamp(int(level - budget_levels.begin()) + controls.budget_delta, 0,
-                                 int(budget_levels.size()) - 1);
-    scene.frame_ms = budget_levels[std::size_t(index)];
-    controls.budget_delta = 0;
-    changed = true;
-  }
-  if (controls.lag_delta != 0) {
-    scene.cone_lag_frames =
-        std::clamp(scene.cone_lag_frames + controls.lag_delta, 0, pipeline::max_cone_lag_frames);
-    controls.lag_delta = 0;
-    changed = true;
-  }
-  return changed;
-}
-
 std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecord& record,
                         double frames_per_second, bool paused) {
   return fmt::format(
@@ -245,13 +162,6 @@ std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecor
       paused ? " | paused" : "");
 }
 
-pipeline::HeightLoader image_loader() {
-  return [](const std::filesystem::path& file) {
-    LoadedHeights loaded = load_heights(file, {});
-    return render::HeightField{loaded.width, loaded.height, std::move(loaded.heights)};
-  };
-}
-
 void write_screenshot(const std::filesystem::path& file, const render::Frame& frame,
                       const pipeline::Scene& scene, const pipeline::FrameRecord& record) {
   Metadata metadata;
@@ -261,39 +171,6 @@ void write_screenshot(const std::filesystem::path& file, const render::Frame& fr
   metadata.push_back({"displace:time", fmt::format("{}", record.time)});
   write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
 }
-
-}  // namespace
-
-pipeline::Scene play_scene(const PlaySettings& settings) {
-  const std::vector<std::string> names = pipeline::builtin_scene_names();
-  pipeline::Scene scene = std::find(names.begin(), names.end(), settings.scene) != names.end()
-                              ? pipeline::builtin_scene(settings.scene)
-                              : pipeline::read_scene_file(settings.scene);
-  if (settings.width > 0) {
-    scene.camera.width = settings.width;
-    scene.camera.height = settings.height;
-  }
-  if (settings.map_size > 0) {
-    if (scene.source == pipeline::SourceKind::image) {
-      throw usage_error("--map-size does not apply to an image scene (the map size is the image's)");
-    }
-    if (scene.source == pipeline::SourceKind::ocean && settings.map_size % 2 != 0) {
-      throw usage_error("--map-size must be even for the ocean");
-    }
-    scene.map_size = settings.map_size;
-  }
-  if (settings.cone_lag >= 0) scene.cone_lag_frames = settings.cone_lag;
-  // Interactive play is real time: a scene that sets neither a frame budget nor a work limit (every
-  // built-in one) starts at interactive_budget_ms a frame, not at an unlimited bake (a 256 x 256
-  // ocean's unlimited bake is about 0.33 s, three frames a second). With --frames the scene's
-  // budget stays, so that the frames are the deterministic ones `displace sequence` renders.
-  if (settings.frames <= 0 && !std::isfinite(scene.frame_ms) && scene.bake_work < 0) {
-    scene.frame_ms = interactive_budget_ms;
-  }
-  return scene;
-}
-
-namespace {
 
 // The renderer's options with what presenting to a GLFW window needs.
 render::RendererOptions presenting_options(const PlaySettings& settings, const Glfw& glfw) {
@@ -342,6 +219,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   Glfw glfw;
   render::Renderer renderer(presenting_options(settings, glfw));
   require_memory(pipeline_memory(scene), renderer.memory_limits());
+  load_scene_mesh(renderer, scene);
   Controls controls;
   Window window(scene.camera.width, scene.camera.height, "displace play", controls);
   int framebuffer_width = 0, framebuffer_height = 0;
@@ -349,8 +227,8 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   render::Swapchain swapchain(renderer, window_surface(window.get()), framebuffer_width, framebuffer_height,
                               settings.vsync);
 
-  auto pipeline =
-      std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{}, image_loader());
+  auto pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
+                                                            height_loader(scene.image_read), albedo_loader());
   // after the renderer and the swapchain: lavapipe's rasterizer threads exist now
   std::optional<pipeline::ThreadPinning> pinning;
   if (settings.pin_threads) pinning.emplace();
@@ -373,7 +251,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
       renderer.wait_idle();
       pipeline.reset();
       pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
-                                                           image_loader());
+                                                           height_loader(scene.image_read), albedo_loader());
       have_frame = false;
     }
 

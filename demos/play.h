@@ -8,26 +8,16 @@
 
 #include <iosfwd>
 
-#include "demos/options.h"
+#include "demos/commands/settings.h"
 #include "pipeline/scene.h"
 
 namespace displace::app {
-
-// The frame budget interactive play starts at when the scene sets none (ms; one of the levels the
-// Right / Left keys step through).
-inline constexpr double interactive_budget_ms = 33.0;
-
-// The scene play animates: the built-in or the file's, with --size and --map-size applied, and
-// without --frames a scene with no frame budget and no work limit at interactive_budget_ms. Throws
-// pipeline::SceneError (a bad file) or AppError (an unknown name).
-pipeline::Scene play_scene(const PlaySettings& settings);
 
 // The error when there is no display (no DISPLAY / WAYLAND_DISPLAY, or GLFW cannot start).
 inline constexpr const char* no_display_message =
     "no display: run 'xvfb-run -a displace play ...' or render frames headless with 'displace sequence'";
 
-// Opens the window and plays until it is closed (or --frames N are done); throws AppError (runtime)
-// without a display.
-void run_play(const PlaySettings& settings, std::ostream& out);
+// run_play (commands/settings.h) opens the window and plays until it is closed (or --frames N are
+// done); it throws AppError (runtime) without a display.
 
 }  // namespace displace::app

@@ -61,8 +61,9 @@ HeightSource::HeightSource(const SourceSettings& settings, unsigned effects, Hei
   s.effects = effect_heights | (settings.kind == SourceKind::ocean ? effects : 0u);
   s.loader = std::move(loader);
   const int n = settings.map_size;
-  if (settings.kind != SourceKind::image && (n < 2 || n > max_source_map_size)) {
-    throw SceneError("source.map_size must be between 2 and " + std::to_string(max_source_map_size));
+  if (settings.kind != SourceKind::image && (n < min_map_size || n > max_map_size)) {
+    throw SceneError("source.map_size must be between " + std::to_string(min_map_size) + " and " +
+                     std::to_string(max_map_size));
   }
   try {
     switch (settings.kind) {

@@ -59,7 +59,6 @@ struct SourceSettings {
   sim::SinusoidParams sinusoids;
 };
 SourceSettings source_settings(const Scene& scene);
-inline constexpr int max_source_map_size = 8192;  // SourceSettings::map_size, at least 2
 
 // One frame's heights and what came with them. The caller keeps it; make() reuses its memory.
 struct HeightFrame {

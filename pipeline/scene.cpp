@@ -15,12 +15,6 @@
 namespace displace::pipeline {
 namespace {
 
-// limits of the scene keys (shown in the errors)
-constexpr int min_map_size = 2, max_map_size = 8192;
-constexpr int max_image_side = 16384;
-constexpr double max_abs_time = 1e12;  // seconds
-constexpr double max_fps = 10000.0;
-
 const char* source_word(SourceKind kind) {
   switch (kind) {
     case SourceKind::ocean: return "ocean";
@@ -180,6 +174,8 @@ render::View scene_view(const Scene& scene, double time) {
   view.light_direction = scene.light;
   view.depth_scale = scene.depth_scale;
   view.tile = scene.tile;
+  view.address = scene.address;
+  view.radius = scene.radius;
   const std::vector<CameraKey>& keys = scene.keyframes;
   if (keys.empty()) return view;
   if (time <= keys.front().time || keys.size() == 1) {
@@ -214,7 +210,9 @@ render::View scene_view(const Scene& scene, double time) {
   return view;
 }
 
-std::vector<std::string> builtin_scene_names() { return {"water", "calm", "ripples", "bricks", "cliff"}; }
+std::vector<std::string> builtin_scene_names() {
+  return {"water", "calm", "ripples", "ocean", "bricks", "cliff"};
+}
 
 Scene builtin_scene(std::string_view name) {
   Scene scene;
@@ -233,6 +231,8 @@ Scene builtin_scene(std::string_view name) {
     scene.source = SourceKind::sinusoids;
     scene.material = render::Material::water;
     scene.light = {0.0f, 1.0f, 0.3f};
+  } else if (name == "ocean") {
+    scene.source = SourceKind::ocean;  // the default ocean on the grid, seen from above: the method sweeps'
   } else if (name == "bricks" || name == "cliff") {
     scene.source = name == "bricks" ? SourceKind::bricks : SourceKind::cliff;
   } else {
@@ -261,37 +261,67 @@ std::string key_words(std::string text) {
   return text;
 }
 
-// A scene file's sections, one reader each (parse_scene calls them in this order).
+// A scene's sections, one reader each (apply_scene calls them in this order). Each reads the keys
+// its table holds over what `scene` holds already: a file over the defaults, the command line's
+// keys over a built-in scene or a file. A relative path is taken from the scene file's directory.
+
+std::filesystem::path beside(const std::string& source_name, const std::string& path) {
+  std::filesystem::path file(path);
+  if (file.is_relative() && source_name.find('/') != std::string::npos) {
+    file = std::filesystem::path(source_name).parent_path() / file;
+  }
+  return file;
+}
+
+const toml::node* key_node(const toml::table* table, std::string_view key) {
+  return table ? table->get(key) : nullptr;
+}
 
 void read_source(const Reader& read, const toml::table& root, const std::string& source_name, Scene& scene) {
   const toml::table* source = read.section(root, "source");
-  if (source) read.known_keys(*source, "source", {"kind", "map_size", "seed", "path"});
-  const std::string kind =
-      read.word(source, "source", "kind", "ocean", {"ocean", "sinusoids", "bricks", "cliff", "image"});
+  if (source) {
+    read.known_keys(*source, "source",
+                    {"kind", "map_size", "seed", "path", "channel", "invert", "height_range"});
+  }
+  const std::string kind = read.word(source, "source", "kind", source_word(scene.source),
+                                     {"ocean", "sinusoids", "bricks", "cliff", "image"});
   scene.source = kind == "ocean"       ? SourceKind::ocean
                  : kind == "sinusoids" ? SourceKind::sinusoids
                  : kind == "bricks"    ? SourceKind::bricks
                  : kind == "cliff"     ? SourceKind::cliff
                                        : SourceKind::image;
   const std::string path = read.word(source, "source", "path", "", {});
-  if (scene.source == SourceKind::image) {
-    if (path.empty())
-      read.fail(source ? source->get("kind") : nullptr, "source.path", "kind = \"image\" needs a path");
-    std::filesystem::path image(path);
-    if (image.is_relative() && source_name.find('/') != std::string::npos) {
-      image = std::filesystem::path(source_name).parent_path() / image;
-    }
-    scene.image = image;
-  } else if (!path.empty()) {
-    read.fail(source->get("path"), "source.path", "only kind = \"image\" reads a file");
+  if (!path.empty()) {
+    if (scene.source != SourceKind::image)
+      read.fail(key_node(source, "path"), "source.path", "only kind = \"image\" reads a file");
+    scene.image = beside(source_name, path);
+  }
+  if (scene.source != SourceKind::image) scene.image.clear();
+  if (scene.source == SourceKind::image && scene.image.empty())
+    read.fail(key_node(source, "kind"), "source.path", "kind = \"image\" needs a path");
+  // how the image is read
+  ImageRead& image = scene.image_read;
+  image.channel = read.word(source, "source", "channel", image.channel, {});
+  image.invert = read.boolean(source, "source", "invert", image.invert);
+  if (const toml::node* range = key_node(source, "height_range")) {
+    const toml::array* pair = range->as_array();
+    const std::optional<double> low = pair && pair->size() == 2 ? (*pair)[0].value<double>() : std::nullopt;
+    const std::optional<double> high = pair && pair->size() == 2 ? (*pair)[1].value<double>() : std::nullopt;
+    if (!low || !high || !std::isfinite(*low) || !std::isfinite(*high) || !(*high > *low))
+      read.fail(range, "source.height_range", "must be [low, high], finite numbers with low < high");
+    image.height_range = std::array<float, 2>{float(*low), float(*high)};
+  }
+  if (scene.source != SourceKind::image &&
+      (key_node(source, "channel") || key_node(source, "invert") || key_node(source, "height_range"))) {
+    read.fail(source, "source", "channel, invert and height_range apply to kind = \"image\" only");
   }
   scene.map_size =
       int(read.integer(source, "source", "map_size", scene.map_size, min_map_size, max_map_size));
   if (scene.source == SourceKind::ocean && scene.map_size % 2 != 0) {
-    read.fail(source ? source->get("map_size") : nullptr, "source.map_size", "must be even for the ocean");
+    read.fail(key_node(source, "map_size"), "source.map_size", "must be even for the ocean");
   }
-  scene.seed =
-      std::uint64_t(read.integer(source, "source", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  scene.seed = std::uint64_t(read.integer(source, "source", "seed", std::int64_t(scene.seed), 0,
+                                          std::numeric_limits<std::int64_t>::max()));
 }
 
 // [ocean]: the ocean's spectrum; [ocean] size is the ocean's grid, the same as [source] map_size
@@ -301,66 +331,88 @@ void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* ocean = read.section(root, "ocean");
   if (ocean) {
     read.known_keys(*ocean, "ocean",
-                    {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "choppiness", "seed"});
+                    {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "fetch", "spreading",
+                     "choppiness", "seed"});
   }
   sim::OceanParams& params = scene.ocean;
-  if (const toml::node* size = ocean ? ocean->get("size") : nullptr) {
+  if (const toml::node* size = key_node(ocean, "size")) {
     const int ocean_size =
-        int(read.integer(ocean, "ocean", "size", scene.map_size, min_map_size, max_map_size));
+        int(read.integer(ocean, "ocean", "size", scene.map_size, sim::min_ocean_size, sim::max_ocean_size));
     if (ocean_size % 2 != 0) read.fail(size, "ocean.size", "must be even");
-    if (source && source->get("map_size") && ocean_size != scene.map_size) {
+    if (key_node(source, "map_size") && ocean_size != scene.map_size) {
       read.fail(size, "ocean.size", "differs from source.map_size (" + std::to_string(scene.map_size) + ")");
     }
     scene.map_size = ocean_size;
   }
-  params.patch_size = float(read.number(ocean, "ocean", "patch_size", params.patch_size, 1.0, 1e5));
-  params.spectrum = read.word(ocean, "ocean", "spectrum", "phillips", {"phillips", "jonswap"}) == "jonswap"
+  params.patch_size = float(
+      read.number(ocean, "ocean", "patch_size", params.patch_size, sim::min_patch_size, sim::max_patch_size));
+  params.spectrum = read.word(ocean, "ocean", "spectrum",
+                              params.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips",
+                              {"phillips", "jonswap"}) == "jonswap"
                         ? sim::Spectrum::jonswap
                         : sim::Spectrum::phillips;
-  params.wind_speed = float(read.number(ocean, "ocean", "wind_speed", params.wind_speed, 0.1, 100.0));
-  params.wind_direction =
-      float(read.number(ocean, "ocean", "wind_direction",
-                        double(params.wind_direction) * 180.0 / std::numbers::pi, -360.0, 360.0) *
-            std::numbers::pi / 180.0);
-  params.choppiness = float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, 4.0));
-  params.seed =
-      std::uint64_t(read.integer(ocean, "ocean", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  params.wind_speed = float(
+      read.number(ocean, "ocean", "wind_speed", params.wind_speed, sim::min_wind_speed, sim::max_wind_speed));
+  params.wind_direction = float(read.number(ocean, "ocean", "wind_direction",
+                                            double(params.wind_direction) * 180.0 / std::numbers::pi,
+                                            -max_direction_degrees, max_direction_degrees) *
+                                std::numbers::pi / 180.0);
+  params.fetch = float(read.number(ocean, "ocean", "fetch", params.fetch, sim::min_fetch, sim::max_fetch));
+  if (key_node(ocean, "fetch") && params.spectrum != sim::Spectrum::jonswap)
+    read.fail(key_node(ocean, "fetch"), "ocean.fetch", "applies to spectrum = \"jonswap\" only");
+  params.spreading =
+      float(read.number(ocean, "ocean", "spreading", params.spreading, 0.0, sim::max_spreading));
+  params.choppiness =
+      float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, sim::max_choppiness));
+  params.seed = std::uint64_t(read.integer(ocean, "ocean", "seed", std::int64_t(params.seed), 0,
+                                           std::numeric_limits<std::int64_t>::max()));
 }
 
 void read_sinusoids(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* waves = read.section(root, "sinusoids");
-  if (waves) read.known_keys(*waves, "sinusoids", {"wave_count", "patch_size", "steepness", "seed"});
-  scene.sinusoids.wave_count =
-      int(read.integer(waves, "sinusoids", "wave_count", scene.sinusoids.wave_count, 1, 1024));
-  scene.sinusoids.patch_size =
-      float(read.number(waves, "sinusoids", "patch_size", scene.sinusoids.patch_size, 0.01, 1e5));
-  scene.sinusoids.steepness =
-      float(read.number(waves, "sinusoids", "steepness", scene.sinusoids.steepness, 0.0, 1.0));
-  scene.sinusoids.seed =
-      std::uint64_t(read.integer(waves, "sinusoids", "seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  if (waves) {
+    read.known_keys(*waves, "sinusoids", {"wave_count", "patch_size", "steepness", "wind_direction", "seed"});
+  }
+  sim::SinusoidParams& params = scene.sinusoids;
+  params.wave_count =
+      int(read.integer(waves, "sinusoids", "wave_count", params.wave_count, 1, sim::max_wave_count));
+  params.patch_size = float(read.number(waves, "sinusoids", "patch_size", params.patch_size,
+                                        sim::min_patch_size, sim::max_patch_size));
+  params.steepness = float(
+      read.number(waves, "sinusoids", "steepness", params.steepness, min_steepness, sim::max_steepness));
+  params.wind_direction = float(read.number(waves, "sinusoids", "wind_direction",
+                                            double(params.wind_direction) * 180.0 / std::numbers::pi,
+                                            -max_direction_degrees, max_direction_degrees) *
+                                std::numbers::pi / 180.0);
+  params.seed = std::uint64_t(read.integer(waves, "sinusoids", "seed", std::int64_t(params.seed), 0,
+                                           std::numeric_limits<std::int64_t>::max()));
 }
 
 void read_material(const Reader& read, const toml::table& root, const std::string& source_name,
                    Scene& scene) {
   const toml::table* material = read.section(root, "material");
   if (material) read.known_keys(*material, "material", {"kind", "foam", "albedo"});
+  const std::string current = scene.material == render::Material::water ? "water"
+                              : !scene.albedo.empty()                   ? "albedo"
+                                                                        : "grid";
   const std::string material_kind =
-      read.word(material, "material", "kind", "grid", {"grid", "albedo", "water"});
+      read.word(material, "material", "kind", current, {"grid", "albedo", "water"});
   scene.material = material_kind == "water" ? render::Material::water : render::Material::grid;
   const std::string albedo = read.word(material, "material", "albedo", "", {});
-  if (material_kind == "albedo") {
-    if (albedo.empty())
-      read.fail(material->get("kind"), "material.albedo", "kind = \"albedo\" needs an albedo image");
-    scene.albedo = albedo;
-    if (scene.albedo.is_relative() && source_name.find('/') != std::string::npos) {
-      scene.albedo = std::filesystem::path(source_name).parent_path() / scene.albedo;
-    }
-  } else if (!albedo.empty()) {
-    read.fail(material->get("albedo"), "material.albedo", "only kind = \"albedo\" reads an image");
+  if (!albedo.empty()) {
+    if (material_kind != "albedo")
+      read.fail(key_node(material, "albedo"), "material.albedo", "only kind = \"albedo\" reads an image");
+    scene.albedo = beside(source_name, albedo);
   }
-  scene.foam = read.boolean(material, "material", "foam", false);
+  if (material_kind != "albedo") scene.albedo.clear();
+  if (material_kind == "albedo" && scene.albedo.empty())
+    read.fail(key_node(material, "kind"), "material.albedo", "kind = \"albedo\" needs an albedo image");
+  // foam follows the water: a scene that leaves water or the ocean drops it unless it asks again
+  if (scene.material != render::Material::water || scene.source != SourceKind::ocean) scene.foam = false;
+  scene.foam = read.boolean(material, "material", "foam", scene.foam);
   if (scene.foam && (scene.material != render::Material::water || scene.source != SourceKind::ocean)) {
-    read.fail(material->get("foam"), "material.foam", "foam needs kind = \"water\" and the ocean source");
+    read.fail(key_node(material, "foam"), "material.foam",
+              "foam needs kind = \"water\" and the ocean source");
   }
 }
 
@@ -368,17 +420,19 @@ void read_material(const Reader& read, const toml::table& root, const std::strin
 const toml::table* read_camera(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* camera = read.section(root, "camera");
   if (camera) read.known_keys(*camera, "camera", {"eye", "look_at", "up", "fov_y", "keyframes"});
-  scene.camera.eye = read.vector3(camera ? camera->get("eye") : nullptr, "camera.eye", scene.camera.eye);
-  scene.camera.look_at =
-      read.vector3(camera ? camera->get("look_at") : nullptr, "camera.look_at", scene.camera.look_at);
-  scene.camera.up = read.vector3(camera ? camera->get("up") : nullptr, "camera.up", scene.camera.up);
-  scene.camera.fov_y_degrees =
-      float(read.number(camera, "camera", "fov_y", scene.camera.fov_y_degrees, 1.0, 170.0));
-  if (const toml::node* keys = camera ? camera->get("keyframes") : nullptr) {
+  scene.camera.eye = read.vector3(key_node(camera, "eye"), "camera.eye", scene.camera.eye);
+  scene.camera.look_at = read.vector3(key_node(camera, "look_at"), "camera.look_at", scene.camera.look_at);
+  scene.camera.up = read.vector3(key_node(camera, "up"), "camera.up", scene.camera.up);
+  scene.camera.fov_y_degrees = float(read.number(camera, "camera", "fov_y", scene.camera.fov_y_degrees,
+                                                 render::min_fov_y_degrees, render::max_fov_y_degrees));
+  // keyframes move the camera; a scene that sets an eye or a look-at without them holds it still
+  if (key_node(camera, "eye") || key_node(camera, "look_at")) scene.keyframes.clear();
+  if (const toml::node* keys = key_node(camera, "keyframes")) {
     const toml::array* array = keys->as_array();
     if (!array || !array->is_array_of_tables()) {
       read.fail(keys, "camera.keyframes", "must be an array of tables {time, eye, look_at}");
     }
+    scene.keyframes.clear();
     for (const toml::node& key : *array) {
       const toml::table& table = *key.as_table();
       read.known_keys(table, "camera.keyframes", {"time", "eye", "look_at"});
@@ -395,18 +449,23 @@ const toml::table* read_camera(const Reader& read, const toml::table& root, Scen
       scene.keyframes.push_back(k);
     }
   }
-
   return camera;
 }
 
-void read_render(const Reader& read, const toml::table& root, Scene& scene) {
-  const toml::table* render_table = read.section(root, "render");
-  if (render_table) {
-    read.known_keys(
-        *render_table, "render",
-        {"method", "steps", "refine", "size", "surface", "shadows", "light", "depth_scale", "tile"});
+const char* surface_word(render::Surface surface) {
+  switch (surface) {
+    case render::Surface::sphere: return "sphere";
+    case render::Surface::cylinder: return "cylinder";
+    case render::Surface::cone: return "cone";
+    case render::Surface::mesh: return "mesh";
+    case render::Surface::plane: break;
   }
-  if (const toml::node* method = render_table ? render_table->get("method") : nullptr) {
+  return "plane";
+}
+
+// [render] method, steps, refine, size
+void read_render_method(const Reader& read, const toml::table* render_table, Scene& scene) {
+  if (const toml::node* method = key_node(render_table, "method")) {
     const std::optional<std::string> name = method->value<std::string>();
     const render::MethodInfo* info = name ? render::find_method(*name) : nullptr;
     if (!info) {
@@ -417,38 +476,70 @@ void read_render(const Reader& read, const toml::table& root, Scene& scene) {
     }
     scene.method = info->method;
   }
-  scene.steps = int(read.integer(render_table, "render", "steps", scene.steps, 1, 4096));
-  scene.refine = int(read.integer(render_table, "render", "refine", scene.refine, 0, 64));
-  if (const toml::node* size = render_table ? render_table->get("size") : nullptr) {
+  scene.steps = int(read.integer(render_table, "render", "steps", scene.steps, 1, render::max_steps));
+  scene.refine = int(read.integer(render_table, "render", "refine", scene.refine, 0, render::max_refine));
+  if (const toml::node* size = key_node(render_table, "size")) {
     const toml::array* array = size->as_array();
     if (!array || array->size() != 2 || !(*array)[0].is_integer() || !(*array)[1].is_integer()) {
       read.fail(size, "render.size", "must be [width, height] in pixels");
     }
     const long long w = (*array)[0].as_integer()->get(), h = (*array)[1].as_integer()->get();
-    if (w < 1 || h < 1 || w > max_image_side || h > max_image_side) {
-      read.fail(size, "render.size", "must be between [1, 1] and [16384, 16384]");
+    if (w < 1 || h < 1 || w > render::max_image_side || h > render::max_image_side) {
+      read.fail(size, "render.size",
+                "must be between [1, 1] and [" + std::to_string(render::max_image_side) + ", " +
+                    std::to_string(render::max_image_side) + "]");
     }
     scene.camera.width = int(w);
     scene.camera.height = int(h);
   }
-  const std::string surface =
-      read.word(render_table, "render", "surface", "plane", {"plane", "sphere", "cylinder", "cone"});
+}
+
+// [render] surface, mesh, radius, address, tile, shadows, light, depth_scale
+void read_render(const Reader& read, const toml::table& root, const std::string& source_name, Scene& scene) {
+  const toml::table* render_table = read.section(root, "render");
+  if (render_table) {
+    read.known_keys(*render_table, "render",
+                    {"method", "steps", "refine", "size", "surface", "mesh", "radius", "address", "shadows",
+                     "light", "depth_scale", "tile"});
+  }
+  read_render_method(read, render_table, scene);
+  const std::string surface = read.word(render_table, "render", "surface", surface_word(scene.surface),
+                                        {"plane", "sphere", "cylinder", "cone", "mesh"});
   scene.surface = surface == "sphere"     ? render::Surface::sphere
                   : surface == "cylinder" ? render::Surface::cylinder
                   : surface == "cone"     ? render::Surface::cone
+                  : surface == "mesh"     ? render::Surface::mesh
                                           : render::Surface::plane;
+  const std::string mesh = read.word(render_table, "render", "mesh", "", {});
+  if (!mesh.empty()) {
+    if (scene.surface != render::Surface::mesh)
+      read.fail(key_node(render_table, "mesh"), "render.mesh", "only surface = \"mesh\" reads a mesh");
+    scene.mesh = beside(source_name, mesh);
+  }
+  if (scene.surface != render::Surface::mesh) scene.mesh.clear();
+  if (scene.surface == render::Surface::mesh && scene.mesh.empty())
+    read.fail(key_node(render_table, "surface"), "render.mesh",
+              "surface = \"mesh\" needs a mesh (an OBJ file)");
+  scene.radius = float(
+      read.number(render_table, "render", "radius", scene.radius, render::min_radius, render::max_radius));
+  scene.address =
+      read.word(render_table, "render", "address", scene.address == bake::Address::clamp ? "clamp" : "wrap",
+                {"wrap", "clamp"}) == "clamp"
+          ? bake::Address::clamp
+          : bake::Address::wrap;
   scene.shadows = read.boolean(render_table, "render", "shadows", scene.shadows);
-  scene.light =
-      read.vector3(render_table ? render_table->get("light") : nullptr, "render.light", scene.light);
+  scene.light = read.vector3(key_node(render_table, "light"), "render.light", scene.light);
   if (glm::length(scene.light) < 1e-6f)
-    read.fail(render_table->get("light"), "render.light", "must not be zero");
-  scene.depth_scale =
-      float(read.number(render_table, "render", "depth_scale", scene.depth_scale, 1e-4, 10.0));
-  scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, 64));
+    read.fail(key_node(render_table, "light"), "render.light", "must not be zero");
+  scene.depth_scale = float(read.number(render_table, "render", "depth_scale", scene.depth_scale,
+                                        render::min_depth_scale, render::max_depth_scale));
+  scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, render::max_tile));
+  if (scene.tile > 1 && scene.address != bake::Address::wrap)
+    read.fail(key_node(render_table, "tile"), "render.tile", "above 1 needs address = \"wrap\"");
   if (!render::supports_surface(scene.method, scene.surface)) {
-    read.fail(
-        render_table ? render_table->get("surface") : nullptr, "render.surface",
-        std::string("--method ") + render::method_info(scene.method).name + " does not render on " + surface);
+    read.fail(key_node(render_table, "surface"), "render.surface",
+              std::string("render.method ") + render::method_info(scene.method).name +
+                  " does not render on " + surface);
   }
 }
 
@@ -459,16 +550,19 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
   scene.fps = read.number(time, "time", "fps", scene.fps, 1e-3, max_fps);
   const toml::table* budget = read.section(root, "budget");
   if (budget) read.known_keys(*budget, "budget", {"frame_ms", "bake_work", "tolerance", "cone_lag_frames"});
-  scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, 1e7);
-  scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, std::int64_t(1) << 40);
-  scene.tolerance = float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, 1.0));
+  scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, max_frame_ms);
+  scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, max_bake_work);
+  scene.tolerance =
+      float(read.number(budget, "budget", "tolerance", scene.tolerance, 0.0, bake::max_tolerance));
+  if (!(scene.tolerance < bake::max_tolerance))
+    read.fail(key_node(budget, "tolerance"), "budget.tolerance", "must be below 1");
   scene.cone_lag_frames =
       int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
 }
 
 }  // namespace
 
-Scene parse_scene(std::string_view text, const std::string& source_name) {
+Scene apply_scene(const Scene& base, std::string_view text, const std::string& source_name) {
   toml::table root;
   try {
     root = toml::parse(text, source_name);
@@ -479,14 +573,14 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   const Reader read(source_name);
   read.known_keys(root, "",
                   {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
-  Scene scene;
-  scene.name = read.word(&root, "", "name", "scene", {});
+  Scene scene = base;
+  scene.name = read.word(&root, "", "name", scene.name, {});
   read_source(read, root, source_name, scene);
   read_ocean(read, root, scene);
   read_sinusoids(read, root, scene);
   read_material(read, root, source_name, scene);
   const toml::table* camera = read_camera(read, root, scene);
-  read_render(read, root, scene);
+  read_render(read, root, source_name, scene);
   read_time_and_budget(read, root, scene);
   try {
     scene_view(scene, scene.start).camera.validate();
@@ -496,12 +590,18 @@ Scene parse_scene(std::string_view text, const std::string& source_name) {
   return scene;
 }
 
+Scene parse_scene(std::string_view text, const std::string& source_name) {
+  return apply_scene(Scene{}, text, source_name);
+}
+
 Scene read_scene_file(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw SceneError(file.string() + ": cannot open the scene file");
   std::ostringstream text;
   text << in.rdbuf();
-  return parse_scene(text.str(), file.string());
+  Scene base;
+  base.name = file.stem().string();  // a file without a name key is named after itself
+  return apply_scene(base, text.str(), file.string());
 }
 
 namespace {
@@ -521,7 +621,13 @@ std::string scene_toml(const Scene& scene) {
   root.insert("name", scene.name);
   toml::table source{
       {"kind", source_word(scene.source)}, {"map_size", scene.map_size}, {"seed", std::int64_t(scene.seed)}};
-  if (scene.source == SourceKind::image) source.insert("path", scene.image.string());
+  if (scene.source == SourceKind::image) {
+    source.insert("path", scene.image.string());
+    if (!scene.image_read.channel.empty()) source.insert("channel", scene.image_read.channel);
+    source.insert("invert", scene.image_read.invert);
+    if (const auto& range = scene.image_read.height_range)
+      source.insert("height_range", toml::array{double(tidy((*range)[0])), double(tidy((*range)[1]))});
+  }
   root.insert("source", source);
   root.insert(
       "ocean",
@@ -530,11 +636,16 @@ std::string scene_toml(const Scene& scene) {
           {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
           {"wind_speed", tidy(scene.ocean.wind_speed)},
           {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
+          {"spreading", tidy(scene.ocean.spreading)},
           {"choppiness", tidy(scene.ocean.choppiness)},
           {"seed", std::int64_t(scene.ocean.seed)}});
+  if (scene.ocean.spectrum == sim::Spectrum::jonswap)
+    root["ocean"].as_table()->insert("fetch", tidy(scene.ocean.fetch));
   root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
                                        {"patch_size", tidy(scene.sinusoids.patch_size)},
                                        {"steepness", tidy(scene.sinusoids.steepness)},
+                                       {"wind_direction", tidy(float(double(scene.sinusoids.wind_direction) *
+                                                                     180.0 / std::numbers::pi))},
                                        {"seed", std::int64_t(scene.sinusoids.seed)}});
   toml::table material{{"kind", scene.material == render::Material::water ? "water"
                                 : !scene.albedo.empty()                   ? "albedo"
@@ -554,19 +665,19 @@ std::string scene_toml(const Scene& scene) {
     camera.insert("keyframes", keys);
   }
   root.insert("camera", camera);
-  const char* surface = scene.surface == render::Surface::sphere     ? "sphere"
-                        : scene.surface == render::Surface::cylinder ? "cylinder"
-                        : scene.surface == render::Surface::cone     ? "cone"
-                                                                     : "plane";
-  root.insert("render", toml::table{{"method", render::method_info(scene.method).name},
-                                    {"steps", scene.steps},
-                                    {"refine", scene.refine},
-                                    {"size", toml::array{scene.camera.width, scene.camera.height}},
-                                    {"surface", surface},
-                                    {"shadows", scene.shadows},
-                                    {"light", vec(scene.light)},
-                                    {"depth_scale", tidy(scene.depth_scale)},
-                                    {"tile", scene.tile}});
+  toml::table render_table{{"method", render::method_info(scene.method).name},
+                           {"steps", scene.steps},
+                           {"refine", scene.refine},
+                           {"size", toml::array{scene.camera.width, scene.camera.height}},
+                           {"surface", surface_word(scene.surface)},
+                           {"radius", tidy(scene.radius)},
+                           {"address", scene.address == bake::Address::clamp ? "clamp" : "wrap"},
+                           {"shadows", scene.shadows},
+                           {"light", vec(scene.light)},
+                           {"depth_scale", tidy(scene.depth_scale)},
+                           {"tile", scene.tile}};
+  if (scene.surface == render::Surface::mesh) render_table.insert("mesh", scene.mesh.string());
+  root.insert("render", render_table);
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});
   toml::table budget{{"bake_work", std::int64_t(scene.bake_work)},
                      {"tolerance", tidy(scene.tolerance)},

@@ -4,9 +4,11 @@
 // file, line and key. Parsing lives here; the pipeline only takes the typed Scene.
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <glm/glm.hpp>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -24,12 +26,37 @@ struct SceneError : std::runtime_error {
 
 enum class SourceKind { ocean, sinusoids, bricks, cliff, image };
 
+// Limits of the scene's keys (the scene reader's and the command line's; the sources' own limits
+// are sim.h's, the view's render.h's).
+inline constexpr int min_map_size = 2;                    // [source] map_size, texels a side
+inline constexpr int max_map_size = sim::max_ocean_size;  // (even for the ocean)
+inline constexpr double max_abs_time = 1e12;              // seconds: [time] start, keyframe times
+inline constexpr double max_fps = 10000.0;                // [time] fps, from 1e-3
+inline constexpr double max_direction_degrees = 360.0;    // wind_direction, either way
+inline constexpr float min_steepness = 1e-3f;             // [sinusoids] steepness, to sim::max_steepness
+inline constexpr double max_frame_ms = 1e9;               // [budget] frame_ms, about 11 days
+inline constexpr long long max_bake_work = 1ll << 40;     // [budget] bake_work, texels a frame
+inline constexpr int max_cone_lag_frames = 64;            // [budget] cone_lag_frames
+
+// How a height image is read ([source] channel, invert, height_range; kind = "image").
+struct ImageRead {
+  std::string channel;  // a name or an index; empty: `height`, or the only grey one
+  bool invert = false;  // the image stores depth (1 = deepest)
+  std::optional<std::array<float, 2>> height_range;  // float images: the raw values that map to 0 and 1
+};
+
 // The camera at scene time `time` (seconds): eye and look-at point, world units.
 struct CameraKey {
   double time = 0.0;
   glm::vec3 eye{0.0f};
   glm::vec3 look_at{0.0f};
 };
+
+inline sim::OceanParams calm_ocean() {
+  sim::OceanParams params;
+  params.choppiness = 0.0f;
+  return params;
+}
 
 struct Scene {
   std::string name = "scene";
@@ -42,7 +69,9 @@ struct Scene {
   // is frame n zero-padded to that many digits (heights_####.exr: frame 7 reads heights_0007.exr);
   // relative to the scene file. The map size is the image's. Read by the application's loader.
   std::filesystem::path image;
-  sim::OceanParams ocean;         // [ocean]; size is map_size
+  ImageRead image_read;
+  // [ocean]; size is map_size. Choppy crests (and foam) only where a scene asks: choppiness 0 by default
+  sim::OceanParams ocean = calm_ocean();
   sim::SinusoidParams sinusoids;  // [sinusoids]
 
   // [camera]: eye, look_at, up, fov_y; keyframes override eye and look_at over time
@@ -60,6 +89,9 @@ struct Scene {
   int steps = 32;
   int refine = 8;
   render::Surface surface = render::Surface::plane;
+  std::filesystem::path mesh;                   // surface = mesh: an OBJ file (relative to the file)
+  float radius = 0.25f;                         // the quadric's outer radius, world units
+  bake::Address address = bake::Address::wrap;  // how the map continues past its edges
   bool shadows = false;
   glm::vec3 light{0.35f, 0.25f, 1.0f};  // towards the light (the sun); normalized when used
   float depth_scale = 0.1f;
@@ -81,8 +113,6 @@ struct Scene {
   int cone_lag_frames = 0;  // 0 .. max_cone_lag_frames
 };
 
-inline constexpr int max_cone_lag_frames = 64;  // Scene::cone_lag_frames
-
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.
 std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);
 bool is_image_sequence(const std::filesystem::path& pattern);
@@ -99,9 +129,13 @@ render::View scene_view(const Scene& scene, double time);
 std::vector<std::string> builtin_scene_names();
 Scene builtin_scene(std::string_view name);  // throws SceneError naming the built-ins
 
-// Reads a scene file; throws SceneError "FILE:LINE: KEY: what is wrong".
+// Reads a scene file (named after the file when it has no name key); throws SceneError
+// "FILE:LINE: KEY: what is wrong".
 Scene read_scene_file(const std::filesystem::path& file);
 Scene parse_scene(std::string_view toml_text, const std::string& source_name);
+// The keys of `toml_text` over `base` (a built-in scene or a file's): what a command line's flags
+// do to a scene. The same checks as a file's; `source_name` names the text in errors.
+Scene apply_scene(const Scene& base, std::string_view toml_text, const std::string& source_name);
 // The scene as a TOML file that read_scene_file reads back to the same Scene.
 std::string scene_toml(const Scene& scene);
 

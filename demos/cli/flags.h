@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "demos/frame_output.h"
 #include "pipeline/scene.h"
 #include "render/render.h"
 #include "sim/sim.h"
@@ -137,5 +138,18 @@ namespace displace::app::cli {
 // (--tile, --steps, --map-size). The libraries name their own fields (issue 30); this is the one
 // table that maps them to flags.
 std::string flag_words(std::string_view message);
+
+}  // namespace displace::app::cli
+
+namespace displace::app::cli {
+
+// --aov NAME=FILE (render) or NAME=PATTERN (sequence: '#' runs become the frame number), repeatable.
+void add_aov_option(CLI::App& app, std::vector<std::string>& aovs, const std::string& description,
+                    bool patterns);
+std::vector<AovOutput> aov_outputs(const std::vector<std::string>& aovs);
+// --device, --validate and --pipeline-cache, for every command that renders; finish_renderer adds the
+// memory limit of the environment (DISPLACE_MEMORY_LIMIT_MB).
+void add_renderer_flags(CLI::App& app, render::RendererOptions& options);
+void finish_renderer(render::RendererOptions& options);
 
 }  // namespace displace::app::cli

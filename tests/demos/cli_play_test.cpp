@@ -21,11 +21,12 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "demos/commands.h"
+#include "demos/cli/command.h"
+#include "demos/commands/settings.h"
 #include "demos/cone_export.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
-#include "demos/options.h"
 #include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"

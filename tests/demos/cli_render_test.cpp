@@ -21,11 +21,12 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "demos/commands.h"
+#include "demos/cli/command.h"
+#include "demos/commands/settings.h"
 #include "demos/cone_export.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
-#include "demos/options.h"
 #include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
@@ -72,7 +73,7 @@ TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   EXPECT_TRUE(fs::exists(out));
 }
 
-// --bake-budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
+// --budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
 // picture still matches the reference (the maps are conservative at any budget).
 TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
   TempDir dir;
@@ -80,7 +81,7 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
     const std::string out = (dir / (std::string(method) + ".png")).string();
     const RunResult result = run_displace(
         dir, std::string("render --source bricks --map-size 32 --seed 2 --size 48x40 --steps 64 --method ") +
-                 method + " --bake-budget-ms 0 --compare reference --output '" + out + "'");
+                 method + " --budget-ms 0 --compare reference --output '" + out + "'");
     ASSERT_EQ(result.exit_code, 0) << method << "\n" << result.err;
     EXPECT_NE(result.out.find("within a 0 ms budget"), std::string::npos) << result.out;
     const std::size_t at = result.out.find("compare reference: rmse ");
@@ -93,7 +94,7 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
   }
 }
 
-// --bake-tolerance: an unlimited bake at tolerance 0 searches texels that one at 0.9 leaves to stage
+// --tolerance: an unlimited bake at tolerance 0 searches texels that one at 0.9 leaves to stage
 // L (none on this map), and both render the reference's picture; the line and the file say which.
 TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
   TempDir dir;
@@ -107,7 +108,7 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
   const std::string common =
       "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 "
       "--method acm8 --compare reference --output '" +
-      out + "' --bake-tolerance ";
+      out + "' --tolerance ";
   const RunResult tight = run_displace(dir, common + "0");
   ASSERT_EQ(tight.exit_code, 0) << tight.err;
   EXPECT_GT(searched(tight.out), 0) << tight.out;
@@ -190,7 +191,7 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
     int exit_code;
   } cases[] = {
       {ok + " --method no-such-method", 2},
-      {ok, 2},  // no --method
+      {ok + " --scene no-such-scene", 1},  // neither built in nor a file
       {ok + " --method pom --steps 0", 2},
       {ok + " --method pom --size 0x10", 2},
       {ok + " --method pom --eye 0.5,0.5,1 --look-at 0.5,0.5,1", 2},
@@ -206,13 +207,13 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --shadows yes", 2},
       {ok + " --method pom --surface mesh:", 2},
       {ok + " --method pom --surface mesh:'" + (dir / "missing.obj").string() + "'", 1},
-      {ok + " --method pom --bake-budget-ms 0", 2},  // pom reads no cone map
-      {ok + " --method acm4 --bake-budget-ms -1", 2},
-      {ok + " --method acm4 --bake-budget-ms inf", 2},
-      {ok + " --method relief --bake-tolerance 0.5", 2},  // relief reads no cone map
-      {ok + " --method acm4 --bake-tolerance 1", 2},
-      {ok + " --method acm4 --bake-tolerance -0.1", 2},
-      {ok + " --method acm4 --bake-tolerance nan", 2},
+      {ok + " --method pom --budget-ms 0", 2},  // pom reads no cone map
+      {ok + " --method acm4 --budget-ms -1", 2},
+      {ok + " --method acm4 --budget-ms inf", 2},
+      {ok + " --method relief --tolerance 0.5", 2},  // relief reads no cone map
+      {ok + " --method acm4 --tolerance 1", 2},
+      {ok + " --method acm4 --tolerance -0.1", 2},
+      {ok + " --method acm4 --tolerance nan", 2},
   };
   for (const auto& test : cases) {
     const RunResult result = run_displace(dir, test.arguments);

@@ -21,11 +21,12 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "demos/commands.h"
+#include "demos/cli/command.h"
+#include "demos/commands/settings.h"
 #include "demos/cone_export.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
-#include "demos/options.h"
 #include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
@@ -50,18 +51,18 @@ TEST(Cli, SimWritesMetresWithItsMapping) {
   EXPECT_EQ(std::get<std::string>(find_attribute(image.metadata, "displace:seed")->value), "9");
   EXPECT_EQ(std::get<float>(find_attribute(image.metadata, "displace:time")->value), 0.5f);
 
-  // the same heights and mapping as the in-process stage, and bake --input picks the mapping up
-  SourceSettings source;
-  source.kind = SourceKind::sinusoids;
-  source.size = 24;
-  source.time = 0.5f;
-  source.sinusoids.seed = 9;
-  const SynthesizedHeights expected = synthesize(source);
-  EXPECT_EQ(image.channel("height"), expected.raw);
+  // the same heights and mapping as sim/ makes them, and bake --input picks the mapping up
+  displace::sim::SinusoidParams params;
+  params.seed = 9;
+  const std::vector<displace::sim::Wave> waves = displace::sim::make_sinusoid_waves(params);
+  std::vector<float> expected(24 * 24);
+  displace::sim::sinusoid_heights(waves, params.patch_size, 0.5, 24, 24, expected);
+  const displace::sim::HeightMapping mapping = displace::sim::sinusoid_mapping(waves);
+  EXPECT_EQ(image.channel("height"), expected);
   const LoadedHeights loaded = load_heights(dir / "h.exr", {});
   EXPECT_EQ(loaded.mapping_origin, MappingOrigin::file_metadata);
-  EXPECT_EQ(loaded.mapping.scale, expected.mapping.scale);
-  EXPECT_EQ(loaded.mapping.bias, expected.mapping.bias);
+  EXPECT_EQ(loaded.mapping.scale, mapping.scale);
+  EXPECT_EQ(loaded.mapping.bias, mapping.bias);
 }
 
 }  // namespace

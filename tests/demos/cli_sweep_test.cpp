@@ -21,11 +21,12 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "demos/commands.h"
+#include "demos/cli/command.h"
+#include "demos/commands/settings.h"
 #include "demos/cone_export.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
-#include "demos/options.h"
 #include "demos/play.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
@@ -43,10 +44,10 @@ using namespace displace::app;
 // (budget 0: stage L alone, no texel searched; unlimited at tolerance 0: texels searched).
 TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
   TempDir dir;
-  std::ofstream(dir / "small.scene") << "# a small ocean\n--source ocean\n--map-size 32\n--time 0\n"
-                                        "--size 40x32\n";
+  std::ofstream(dir / "small.toml") << "# a small ocean\n[source]\nkind = \"ocean\"\nmap_size = 32\n"
+                                       "[render]\nsize = [40, 32]\n";
   const std::string csv = (dir / "s.csv").string();
-  const std::string common = "sweep --scene '" + (dir / "small.scene").string() +
+  const std::string common = "sweep --scene '" + (dir / "small.toml").string() +
                              "' --methods acm4,pom --steps 16,64 --repeat 1 --output '" + csv + "' ";
   auto searched = [](const std::string& out) {
     const std::size_t at = out.find("cone maps, 4 sectors: ");
@@ -55,7 +56,7 @@ TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
     const std::size_t from = out.rfind(", ", of);
     return std::stol(out.substr(from + 2, of - from - 2));
   };
-  const RunResult starved = run_displace(dir, common + "--bake-budget-ms 0");
+  const RunResult starved = run_displace(dir, common + "--budget-ms 0");
   ASSERT_EQ(starved.exit_code, 0) << starved.err;
   EXPECT_NE(starved.out.find("cone maps baked within a 0 ms budget at tolerance 0.25"), std::string::npos)
       << starved.out;
@@ -69,7 +70,7 @@ TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
   EXPECT_EQ(line.rfind("scene,method,steps,", 0), 0u) << line;
   while (std::getline(table, line)) rows += line.rfind("small,", 0) == 0 ? 1 : 0;
   EXPECT_EQ(rows, 4);  // 2 methods x 2 step counts
-  const RunResult exact = run_displace(dir, common + "--bake-tolerance 0");
+  const RunResult exact = run_displace(dir, common + "--tolerance 0");
   ASSERT_EQ(exact.exit_code, 0) << exact.err;
   EXPECT_NE(exact.out.find("cone maps baked with an unlimited budget at tolerance 0\n"), std::string::npos)
       << exact.out;
@@ -87,11 +88,11 @@ TEST(Cli, SweepRejectsMalformedSceneFilesWithOneError) {
     int exit_code;
   } cases[] = {
       // a scene file's content is a file's, not the command line's: exit status 1 like any bad file
-      {scene("method.scene", "--source ocean\n--map-size 16\n--time 0\n--method pom\n"), 1},
-      {scene("two.scene", "--source ocean\n--map-size 16 --time\n"), 1},
-      {scene("word.scene", "source ocean\n"), 1},
-      {scene("empty.scene", "# nothing\n"), 1},
-      {"sweep --scene '" + (dir / "missing.scene").string() + "' --output s.csv", 1},  // a missing file
+      {scene("key.toml", "[source]\nkind = \"ocean\"\nmap_sise = 16\n"), 1},    // an unknown key
+      {scene("value.toml", "[source]\nkind = \"ocean\"\nmap_size = 15\n"), 1},  // odd for the ocean
+      {scene("flags.toml", "--source ocean\n--map-size 16\n"), 1},  // not TOML (the old flag files)
+      {scene("word.toml", "[source]\nkind = \"sea\"\n"), 1},
+      {"sweep --scene '" + (dir / "missing.toml").string() + "' --output s.csv", 1},  // a missing file
   };
   for (const auto& [arguments, exit_code] : cases) {
     const RunResult result = run_displace(dir, arguments);

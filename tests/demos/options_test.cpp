@@ -1,5 +1,4 @@
 // tests/demos/options_test.cpp - the command line parsed into typed settings (demos/options.cpp).
-#include "demos/options.h"
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -23,8 +22,10 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "demos/commands.h"
+#include "demos/cli/command.h"
+#include "demos/commands/settings.h"
 #include "demos/cone_export.h"
+#include "demos/heights.h"
 #include "demos/image_io.h"
 #include "demos/obj_io.h"
 #include "demos/play.h"
@@ -39,21 +40,26 @@ namespace {
 namespace fs = std::filesystem;
 using namespace displace::app;
 
-CommandSettings parse(std::initializer_list<std::string_view> args) {
+ParsedCommand parse(std::initializer_list<std::string_view> args) {
   const std::vector<std::string_view> list(args);
   return parse_command_line(list);
 }
 
+template <typename Settings>
+Settings settings_of(const ParsedCommand& command) {
+  return std::any_cast<Settings>(command.settings);
+}
+
 TEST(Options, ParsesABakeCommandIntoTypedSettings) {
-  const CommandSettings settings =
+  const BakeSettings bake = settings_of<BakeSettings>(
       parse({"bake", "--input", "h.exr", "--channel", "2", "--height-range=-1,3", "--sectors", "8", "--mode",
-             "budgeted", "--budget-ms", "4.5", "--address", "clamp", "--output", "c.PNG", "--stats"});
-  const BakeSettings& bake = std::get<BakeSettings>(settings);
-  const FileInput& input = std::get<FileInput>(bake.input);
-  EXPECT_EQ(input.path, "h.exr");
-  EXPECT_EQ(input.load.channel.index, 2);
-  EXPECT_EQ(input.load.range->low, -1.0f);
-  EXPECT_EQ(input.load.range->high, 3.0f);
+             "budgeted", "--budget-ms", "4.5", "--address", "clamp", "--output", "c.PNG", "--stats"}));
+  EXPECT_EQ(bake.scene.source, displace::pipeline::SourceKind::image);
+  EXPECT_EQ(bake.scene.image, "h.exr");
+  const HeightLoadSettings load = load_settings(bake.scene.image_read);
+  EXPECT_EQ(load.channel.index, 2);
+  EXPECT_EQ(load.range->low, -1.0f);
+  EXPECT_EQ(load.range->high, 3.0f);
   EXPECT_EQ(bake.sector_count, 8);
   EXPECT_EQ(bake.baker, Baker::budgeted);
   EXPECT_EQ(bake.budget_milliseconds, 4.5);
@@ -110,28 +116,28 @@ TEST(Options, RejectsWhatDoesNotApply) {
   EXPECT_TRUE(usage({"bench-frame", "--cone-lag", "2"}));
   EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));
   EXPECT_FALSE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}));
-  EXPECT_EQ(std::get<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}))
+  EXPECT_EQ(settings_of<BenchFrameSettings>(parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "2"}))
                 .scene.cone_lag_frames,
             2);
   EXPECT_TRUE(usage({"play", "--frames", "3", "--cone-lag", "2"}));  // --frames is deterministic
-  EXPECT_EQ(std::get<PlaySettings>(parse({"play", "--cone-lag", "2"})).cone_lag, 2);
+  EXPECT_EQ(settings_of<PlaySettings>(parse({"play", "--cone-lag", "2"})).scene.cone_lag_frames, 2);
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
                      "--budget-ms", "0", "--output", "c.exr"}));
 }
 
 TEST(Options, ParsesBilinearCones) {
   const BakeSettings budgeted =
-      std::get<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "8", "--cones", "bilinear",
-                                    "--mode", "budgeted", "--budget-ms", "0", "--output", "c.exr"}));
+      settings_of<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "8", "--cones", "bilinear",
+                                       "--mode", "budgeted", "--budget-ms", "0", "--output", "c.exr"}));
   EXPECT_EQ(budgeted.cones, ConeKind::bilinear);
   EXPECT_EQ(budgeted.baker, Baker::budgeted);
   EXPECT_EQ(budgeted.budget_milliseconds, 0.0);
   const BakeSettings full =
-      std::get<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "1", "--cones=bilinear",
-                                    "--mode", "full", "--output", "c.png"}));
+      settings_of<BakeSettings>(parse({"bake", "--input", "h.exr", "--sectors", "1", "--cones=bilinear",
+                                       "--mode", "full", "--output", "c.png"}));
   EXPECT_EQ(full.cones, ConeKind::bilinear);
   EXPECT_EQ(full.baker, Baker::full);
-  const BakeSettings center = std::get<BakeSettings>(
+  const BakeSettings center = settings_of<BakeSettings>(
       parse({"bake", "--input", "h.exr", "--sectors", "4", "--mode", "exact", "--output", "c.exr"}));
   EXPECT_EQ(center.cones, ConeKind::center);
 }
@@ -139,47 +145,59 @@ TEST(Options, ParsesBilinearCones) {
 // Numbers are decimal whatever CLI11 would make of them; sweep scenes and render AOVs may repeat;
 // --help is the command's own help.
 TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
-  const RenderSettings render = std::get<RenderSettings>(
+  const RenderSettings render = settings_of<RenderSettings>(
       parse({"render", "--source", "bricks", "--map-size", "016", "--method", "pom", "--steps", "010",
              "--aov", "uv=a.exr", "--aov=depth=b.exr", "--size=64x48", "--output", "f.png"}));
-  EXPECT_EQ(std::get<SourceSettings>(render.input).size, 16);
-  EXPECT_EQ(render.method.steps, 10);
+  EXPECT_EQ(render.scene.map_size, 16);
+  EXPECT_EQ(render.scene.source, displace::pipeline::SourceKind::bricks);
+  EXPECT_EQ(render.scene.steps, 10);
   ASSERT_EQ(render.aovs.size(), 2u);
   EXPECT_EQ(render.aovs[1].aov, Aov::depth);
   EXPECT_EQ(render.aovs[1].file, "b.exr");
-  EXPECT_EQ(render.view.camera.width, 64);
-  EXPECT_EQ(render.view.camera.height, 48);
-  const SweepSettings sweep = std::get<SweepSettings>(
+  EXPECT_EQ(render.scene.camera.width, 64);
+  EXPECT_EQ(render.scene.camera.height, 48);
+  const SweepSettings sweep = settings_of<SweepSettings>(
       parse({"sweep", "--scene", "bricks", "--scene", "cliff", "--steps", "4,08", "--output", "s.csv"}));
   ASSERT_EQ(sweep.scenes.size(), 2u);
   EXPECT_EQ(sweep.scenes[1].name, "cliff");
   EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
-  EXPECT_TRUE(std::isinf(sweep.cone_budget.milliseconds));
-  const SweepSettings starved =
-      std::get<SweepSettings>(parse({"sweep", "--bake-budget-ms", "2.5", "--bake-tolerance", "0.4",
-                                     "--methods", "csm", "--output", "s.csv"}));
-  EXPECT_EQ(starved.cone_budget.milliseconds, 2.5);
-  EXPECT_EQ(starved.cone_budget.tolerance, 0.4f);
-  const HelpSettings help = std::get<HelpSettings>(parse({"render", "--method", "nope", "--help"}));
-  EXPECT_NE(help.text.find("--steps INT:[1, 4096]"), std::string::npos) << help.text;
-  EXPECT_TRUE(std::get<HelpSettings>(parse({"help"})).text.empty());  // the overview
+  EXPECT_TRUE(std::isinf(sweep.scenes[0].frame_ms));
+  const SweepSettings starved = settings_of<SweepSettings>(
+      parse({"sweep", "--budget-ms", "2.5", "--tolerance", "0.4", "--methods", "csm", "--output", "s.csv"}));
+  ASSERT_EQ(starved.scenes.size(), 3u);  // the default scenes, each with the cone maps' budget
+  for (const displace::pipeline::Scene& scene : starved.scenes) {
+    EXPECT_EQ(scene.frame_ms, 2.5);
+    EXPECT_EQ(scene.tolerance, 0.4f);
+  }
+  // --help: the command's own help, whatever else is on the line; `help` the overview
+  const auto help_text = [](const ParsedCommand& command) {
+    std::ostringstream text;
+    command.run(text);
+    return text.str();
+  };
+  const ParsedCommand help = parse({"render", "--method", "nope", "--help"});
+  EXPECT_EQ(help.name, "help");
+  EXPECT_NE(help_text(help).find("--steps INT:[1, 4096]"), std::string::npos) << help_text(help);
+  const ParsedCommand overview = parse({"help"});
+  EXPECT_EQ(overview.name, "help");
+  EXPECT_NE(help_text(overview).find("bench-frame"), std::string::npos);
 }
 
 TEST(Options, ParsesTheRenderBakeBudget) {
   const RenderSettings budget =
-      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
-                                      "--method", "acm8", "--bake-budget-ms", "0", "--output", "f.png"}));
-  EXPECT_EQ(budget.cone_budget.milliseconds, 0.0);
+      settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                         "--method", "acm8", "--budget-ms", "0", "--output", "f.png"}));
+  EXPECT_EQ(budget.scene.frame_ms, 0.0);
   const RenderSettings unlimited =
-      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
-                                      "--method", "acm8", "--output", "f.png"}));
-  EXPECT_TRUE(std::isinf(unlimited.cone_budget.milliseconds));
-  EXPECT_EQ(unlimited.cone_budget.tolerance, displace::bake::Budget{}.tolerance);
+      settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                         "--method", "acm8", "--output", "f.png"}));
+  EXPECT_TRUE(std::isinf(unlimited.scene.frame_ms));
+  EXPECT_EQ(unlimited.scene.tolerance, displace::bake::Budget{}.tolerance);
   const RenderSettings loose =
-      std::get<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
-                                      "--method", "csm", "--bake-tolerance", "0.45", "--output", "f.png"}));
-  EXPECT_EQ(loose.cone_budget.tolerance, 0.45f);
-  EXPECT_TRUE(std::isinf(loose.cone_budget.milliseconds));
+      settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
+                                         "--method", "csm", "--tolerance", "0.45", "--output", "f.png"}));
+  EXPECT_EQ(loose.scene.tolerance, 0.45f);
+  EXPECT_TRUE(std::isinf(loose.scene.frame_ms));
 }
 
 // Interactive play starts a scene that sets no budget at a real-time frame budget (an unlimited bake
@@ -187,8 +205,9 @@ TEST(Options, ParsesTheRenderBakeBudget) {
 // as `displace sequence` renders them), and so does a scene that sets a frame budget or a work limit.
 TEST(Options, PlayStartsAtARealTimeBudgetUnlessTheSceneSetsOne) {
   PlaySettings interactive;
+  interactive.scene = displace::pipeline::builtin_scene("water");
   EXPECT_EQ(play_scene(interactive).frame_ms, interactive_budget_ms);
-  PlaySettings fixed;
+  PlaySettings fixed = interactive;
   fixed.frames = 3;
   EXPECT_TRUE(std::isinf(play_scene(fixed).frame_ms));
   const TempDir dir;
@@ -199,7 +218,7 @@ TEST(Options, PlayStartsAtARealTimeBudgetUnlessTheSceneSetsOne) {
     const fs::path file = dir / "scene.toml";
     std::ofstream(file) << "[source]\nkind = \"sinusoids\"\n" << text;
     PlaySettings from_file;
-    from_file.scene = file.string();
+    from_file.scene = displace::pipeline::read_scene_file(file);
     EXPECT_EQ(play_scene(from_file).frame_ms, expected) << text;
   }
 }

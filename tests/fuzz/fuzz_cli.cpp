@@ -1,6 +1,6 @@
-// tests/fuzz/fuzz_cli.cpp - libFuzzer target: the command-line parser (app::parse_command_line).
-// The input is the argument list, one argument per line. Any input either parses into settings or
-// throws AppError (usage or runtime) with a message, never anything else; nothing is run.
+// tests/fuzz/fuzz_cli.cpp - libFuzzer target: the command-line parser (app::parse_command_line,
+// demos/cli/command.h). The input is the argument list, one argument per line. Any input either parses into
+// settings or throws AppError (usage or runtime) with a message, never anything else; nothing is run.
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
@@ -8,8 +8,8 @@
 #include <string_view>
 #include <vector>
 
+#include "demos/cli/command.h"
 #include "demos/error.h"
-#include "demos/options.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

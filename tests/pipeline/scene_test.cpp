@@ -67,7 +67,7 @@ TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
             "scene.toml:2: render.size: must be between [1, 1] and [16384, 16384]");
   EXPECT_EQ(error_of("[render]\nshadows = 1\n"), "scene.toml:2: render.shadows: must be true or false");
   EXPECT_EQ(error_of("[render]\nmethod = \"relaxed\"\nsurface = \"sphere\"\n"),
-            "scene.toml:3: render.surface: --method relaxed does not render on sphere");
+            "scene.toml:3: render.surface: render.method relaxed does not render on sphere");
   EXPECT_EQ(error_of("[camera]\nkeyframes = [{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}, "
                      "{time = 1, eye = [0, 0, 1], look_at = [0, 0, 0]}]\n")
                 .rfind("scene.toml:2: camera.keyframes: times must increase", 0),

@@ -1,0 +1,35 @@
+// demos/cone_bake.h - one cone map baked whole for `displace bake` and `displace demo`: centre cones
+// with one of the centre bakers, or the renderer's bilinear cones with their apex heights.
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bake/bake.h"
+#include "demos/cone_export.h"
+
+namespace displace::app {
+
+struct BakedCones {
+  std::vector<float> ratios;  // interleaved, width * height * sector_count
+  std::vector<float> apex;    // bilinear cones: width * height apex heights; center cones: empty
+  bake::BakeStats stats;
+};
+// Center cones (between texel centres) with one of the center bakers. `progress` hears from the
+// slow ones (exact, original, relaxed).
+BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                      bake::Address address, double budget_milliseconds, float tolerance = 0.25f,
+                      const bake::Progress& progress = {});
+// Bilinear cones (bake::bake_bilinear_cones' contract) with their apex heights: Baker::full bakes
+// them whole, Baker::budgeted with bake::BilinearBaker within the budget (0 allowed); `progress`
+// goes to either.
+BakedCones bake_bilinear(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
+                         bake::Address address, double budget_milliseconds, float tolerance = 0.25f,
+                         const bake::Progress& progress = {});
+
+// The --stats JSON line (no trailing newline).
+std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address,
+                       ConeKind kind = ConeKind::center);
+
+}  // namespace displace::app
