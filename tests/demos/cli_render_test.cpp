@@ -281,4 +281,37 @@ TEST(Cli, RenderWithoutAnyVulkanDriverSaysWhatToInstall) {
   EXPECT_FALSE(fs::exists(dir / "g.png"));
 }
 
+// One scene model: `render --scene S` draws the picture `sequence --scene S --frames 0:0` draws at the
+// same size, bit for bit (frame 0 of the frame pipeline either way), for a static scene and for the
+// water (choppy crests, foam, the water material); and a flag is the key it names (--steps 8 is
+// [render] steps = 8 in a scene file).
+TEST(Cli, RenderDrawsTheFrameZeroOfTheSequence) {
+  TempDir dir;
+  std::ofstream(dir / "eight.toml") << "[source]\nkind = \"bricks\"\nmap_size = 64\n[render]\nsteps = 8\n";
+  const struct {
+    std::string render, sequence;
+  } cases[] = {
+      {"--scene bricks --map-size 64", "--scene bricks --map-size 64"},
+      {"--scene water --map-size 64", "--scene water --map-size 64"},
+      {"--scene bricks --map-size 64 --steps 8", "--scene '" + (dir / "eight.toml").string() + "'"},
+  };
+  int index = 0;
+  for (const auto& test : cases) {
+    const std::string name = std::to_string(index++);
+    const fs::path picture = dir / ("render" + name + ".png");
+    const RunResult render =
+        run_displace(dir, "render " + test.render + " --size 96x64 --output '" + picture.string() + "'");
+    ASSERT_EQ(render.exit_code, 0) << test.render << "\n" << render.err;
+    const RunResult sequence =
+        run_displace(dir, "sequence " + test.sequence + " --size 96x64 --frames 0:0 --output '" +
+                              (dir / ("sequence" + name + "_#.png")).string() + "'");
+    ASSERT_EQ(sequence.exit_code, 0) << test.sequence << "\n" << sequence.err;
+    const Rgba8Image rendered = read_rgba8_image(picture);
+    const Rgba8Image frame = read_rgba8_image(dir / ("sequence" + name + "_0.png"));
+    EXPECT_EQ(rendered.width, 96);
+    EXPECT_EQ(rendered.height, 64);
+    EXPECT_TRUE(rendered.pixels == frame.pixels) << test.render << " against " << test.sequence;
+  }
+}
+
 }  // namespace
