@@ -1,24 +1,18 @@
-// bake/bake.h - cone-map baking. The whole public API of the bake stage.
-//
-// No file I/O and no Vulkan: callers pass views of input and output memory.
+// bake/bake.h - cone-map baking. The whole public API of the bake stage. No file I/O and no Vulkan:
+// callers pass views of input and output memory.
 //
 // Conventions (normative: the tests, the exports and the renderer use exactly these)
-// - A W x H height map is row-major: texel (i, j) is row i, column j, stored at data[i * W + j].
-//   Heights are in [0, 1], 1 = top of the relief.
-// - Texel (i, j) has its centre at u = (j + 0.5) / W, v = (i + 0.5) / H. Distances are in uv:
-//   |q - c| = sqrt((dj / W)^2 + (di / H)^2) for a texel offset (di, dj).
+// - A W x H height map is row-major: texel (i, j) is row i, column j, at data[i * W + j]; heights in
+//   [0, 1], 1 = top. Its centre is u = (j + 0.5) / W, v = (i + 0.5) / H; distances are in uv.
 // - The cone ratio of texel c in sector k is the minimum, over texels q with h(q) > h(c) whose
 //   direction from c (azimuth atan2(dv, du) in [0, 2 pi)) lies in sector k of n equal sectors that
 //   start at azimuth 0 (a direction on a sector boundary belongs to both sectors), of
-//   |q - c| / (h(q) - h(c)), clamped to at most 1. With no such q the ratio is 1.
-//   n = 1 is cone step mapping (Dummer); n = 4 and n = 8 are anisotropic cone maps (Chen & Chuang).
-// - Address::wrap (the default) tiles the plane with the map and every periodic image of q counts.
-//   Because ratios are clamped to 1 and height gaps are at most 1, only images within uv distance 1
-//   of c can matter. Address::clamp treats everything outside the map as absent.
-// - A cone map stores its ratios interleaved: ratio of texel (i, j), sector k at
-//   data[(i * W + j) * n + k].
-// - A relaxed cone map (Policarpo & Oliveira) uses the same layout; see bake_relaxed.
-// - A distance map (Donnelly) is a 3D texture in texture space (u, v, h); see bake_distance_map.
+//   |q - c| / (h(q) - h(c)), clamped to at most 1. With no such q the ratio is 1. n = 1 is cone step
+//   mapping (Dummer); n = 4 and n = 8 are anisotropic cone maps (Chen & Chuang).
+// - Address::wrap (the default): every periodic image of q counts; Address::clamp: outside is absent.
+// - Cone maps (and relaxed ones, bake_relaxed) are interleaved: texel (i, j), sector k at
+//   data[(i * W + j) * n + k]. A distance map (bake_distance_map) is 3D in texture space (u, v, h).
+// In full: docs/design/conventions.md#bakebakeh-the-bakers-conventions
 #pragma once
 
 #include <functional>

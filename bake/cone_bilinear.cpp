@@ -6,45 +6,11 @@
 //
 // The one fact: the surface is bounded piece by piece, each piece P (a box inside one cell, where s
 // is one bilinear patch) contributing a lower bound of |x - p| / (s(x) - H_c) over its points, to the
-// sectors its directions can take. Proof that the result is conservative, for p in Q_c and x with
-// s(x) > H_c (else the claim holds for any r_k >= 0), direction of x - p in sector k:
-// 1. x is not in Q_c (s <= H_c there), so x lies in a cell B (a square between four texel centres;
-//    with wrap its periodic images, with clamp the half-texel border cells of the edge-extended
-//    surface inside [0, 1]^2, outside which the map is absent) and in some piece P of B below.
-// 2. Far bound. s(x) <= M_P, the maximum of s over P: the maximum of a bilinear patch over a box
-//    inside its cell is at the box's corners. |x - p| >= d_P = dist(Q_c, P). So
-//    |x - p| / (s(x) - H_c) >= d_P / (M_P - H_c).
-// 3. Slope bound. Let y = the point of Q_c nearest x (x clamped onto Q_c) and delta = |x - y|:
-//    delta <= |x - p| and d_P <= delta <= the farthest distance of P from Q_c. s(y) <= H_c - drop,
-//    drop = H_c - max of s over P's clamp onto Q_c (an edge segment or corner of Q_c; 0 at worst).
-//    The segment from y to x lies in the box hull of P and its clamp, and runs along +u, -u, +v or
-//    -v or diagonally between two of them; with rise_u, rise_v the largest rates at which s rises
-//    (0 where it only falls) along those directions on the hull (s is continuous and piecewise
-//    bilinear), s(x) - s(y) <= rise_u |x_u - y_u| + rise_v |x_v - y_v| <= G delta, G = rise_u
-//    or rise_v or sqrt(rise_u^2 + rise_v^2). So s(x) - H_c <= min(M_P - H_c, G delta - drop), and
-//    |x - p| / (s(x) - H_c) >= delta / min(M_P - H_c, G delta - drop) >= its least over delta in
-//    [d_P, far] (piece_bound), which is never below max(step 2, 1 / G).
-// 4. Directions. x - p lies in the box P - Q_c (a Minkowski difference), so its direction lies in a
-//    sector whose closed wedge meets that box (rect_sectors); for the pieces cut by an edge line of
-//    Q_c below, x is strictly beyond that line, so its direction also meets that open half-plane.
-// 5. r_k = min over the pieces whose sector set holds k of their bound (step 3 in the slope window,
-//    step 2 elsewhere), clamped to 1, is then <= |x - p| / (s(x) - H_c), which is the claim. A
-//    pruned pyramid node only holds cells whose far bounds are >= its own (larger distance, smaller
-//    maximum), so it cannot lower any r_k; likewise a window cell whose gap over its rise already
-//    reaches the ratios it could lower (every piece's bound is at least its near / rise). Pruning
-//    only skips such work: BilinearConeSettings::prune = false turns it off, and a test compares.
-// Pieces. The four cells that overlap Q_c would have d = 0 (a ratio of 0 wherever a neighbour is
-// higher), so every cell within `slope_window` cells of c is cut at Q_c's edge lines into pieces
-// before, across and beyond Q_c along u and along v (the piece across both is inside Q_c and
-// skipped). A point of a piece beyond an edge line is strictly beyond it, so its direction from any
-// p in Q_c lies in that open half-plane (step 4), which keeps, e.g., the cells above a ramp that
-// rises along u out of the sector that looks along +v. Rates (step 3): for the four overlapping
-// cells, the piece's own (its clamp onto Q_c lies inside it; ds/du and ds/dv are linear on a cell,
-// so their extremes are on the piece's edges); for the other window cells, the largest over the
-// cells between them and Q_c. Cells outside the window are found through a max pyramid over cells,
-// nearest first, with the far bound only. Arithmetic is in double, maxima raised by 1e-12, every
-// bound shrunk by a relative 1e-9 and rounded down to float and H_c rounded up, so rounding cannot
-// make a ratio claim space.
+// sectors its directions can take: far cells (through a max pyramid) by their distance over their
+// maximum, the cells within `slope_window` cut at Q_c's edge lines and bounded by their slope too.
+// Arithmetic is in double, every bound rounded down to float and H_c rounded up.
+//
+// Proof: docs/design/bakers.md#bakecone_bilinearcpp-cones-for-the-bilinear-surface
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 

@@ -1,67 +1,17 @@
 // bake/cone_bilinear_budgeted.cpp - the renderer's cone maps (bake_bilinear_cones' contract) within a
 // frame budget, kept between frames (bake.h, BilinearBaker).
 //
-// Stage L (always completed, O(N)): per quadrant, a lower bound of the ratio from two facts about
-// texel c's square Q_c and the quadrant's cells - the squares between texel centres, cell n between
-// texels n - 1 and n, holding the bilinear surface s below their maximum M (a patch peaks at a
-// corner). Offsets m >= 0 count cells away from the cell that ends at c (the quadrant +u +v; the
-// others are mirrored); a point x whose direction from some p in Q_c lies in the closed quadrant is
-// in a cell with m >= 0, and the gap between Q_c and that cell is max(0, m - 1.5) texels per axis.
-// 1. Far cells (m outside {0, 1, 2}^2), through lane sweeps (lane_sweep.cpp, bilinear mode) of the
-//    chamfer dilation of M on the cell grid. For such a cell q, let b be its clamp onto the box
-//    {0, 1, 2}^2: b is one of the box's five far-face cells, q lies in b's quadrant, q != b, and per
-//    axis where q is beyond the box the gap is (m - 2) + 0.5 texels, so |gap| >= |q - b| + t/2 (t the
-//    smaller texel side in uv: with a the part beyond, |a + beta| >= |a| + a.beta / |a| and a.beta >=
-//    t/2 sum a_i >= t/2 |a|). The chamfer distance never exceeds |q - b|, so when, for ratio r,
-//    max over the five b of [max over q in b's quadrant, q != b of (M(q) - chamfer(b, q) / r)] - t / (2r)
-//    <= H_c, every far cell satisfies s(x) - H_c <= M(q) - H_c <= |gap| / r <= |x - p| / r. In 16-bit
-//    integers with blockers rounded up, apexes, steps and the bonus t / (2r) rounded down, and a
-//    saturating subtraction, a passing lane proves this (lane_sweep.cpp's argument).
-//    The same holds for the box {0, ..., 3}^2 (seven face cells, bonus 3t / (2r): the gap beyond its
-//    faces is (m - 3) + 1.5 texels). Both tests run in one sweep of 32 ratio lanes, from the
-//    Lipschitz bound (3.) or the smallest ratio the map can have up to 1 (1.3x apart below 0.03,
-//    geometric above), and a texel's bound is its highest passing lane. Below the lowest lane:
-//    every far cell is at least half a texel away and at most the map's highest.
-// 2. Near cells, by the slope. For x beyond Q_c with s(x) > H_c, let y be x's nearest point of Q_c
-//    (|x - y| <= |x - p|; the segment from y to x runs along +u, along +v or towards the corner) and
-//    tau the segment's last point at height H_c (s(y) <= H_c). After tau the segment only crosses
-//    half-texel squares ("sub-cells", which lie in one cell each, so s is bilinear there) whose
-//    maximum exceeds H_c, so s(x) - H_c <= G |x - tau| <= G |x - p| with G = sqrt(rise_u^2 +
-//    rise_v^2), rise_u the largest rate of rise along +u over the sub-cells beyond Q_c's edge along
-//    u that rise above H_c (a segment moves along u only there), rise_v likewise. On a sub-cell the
-//    rate along u is largest on one of its two u edges, where it is a difference of two samples of s
-//    (at texel centres, edge midpoints and corners: averages of texels, in float, raised past
-//    their roundings - make_sub_cells). Each sub-cell above H_c also bounds by its gap to Q_c over
-//    its rise above H_c, so the region's bound is max(smallest gap bound, 1 / G) (0 for the first
-//    term when a sub-cell touching Q_c rises above H_c). For box 2 (the sub-cells within 2 texels)
-//    this covers the near cells; box 3's G also bounds the ring between the boxes. The sub-cells are
-//    kept in 16 bits (maxima rounded up in units of 1 / 65535, rates rounded up in units of a scale
-//    above every rate the map has, 1 / gap rounded up) and the apexes rounded down one unit more, so
-//    every sub-cell above H_c counts and every rate, rise and quotient is only overstated: the bounds
-//    only fall (the 512 ocean's mean ratio 0.93017 -> 0.93010 of the full bake's).
-// 3. Everywhere, by the Lipschitz constant L of s (the largest gradient bound of a cell, make_cells):
-//    s(x) - H_c <= s(x) - s(p) <= L |x - p| for p in Q_c, so 1 / L holds in every direction. On a
-//    smooth map (the ocean: 1 / L about 0.05) it is where the lanes start, so none is spent below
-//    every ratio the map has: one sweep of 32 lanes then gives 0.93 of the full bake's mean ratio at
-//    0.75 of the time of the two sweeps of 32 it replaced (0.94).
-// The quadrant's ratio is min(box 3's lanes, max(box 2's lanes, box 3's 1 / G), box 2's near bound),
-// raised to 1 / L and clamped to 1; 8 sectors take their quadrant's ratio (an octant lies inside
-// it), 1 sector the smallest of the four.
+// Stage L (always completed, O(N)): per quadrant, a lower bound of the ratio from the far cells (lane
+// sweeps of the cell maxima on the cell grid, lane_sweep.cpp's bilinear mode, for the 3 x 3 and 4 x 4
+// boxes of cells next to the texel), the near cells (the slope over half-texel sub-cells, in 16 bits)
+// and the Lipschitz constant of the bilinear surface (where the lanes start).
+// Refinement (while the budget lasts): texels not certified within the tolerance against upper bounds
+// (a centre-to-centre lane sweep, witnesses near the texel) get bake_bilinear_cones' own search,
+// largest possible gain first; the larger lower bound is emitted.
+// update() redoes stage L and keeps the searched ratios that cannot have changed.
+// The one fact: every bound only falls under rounding, so the map is conservative at every budget.
 //
-// Refinement (while the budget lasts): texels not certified within the tolerance get
-// bake_bilinear_cones' own search (bilinear_search.h), and the larger of the two lower bounds is
-// emitted, the texels whose stage-L ratios lie furthest below their upper bounds first
-// (order_by_gain). Certified means every quadrant's ratio is at least (1 - tolerance) times a
-// certified upper bound of the best ratio: the centre-to-centre lane sweep of the texels against the
-// apexes (a texel centre q above H_c that a lane's cone from p = c does not clear bounds every
-// conservative ratio; lane_sweep.cpp's bound), and under it the witnesses near the texel: a
-// half-texel sample x of the surface within 2 texels that rises above H_c gives r <= |x - p| /
-// (s(x) - H_c) for the point p of Q_c nearest x that sees x in the quadrant (witness_upper); both
-// made when refinement first needs them (they certify 17% of the 512 ocean's texels, the lanes alone
-// 4%). 8 sectors have no octant bounds and certify only what reaches 1 - tolerance. update() redoes
-// stage L and keeps the searched ratios that cannot have changed: those of texels whose apex is
-// unchanged, where heights only fell (a lower surface keeps every claim) or where the raised texels'
-// region is too far to lower them.
+// Proofs: docs/design/bakers.md#bakecone_bilinear_budgetedcpp-bilinearbakers-bounds
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>

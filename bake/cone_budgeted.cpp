@@ -1,29 +1,16 @@
 // bake/cone_budgeted.cpp - the product baker: conservative at every budget, certified, incremental.
 //
-// Every ratio it emits is a lower bound of the exact one, whatever the budget: stage L's passing
-// lanes are proven bounds (lane_sweep.cpp), and the refinement stages emit minima of pair ratios of
-// real texels and of bounds (distance to a pyramid block) / (block max - texel height), which are
-// never above the pair ratio of any texel inside the block (geometry.h); the stages that work with
-// reciprocals keep a relative margin for their rounding.
+// The one fact: every ratio it emits is a lower bound of the exact one, whatever the budget: stage
+// L's passing lanes are proven bounds (lane_sweep.cpp), and the refinement stages emit minima of pair
+// ratios of real texels and of bounds (distance to a pyramid block) / (block max - texel height),
+// never above the pair ratio of any texel inside the block (geometry.h).
 //
-// Stage L (bake(), always completed, O(N)): the lane sweeps over the whole map. Their first failing
-// lanes bound the exact ratios from above, which certifies how loose each texel may be (its slack).
-// What runs after it while the budget lasts, on texels whose slack is below 1 - tolerance (none,
-// with the default tolerance, on the maps we measured), keeps the larger bound:
-// Stage A: texels in groups of 8 x 8. One traversal of the max pyramid per group (Chen & Chuang's
-// hierarchy, searched coarse to fine, without copying coarse ratios) collects candidate blockers -
-// blocks near the group opened down to texels, far blocks kept whole - and each texel scans them in
-// order of their group bound, stopping when none can lower it. The real blockers it meets certify
-// how loose each texel may still be.
-// Stage B: texels that may be looser than the tolerance get a branch and bound over the pyramid that
-// stops opening blocks once they are within the tolerance. What is left stays conservative and the
-// next call continues.
-// Incremental update: groups whose heights changed fall back to stage 0 (per pyramid level and
-// quadrant, one bound for the ring of blocks between a texel's level-(L-1) and level-L 3 x 3
-// neighbourhoods, and the eight neighbours exactly); where heights rose, ratios around the dirty
-// region are repaired in the same call by an exact search over the dirty blocks; where they fell,
-// stale ratios are still conservative and are only marked for refinement. Unless a new stage L
-// costs less, which update() estimates.
+// Stage L (bake(), always completed, O(N)): the lane sweeps, which also certify each texel's slack.
+// Then, while the budget lasts, for texels whose slack is below 1 - tolerance: stage A (8 x 8 groups,
+// one pyramid traversal each), stage B (a branch and bound per texel). Incremental update: stage 0
+// for changed groups, exact repair where heights rose, unless a new stage L costs less.
+//
+// Stages: docs/design/bakers.md#bakecone_budgetedcpp-the-product-bakers-stages
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>

@@ -5,32 +5,11 @@
 //
 // The one fact: a trilinear sample at p reads voxels whose centres c have p in their support box
 // B(c) (c plus or minus one spacing per axis), so storing a lower bound of min over B(c) of the
-// distance d to the solid makes every sample a convex combination of values <= d(p). Proof sketch:
-// 1. Support. A sample at p is sum w_m f(c_m), w_m >= 0 summing to 1, over voxel centres c_m (the
-//    periodic image nearest p, or the clamped edge voxel) within one spacing of p along each axis
-//    (an axis of size 1: its one voxel, within half the period). So p is in B(c_m) and, if
-//    f(c) <= min over B(c) of d, then f(c_m) <= d(p), and so is the sample.
-// 2. Lower bound. With wrap, d is periodic; with clamp, for p over [0, 1]^2 a nearest solid point
-//    can be taken over [0, 1]^2 (projecting a clamped-edge solid point onto [0, 1]^2 keeps it in
-//    the solid and brings it closer), and only B(c) within [0, 1]^3 matters. A nearest solid point
-//    y lies above some footprint cell F of the map, so h_y <= S_F, the maximum of the bilinear s
-//    over F, and y lies in the box F x (-inf, S_F]. Hence min over B(c) of d >= the distance between
-//    B(c) and the union of those boxes, whose square is min over F of gap_u^2 + gap_v^2 + gap_h^2
-//    with the gaps between intervals: gap_h = max(0, c_h - r_h - S_F) (B's bottom against the box's
-//    top) and, along u and v, 0 when F's cell is c's cell or a neighbour, else (|cell offset| - 3/2)
-//    * spacing. The map stores that distance, rounded down: h is never voxelised, only uv is.
-// 3. Transform. Along u, then v (h is analytic): the interval [c - spacing, c + spacing] ends at
-//    the neighbours' centres, and a cell overlapping it contains one of the three centres, so the
-//    gap is the least centre-to-cell gap from q - 1, q, q + 1: a centre-to-cell transform followed
-//    by a min over the three neighbours (wrap: periodic; clamp: those that exist). The transform is
-//    out[q] = min(in[q], min over cell edges e of (x_q - x_e)^2 + min(in[left of e], in[right of e])):
-//    for c != q the nearer edge of c gives the gap exactly and the farther more, and for c = q both
-//    give more than in[q]. The inner min is the lower envelope of parabolas rooted at the edges.
-//    With wrap the edges repeat over the periods around [0, 1], as far as half a period outside it:
-//    the nearest image of every edge lies within half a period of every query.
-// Since B(c) lies in the ball of radius R = |voxel diagonal| around c, the value is never below
-// dist(c, boxes) - R, the simpler bound (mean-tap-distance shifts, half a diagonal, are not safe
-// once values are clamped at 0: a tap clamped to 0 no longer offsets a far tap of small weight).
+// distance d to the solid makes every sample a convex combination of values <= d(p). That bound is
+// the distance from B(c) to the boxes F x (-inf, S_F] over the map's cells F (S_F the bilinear
+// surface's maximum over F), rounded down: h is never voxelised, only uv is.
+//
+// Proof: docs/design/bakers.md#bakedistance_mapcpp-the-distance-map-conservative-for-trilinear-filtering
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 

@@ -2,66 +2,14 @@
 // for every texel from four (or eight) dilation sweeps, each testing 32 ratio lanes at once in
 // 16-bit integers.
 //
-// The test. For a ratio r and a quadrant of directions, texel c's ratio is at least r when no
-// blocker q in the quadrant rises above c's cone: h(q) - d(c, q) / r <= h(c) for all q, that is
-// when the dilation E_r(c) = max over q != c of (h(q) - d(c, q) / r) is at most h(c).
+// The one fact: texel c's ratio in a quadrant is at least r when the dilation E_r(c) = max over
+// blockers q != c of (h(q) - d(c, q) / r) is at most h(c). With d a chamfer distance (paths of moves
+// that stay in the quadrant, fitted to the map's aspect, never longer than the straight line), E_r
+// obeys a recurrence, so one pass over the map tests every texel for 32 lanes. Blockers are rounded
+// up, the tested texel and every step down, so a passing lane is a proven lower bound (emitted
+// times 1 - 1e-5), and a failing lane bounds the exact ratio from above (make_lane_plan).
 //
-// The sweep. Replace d by a chamfer distance: the cheapest path from q to c made of moves (da, db)
-// (rows, columns) that all point into the quadrant, so that every path stays in it, each costing
-// its uv length times `scale` (below). The dilation then obeys a recurrence over a few rows below
-// and the texel after in the row, so one pass over the map - rows in the quadrant's order -
-// evaluates it for every texel, for all 32 lanes at once in one 512-bit register (two 256-bit
-// ones, or a generic vector type) of unsigned 16-bit values.
-//
-// The moves, fitted to the map's aspect A = W / H. A move (da, db) points at the uv angle
-// atan((da / H) / (db / W)) from the u axis, so the same texel moves point elsewhere on a
-// non-square map (on a 2:1 map (1, 2) is the uv diagonal). make_lane_plan takes the carry (0, 1),
-// the row moves (1, k) for k = 0 .. R and the column moves (k, 1) for k = 2 .. C, with R = ceil(A /
-// 0.51) and C = ceil((1 / A) / 0.51) (each at least 1; C = 1 means none), capped at 64: the
-// smallest reaches that bring the last move within 2% (in tangent) of the square map's atan(1 / 2)
-// from its axis. By angle from the v axis they are (1, 0), (C, 1) .. (2, 1), (1, 1) .. (1, R), (0, 1);
-// on a square map that is (1, 0), (2, 1), (1, 1), (1, 2), (0, 1), the set this sweep was built with.
-// Proof that no path is longer than the straight line, for every lattice point p of the closed
-// quadrant: (i) any two neighbouring moves x, y form a unimodular pair (|det| = 1: (1, 0) and (C, 1),
-// (k + 1, 1) and (k, 1), (1, k) and (1, k + 1), (1, R) and (0, 1)), and p lies in the cone of one
-// such pair, so p = a x + b y with integers a, b >= 0 - a path of moves that never leaves the
-// quadrant; (ii) for vectors x, y at angle t, |a x + b y| >= cos(t / 2) (a |x| + b |y|), so with
-// `scale` the cosine of half the widest angle between neighbouring moves (in uv) that path costs
-// at most |p|. The moves are the Hilbert basis of the cones, so none can be left out: on a 16:1 map
-// every (1, k) up to (1, 32) is needed, and the sweep costs a subtraction and a maximum per move and
-// texel - 5 to 6 moves up to 2:1, about twice the aspect beyond. scale stays the square map's 0.973
-// up to 32:1 (LaneSweep.ChamferPathsAreNeverLongerThanTheStraightLine checks (i) and (ii) on the
-// lattice). Without knights only (0, 1), (1, 1), (1, 0) (scale cos 22.5 deg = 0.924 on a square
-// map).
-//
-// Octants (8 sectors) where one side is n times the other: then the uv diagonal between a
-// quadrant's two octants is the move (1, n) (or (n, 1) on a tall map), and it splits the moves in
-// two runs of neighbours: from (1, 0) to the diagonal, without the carry, and from the diagonal to
-// (0, 1), with it. By (i) every lattice point of the closed octant next to v is a combination of two
-// neighbours of the first run, and a path of those never leaves that octant; likewise the second
-// run and the octant next to u; (ii) holds with the same scale. So each octant sweep sees exactly
-// its octant's blockers, passes and fails like a quadrant's and certifies like one. (A square map is
-// n = 1.) Other aspects have no such move (1024 x 1023: the diagonal is (1023, 1024)) and keep
-// quadrant sweeps, whose lanes bound neither octant from above.
-//
-// Why it is conservative. Heights are rounded up for blockers (top) and down for the tested texel
-// (bottom), every step is rounded down, and a saturating subtraction never goes below 0, which only
-// raises the dilation; every blocker of the quadrant within uv distance 1 is reached by a path whose
-// cost is at most its distance. So a lane that passes proves the exact ratio is at least that lane;
-// what is emitted is the lane times (1 - 1e-5), which covers the exact baker's own rounding.
-//
-// Wrap. A texel's blockers reach a whole map beyond the seam. Along a row, a fix-up pass carries the
-// row's end round to its start and stops at the first texel it does not change; the row moves read
-// the row's start again past its end. Across rows, the sweep goes on past the map's last row into a
-// second lap, which re-tests rows until it meets the first lap's values again (the kernel says how
-// that is detected exactly); on the ocean that is about a third of the map.
-//
-// Upper bounds. Every source of a dilation is a real texel, so a lane that fails bounds the exact
-// ratio from above, up to the rounding above and the chamfer's scale: see make_lane_plan. That
-// certifies how loose each ratio may be, so the refinement stages can skip the texels that are
-// already close enough. The rounding weighs against the shortest move (1 / M uv, M the longer side)
-// and matters only for lanes near 1, so the lanes are spaced by what each needs; below the lowest
-// lane, lane_floor's window reaches as far in uv along both axes.
+// Proofs (moves, octants, rounding, wrap): docs/design/bakers.md#bakelane_sweepcpp-the-lane-sweeps
 #include "bake/lane_sweep.h"
 
 #include <tbb/blocked_range.h>

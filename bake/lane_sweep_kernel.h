@@ -1,9 +1,7 @@
-// bake/lane_sweep_kernel.h - the quadrant sweep of lane_sweep.cpp, written once over a lane type.
-//
-// Included by one translation unit per instruction set, after it defines its Ops inside an unnamed
-// namespace; everything here is in that unnamed namespace too and uses no standard-library
-// templates, so that no function compiled for one instruction set is shared with a translation
-// unit built for another.
+// bake/lane_sweep_kernel.h - the quadrant sweep of lane_sweep.cpp, written once over a lane type and
+// included by one translation unit per instruction set after it defines its Ops in an unnamed
+// namespace; all here is in that namespace too and uses no standard-library templates, so no function
+// compiled for one instruction set is shared with a translation unit built for another.
 //
 // Ops provides, for V = 32 unsigned 16-bit lanes:
 //   static V load(const std::uint16_t* p);    p 64-byte aligned

@@ -4,34 +4,13 @@
 // definition, and the relaxed cones); "bilinear" cones hold for the bilinear surface from anywhere in
 // a texel's square and come with an apex height per texel (bake::bake_bilinear_cones' contract).
 //
-// EXR (lossless, for tools and tests): float32 channels `height` (the [0, 1] heights that were
-// baked, 1 = top), for bilinear cones `apex` (H_c), and `cone0` .. `cone{n-1}` (the ratio of sector
-// k, see bake/bake.h), with the attributes displace:sectors (int), displace:address ("wrap" |
-// "clamp"), displace:cones ("center" | "bilinear"), displace:mode ("exact" | "original" |
-// "paper-adaptive" | "budgeted" | "relaxed" | "full"), displace:height_scale = 1 and
-// displace:height_bias = 0 (the height channel is already in [0, 1]).
+// EXR (lossless, for tools and tests): float32 channels height, apex (bilinear cones only) and cone0
+// .. cone{n-1}, with displace:* attributes. PNG (RGBA8; data: load as linear UNORM, straight alpha):
+// ceil(n / 4) cone panels of sqrt(ratio) bytes, one height panel and, for bilinear cones, an apex
+// panel, side by side. The one fact: a PNG stays conservative - ratios are quantized downwards,
+// apexes upwards, and the heights to 8 bits before the bake, so its cones hold for its heights.
 //
-// PNG layout (RGBA, 8 bits per channel, straight alpha; data, not colour: load it as a linear
-// UNORM texture, never sRGB, and do not premultiply):
-//   A W x H cone map with n sectors is stored as P = ceil(n / 4) cone panels followed by one
-//   height panel, side by side: the image is (P + 1) * W wide and H tall, and texel (i, j) of
-//   panel p is pixel (row i, column p * W + j).
-//   - Cone panel p holds sectors 4p, 4p + 1, 4p + 2, 4p + 3 in R, G, B, A as q = the byte of
-//     sqrt(ratio) (Dummer's encoding; it spends the precision on the small ratios that matter),
-//     decoded as ratio = (q / 255)^2. Quantization rounds DOWNWARDS: q is the largest byte with
-//     (q / 255)^2 <= ratio in float arithmetic, so a decoded ratio never exceeds the baked one
-//     and the cone stays conservative; it is at most one step of sqrt(ratio) (1/255) below.
-//   - Channels of a cone panel with no sector (n = 1: G, B, A) are 0, except alpha, which is 255.
-//   - The height panel holds R = round(h * 255), G = B = 0, A = 255.
-//   - Bilinear cones add an apex panel after the height panel (the image is (P + 2) * W wide):
-//     R = the byte of H_c rounded UPWARDS (the smallest q with q / 255 >= H_c in float arithmetic),
-//     G = B = 0, A = 255, decoded as q / 255. A higher apex keeps every cone conservative; it is at
-//     most 1/255 above. Their heights must already be 8-bit values (checked), so the height panel
-//     holds them exactly.
-//   - Text chunks repeat displace:sectors, displace:address, displace:cones and displace:mode.
-//   Because the heights are quantized to 8 bits, `displace bake` with a .png output quantizes the
-//   heights first (h = round(h * 255) / 255) and bakes those, so the stored cones are
-//   conservative for the stored heights, which are what an engine marches against.
+// Layouts in full: docs/design/conventions.md#demoscone_exporth-the-export-layouts
 #pragma once
 
 #include <cstdint>

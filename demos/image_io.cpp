@@ -9,12 +9,9 @@
 // leaves one message per strip), is refused as truncated or corrupt, with the libraries' messages
 // folded into one line (read_failure()).
 //
-// Library noise: libpng, as OpenImageIO 2.4 sets it up (libpng's default error handler), prints
-// "libpng error: ..." on the process's stderr before OpenImageIO records the same error, and
-// OpenImageIO has no setting that stops it. So opens and reads run with file descriptor 2 pointed
-// at an anonymous temporary file (StderrCapture); afterwards fd 2 is put back and what the
-// libraries wrote is folded into the error, or dropped when the read succeeded. A file rather than
-// a pipe: a pipe nobody drains during the read would fill up and block the library's write.
+// Library noise: what libpng prints on stderr during opens and reads is captured in a temporary
+// file (StderrCapture) and folded into the error; why a file, and why at all:
+// docs/design/reliability.md#library-noise-on-stderr-demosimage_iocpp
 #include "demos/image_io.h"
 
 #include <OpenImageIO/filesystem.h>

@@ -8,8 +8,7 @@
 //             rmse <= target                                                        bake.csv
 //   frame     the frame pipeline's water scene at several frame budgets: each frame's error
 //             against the reference rendered from the same heights, and the stage split   frame.csv
-//   heatmaps  iterations per pixel of the searching methods on one view             heatmap_*.png,
-//   heatmaps.csv
+//   heatmaps  iterations per pixel of the searching methods on one view   heatmap_*.png, heatmaps.csv
 //
 // The one fact to know: every number comes from a render compared with the exact reference of the
 // same heights and view (render::compare, 8-bit units), so a method's curve is its error, not its

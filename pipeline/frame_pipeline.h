@@ -4,26 +4,15 @@
 //
 // Stages, each a function a test can call alone: simulate(time) -> bake(budget) -> upload() ->
 // draw(view). run(index) chains them for frame `index` at scene time start + index / fps (double).
-// State made once and kept for the whole run: the source (a HeightSource: sim::Ocean with its FFT
-// plans, or the waves), the map maker (a MapMaker with two slots: the budgeted bilinear baker, the map
-// buffers of two frames in flight), the heights of two frames, the renderer's device maps.
+// State made once and kept for the whole run: the source (a HeightSource), the map maker (a MapMaker
+// with two slots), the heights of two frames, the renderer's device maps.
 //
-// Budget: the bake gets what the frame budget leaves after the other stages of the previous frame,
-// through the scene's clock; a work budget (scene.bake_work) or none keeps every frame reproducible
-// from its index alone (each frame's first stage completed, refined within the work), so frames can
-// be rendered in any order and on any machine. A wall-clock budget is real-time use:
-// - a static source carries refinement over from frame to frame;
-// - heights that change make each frame's cone map whole (its first stage always completes), or,
-//   with scene.cone_lag_frames = N > 0, lagged cone maps (cone methods but relaxed; MapMaker with
-//   ConeSchedule::lag_frames): the baker's first stage runs in steps (bake::BilinearBaker::begin /
-//   advance) on the heights of the frame it began on, spread over at most N + 1 frames - each frame
-//   runs steps until an even share of the stage is done (BilinearBaker::first_stage_done) and more
-//   while the bake's share of the budget lasts - and each frame serves the map made last with every
-//   apex raised by the most any texel rose since (FrameRecord::cone_lag, cone_lift), which keeps
-//   every cone conservative for the frame's own heights. A share that fits the whole stage still
-//   gives each frame its own map; a smaller one costs the renderer steps instead of the bake time
-//   (raised apexes are looser cones): a map is at most 2N frames old. The first frame makes its map
-//   whole.
+// Budget: the bake gets what the frame budget leaves after the other stages of the previous frame. A
+// work budget (scene.bake_work) or none makes every frame reproducible from its index alone; a
+// wall-clock budget is real-time use (refinement carried over on a static source; with
+// scene.cone_lag_frames = N > 0 lagged cone maps, every cone conservative, a map at most 2N frames old).
+//
+// In full: docs/design/pipeline.md#pipelineframe_pipelineh-the-frame-budget
 #pragma once
 
 #include <cstdint>

@@ -4,11 +4,9 @@
 // "who makes the maps" from them. The frame pipeline and one-off commands both use it.
 //
 // State made once (sim::Ocean with its FFT plans, the waves, the mapping) and kept; make() writes
-// into a HeightFrame the caller keeps (one per frame in flight), reusing its memory: no allocation
-// per frame once each frame has been made into at its size (height images excepted: the loader's).
-// Versions: each make() of moving heights draws a new version (next_map_version); a static source
-// (bricks, cliff, one image) gives every frame the same heights under one version, so that a map
-// maker sees them as the same heights, and make() into a frame that holds them does nothing.
+// into a HeightFrame the caller keeps (one per frame in flight), reusing its memory. Moving heights
+// draw a new version per make(); a static source keeps one, and make() into a frame that holds it
+// does nothing. Allocation and versions: docs/design/pipeline.md#pipelineheight_sourceh-the-source-switch
 //
 //   pipeline::HeightSource source(pipeline::source_settings(scene), pipeline::scene_effects(scene));
 //   pipeline::HeightFrame heights;

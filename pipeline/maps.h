@@ -6,15 +6,12 @@
 // Conventions: maps are made the first time a method needs them (render::map_needs) and kept, with
 // their version, for as long as the heights keep theirs; new heights bump every version and drop what
 // was baked for the old ones. Cone maps come from bake::BilinearBaker within the cone budget
-// (conservative at any budget: a starved bake costs cone steps, never a wrong hit). State kept between
-// frames: one BilinearBaker per sector count (kept while the map size and address stay, its refinement
-// queue and its lagged first stage with them), and the maps of each frame in flight (slots).
+// (conservative at any budget: a starved bake costs cone steps, never a wrong hit).
 //
 // Two ways in. One-off: set_heights() then maps(needs) (slot 0, the cone budget of set_cone_budget).
 // Per frame: make(slot, heights, needs, schedule) with the frame's heights, its cone budget and how
 // cones carry over between frames (ConeSchedule: refinement of unchanged heights, lagged maps).
-// MapHeights is the seam: FramePipeline hands a HeightSource's frame to make() through it, so a
-// device path can replace who makes the heights, or who makes the maps, each on its own.
+// State kept between frames, and MapHeights as the seam: docs/design/pipeline.md#pipelinemapsh-the-map-maker
 #pragma once
 
 #include <array>

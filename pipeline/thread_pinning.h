@@ -5,7 +5,8 @@
 // loop showed TBB's worker, woken for the sim after sleeping through the render, queued behind its
 // waker on the busy CPU while the other CPU sat idle, and the two sharing one CPU in 3-4 ms slices:
 // the sim or the bake at one core's speed, lavapipe's two rasterizer threads likewise - the frames
-// that make the p95. With each thread on its own CPU that cannot happen (README, "Figures").
+// that make the p95. With each thread on its own CPU that cannot happen
+// (docs/design/pipeline.md#two-cores-what-the-frame-loop-can-and-cannot-reach).
 #pragma once
 
 #include <memory>

@@ -4,44 +4,15 @@
 // true-displacement reference, on the same camera and the same shading, so that differences in the
 // pictures come only from the hit points.
 //
-// Geometry and camera (normative: the tests and the README use exactly these)
-// - World is z-up. The plane surface covers world x in [0, 1] (texture u) and y in [0, 1] (texture v);
-//   `tile` K repeats the texture K times over it, so texture coordinates run over [0, K].
-// - The base polygon is the TOP of the relief: height 1 lies on the polygon (z = 0), height 0 lies
-//   `depth_scale` D below it. Heights are bilinearly interpolated between texel centres with the
-//   bake's address mode (bake/bake.h has the texel conventions).
-// - The camera looks from `eye` at `look_at`, `up` gives the image's up direction, `fov_y_degrees` is
-//   the full vertical field of view. Pixel (px, py) is sampled at its centre; image row 0 is the top.
-// - Methods trace in texture space (u, v, h): a world direction d becomes (du, dv, dh) through the
-//   tangent frame (dP/du, dP/dv, D * N), so that ray parameters are world distances.
-// - Shading is the same for every method: a procedural grid albedo, Lambert + Blinn-Phong with one
-//   directional light, the normal taken from the height field at the hit.
-//
-// Quadric surfaces (View::surface; Patterson, Hoggar & Logie, "Inverse Displacement Mapping", 1991).
-// R = View::radius, D = depth_scale, K = tile. Every quadric's axis is the vertical line
-// x = y = 0.5; u = K phi / (2 pi) with phi = atan2(y - 0.5, x - 0.5) in [0, 2 pi) (u wraps around the
-// axis). The outer surface is height 1 (the base surface, as the plane's polygon is); a point at
-// height h lies (1 - h) D inward along the outer surface's normal from its foot point (u, v).
-// - sphere: centre (0.5, 0.5, 0), radius R; v = K theta / pi, theta the angle from the -z pole (the
-//   south pole is v = 0, the north pole v = K). The inner surface is the sphere of radius R - D.
-// - cylinder: radius R, z in [-R, R]; v = K (z + R) / (2 R). Inner surface: radius R - D.
-// - cone: apex (0.5, 0.5, 1.5 R), half-angle atan(1/2) (radius (1.5 R - z) / 2), from z = -R/2
-//   (radius R) up to z = R/2 (radius R/2); v = K (z + R/2) / R of the foot point. The inner surface
-//   is the same cone with its apex D / sin(half-angle) lower.
-// - (dP/du, dP/dv, N) is right-handed with N outward, like (x, y, z) on the plane, so v grows with z.
-// - The relief is seen through the outer surface only: a ray is traced from where it enters the
-//   outer surface (the eye must be outside the quadric), and only if it enters within the finite
-//   part (v in [0, K]); its hit must stay in that part (caps are not drawn). It ends where it enters
-//   the inner surface (it has hit the relief by then) or leaves the outer one (a miss).
-// - Address modes: u always wraps around the axis; Address::clamp clamps v only (each pole of the
-//   sphere, each end of the cylinder and cone takes its edge row). Cone maps are baked with wrap
-//   for quadrics, which is conservative for a clamped v as well.
-// - D must be at most R / 2. Methods that do not support quadrics are refused (supports_surface).
-// - `reference` on a quadric is the height field tessellated at one vertex per texel centre (plus
-//   the seam and the poles), displaced along the normal and rasterized: the tessellated surface
-//   itself, without the plane reference's snap to the bilinear surface.
-// - Shadows: the light ray from the hit is searched with the frame's method from where it leaves the
-//   outer surface back to the hit; passing through the inner solid is a shadow too (the terminator).
+// Geometry and camera (normative; in full, with shading and the quadric surfaces of View::surface:
+// docs/design/conventions.md#renderrenderh-the-renderers-geometry)
+// - World is z-up; the plane covers x, y in [0, 1] (texture u, v), `tile` K repeats the texture K
+//   times. Height 1 lies on the base polygon (z = 0), height 0 `depth_scale` D below; heights are
+//   bilinear between texel centres with the bake's address mode (bake/bake.h).
+// - The camera looks from `eye` at `look_at`, `up` gives the image's up, `fov_y_degrees` the full
+//   vertical field of view; pixels are sampled at their centres, image row 0 is the top.
+// - Methods trace in texture space (u, v, h) through the tangent frame (dP/du, dP/dv, D * N), so ray
+//   parameters are world distances.
 #pragma once
 
 #include <vulkan/vulkan_core.h>

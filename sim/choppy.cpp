@@ -23,7 +23,7 @@ namespace {
 // taken on their bits, samples stored to a local array, and no trapping math (sim/CMakeLists.txt);
 // one thing missing and the loop stays scalar (-fopt-info-vec shows it). The arithmetic is the
 // scalar bilinear sample's, in the same order, so the heights and the extra channel are the same
-// bit for bit (tests/sim_test.cpp checks them against one); the residual is the largest in float.
+// bit for bit (tests/sim/choppy_test.cpp checks them against one); the residual is the largest in float.
 constexpr int block = 64;
 constexpr int row_group = 16;  // rows resampled in order, the first from x, the others warm
 

@@ -11,10 +11,8 @@
 // - Choppy displacement is D = lambda sum i k/|k| h~ exp(i k.x): Tessendorf's -i k/|k| with the sign of
 //   lambda flipped, so that a positive choppiness sharpens crests as Gerstner waves do (and the Jacobian
 //   drops below 1 at crests, where foam belongs).
-// - Spectra are per-mode variances P(k) = E|h0(k)|^2. Phillips: A exp(-1/(k L_w)^2) / k^4 exp(-k^2 l^2)
-//   times pi D_s(theta), which integrates over directions to pi like Tessendorf's |k.w|^2 (for s = 1 it
-//   is (1 + cos theta) / 2). JONSWAP (Hasselmann et al. 1973, fetch-limited): S(w) dw/dk D_s(theta) / k
-//   dk^2 / 2, so the expected variance sum_k E|h~|^2 matches the integral of S(w).
+// - Spectra are per-mode variances P(k) = E|h0(k)|^2 (Phillips; JONSWAP, Hasselmann et al. 1973):
+//   docs/design/sim.md#the-fft-oceans-spectra-simfft_oceancpp
 #include <fftw3.h>
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>

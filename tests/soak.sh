@@ -9,7 +9,7 @@
 #     end of the warm-up to the end of the run.
 #
 # usage: tests/soak.sh DISPLACE_BINARY [FRAMES (default 1000)] [MAX_GROWTH_KB (default 1024)]
-# ctest runs it with 1000 frames; the README's figure is a run with 10000.
+# ctest runs it with 1000 frames; docs/figures.md (Reliability and the test suite) has a run of 10000.
 set -euo pipefail
 
 binary="${1:?usage: tests/soak.sh DISPLACE_BINARY [FRAMES] [MAX_GROWTH_KB]}"

@@ -4,7 +4,7 @@
 // Geometry only (no texture reads), so the vertex shaders include it too; the including shader
 // declares `frame` and the SURFACE specialization constant.
 //
-// Geometry (normative; render/render.h and the README say the same). R = frame.quadric.x,
+// Geometry (normative; render/render.h and docs/design/conventions.md say the same). R = frame.quadric.x,
 // D = depth scale, K = tile. Every axis is the vertical line x = y = 0.5; phi = atan2(y - 0.5,
 // x - 0.5) in [0, 2 pi) and u = K phi / (2 pi) on all three.
 // - sphere: centre (0.5, 0.5, 0); v = K theta / pi, theta the angle from the -z pole (v = 0 at the
