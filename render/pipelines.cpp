@@ -22,7 +22,8 @@
 #include "spirv/quadric_reference_vert.h"
 #include "spirv/reference_vert.h"
 #include "spirv/relief_vert.h"
-#include "spirv/surface_frag.h"
+#include "spirv/surface_planar_frag.h"
+#include "spirv/surface_quadric_frag.h"
 
 namespace displace::render {
 namespace {
@@ -252,7 +253,10 @@ void Renderer::Impl::create_render_pass() {
 
   relief_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_relief_vert));
   reference_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_reference_vert));
-  surface_fragment = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_frag));
+  planar_fragment =
+      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_planar_frag));
+  quadric_fragment =
+      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_quadric_frag));
   quadric_proxy_vertex =
       OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
   quadric_reference_vertex =
@@ -289,7 +293,7 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
   stages[0].pName = "main";
   stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-  stages[1].module = surface_fragment.get();
+  stages[1].module = quadric ? quadric_fragment.get() : planar_fragment.get();
   stages[1].pName = "main";
   stages[1].pSpecializationInfo = &specialization;
 

@@ -1,7 +1,9 @@
 // render/shaders/root_search.inc.glsl - the root searches shared by the plane (and meshes) and the
 // quadrics: linear search with its refinements (pom, relief, interval), cone stepping (csm, acm) and
-// the bracket after it (acm4-interval). Written once against a surface, which the SURFACE
-// specialization constant selects. Included by methods.inc.glsl after fetch_height, cone_sector,
+// the bracket after it (acm4-interval). Written once against a surface: SEARCH_PLANAR, a
+// preprocessor constant, chooses its family (the fragment shader is built once for each,
+// render/CMakeLists.txt: a module holds no code of the other), the SURFACE specialization constant
+// the surface within it. Included by methods.inc.glsl after fetch_height, cone_sector,
 // crossing_fraction, the tuning constants and the plane's cell steps.
 //
 // The surface interface. A search follows a ray through the relief along a parameter t in
@@ -50,15 +52,24 @@ struct ConeMarch {
   ivec2 cell;
 };
 
-const bool planar_search = SURFACE == SURFACE_PLANE || SURFACE == SURFACE_MESH;
-const bool march_reads_gap = !planar_search;
-
+#ifndef SEARCH_PLANAR
+#error "SEARCH_PLANAR: 1 for the plane and meshes, 0 for the quadrics"
+#endif
+#if SEARCH_PLANAR
+const bool planar_search = true;
+#else
+const bool planar_search = false;
 #include "quadric_march.inc.glsl"
+#endif
+const bool march_reads_gap = !planar_search;
 
 // The texture-space point (u, v, h) of the ray at t.
 vec3 search_point(SearchRay ray, float t) {
-  if (planar_search) return ray.origin + t * ray.direction;
+#if SEARCH_PLANAR
+  return ray.origin + t * ray.direction;
+#else
   return quadric_point(ray, t);
+#endif
 }
 
 // The ray-minus-surface height at t: one counted fetch.
@@ -69,8 +80,11 @@ float search_gap(SearchRay ray, float t) {
 
 // The most height the ray can lose per unit t from t on (planar: exactly 1).
 float search_descent_rate(SearchRay ray, float t) {
-  if (planar_search) return 1.0;
+#if SEARCH_PLANAR
+  return 1.0;
+#else
   return quadric_descent_rate(ray, t);
+#endif
 }
 
 // One height unit in t along the surface's normal (planar: 1; quadric: the depth scale D).
@@ -149,8 +163,11 @@ float secant_refine(SearchRay ray, Bracket b, int refine) {
 // The safe cone step from t (never into the relief) and `stall`, the step below which the march
 // takes the surface's fallback step instead.
 float safe_cone_step(SearchRay ray, float t, int sectors, out float stall) {
-  if (planar_search) return plane_safe_cone_step(ray.origin, ray.direction, t, sectors, stall);
+#if SEARCH_PLANAR
+  return plane_safe_cone_step(ray.origin, ray.direction, t, sectors, stall);
+#else
   return quadric_safe_cone_step(ray, t, sectors, stall);
+#endif
 }
 
 // Moves the march on to t; the point it leaves is the last one read above the surface.
@@ -164,14 +181,15 @@ void march_to(inout ConeMarch m, float t) {
 // Where cones stall: planar, an exact cell step (returns true on the crossing; without one the ray
 // moves on to the cell's exit); quadric, a linear step of `stall`.
 bool fallback_step(SearchRay ray, float stall, inout ConeMarch m) {
-  if (planar_search) {
-    if (!m.walking) m.cell = cell_at(ray.origin, ray.direction, m.t);
-    m.walking = true;
-    m.t = cell_step(ray.origin, ray.direction, m.t, m.cell, m.exact);
-    return m.exact;
-  }
+#if SEARCH_PLANAR
+  if (!m.walking) m.cell = cell_at(ray.origin, ray.direction, m.t);
+  m.walking = true;
+  m.t = cell_step(ray.origin, ray.direction, m.t, m.cell, m.exact);
+  return m.exact;
+#else
   march_to(m, min(m.t + stall, ray.t_end));
   return false;
+#endif
 }
 
 // Cone stepping (Dummer; Chen & Chuang's anisotropic cones with `sectors` > 1): from a point at gap g

@@ -116,16 +116,12 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_worl
   out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
 }
 
-#include "quadric_trace.inc.glsl"
+#if SEARCH_PLANAR
 #include "mesh.inc.glsl"
 
 void main() {
   if (SURFACE == SURFACE_MESH) {
     mesh_fragment();
-    return;
-  }
-  if (SURFACE != SURFACE_PLANE) {
-    quadric_fragment();
     return;
   }
   vec3 d = pixel_direction();
@@ -158,3 +154,8 @@ void main() {
   if (any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)))) discard;
   write_hit(hit, tangent_frame, d, normal, entry.world, entry.texture);
 }
+#else
+#include "quadric_trace.inc.glsl"
+
+void main() { quadric_fragment(); }
+#endif
