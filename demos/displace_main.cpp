@@ -12,7 +12,6 @@
 
 #include "bake/bake.h"
 #include "demos/cli/command.h"
-#include "demos/cli/flags.h"
 #include "demos/error.h"
 
 namespace {

@@ -5,18 +5,24 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <functional>
 #include <span>
 
-#include "demos/cli/flags.h"
 #include "demos/error.h"
 #include "pipeline/height_source.h"
 
 namespace displace::app {
-namespace {
 
-using cli::lower_extension;
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return extension;
+}
+
+namespace {
 
 // Blue -> cyan -> green -> yellow -> red over [0, maximum]: the iterations heatmap (as in Figure 5 of
 // Risser et al.'s interval mapping paper). Pixels off the relief stay black.

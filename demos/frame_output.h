@@ -22,6 +22,9 @@ struct AovOutput {
 // The render outputs (render::Output bits) the colour and these AOVs read back.
 unsigned frame_outputs(const std::vector<AovOutput>& aovs);
 
+// The extension of a path, lower-cased (".png"): what chooses an output's format.
+std::string lower_extension(const std::filesystem::path& path);
+
 // A rendered frame's colour to .png (8-bit) or .exr (float RGBA), and one AOV (AovOutput's formats).
 void write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
                        const Metadata& metadata);

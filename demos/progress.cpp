@@ -14,11 +14,11 @@ namespace {
 constexpr double show_after_seconds = 1.0;  // seconds: a bake shorter than this shows nothing
 constexpr double redraw_seconds = 0.1;      // seconds between redraws at most (the last one is always drawn)
 
+}  // namespace
+
 double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
-}  // namespace
 
 ProgressLine::ProgressLine(std::ostream& stream, bool terminal, std::string what, Clock clock)
     : stream_(stream), terminal_(terminal), what_(std::move(what)), clock_(std::move(clock)) {

@@ -15,6 +15,9 @@
 
 namespace displace::app {
 
+// Seconds on the steady clock (for intervals: its epoch is arbitrary).
+double steady_seconds();
+
 class ProgressLine {
  public:
   using Clock = std::function<double()>;  // seconds; a steady clock when empty (tests inject one)

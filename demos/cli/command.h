@@ -10,13 +10,16 @@
 // memory, work that fails).
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <any>
 #include <functional>
 #include <iosfwd>
 #include <span>
 #include <string>
 #include <string_view>
+
+namespace CLI {
+class App;  // CLI11's, included by the files that register flags (a third of a minute to compile under ASan)
+}
 
 namespace displace::app {
 
@@ -44,5 +47,13 @@ std::string overview();
 
 // Whether `word` names a command.
 bool is_command(std::string_view word);
+
+namespace cli {
+// A library's message in the command line's words: each field a library names (View::tile,
+// MethodSettings::steps, "MapSet::width x MapSet::height", ...) becomes the flag that sets it
+// (--tile, --steps, --map-size). The libraries name their own fields (issue 30); this is the one
+// table that maps them to flags.
+std::string flag_words(std::string_view message);
+}  // namespace cli
 
 }  // namespace displace::app

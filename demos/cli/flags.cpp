@@ -11,19 +11,13 @@
 #include <limits>
 #include <stdexcept>
 
+#include "demos/cli/command.h"
 #include "demos/error.h"
 #include "demos/memory.h"
 
 namespace displace::app::cli {
 
 std::string in_quotes(std::string_view text) { return fmt::format("'{}'", text); }
-
-std::string lower_extension(const std::filesystem::path& path) {
-  std::string extension = path.extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return extension;
-}
 
 namespace {
 

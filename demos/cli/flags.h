@@ -37,8 +37,6 @@ struct Range {
 };
 
 std::string in_quotes(std::string_view text);
-// The extension of a path, lower-cased (".png").
-std::string lower_extension(const std::filesystem::path& path);
 
 // Parsing: a whole text as one number; nothing otherwise.
 std::errc read_number(std::string_view text, long long& value);
@@ -128,16 +126,6 @@ void set_up(CLI::App& app);
 std::string translate(const CLI::App& app, const CLI::ParseError& error);
 // The first argument no flag took, as a usage error.
 void reject_extras(const CLI::App& app);
-
-}  // namespace displace::app::cli
-
-namespace displace::app::cli {
-
-// A library's message in the command line's words: each field a library names (View::tile,
-// MethodSettings::steps, "MapSet::width x MapSet::height", ...) becomes the flag that sets it
-// (--tile, --steps, --map-size). The libraries name their own fields (issue 30); this is the one
-// table that maps them to flags.
-std::string flag_words(std::string_view message);
 
 }  // namespace displace::app::cli
 

@@ -185,8 +185,7 @@ Finish add_bake_command(CLI::App& command) {
     settings.scene = cli::finish_scene(command, draft->scene);
     choose_baker(command, *draft, settings);
     settings.output = draft->output;
-    settings.output_format =
-        cli::lower_extension(settings.output) == ".png" ? ImageFormat::png : ImageFormat::exr;
+    settings.output_format = lower_extension(settings.output) == ".png" ? ImageFormat::png : ImageFormat::exr;
     return ParsedCommand{"bake", settings, [settings](std::ostream& out) { run_bake(settings, out); }};
   };
 }

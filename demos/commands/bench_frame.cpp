@@ -34,10 +34,6 @@
 namespace displace::app {
 namespace {
 
-double seconds_now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 // The resident memory of this process (VmRSS of /proc/self/status), kilobytes; -1 where there is none.
 long long resident_kilobytes() {
   std::FILE* status = std::fopen("/proc/self/status", "r");
@@ -88,7 +84,7 @@ BenchSamples run_bench_frames(const BenchFrameSettings& settings, render::Render
   double last_done = 0.0;
   long long seen = 0;
   auto take = [&](const pipeline::FrameRecord& record) {
-    const double now = seconds_now() * 1e3;
+    const double now = steady_seconds() * 1e3;
     if (seen == settings.warm_up) {
       samples.allocations_after_warm_up = renderer.memory_allocations();
       samples.rss_after_warm_up = resident_kilobytes();

@@ -173,7 +173,7 @@ constexpr int max_report_image_side = 2048;  // --size of `displace report`
 // A --scene of report: a built-in scene, a TOML file, or a height image as a scene of its own (a
 // user's map is rarely a tile: clamped at its edges).
 pipeline::Scene report_scene(const std::string& word, bool invert) {
-  const std::string extension = cli::lower_extension(std::filesystem::path(word));
+  const std::string extension = lower_extension(std::filesystem::path(word));
   const std::vector<std::string> names = pipeline::builtin_scene_names();
   if (extension == ".toml" || std::find(names.begin(), names.end(), word) != names.end()) {
     return cli::named_scene(word);

@@ -33,10 +33,6 @@
 namespace displace::app {
 namespace {
 
-double seconds_now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 bool on_path(const std::string& program) {
   const char* path = std::getenv("PATH");
   if (!path) return false;
@@ -170,7 +166,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   const std::filesystem::path csv_path = csv_file(settings);
   std::string csv = sequence_csv_header;
   const bool terminal = stderr_is_terminal();
-  const double start = seconds_now();
+  const double start = steady_seconds();
   render::Frame frame;
   std::vector<std::vector<std::uint8_t>> preview;
   long long done = 0, skipped = 0;
@@ -194,7 +190,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
     }
     csv += sequence_csv_row(n, record);
     ++done;
-    const double rate = double(done) / std::max(seconds_now() - start, 1e-9);
+    const double rate = double(done) / std::max(steady_seconds() - start, 1e-9);
     report_sequence_progress(out, terminal, n, done + skipped, frames.size(), rate, record, picture);
   }
   if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
@@ -218,7 +214,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
       scene.name, render::method_info(scene.method).name, settings.first, settings.last, settings.step,
       settings.shard_count > 1 ? fmt::format(", shard {}/{}", settings.shard_index, settings.shard_count)
                                : std::string(),
-      done, skipped, seconds_now() - start, renderer.device().name);
+      done, skipped, steady_seconds() - start, renderer.device().name);
   if (done > 0) out << "  per-frame stage times: " << csv_path.string() << '\n';
   if (settings.renderer.validate && renderer.validation_messages() > 0) {
     throw runtime_error(

@@ -168,7 +168,7 @@ void declare_sweep_flags(CLI::App& command, SweepDraft& draft) {
   command.add_option("--output", draft.output, "the table")
       ->type_name("FILE.csv")
       ->check(cli::text_check([](const std::string& text) {
-        return cli::lower_extension(std::filesystem::path(text)) == ".csv"
+        return lower_extension(std::filesystem::path(text)) == ".csv"
                    ? std::string()
                    : std::string("of 'displace sweep' must end in .csv");
       }))
