@@ -27,4 +27,11 @@ struct AppError : std::runtime_error {
 inline AppError usage_error(const std::string& message) { return AppError(ErrorKind::usage, message); }
 inline AppError runtime_error(const std::string& message) { return AppError(ErrorKind::runtime, message); }
 
+// Under --validate, a run that drew validation messages (printed as they came) fails once its work
+// is done: a runtime error that counts them.
+inline void require_no_validation_messages(bool validate, long long messages) {
+  if (validate && messages > 0)
+    throw runtime_error(std::to_string(messages) + " Vulkan validation messages (printed above)");
+}
+
 }  // namespace displace::app

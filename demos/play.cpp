@@ -308,10 +308,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     throw runtime_error(
         fmt::format("the window was closed after {} of the {} frames asked for", index, settings.frames));
   }
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) +
-                        " Vulkan validation messages (printed above)");
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
   print_play_summary(out, settings, scene, index, record, warm_allocations, settled_allocations);
 }
 

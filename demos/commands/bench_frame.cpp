@@ -250,10 +250,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
     });
     out << "  wrote " << settings.json.string() << '\n';
   }
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(
-        fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 }
 
 Finish add_bench_frame_command(CLI::App& command) {

@@ -89,10 +89,7 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
         "(8-bit units)\n",
         error.rmse, error.max_error, 100.0 * error.fraction_over_10, error.pixels);
   }
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) +
-                        " Vulkan validation messages (printed above)");
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 }
 
 Finish add_render_command(CLI::App& command) {

@@ -118,10 +118,7 @@ void run_report(const ReportSettings& settings, std::ostream& out) {
   timed("bake", [&] { bake_part(renderer, main, plan, settings.output, out); });
   timed("frame", [&] { frame_part(renderer, plan, settings.output, out); });
   timed("heatmaps", [&] { heatmap_part(renderer, maps, main, plan, settings.output, out); });
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) +
-                        " Vulkan validation messages (printed above)");
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 
   // what the plots and the README say about how the data was made
   nlohmann::json json;

@@ -216,10 +216,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                                : std::string(),
       done, skipped, steady_seconds() - start, renderer.device().name);
   if (done > 0) out << "  per-frame stage times: " << csv_path.string() << '\n';
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(
-        fmt::format("{} Vulkan validation messages (printed above)", renderer.validation_messages()));
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 }
 
 Finish add_sequence_command(CLI::App& command) {

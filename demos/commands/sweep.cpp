@@ -84,10 +84,7 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
     }
   }
   out << "  wrote " << settings.output.string() << '\n';
-  if (settings.renderer.validate && renderer.validation_messages() > 0) {
-    throw runtime_error(std::to_string(renderer.validation_messages()) +
-                        " Vulkan validation messages (printed above)");
-  }
+  require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 }
 
 namespace {
