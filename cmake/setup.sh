@@ -34,8 +34,20 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 jobs="$(nproc 2>/dev/null || echo 2)"
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build" -j "$jobs"
+
+# how long a part took, for the README's account of the CI run
+timed() {
+  local started=$SECONDS
+  "$@"
+  echo "setup: $1 took $(( (SECONDS - started) / 60 )) min $(( (SECONDS - started) % 60 )) s"
+}
+
+# The Release build in build/, which every mode uses.
+run_build() {
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" -j "$jobs"
+}
+timed run_build
 
 # Every tracked C++ file as Debian's clang-format writes it under .clang-format.
 run_format_check() {
@@ -137,12 +149,6 @@ run_tsan() {
   fi
 }
 
-# how long a part took, for the README's account of the CI run
-timed() {
-  local started=$SECONDS
-  "$@"
-  echo "setup: $1 took $(( (SECONDS - started) / 60 )) min $(( (SECONDS - started) % 60 )) s"
-}
 
 case "$mode" in
   build) ;;
