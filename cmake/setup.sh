@@ -149,7 +149,6 @@ run_tsan() {
   fi
 }
 
-
 case "$mode" in
   build) ;;
   main)

@@ -55,13 +55,11 @@ struct ConeMarch {
 #ifndef SEARCH_PLANAR
 #error "SEARCH_PLANAR: 1 for the plane and meshes, 0 for the quadrics"
 #endif
-#if SEARCH_PLANAR
-const bool planar_search = true;
-#else
-const bool planar_search = false;
+const bool planar_search = SEARCH_PLANAR != 0;
+const bool march_reads_gap = !planar_search;
+#if !SEARCH_PLANAR
 #include "quadric_march.inc.glsl"
 #endif
-const bool march_reads_gap = !planar_search;
 
 // The texture-space point (u, v, h) of the ray at t.
 vec3 search_point(SearchRay ray, float t) {
