@@ -43,6 +43,28 @@ find_program(GLSLANG_VALIDATOR glslangValidator)
 if(NOT GLSLANG_VALIDATOR)
   message(FATAL_ERROR "glslangValidator not found: install the Debian package 'glslang-tools'")
 endif()
+# the device path's FFTs: VkFFT (header only), which compiles its kernels with glslang's library
+displace_require_package(glslang glslang-dev CONFIG)
+find_path(VKFFT_INCLUDE_DIR vkFFT.h)
+if(NOT VKFFT_INCLUDE_DIR)
+  message(FATAL_ERROR "vkFFT.h not found: install the Debian package 'libvkfft-dev'")
+endif()
+# VkFFT 1.2.26 (Debian 12) initialises glslang's resource table for glslang 11, and glslang 12 added
+# nine mesh-shader limits (the *_ext fields) before the last one: as C++ the header does not compile
+# (and as C it fails on `= {}` for handles). The build uses a copy with the nine values added where
+# glslang has them (glslang's own defaults); a header that needs no fix is used as it is.
+set(DISPLACE_VKFFT_INCLUDE_DIR ${VKFFT_INCLUDE_DIR})
+file(READ ${VKFFT_INCLUDE_DIR}/vkFFT.h vkfft_header)
+find_path(GLSLANG_C_INTERFACE_DIR glslang/Include/glslang_c_interface.h)
+file(READ ${GLSLANG_C_INTERFACE_DIR}/glslang/Include/glslang_c_interface.h glslang_interface)
+set(vkfft_last_limit "/* .maxDualSourceDrawBuffersEXT = */ 1,")
+if(glslang_interface MATCHES "max_mesh_output_vertices_ext" AND NOT vkfft_header MATCHES "maxMeshOutputVerticesEXT")
+  string(REPLACE "${vkfft_last_limit}"
+         "/* mesh limits of glslang 12, added by displace */ 256, 256, 128, 128, 128, 128, 128, 128, 4,\n${vkfft_last_limit}"
+         vkfft_header "${vkfft_header}")
+  file(WRITE ${CMAKE_BINARY_DIR}/vkfft/vkFFT.h "${vkfft_header}")
+  set(DISPLACE_VKFFT_INCLUDE_DIR ${CMAKE_BINARY_DIR}/vkfft)
+endif()
 
 if(DISPLACE_TESTS)
   displace_require_package(GTest libgtest-dev CONFIG)

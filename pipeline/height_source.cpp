@@ -137,6 +137,33 @@ void HeightSource::State::make_ocean(double time, HeightFrame& out) {
   }
 }
 
+DeviceOceanSetup device_ocean_setup(const SourceSettings& settings, unsigned effects) {
+  if (settings.kind != SourceKind::ocean) throw SceneError("the device path simulates the ocean only");
+  sim::OceanParams params = settings.ocean;
+  params.size = settings.map_size;
+  DeviceOceanSetup setup;
+  try {
+    const sim::Ocean ocean(params);
+    setup.spectrum = ocean.half_spectrum();
+    const sim::HeightMapping mapping = ocean.mapping();
+    setup.view.scale = mapping.scale;
+    setup.view.bias = mapping.bias;
+  } catch (const std::invalid_argument& error) {
+    throw SceneError(std::string("the scene's source: ") + error.what());
+  }
+  setup.view.size = params.size;
+  setup.view.patch_size = params.patch_size;
+  setup.view.choppiness = params.choppiness;
+  setup.view.coefficients = setup.spectrum.coefficients;
+  setup.view.omega = setup.spectrum.omega;
+  setup.view.foam_start = foam_start;
+  setup.view.foam_full = foam_full;
+  setup.device_effects =
+      ((effects & effect_choppy) && params.choppiness > 0.0f ? render::device_choppy : 0u) |
+      ((effects & effect_foam) ? render::device_foam : 0u);
+  return setup;
+}
+
 void HeightSource::make(double time, long long frame_index, HeightFrame& out) {
   State& s = *state_;
   if (s.is_static && s.static_version != 0 && out.version == s.static_version) return;  // made already

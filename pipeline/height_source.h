@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "pipeline/scene.h"
+#include "render/device.h"
 #include "render/render.h"
 #include "sim/sim.h"
 
@@ -96,5 +97,15 @@ class HeightSource {
  private:
   std::unique_ptr<State> state_;
 };
+
+// The ocean of `settings` for the device path (render/device.h): the spectrum sim::Ocean draws, its
+// mapping and the foam thresholds above, and the effects as render::DeviceEffect bits. `view` points
+// into `spectrum`. Throws SceneError unless the source is an ocean.
+struct DeviceOceanSetup {
+  sim::Ocean::HalfSpectrum spectrum;
+  render::OceanSpectrumView view;
+  unsigned device_effects = 0;
+};
+DeviceOceanSetup device_ocean_setup(const SourceSettings& settings, unsigned effects);
 
 }  // namespace displace::pipeline

@@ -83,7 +83,9 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkSampler linear = wrap ? linear_wrap.get() : (quadric ? linear_wrap_u.get() : linear_clamp.get());
   const VkSampler nearest =
       wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
-  const VkDescriptorImageInfo height_info{linear, heights.image.view(), heights.read_layout()};
+  const VkDescriptorImageInfo height_info =
+      heights_from_device ? VkDescriptorImageInfo{linear, device_heights->view(), VK_IMAGE_LAYOUT_GENERAL}
+                          : VkDescriptorImageInfo{linear, heights.image.view(), heights.read_layout()};
   const VkDescriptorImageInfo cone_info{nearest, cone_view,
                                         info.cone_sectors > 0
                                             ? cones[std::size_t(cone_slot(info.cone_sectors))].read_layout()
@@ -93,9 +95,11 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo foam_info{
-      linear, foam.held ? foam.image.view() : dummy_foam.view(),
-      foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo foam_info =
+      foam_from_device
+          ? VkDescriptorImageInfo{linear, device_foam->view(), VK_IMAGE_LAYOUT_GENERAL}
+          : VkDescriptorImageInfo{linear, foam.held ? foam.image.view() : dummy_foam.view(),
+                                  foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -202,7 +206,7 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   const bool water = view.material == Material::water;
   const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) |
                     (view.shadows ? FLAG_SHADOWS : 0) | (has_albedo ? FLAG_ALBEDO : 0) |
-                    (water ? FLAG_WATER : 0) | (water && foam.held ? FLAG_FOAM : 0);
+                    (water ? FLAG_WATER : 0) | (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
   const std::array<float, 4> clear = clear_colour(view);
   uniforms.background = glm::vec4(clear[0], clear[1], clear[2], clear[3]);
@@ -356,7 +360,8 @@ void Renderer::Impl::read_back(const FrameSlot& frame_slot, int slot_index, unsi
 }
 
 void Renderer::Impl::render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs) {
-  if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
+  if (!heights.held && !heights_from_device)
+    throw RenderError("render: no height map was given (Renderer::set_maps)");
   validate_frame(view, method, outputs);
   const MethodInfo& info = method_info(method.method);
   require_maps(map_needs(method.method, view), info);

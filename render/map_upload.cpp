@@ -151,7 +151,7 @@ void validate_cone_sizes(const MapSet& maps) {
 VkDeviceSize validate_map_sizes(const MapSet& maps, const DeviceInfo& device) {
   const int width = maps.width, height = maps.height;
   if (width < 1 || height < 1 || width > max_map_side || height > max_map_side ||
-      maps.heights.size() != std::size_t(width) * std::size_t(height)) {
+      (!maps.heights_on_device && maps.heights.size() != std::size_t(width) * std::size_t(height))) {
     throw RenderError("MapSet::width and MapSet::height must be between 1 and " +
                       std::to_string(max_map_side) + " texels, with one height per texel (got " +
                       size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
@@ -236,6 +236,24 @@ struct Reshaper {
 void reshape_values(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   Renderer::Impl& impl = reshaper.impl;
   const int width = maps.width, height = maps.height;
+  impl.heights_from_device = maps.heights_on_device;
+  impl.foam_from_device = maps.foam_on_device;
+  if (maps.heights_on_device) {
+    if (impl.device_heights == nullptr || int(impl.device_heights->width()) != width ||
+        int(impl.device_heights->height()) != height) {
+      throw RenderError("maps: heights_on_device needs this renderer's DeviceOcean of " +
+                        size_text(width, height) + " texels");
+    }
+    if (maps.foam_on_device && impl.device_foam == nullptr)
+      throw RenderError("maps: foam_on_device needs a DeviceOcean made with device_foam");
+    copies.heights = Copy::none;
+    copies.foam = Copy::none;
+    impl.foam.held = false;
+    return;
+  }
+  if (maps.foam_on_device) {
+    throw RenderError("maps: foam_on_device goes with heights_on_device");
+  }
   copies.heights = copy_kind(impl.heights, impl.heights.width == width && impl.heights.height == height,
                              maps.heights_version, maps.heights_dirty_since, maps.heights_dirty.size());
   if (reshaper.reshape(impl.heights, width, height, 1))
@@ -580,7 +598,8 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
 
 void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info) const {
   const std::string method = std::string("MethodSettings::method ") + info.name;
-  if (!heights.held) throw RenderError("render: no height map was given (Renderer::set_maps)");
+  if (!heights.held && !heights_from_device)
+    throw RenderError("render: no height map was given (Renderer::set_maps)");
   if (needs.cone_sectors > 0) {
     const DeviceMap& map = cones[std::size_t(cone_slot(needs.cone_sectors))];
     const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";

@@ -147,6 +147,10 @@ struct Renderer::Impl {
   DeviceMap max_pyramid;
   DeviceMap distance;
   DeviceMap foam;
+  // device.h: the maps a DeviceOcean writes (GENERAL layout), and whether the last MapSet uses them
+  const Image* device_heights = nullptr;
+  const Image* device_foam = nullptr;
+  bool heights_from_device = false, foam_from_device = false;
   std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again

@@ -134,7 +134,9 @@ int graphics_queue_family(VkPhysicalDevice device) {
   std::vector<VkQueueFamilyProperties> families(count);
   vkGetPhysicalDeviceQueueFamilyProperties(device, &count, families.data());
   for (std::uint32_t i = 0; i < count; ++i) {
-    if (families[i].queueFlags & VK_QUEUE_GRAPHICS_BIT) return int(i);
+    // compute too: the device path's kernels (compute.h) run on the frame's queue
+    const VkQueueFlags needed = VK_QUEUE_GRAPHICS_BIT | VK_QUEUE_COMPUTE_BIT;
+    if ((families[i].queueFlags & needed) == needed) return int(i);
   }
   return -1;
 }

@@ -630,6 +630,21 @@ float Ocean::omega(int i, int j) const {
   return impl_->omega_full[static_cast<std::size_t>(i) * n + j];
 }
 
+Ocean::HalfSpectrum Ocean::half_spectrum() const {
+  const Impl& impl = *impl_;
+  HalfSpectrum spectrum;
+  const std::size_t modes = impl.spectrum_size();
+  spectrum.coefficients.resize(4 * modes);
+  for (std::size_t mode = 0; mode < modes; ++mode) {
+    spectrum.coefficients[4 * mode] = impl.coef_p[mode];
+    spectrum.coefficients[4 * mode + 1] = impl.coef_q[mode];
+    spectrum.coefficients[4 * mode + 2] = impl.coef_r[mode];
+    spectrum.coefficients[4 * mode + 3] = impl.coef_u[mode];
+  }
+  spectrum.omega = impl.omega_half;
+  return spectrum;
+}
+
 long long Ocean::fft_count() const { return impl_->fft_count; }
 
 }  // namespace displace::sim

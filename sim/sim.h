@@ -153,6 +153,16 @@ class Ocean {
   // Angular frequency w(k) = sqrt(g |k|) of the mode at index (i, j).
   float omega(int i, int j) const;
 
+  // The half spectrum evaluate() transforms, for a caller that evaluates it elsewhere (the device
+  // ocean, render/device.h): N x (N/2 + 1) modes, row i (wave numbers along y, unshifted order),
+  // column j (along x), h~(t) = (p c + q s) + i (r c + u s) with (c, s) = (cos, sin)(w t) and the
+  // half-texel shift folded in, so that the inverse FFT gives the heights at the texel centres.
+  struct HalfSpectrum {
+    std::vector<float> coefficients;  // (p, q, r, u) per mode
+    std::vector<float> omega;         // w per mode, rad/s
+  };
+  HalfSpectrum half_spectrum() const;
+
   // Work counter: inverse FFTs executed since construction.
   long long fft_count() const;
 

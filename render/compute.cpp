@@ -1,0 +1,113 @@
+// render/compute.cpp - compute kernels (compute.h).
+#include "render/compute.h"
+
+#include <vector>
+
+namespace displace::render {
+
+ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32_t> spirv,
+                             std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes)
+    : device_(context.device()),
+      bindings_(bindings.begin(), bindings.end()),
+      push_bytes_(push_constant_bytes) {
+  std::vector<VkDescriptorSetLayoutBinding> layout_bindings;
+  std::vector<VkDescriptorPoolSize> sizes;
+  for (std::uint32_t i = 0; i < bindings.size(); ++i) {
+    layout_bindings.push_back({i, bindings[i], 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+    sizes.push_back({bindings[i], 1});
+  }
+  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  set_info.bindingCount = std::uint32_t(layout_bindings.size());
+  set_info.pBindings = layout_bindings.data();
+  VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateDescriptorSetLayout(device_, &set_info, nullptr, &set_layout));
+  set_layout_ = OwnedDescriptorSetLayout(device_, set_layout);
+
+  VkPushConstantRange push{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
+  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  layout_info.setLayoutCount = 1;
+  layout_info.pSetLayouts = &set_layout;
+  layout_info.pushConstantRangeCount = push_constant_bytes > 0 ? 1 : 0;
+  layout_info.pPushConstantRanges = &push;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreatePipelineLayout(device_, &layout_info, nullptr, &layout));
+  layout_ = OwnedPipelineLayout(device_, layout);
+
+  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pool_info.maxSets = 1;
+  pool_info.poolSizeCount = std::uint32_t(sizes.size());
+  pool_info.pPoolSizes = sizes.data();
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateDescriptorPool(device_, &pool_info, nullptr, &pool));
+  pool_ = OwnedDescriptorPool(device_, pool);
+  VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  allocate.descriptorPool = pool;
+  allocate.descriptorSetCount = 1;
+  allocate.pSetLayouts = &set_layout;
+  DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device_, &allocate, &set_));
+
+  VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  module_info.codeSize = spirv.size_bytes();
+  module_info.pCode = spirv.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateShaderModule(device_, &module_info, nullptr, &module));
+  module_ = OwnedShaderModule(device_, module);
+
+  VkComputePipelineCreateInfo pipeline_info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  pipeline_info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  pipeline_info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  pipeline_info.stage.module = module;
+  pipeline_info.stage.pName = "main";
+  pipeline_info.layout = layout;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &pipeline_info, nullptr, &pipeline));
+  pipeline_ = OwnedPipeline(device_, pipeline);
+}
+
+void ComputeKernel::bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset,
+                                VkDeviceSize range) {
+  VkDescriptorBufferInfo info{buffer, offset, range};
+  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  write.dstSet = set_;
+  write.dstBinding = binding;
+  write.descriptorCount = 1;
+  write.descriptorType = bindings_[binding];
+  write.pBufferInfo = &info;
+  vkUpdateDescriptorSets(device_, 1, &write, 0, nullptr);
+}
+
+void ComputeKernel::bind_image(std::uint32_t binding, VkImageView view, VkImageLayout layout,
+                               VkSampler sampler) {
+  VkDescriptorImageInfo info{sampler, view, layout};
+  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  write.dstSet = set_;
+  write.dstBinding = binding;
+  write.descriptorCount = 1;
+  write.descriptorType = bindings_[binding];
+  write.pImageInfo = &info;
+  vkUpdateDescriptorSets(device_, 1, &write, 0, nullptr);
+}
+
+void ComputeKernel::record(VkCommandBuffer commands, std::uint32_t groups_x, std::uint32_t groups_y,
+                           std::uint32_t groups_z, const void* push) const {
+  vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.get());
+  VkDescriptorSet set = set_;
+  vkCmdBindDescriptorSets(commands, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1, &set, 0, nullptr);
+  if (push_bytes_ > 0) {
+    vkCmdPushConstants(commands, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes_, push);
+  }
+  vkCmdDispatch(commands, groups_x, groups_y, groups_z);
+}
+
+void compute_barrier(VkCommandBuffer commands) {
+  VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+  barrier.dstAccessMask =
+      VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT |
+                           VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_VERTEX_SHADER_BIT,
+                       0, 1, &barrier, 0, nullptr, 0, nullptr);
+}
+
+}  // namespace displace::render

@@ -1,0 +1,56 @@
+// render/compute.h - one compute shader as a pipeline with its own descriptor set and push constants:
+// the device path's kernels (the ocean, the cone maps). Internal to render/.
+//
+// A kernel is made once from its SPIR-V and the descriptor types of its bindings 0..n-1 (set 0);
+// bind_*() write its one descriptor set (only while no submitted work uses it), record() binds the
+// pipeline and set, pushes the constants and dispatches. compute_barrier() orders one kernel's writes
+// before the next one's reads.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "render/vulkan_context.h"
+
+namespace displace::render {
+
+class ComputeKernel {
+ public:
+  ComputeKernel() = default;
+  ComputeKernel(const Context& context, std::span<const std::uint32_t> spirv,
+                std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes);
+  ComputeKernel(ComputeKernel&&) noexcept = default;
+  ComputeKernel& operator=(ComputeKernel&&) noexcept = default;
+
+  void bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset = 0,
+                   VkDeviceSize range = VK_WHOLE_SIZE);
+  // A storage image (VK_IMAGE_LAYOUT_GENERAL) or, with a sampler, a combined image sampler.
+  void bind_image(std::uint32_t binding, VkImageView view, VkImageLayout layout = VK_IMAGE_LAYOUT_GENERAL,
+                  VkSampler sampler = VK_NULL_HANDLE);
+  // Dispatches groups (x, y, z) with `push` (push_constant_bytes) as the push constants.
+  void record(VkCommandBuffer commands, std::uint32_t groups_x, std::uint32_t groups_y,
+              std::uint32_t groups_z, const void* push) const;
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  std::vector<VkDescriptorType> bindings_;
+  std::uint32_t push_bytes_ = 0;
+  OwnedDescriptorSetLayout set_layout_;
+  OwnedPipelineLayout layout_;
+  OwnedDescriptorPool pool_;
+  OwnedShaderModule module_;
+  OwnedPipeline pipeline_;
+  VkDescriptorSet set_ = VK_NULL_HANDLE;  // freed with the pool
+};
+
+// Shader writes (storage buffers and images) of the compute work recorded so far made visible to the
+// compute, transfer and fragment/vertex work recorded after it.
+void compute_barrier(VkCommandBuffer commands);
+
+// Groups of `local` invocations that cover `count`.
+inline std::uint32_t group_count(std::uint32_t count, std::uint32_t local) {
+  return (count + local - 1) / local;
+}
+
+}  // namespace displace::render
