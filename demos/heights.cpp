@@ -3,8 +3,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 
 #include "demos/error.h"
@@ -108,22 +110,51 @@ std::string source_name(pipeline::SourceKind kind) {
   return "unknown";
 }
 
-SceneHeights scene_heights(const pipeline::Scene& scene, double time) {
+bool sim_wants_device(const pipeline::Scene& scene) {
+  if (!pipeline::simulates_on_device(scene.source) || scene.sim_backend == pipeline::Backend::cpu)
+    return false;
+  if (scene.sim_backend == pipeline::Backend::device) return true;
+  try {
+    for (const render::DeviceInfo& device : render::list_devices()) {
+      if (pipeline::runs_on_device(scene.sim_backend, device)) return true;
+    }
+  } catch (const render::RenderError&) {
+  }
+  return false;
+}
+
+SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Renderer* device) {
   if (scene.source == pipeline::SourceKind::image) return image_heights(scene);
   const auto start = Clock::now();
   SceneHeights result;
   try {
-    // the heights the renderer samples: choppy crests resampled onto the grid; no foam (nothing reads it)
-    pipeline::HeightSource source(pipeline::source_settings(scene),
-                                  pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam));
-    pipeline::HeightFrame frame;
-    source.make(time, 0, frame);
-    result.width = frame.field.width;
-    result.height = frame.field.height;
-    result.raw.assign(frame.raw.begin(), frame.raw.end());
-    result.heights = frame.field.heights;
-    result.mapping = source.mapping();
-    result.clamped = frame.clamped;
+    if (device && pipeline::simulates_on_device(scene.source)) {
+      // on the device: the same effects, read back
+      sim::HeightMapping mapping;
+      const std::unique_ptr<render::DeviceSim> made = pipeline::make_device_sim(
+          *device, pipeline::source_settings(scene),
+          pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam), &mapping);
+      made->simulate(time);
+      made->read_back(&result.heights, &result.raw, nullptr);
+      result.width = result.height = made->size();
+      result.mapping = mapping;
+      result.clamped = std::size_t(std::count_if(result.raw.begin(), result.raw.end(), [&](float h) {
+        const float mapped = h * mapping.scale + mapping.bias;
+        return !(mapped >= 0.0f && mapped <= 1.0f);
+      }));
+    } else {
+      // the heights the renderer samples: choppy crests resampled onto the grid; no foam (nothing reads it)
+      pipeline::HeightSource source(pipeline::source_settings(scene),
+                                    pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam));
+      pipeline::HeightFrame frame;
+      source.make(time, 0, frame);
+      result.width = frame.field.width;
+      result.height = frame.field.height;
+      result.raw.assign(frame.raw.begin(), frame.raw.end());
+      result.heights = frame.field.heights;
+      result.mapping = source.mapping();
+      result.clamped = frame.clamped;
+    }
   } catch (const pipeline::SceneError& error) {
     throw usage_error(error.what());
   } catch (const std::invalid_argument& error) {
@@ -134,8 +165,10 @@ SceneHeights scene_heights(const pipeline::Scene& scene, double time) {
     if (!std::isfinite(h))
       throw runtime_error("the " + source_name(scene.source) + " source produced a non-finite height");
   }
-  result.description = fmt::format("{} at t = {:g} s (h = {}{})", source_name(scene.source), time,
-                                   mapping_phrase(result.mapping), clamped_phrase(result.clamped));
+  result.description =
+      fmt::format("{} at t = {:g} s{} (h = {}{})", source_name(scene.source), time,
+                  device && pipeline::simulates_on_device(scene.source) ? " on the device" : "",
+                  mapping_phrase(result.mapping), clamped_phrase(result.clamped));
   result.metadata = synthesis_metadata(scene, time, result.mapping);
   return result;
 }

@@ -30,7 +30,11 @@ struct SceneHeights {
 };
 // `time` in seconds; the effects the scene consumes (pipeline::scene_effects: choppy crests are
 // resampled onto the grid, as the renderer draws them). Throws AppError.
-SceneHeights scene_heights(const pipeline::Scene& scene, double time);
+// With a renderer, a moving source (ocean, sinusoids) is simulated on its device and read back.
+SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Renderer* device = nullptr);
+// Whether the scene's [backend] sim puts its heights on a device: "device", or "auto" where a GPU is
+// present (the CPU driver alone keeps the CPU); static sources never.
+bool sim_wants_device(const pipeline::Scene& scene);
 
 // Raw metres to channel `height` with the source's attributes (what `displace sim` writes).
 void write_height_exr(const std::filesystem::path& file, const SceneHeights& heights);

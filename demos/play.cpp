@@ -153,9 +153,13 @@ std::string status_text(const pipeline::Scene& scene, const pipeline::FrameRecor
                         double frames_per_second, bool paused) {
   return fmt::format(
       "{} {} {} steps | frame {} t {:.2f} s | {:.1f} ms ({:.0f} fps): sim {:.1f} bake {:.1f} upload {:.1f} "
-      "render {:.1f} | budget {} (bake {}) | pending {}{}{}",
+      "render {:.1f}{} | budget {} (bake {}) | pending {}{}{}",
       scene.name, render::method_info(scene.method).name, scene.steps, record.index, record.time,
       record.frame_ms, frames_per_second, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms,
+      record.sim_on_device || record.bake_on_device
+          ? fmt::format(" | device: sim {:.2f} bake {:.2f} render {:.2f}", record.sim_device_ms,
+                        record.bake_device_ms, record.render_device_ms)
+          : std::string(),
       budget_text(scene.frame_ms), budget_text(record.bake_budget_ms), record.pending,
       record.cone_lag > 0 ? fmt::format(" | cones {} frames old, +{:.3f}", record.cone_lag, record.cone_lift)
                           : "",

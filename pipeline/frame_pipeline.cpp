@@ -41,6 +41,12 @@ struct FramePipeline::State {
   MapMaker maker;                          // a slot per frame in flight
   int current = 0;                         // the frame in flight the stage functions work on
   std::atomic<double> last_other_ms{0.0};  // sim + upload + render of the last frame
+
+  // the device path: the source simulated on the renderer's device, its heights read back only for a
+  // bake on the CPU
+  std::unique_ptr<render::DeviceSim> device_source;
+  bool heights_to_cpu = true;
+  bool sim_on_device() const { return device_source != nullptr; }
 };
 
 FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock,
@@ -60,6 +66,12 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   const bool lagged = !s.deterministic && !s.source.is_static() && !s.needs.relaxed;
   s.cone_lag_frames = lagged ? scene.cone_lag_frames : 0;
   if (scene.source != SourceKind::image) s.maker.reserve(s.needs, scene.map_size, scene.map_size);
+  if (runs_on_device(scene.bake_backend, renderer.device()) && scene.bake_backend == Backend::device)
+    throw SceneError("backend.bake = \"device\": the cone maps are not made on the device yet (use \"cpu\")");
+  if (simulates_on_device(scene.source) && runs_on_device(scene.sim_backend, renderer.device())) {
+    s.device_source = make_device_sim(renderer, source_settings(scene), scene_effects(scene));
+    s.heights_to_cpu = s.needs.cone_sectors > 0 || s.needs.max_pyramid || s.needs.distance;
+  }
 }
 
 FramePipeline::~FramePipeline() = default;
@@ -74,7 +86,33 @@ const render::MapSet& FramePipeline::maps() const { return state_->maker.made(st
 
 namespace {
 
+// The device path's sim: recorded into the renderer's next frame; the heights come back to the CPU
+// only for a bake there.
+void simulate_on_device(FramePipeline::State& s, int slot, double time, FrameRecord& record) {
+  HeightFrame& heights = s.heights[std::size_t(slot)];
+  record.time = time;
+  record.effects = s.source.effects();
+  record.sim_on_device = true;
+  record.sim_device_ms = s.device_source->device_milliseconds();
+  const long long ffts = s.device_source->fft_count();
+  s.device_source->simulate(time);
+  record.ffts = s.device_source->fft_count() - ffts;
+  record.choppy_residual = 0.0;
+  heights.field.width = heights.field.height = s.device_source->size();
+  heights.version = next_map_version();
+  if (s.heights_to_cpu) {
+    s.device_source->read_back(&heights.field.heights, nullptr, nullptr);
+  } else {
+    heights.field.heights.clear();
+  }
+  heights.foam.clear();
+}
+
 void simulate_into(FramePipeline::State& s, int slot, double time, FrameRecord& record) {
+  if (s.sim_on_device()) {
+    simulate_on_device(s, slot, time, record);
+    return;
+  }
   HeightFrame& heights = s.heights[std::size_t(slot)];
   record.time = time;
   record.effects = s.source.effects();
@@ -113,7 +151,18 @@ void bake_into(FramePipeline::State& s, int slot, double budget_ms, FrameRecord&
   }
 }
 
-void upload_from(FramePipeline::State& s, int slot) { s.renderer.set_maps(s.maker.made(slot)); }
+void upload_from(FramePipeline::State& s, int slot) {
+  if (!s.sim_on_device()) {
+    s.renderer.set_maps(s.maker.made(slot));
+    return;
+  }
+  render::MapSet maps = s.maker.made(slot);
+  maps.width = maps.height = s.device_source->size();
+  maps.heights = {};
+  maps.heights_on_device = true;
+  maps.foam_on_device = (s.device_source->effects() & render::device_foam) != 0;
+  s.renderer.set_maps(maps);
+}
 
 }  // namespace
 
@@ -125,9 +174,11 @@ void FramePipeline::bake(double budget_ms, FrameRecord& record) {
 }
 void FramePipeline::upload(FrameRecord&) { upload_from(*state_, state_->current); }
 
-void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigned outputs, FrameRecord&) {
+void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigned outputs,
+                         FrameRecord& record) {
   const Scene& scene = state_->scene;
   state_->renderer.render(view, {scene.method, scene.steps, scene.refine}, frame, outputs);
+  record.render_device_ms = outputs != render::output_none ? frame.gpu_milliseconds : 0.0;
 }
 
 FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned outputs) {
@@ -164,6 +215,13 @@ FrameRecord FramePipeline::run(long long index, const render::View& view, render
 void FramePipeline::run_frames(long long first, long long count, unsigned outputs,
                                const std::function<void(const FrameRecord&, const render::Frame&)>& consume) {
   State& s = *state_;
+  if (s.sim_on_device()) {
+    // the device records its sim into the renderer's frame, which only the render thread may do: the
+    // frames one after another (the device runs them while the CPU records the next)
+    render::Frame frame;
+    for (long long n = 0; n < count; ++n) consume(run(first + n, frame, outputs), frame);
+    return;
+  }
   struct Token {
     FrameRecord record;
     int slot = 0;
@@ -209,6 +267,7 @@ void FramePipeline::run_frames(long long first, long long count, unsigned output
             const double uploaded = s.clock();
             const render::View view = scene_view(s.scene, record.time);
             s.renderer.render(view, {s.scene.method, s.scene.steps, s.scene.refine}, frame, outputs);
+            record.render_device_ms = outputs != render::output_none ? frame.gpu_milliseconds : 0.0;
             const double drawn = s.clock();
             record.upload_ms = uploaded - start;
             record.render_ms = drawn - uploaded;

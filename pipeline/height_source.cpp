@@ -137,31 +137,53 @@ void HeightSource::State::make_ocean(double time, HeightFrame& out) {
   }
 }
 
-DeviceOceanSetup device_ocean_setup(const SourceSettings& settings, unsigned effects) {
-  if (settings.kind != SourceKind::ocean) throw SceneError("the device path simulates the ocean only");
-  sim::OceanParams params = settings.ocean;
-  params.size = settings.map_size;
-  DeviceOceanSetup setup;
+bool simulates_on_device(SourceKind kind) {
+  return kind == SourceKind::ocean || kind == SourceKind::sinusoids;
+}
+
+std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
+                                                   unsigned effects, sim::HeightMapping* mapping_out) {
+  if (!simulates_on_device(settings.kind))
+    throw SceneError("the device path simulates the ocean and sinusoids only");
   try {
+    if (settings.kind == SourceKind::sinusoids) {
+      const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(settings.sinusoids);
+      const sim::HeightMapping mapping = sim::sinusoid_mapping(waves);
+      if (mapping_out) *mapping_out = mapping;
+      std::vector<float> values;
+      for (const sim::Wave& wave : waves)
+        values.insert(values.end(), {wave.kx, wave.ky, wave.amplitude, wave.omega, wave.phase});
+      render::SinusoidWavesView view;
+      view.size = settings.map_size;
+      view.patch_size = settings.sinusoids.patch_size;
+      view.waves = values;
+      view.scale = mapping.scale;
+      view.bias = mapping.bias;
+      return std::make_unique<render::DeviceSim>(renderer, view);
+    }
+    sim::OceanParams params = settings.ocean;
+    params.size = settings.map_size;
     const sim::Ocean ocean(params);
-    setup.spectrum = ocean.half_spectrum();
+    const sim::Ocean::HalfSpectrum spectrum = ocean.half_spectrum();
     const sim::HeightMapping mapping = ocean.mapping();
-    setup.view.scale = mapping.scale;
-    setup.view.bias = mapping.bias;
+    if (mapping_out) *mapping_out = mapping;
+    render::OceanSpectrumView view;
+    view.size = params.size;
+    view.patch_size = params.patch_size;
+    view.choppiness = params.choppiness;
+    view.coefficients = spectrum.coefficients;
+    view.omega = spectrum.omega;
+    view.scale = mapping.scale;
+    view.bias = mapping.bias;
+    view.foam_start = foam_start;
+    view.foam_full = foam_full;
+    const unsigned device_effects =
+        ((effects & effect_choppy) && params.choppiness > 0.0f ? render::device_choppy : 0u) |
+        ((effects & effect_foam) ? render::device_foam : 0u);
+    return std::make_unique<render::DeviceSim>(renderer, view, device_effects);
   } catch (const std::invalid_argument& error) {
     throw SceneError(std::string("the scene's source: ") + error.what());
   }
-  setup.view.size = params.size;
-  setup.view.patch_size = params.patch_size;
-  setup.view.choppiness = params.choppiness;
-  setup.view.coefficients = setup.spectrum.coefficients;
-  setup.view.omega = setup.spectrum.omega;
-  setup.view.foam_start = foam_start;
-  setup.view.foam_full = foam_full;
-  setup.device_effects =
-      ((effects & effect_choppy) && params.choppiness > 0.0f ? render::device_choppy : 0u) |
-      ((effects & effect_foam) ? render::device_foam : 0u);
-  return setup;
 }
 
 void HeightSource::make(double time, long long frame_index, HeightFrame& out) {

@@ -98,14 +98,11 @@ class HeightSource {
   std::unique_ptr<State> state_;
 };
 
-// The ocean of `settings` for the device path (render/device.h): the spectrum sim::Ocean draws, its
-// mapping and the foam thresholds above, and the effects as render::DeviceEffect bits. `view` points
-// into `spectrum`. Throws SceneError unless the source is an ocean.
-struct DeviceOceanSetup {
-  sim::Ocean::HalfSpectrum spectrum;
-  render::OceanSpectrumView view;
-  unsigned device_effects = 0;
-};
-DeviceOceanSetup device_ocean_setup(const SourceSettings& settings, unsigned effects);
+// The source of `settings` on `renderer`'s device (render/device.h): the ocean's spectrum as
+// sim::Ocean draws it, or the sinusoids' waves, with the same mapping, the foam thresholds above and
+// the effects asked for. Throws SceneError unless the source is the ocean or sinusoids.
+bool simulates_on_device(SourceKind kind);
+std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
+                                                   unsigned effects, sim::HeightMapping* mapping = nullptr);
 
 }  // namespace displace::pipeline

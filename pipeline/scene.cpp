@@ -26,6 +26,27 @@ const char* source_word(SourceKind kind) {
   return "ocean";
 }
 
+}  // namespace
+
+const char* backend_word(Backend backend) {
+  switch (backend) {
+    case Backend::automatic: return "auto";
+    case Backend::cpu: return "cpu";
+    case Backend::device: return "device";
+  }
+  return "auto";
+}
+
+bool runs_on_device(Backend backend, const render::DeviceInfo& device) {
+  return backend == Backend::device || (backend == Backend::automatic && device.type != "cpu");
+}
+
+namespace {
+
+Backend backend_of(const std::string& word) {
+  return word == "cpu" ? Backend::cpu : word == "device" ? Backend::device : Backend::automatic;
+}
+
 std::string join(std::initializer_list<std::string_view> words) {
   std::string out;
   for (std::string_view word : words) out += (out.empty() ? "" : ", ") + std::string(word);
@@ -560,6 +581,15 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
       int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
 }
 
+void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
+  const toml::table* backend = read.section(root, "backend");
+  if (backend) read.known_keys(*backend, "backend", {"sim", "bake"});
+  scene.sim_backend = backend_of(
+      read.word(backend, "backend", "sim", backend_word(scene.sim_backend), {"auto", "cpu", "device"}));
+  scene.bake_backend = backend_of(
+      read.word(backend, "backend", "bake", backend_word(scene.bake_backend), {"auto", "cpu", "device"}));
+}
+
 }  // namespace
 
 Scene apply_scene(const Scene& base, std::string_view text, const std::string& source_name) {
@@ -571,8 +601,9 @@ Scene apply_scene(const Scene& base, std::string_view text, const std::string& s
                      std::string(error.description()));
   }
   const Reader read(source_name);
-  read.known_keys(root, "",
-                  {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget"});
+  read.known_keys(
+      root, "",
+      {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget", "backend"});
   Scene scene = base;
   scene.name = read.word(&root, "", "name", scene.name, {});
   read_source(read, root, source_name, scene);
@@ -582,6 +613,7 @@ Scene apply_scene(const Scene& base, std::string_view text, const std::string& s
   const toml::table* camera = read_camera(read, root, scene);
   read_render(read, root, source_name, scene);
   read_time_and_budget(read, root, scene);
+  read_backend(read, root, scene);
   try {
     scene_view(scene, scene.start).camera.validate();
   } catch (const render::RenderError& error) {
@@ -684,6 +716,8 @@ std::string scene_toml(const Scene& scene) {
                      {"cone_lag_frames", std::int64_t(scene.cone_lag_frames)}};
   if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
   root.insert("budget", budget);
+  root.insert("backend", toml::table{{"sim", backend_word(scene.sim_backend)},
+                                     {"bake", backend_word(scene.bake_backend)}});
   std::ostringstream out;
   out << "# displace scene (pipeline/scene.h documents every key)\n" << root << "\n";
   return out.str();

@@ -58,6 +58,13 @@ inline sim::OceanParams calm_ocean() {
   return params;
 }
 
+// Where a stage runs ([backend] sim and bake): `automatic` is the device on a GPU and the CPU on the
+// CPU driver (lavapipe), where the device path only moves the CPU's work into the driver.
+enum class Backend { automatic, cpu, device };
+const char* backend_word(Backend backend);  // "auto", "cpu", "device"
+// Whether a stage set to `backend` runs on the device of `device`.
+bool runs_on_device(Backend backend, const render::DeviceInfo& device);
+
 struct Scene {
   std::string name = "scene";
 
@@ -111,6 +118,11 @@ struct Scene {
   // spread over after the one it begins on, while the last map is served with raised apexes
   // (FramePipeline's lagged maps); 0: every frame makes its own.
   int cone_lag_frames = 0;  // 0 .. max_cone_lag_frames
+
+  // [backend]: where the sim and the cone bake run. The sim's backend applies to the moving sources
+  // (ocean, sinusoids); static ones (bricks, cliff, images) are made or read once on the CPU.
+  Backend sim_backend = Backend::automatic;
+  Backend bake_backend = Backend::automatic;
 };
 
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.

@@ -1,15 +1,17 @@
 // render/device.h - the device path: maps made in compute shaders on the renderer's own Vulkan device,
 // written straight into the images it samples, so that a frame uploads nothing but its uniforms.
 //
-// DeviceOcean: Tessendorf's FFT ocean (sim/sim.h's Ocean) evaluated on the device - the spectrum's
-// evolution, VkFFT's inverse FFTs and the choppy resampling to a height field - from the spectrum the
-// CPU made once (OceanSpectrumView). The heights equal sim::Ocean's (through sim::resample_displaced
-// for choppy water, and the same HeightMapping) within float rounding; where choppy water folds over,
-// the inverse of the displacement is not unique and a texel may take another fold's height.
-// Time is double on the host; phases reach the shader reduced (|w dt| < 1e5 rad), so t = 1e9 s is as
-// precise as t = 0.
+// DeviceSim: the moving sources of sim/sim.h evaluated on the device. The FFT ocean (Tessendorf; the
+// spectrum made once on the CPU, OceanSpectrumView): per frame the spectrum's evolution, VkFFT's
+// inverse FFTs and the choppy resampling to a height field. Sinusoid water (SinusoidWavesView): the
+// sum per texel. The heights equal the CPU's (sim::Ocean::evaluate with sim::resample_displaced for
+// choppy water; sim::sinusoid_heights) under the same mapping within float rounding; where choppy
+// water folds over, the inverse of the displacement is not unique and a texel may take another
+// fold's height. Time is double on the host; phases reach the shader reduced (w t_anchor modulo
+// 2 pi in double, plus |w (t - t_anchor)| < 1e5 rad in split floats), so t = 1e9 s is as precise as 0.
 #pragma once
 
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -31,20 +33,31 @@ struct OceanSpectrumView {
   float foam_full = 0.45f;              // ... full at <= foam_full
 };
 
-enum DeviceEffect : unsigned {
-  device_choppy = 1u << 0,  // the horizontal displacement, resampled onto the grid (choppiness > 0)
-  device_foam = 1u << 1,    // foam coverage from the Jacobian of the displacement
+// Sinusoid water: h(x, t) = sum_i a_i sin(k_i . x - w_i t + phi_i) at the texel centres of a
+// size x size map `patch_size` metres wide (sim::sinusoid_heights).
+struct SinusoidWavesView {
+  int size = 0;                     // texels a side, >= 1
+  float patch_size = 0.0f;          // metres
+  std::span<const float> waves;     // (kx, ky, amplitude, omega, phase) per wave, sim::Wave's fields
+  float scale = 1.0f, bias = 0.0f;  // as OceanSpectrumView's
 };
 
-class DeviceOcean {
- public:
-  // Uploads the spectrum and plans the FFTs once (throws RenderError); `effects`: DeviceEffect bits.
-  DeviceOcean(Renderer& renderer, const OceanSpectrumView& spectrum, unsigned effects);
-  ~DeviceOcean();
-  DeviceOcean(const DeviceOcean&) = delete;
-  DeviceOcean& operator=(const DeviceOcean&) = delete;
+enum DeviceEffect : unsigned {
+  device_choppy = 1u << 0,  // the ocean's horizontal displacement, resampled onto the grid (choppiness > 0)
+  device_foam = 1u << 1,    // the ocean's foam coverage from the Jacobian of the displacement
+};
 
-  // Records the ocean at `time` (seconds) into the renderer's next frame, ahead of its draw. The
+class DeviceSim {
+ public:
+  // Uploads the spectrum (or the waves), makes the kernels and plans the FFTs once; throws RenderError.
+  // `effects`: DeviceEffect bits. The renderer must outlive this.
+  DeviceSim(Renderer& renderer, const OceanSpectrumView& spectrum, unsigned effects);
+  DeviceSim(Renderer& renderer, const SinusoidWavesView& waves);
+  ~DeviceSim();
+  DeviceSim(const DeviceSim&) = delete;
+  DeviceSim& operator=(const DeviceSim&) = delete;
+
+  // Records the heights at `time` (seconds) into the renderer's next frame, ahead of its draw. The
   // renderer samples these heights (and foam) for the frames whose MapSet says heights_on_device
   // (foam_on_device).
   void simulate(double time);
@@ -54,7 +67,11 @@ class DeviceOcean {
 
   int size() const;
   unsigned effects() const;
-  long long fft_count() const;  // inverse FFTs recorded: 1 per frame for heights, 3 choppy, 4 foam, 6 both
+  long long fft_count()
+      const;  // inverse FFTs recorded: per ocean frame 1 for heights, 3 choppy, 4 foam, 6 both
+  // The device's milliseconds for the last simulate() whose frame has finished (GPU timestamps around
+  // its kernels); 0 where the device has no timestamps or none has finished.
+  double device_milliseconds() const;
 
   struct State;
 

@@ -241,11 +241,11 @@ void reshape_values(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   if (maps.heights_on_device) {
     if (impl.device_heights == nullptr || int(impl.device_heights->width()) != width ||
         int(impl.device_heights->height()) != height) {
-      throw RenderError("maps: heights_on_device needs this renderer's DeviceOcean of " +
+      throw RenderError("maps: heights_on_device needs this renderer's DeviceSim of " +
                         size_text(width, height) + " texels");
     }
     if (maps.foam_on_device && impl.device_foam == nullptr)
-      throw RenderError("maps: foam_on_device needs a DeviceOcean made with device_foam");
+      throw RenderError("maps: foam_on_device needs a DeviceSim made with device_foam");
     copies.heights = Copy::none;
     copies.foam = Copy::none;
     impl.foam.held = false;

@@ -285,7 +285,7 @@ struct MapSet {
   // foam coverage in [0, 1] per texel, for the water material (empty: none), with its version
   std::span<const float> foam;
   std::uint64_t foam_version = 0;
-  // The device path (render/device.h): the heights, and the foam, a DeviceOcean of this renderer made
+  // The device path (render/device.h): the heights, and the foam, a DeviceSim of this renderer made
   // on the device (`heights` and `foam` then stay empty; width and height are the ocean's).
   bool heights_on_device = false;
   bool foam_on_device = false;
@@ -446,7 +446,7 @@ class Renderer {
 
  private:
   friend class Swapchain;
-  friend class DeviceOcean;
+  friend class DeviceSim;
   std::unique_ptr<Impl> impl_;
 };
 

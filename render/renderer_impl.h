@@ -147,7 +147,7 @@ struct Renderer::Impl {
   DeviceMap max_pyramid;
   DeviceMap distance;
   DeviceMap foam;
-  // device.h: the maps a DeviceOcean writes (GENERAL layout), and whether the last MapSet uses them
+  // device.h: the maps a DeviceSim writes (GENERAL layout), and whether the last MapSet uses them
   const Image* device_heights = nullptr;
   const Image* device_foam = nullptr;
   bool heights_from_device = false, foam_from_device = false;

@@ -337,6 +337,20 @@ const std::vector<Entry>& entries() {
        "T",
        "the cone bake refines while a ratio may be more than T below the best",
        [] { return tolerance_in_range(); }},
+      {"--backend",
+       scene_source,
+       {"backend.sim", "backend.bake"},
+       Kind::word,
+       "auto|cpu|device",
+       "where the ocean's sim and the cone bake run: the device (compute shaders on the renderer's GPU), "
+       "the CPU, or auto (the device on a GPU, the CPU on lavapipe)",
+       [] {
+         return text_check([](const std::string& text) -> std::string {
+           return text == "auto" || text == "cpu" || text == "device"
+                      ? std::string()
+                      : "must be auto, cpu or device, got " + in_quotes(text);
+         });
+       }},
       {"--cone-lag",
        scene_frames,
        {"budget.cone_lag_frames"},

@@ -61,6 +61,9 @@ namespace {
 // What bench-frame measures over the timed frames (those after the warm-up).
 struct BenchSamples {
   std::vector<double> sim, bake, upload, draw, frame_ms, interval, lag, lift;
+  // the device's own times (GPU timestamps; 0 where none) of the stages that ran there
+  std::vector<double> sim_device, bake_device, draw_device;
+  bool sim_on_device = false, bake_on_device = false;
   long long ffts = 0, within = 0;
   unsigned effects = 0;
   bool cones = false;  // a cone map was baked (the records' cone stats)
@@ -91,6 +94,11 @@ BenchSamples run_bench_frames(const BenchFrameSettings& settings, render::Render
     if (seen >= settings.warm_up) {
       samples.rss_max = std::max(samples.rss_max, resident_kilobytes());
       samples.sim.push_back(record.sim_ms);
+      samples.sim_device.push_back(record.sim_device_ms);
+      samples.bake_device.push_back(record.bake_device_ms);
+      samples.draw_device.push_back(record.render_device_ms);
+      samples.sim_on_device |= record.sim_on_device;
+      samples.bake_on_device |= record.bake_on_device;
       samples.bake.push_back(record.bake_ms);
       samples.upload.push_back(record.upload_ms);
       samples.draw.push_back(record.render_ms);
@@ -141,18 +149,21 @@ nlohmann::ordered_json print_bench_table(const BenchFrameSettings& settings, con
   struct Row {
     const char* name;
     const std::vector<double>* values;
+    const std::vector<double>* device;  // the device's own times, where the stage has them
   };
-  const Row rows[] = {{"sim", &samples.sim},        {"bake", &samples.bake},
-                      {"upload", &samples.upload},  {"render", &samples.draw},
-                      {"frame", &samples.interval}, {"latency", &samples.frame_ms}};
+  const Row rows[] = {
+      {"sim", &samples.sim, &samples.sim_device}, {"bake", &samples.bake, &samples.bake_device},
+      {"upload", &samples.upload, nullptr},       {"render", &samples.draw, &samples.draw_device},
+      {"frame", &samples.interval, nullptr},      {"latency", &samples.frame_ms, nullptr}};
   out << fmt::format(
       "displace bench-frame: {} ({} {}x{} map, {}x{} pixels, {} {} steps), {} frames after {} warm-up, "
-      "budget {}, {}, on {}\n",
+      "budget {}, {}, sim on the {}, bake on the {}, on {}\n",
       scene.name, scene.source == pipeline::SourceKind::image ? "image" : "a", scene.map_size, scene.map_size,
       scene.camera.width, scene.camera.height, render::method_info(scene.method).name, scene.steps,
       settings.frames, settings.warm_up,
       std::isfinite(scene.frame_ms) ? fmt::format("{:g} ms", scene.frame_ms) : std::string("unlimited"),
-      settings.serial ? "stages in series" : "stages overlapped", device);
+      settings.serial ? "stages in series" : "stages overlapped", samples.sim_on_device ? "device" : "CPU",
+      samples.bake_on_device ? "device" : "CPU", device);
   if (settings.pin_threads) {
     out << (samples.pinned_cpus > 0
                 ? fmt::format("  {} threads pinned one per CPU over {} CPUs\n", samples.pinned_threads,
@@ -160,14 +171,20 @@ nlohmann::ordered_json print_bench_table(const BenchFrameSettings& settings, con
                 : std::string("  --pin-threads: nothing pinned (fewer than two CPUs, or no affinity "
                               "here)\n"));
   }
-  out << "  stage     p50 ms   p95 ms   p99 ms\n";
+  out << "  stage     p50 ms   p95 ms   p99 ms   device p50 ms\n";
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
   for (const Row& row : rows) {
     const double p50 = percentile(*row.values, 0.50), p95 = percentile(*row.values, 0.95),
                  p99 = percentile(*row.values, 0.99);
-    out << fmt::format("  {:<8} {:8.2f} {:8.2f} {:8.2f}\n", row.name, p50, p95, p99);
+    const double device_p50 = row.device ? percentile(*row.device, 0.50) : 0.0;
+    out << fmt::format("  {:<8} {:8.2f} {:8.2f} {:8.2f}   {}\n", row.name, p50, p95, p99,
+                       device_p50 > 0.0 ? fmt::format("{:8.3f}", device_p50) : std::string("       -"));
     stages[row.name] = {{"p50_ms", p50}, {"p95_ms", p95}, {"p99_ms", p99}};
+    if (row.device)
+      stages[row.name]["device_p50_ms"] = device_p50 > 0.0 ? nlohmann::ordered_json(device_p50) : nullptr;
   }
+  out << "  device = the GPU's own time from timestamps (the sim's lags a frame or two: the last one "
+         "finished)\n";
   if (settings.serial) {
     out << fmt::format(
         "  frame = the time between finished frames (the stages one after another, each with the\n"
@@ -209,6 +226,9 @@ nlohmann::ordered_json bench_json(const BenchFrameSettings& settings, const Benc
     return samples.cones ? json{{"p50", percentile(values, 0.50)}, {"max", largest(values)}} : json(nullptr);
   };
   return {{"frames", settings.frames},
+          {"backend",
+           {{"sim", samples.sim_on_device ? "device" : "cpu"},
+            {"bake", samples.bake_on_device ? "device" : "cpu"}}},
           {"budget_ms", std::isfinite(scene.frame_ms) ? json(scene.frame_ms) : json(nullptr)},
           {"stages", std::move(stages)},
           {"within_budget", double(samples.within) / double(settings.frames)},

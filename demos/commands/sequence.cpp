@@ -94,15 +94,19 @@ std::FILE* start_video(const SequenceSettings& settings) {
 
 constexpr const char* sequence_csv_header =
     "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
-    "mean_ratio,pending_texels,cone_lag_frames,cone_lift\n";
+    "mean_ratio,pending_texels,cone_lag_frames,cone_lift,sim_backend,bake_backend,sim_device_ms,"
+    "bake_device_ms,render_device_ms\n";
 
 std::string sequence_csv_row(long long n, const pipeline::FrameRecord& record) {
   return fmt::format(
-      "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f}\n", n, record.time,
-      record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
+      "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f},{},{},{:.3f},{:.3f},{:."
+      "3f}\n",
+      n, record.time, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
       std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
       record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
-      record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift);
+      record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift,
+      record.sim_on_device ? "device" : "cpu", record.bake_on_device ? "device" : "cpu", record.sim_device_ms,
+      record.bake_device_ms, record.render_device_ms);
 }
 
 // Frame n's picture and AOVs, each written atomically.

@@ -3,6 +3,7 @@
 // source's parameters and its [0, 1] mapping as attributes.
 #include <fmt/format.h>
 
+#include <optional>
 #include <ostream>
 
 #include "demos/cli/command.h"
@@ -18,12 +19,15 @@ namespace displace::app {
 void run_sim(const SimSettings& settings, std::ostream& out) {
   require_memory(synthesis_memory(settings.scene), host_limits());
   const double time = settings.scene.start;
-  const SceneHeights heights = scene_heights(settings.scene, time);
+  std::optional<render::Renderer> renderer;
+  if (sim_wants_device(settings.scene)) renderer.emplace(render::RendererOptions{});
+  const SceneHeights heights = scene_heights(settings.scene, time, renderer ? &*renderer : nullptr);
   write_height_exr(settings.output, heights);
   out << fmt::format(
-      "displace: synthesized {} heights {} x {} at t = {:g} s in {:.1f} ms (h01 = {}); wrote raw "
+      "displace: synthesized {} heights {} x {} at t = {:g} s in {:.1f} ms on the {} (h01 = {}); wrote raw "
       "metres to '{}'\n",
       source_name(settings.scene.source), heights.width, heights.height, time, heights.milliseconds,
+      renderer ? "device (" + renderer->device().name + ")" : std::string("CPU"),
       mapping_phrase(heights.mapping), settings.output.string());
 }
 

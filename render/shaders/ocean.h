@@ -1,5 +1,6 @@
-// render/shaders/ocean.h - the device ocean's push constants (ocean_spectrum.comp.glsl,
-// ocean_assemble.comp.glsl), shared by GLSL and C++ (render/device_ocean.cpp, with static_asserts).
+// render/shaders/ocean.h - the device sim's push constants (ocean_spectrum.comp.glsl,
+// ocean_assemble.comp.glsl, sinusoids.comp.glsl), shared by GLSL and C++ (render/device_sim.cpp, with
+// static_asserts).
 #ifndef DISPLACE_RENDER_OCEAN_H
 #define DISPLACE_RENDER_OCEAN_H
 
@@ -33,6 +34,16 @@ struct OceanAssemblePush {
   float foam_start;   // foam none at J >= foam_start, full at J <= foam_full
   float foam_full;
   int pad0, pad1;
+};
+
+struct SinusoidPush {
+  int size;  // texels a side
+  int wave_count;
+  float patch_size;   // metres
+  float time_high;    // t - t_anchor, seconds: 12 significant bits
+  float time_low;     // and the rest
+  float scale, bias;  // heights in [0, 1] = clamp(metres * scale + bias, 0, 1)
+  int pad0;
 };
 
 #ifdef __cplusplus

@@ -1,7 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // render/shaders/ocean_assemble.comp.glsl - the device ocean's inverse FFTs to the maps the renderer
-// samples (render/device_ocean.cpp): per texel its height in metres and in [0, 1], and its foam.
+// samples (render/device_sim.cpp): per texel its height in metres and in [0, 1], and its foam.
 //
 // Choppy water (sim/choppy.cpp's contract, per texel here): the height above grid position x is h(p)
 // for the p with p + D(p) = x, found by Newton's method on F(p) = p + D(p) - x with D bilinear and

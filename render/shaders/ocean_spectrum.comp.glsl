@@ -1,6 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// render/shaders/ocean_spectrum.comp.glsl - the device ocean's spectra at time t (render/device_ocean.cpp):
+// render/shaders/ocean_spectrum.comp.glsl - the device ocean's spectra at time t (render/device_sim.cpp):
 // per mode of the half spectrum h~ = (p c + q s) + i (r c + u s), (c, s) = (cos, sin) of w t, then the
 // derived spectra the effects need, one batch of the inverse FFT each (sim/fft_ocean.cpp's Grid order):
 // the choppy displacement i lambda k / |k| h~ and the Jacobian terms -lambda k k^T / |k| h~.

@@ -1,10 +1,11 @@
-// tests/pipeline/device_ocean_test.cpp - the ocean on the device (render/device.h) against the CPU
+// tests/pipeline/device_sim_test.cpp - the ocean on the device (render/device.h) against the CPU
 // ocean of pipeline::HeightSource: heights for every effect set, at t = 0, 1.5 s and 1e9 s, foam, FFT
 // counts, and nothing allocated per frame.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -59,7 +60,7 @@ struct EffectCase {
   float choppiness;
 };
 
-TEST(DeviceOcean, HeightsEqualTheCpuOceansForEveryEffectSet) {
+TEST(DeviceSim, HeightsEqualTheCpuOceansForEveryEffectSet) {
   render::Renderer& renderer = device_renderer();
   const EffectCase cases[] = {
       {"heights", pipeline::effect_heights, 0.0f},
@@ -73,8 +74,9 @@ TEST(DeviceOcean, HeightsEqualTheCpuOceansForEveryEffectSet) {
     SCOPED_TRACE(effect_case.name);
     const pipeline::SourceSettings settings = ocean_settings(128, effect_case.choppiness);
     pipeline::HeightSource cpu(settings, effect_case.effects);
-    const pipeline::DeviceOceanSetup setup = pipeline::device_ocean_setup(settings, effect_case.effects);
-    render::DeviceOcean device(renderer, setup.view, setup.device_effects);
+    const std::unique_ptr<render::DeviceSim> made =
+        pipeline::make_device_sim(renderer, settings, effect_case.effects);
+    render::DeviceSim& device = *made;
     const bool choppy = (effect_case.effects & pipeline::effect_choppy) != 0;
     for (double time : {0.0, 1.5, 1e9}) {
       SCOPED_TRACE("t = " + std::to_string(time));
@@ -98,7 +100,7 @@ TEST(DeviceOcean, HeightsEqualTheCpuOceansForEveryEffectSet) {
       }
       // metres: the same, in units of the mapped range (1 / scale metres)
       const Difference m = compare(metres, std::vector<float>(expected.raw.begin(), expected.raw.end()),
-                                   1.0 / double(setup.view.scale), 1e-5);
+                                   1.0 / double(cpu.mapping().scale), 1e-5);
       EXPECT_LE(m.far_share, choppy ? 1e-3 : 0.0);
       if (effect_case.effects & pipeline::effect_foam) {
         ASSERT_EQ(foam.size(), expected.foam.size());
@@ -114,12 +116,12 @@ TEST(DeviceOcean, HeightsEqualTheCpuOceansForEveryEffectSet) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
-TEST(DeviceOcean, MovesWithTimeAndAllocatesNothingPerFrame) {
+TEST(DeviceSim, MovesWithTimeAndAllocatesNothingPerFrame) {
   render::Renderer& renderer = device_renderer();
   const pipeline::SourceSettings settings = ocean_settings(32, 1.5f);
   const unsigned effects = pipeline::effect_heights | pipeline::effect_choppy | pipeline::effect_foam;
-  const pipeline::DeviceOceanSetup setup = pipeline::device_ocean_setup(settings, effects);
-  render::DeviceOcean device(renderer, setup.view, setup.device_effects);
+  const std::unique_ptr<render::DeviceSim> made = pipeline::make_device_sim(renderer, settings, effects);
+  render::DeviceSim& device = *made;
   std::vector<float> first, second;
   device.simulate(10.0);
   device.read_back(&first, nullptr, nullptr);
@@ -131,17 +133,48 @@ TEST(DeviceOcean, MovesWithTimeAndAllocatesNothingPerFrame) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
-TEST(DeviceOcean, RefusesWhatItCannotSimulate) {
+TEST(DeviceSim, RefusesWhatItCannotSimulate) {
   render::Renderer& renderer = device_renderer();
   render::OceanSpectrumView view;
   view.size = 3;
-  EXPECT_THROW(render::DeviceOcean(renderer, view, 0), render::RenderError);
+  EXPECT_THROW(render::DeviceSim(renderer, view, 0), render::RenderError);
   view.size = 4;
   view.patch_size = 10.0f;  // no modes given
-  EXPECT_THROW(render::DeviceOcean(renderer, view, 0), render::RenderError);
+  EXPECT_THROW(render::DeviceSim(renderer, view, 0), render::RenderError);
   pipeline::SourceSettings bricks;
   bricks.kind = pipeline::SourceKind::bricks;
-  EXPECT_THROW(pipeline::device_ocean_setup(bricks, 0), pipeline::SceneError);
+  EXPECT_THROW(pipeline::make_device_sim(renderer, bricks, 0), pipeline::SceneError);
+  render::SinusoidWavesView waves;
+  waves.size = 8;
+  waves.patch_size = 4.0f;
+  const float not_finite[] = {1.0f, 0.0f, std::nanf(""), 1.0f, 0.0f};
+  waves.waves = not_finite;
+  EXPECT_THROW(render::DeviceSim(renderer, waves), render::RenderError);
+}
+
+TEST(DeviceSim, SinusoidsEqualTheCpusAtEveryTime) {
+  render::Renderer& renderer = device_renderer();
+  for (bool tileable : {true, false}) {
+    SCOPED_TRACE(tileable ? "on the lattice" : "off the lattice");
+    pipeline::SourceSettings settings;
+    settings.kind = pipeline::SourceKind::sinusoids;
+    settings.map_size = 96;
+    settings.sinusoids.wave_count = 24;
+    settings.sinusoids.tileable = tileable;
+    pipeline::HeightSource cpu(settings);
+    const std::unique_ptr<render::DeviceSim> device = pipeline::make_device_sim(renderer, settings, 0);
+    for (double time : {0.0, 1.5, 1e9}) {
+      SCOPED_TRACE("t = " + std::to_string(time));
+      pipeline::HeightFrame expected;
+      cpu.make(time, 0, expected);
+      device->simulate(time);
+      std::vector<float> heights;
+      device->read_back(&heights, nullptr, nullptr);
+      EXPECT_LE(compare(heights, expected.field.heights, 1.0, 1e-5).worst, 1e-5);
+      EXPECT_EQ(device->fft_count(), 0);
+    }
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
 }  // namespace

@@ -1,0 +1,89 @@
+// tests/pipeline/device_frames_test.cpp - frames of the device path (pipeline::FramePipeline with
+// [backend] sim = "device") against the CPU path's: the same hits within a texel on the water scenes,
+// no validation messages, nothing allocated after warm-up.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "pipeline/frame_pipeline.h"
+#include "pipeline/scene.h"
+#include "render/render.h"
+
+namespace {
+
+using namespace displace;
+
+render::Renderer& frames_renderer() {
+  static render::Renderer renderer([] {
+    render::RendererOptions options;
+    options.validate = true;
+    return options;
+  }());
+  return renderer;
+}
+
+pipeline::Scene small_scene(const std::string& name, pipeline::Backend sim) {
+  pipeline::Scene scene = pipeline::builtin_scene(name);
+  scene.map_size = 128;
+  scene.camera.width = scene.camera.height = 96;
+  scene.sim_backend = sim;
+  scene.bake_backend = pipeline::Backend::cpu;
+  return scene;
+}
+
+// Share of pixels where both frames hit within one texel of each other (or both miss).
+double agreeing_share(const render::Frame& a, const render::Frame& b, int map_size) {
+  const std::size_t pixels = a.uv.size() / 3;
+  std::size_t agree = 0;
+  for (std::size_t p = 0; p < pixels; ++p) {
+    const bool hit_a = a.uv[3 * p + 2] > 0.5f, hit_b = b.uv[3 * p + 2] > 0.5f;
+    if (!hit_a && !hit_b) {
+      ++agree;
+      continue;
+    }
+    if (hit_a != hit_b) continue;
+    const double du = double(a.uv[3 * p] - b.uv[3 * p]) * map_size;
+    const double dv = double(a.uv[3 * p + 1] - b.uv[3 * p + 1]) * map_size;
+    if (std::hypot(du, dv) <= 1.0) ++agree;
+  }
+  return double(agree) / double(pixels);
+}
+
+TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
+  render::Renderer& renderer = frames_renderer();
+  for (const char* name : {"water", "calm", "ripples"}) {
+    SCOPED_TRACE(name);
+    render::Frame cpu_frame, device_frame;
+    const pipeline::Scene cpu_scene = small_scene(name, pipeline::Backend::cpu);
+    const pipeline::Scene device_scene = small_scene(name, pipeline::Backend::device);
+    for (long long index : {0LL, 90LL}) {
+      SCOPED_TRACE("frame " + std::to_string(index));
+      {
+        pipeline::FramePipeline cpu(cpu_scene, renderer);
+        EXPECT_FALSE(cpu.run(index, cpu_frame, render::output_uv).sim_on_device);
+      }
+      pipeline::FramePipeline device(device_scene, renderer);
+      const pipeline::FrameRecord record = device.run(index, device_frame, render::output_uv);
+      EXPECT_TRUE(record.sim_on_device);
+      EXPECT_GE(agreeing_share(cpu_frame, device_frame, cpu_scene.map_size), 0.999);
+    }
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+TEST(DeviceFrames, AllocateNothingAfterWarmUp) {
+  render::Renderer& renderer = frames_renderer();
+  pipeline::FramePipeline device(small_scene("water", pipeline::Backend::device), renderer);
+  render::Frame frame;
+  for (long long index = 0; index < 2; ++index) device.run(index, frame, render::output_color);
+  const long long allocations = renderer.memory_allocations();
+  for (long long index = 2; index < 6; ++index) {
+    const pipeline::FrameRecord record = device.run(index, frame, render::output_color);
+    EXPECT_EQ(record.ffts, 6);  // heights, the choppy displacement, the foam's Jacobian
+  }
+  EXPECT_EQ(renderer.memory_allocations(), allocations);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+}  // namespace
