@@ -64,6 +64,9 @@ class DeviceSim {
   // Submits what is recorded, waits, and reads back the last simulate()'s maps (any may be null):
   // heights in [0, 1], heights in metres, foam coverage (empty without device_foam).
   void read_back(std::vector<float>* heights, std::vector<float>* metres, std::vector<float>* foam);
+  // Submits what is recorded and waits for it (a caller that times the device, or hands the heights
+  // to another queue's work).
+  void finish();
 
   int size() const;
   unsigned effects() const;

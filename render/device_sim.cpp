@@ -448,6 +448,8 @@ void DeviceSim::read_back(std::vector<float>* heights, std::vector<float>* metre
   }
 }
 
+void DeviceSim::finish() { state_->impl.submit_slot(true); }
+
 int DeviceSim::size() const { return state_->size; }
 unsigned DeviceSim::effects() const { return state_->effects; }
 long long DeviceSim::fft_count() const { return state_->fft_count; }

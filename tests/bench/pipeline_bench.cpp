@@ -10,6 +10,13 @@
 // pipeline raises them (by the most any texel rose since). Counters: fetches per pixel and search
 // iterations (means over the hit pixels), the lift, the hit pixels, and those that ended more than
 // 0.01 texel from where lag 0's did (rays whose 32 steps ran out elsewhere). Timed: the render alone.
+//
+// The sim on the device (render/device.h) next to the CPU's: BM_DeviceSim/ocean/<map size> and
+// BM_CpuSim/ocean/<map size> make the water scene's heights (choppy crests resampled onto the grid,
+// foam) for successive frames; the device's frame is recorded, submitted and waited for. Counters:
+// the device's own milliseconds per frame (GPU timestamps), FFTs per frame, and (device) the largest
+// difference from the CPU's heights of the last frame in [0, 1] units and the share of texels more than
+// 1e-5 apart (choppy folds).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -20,6 +27,8 @@
 
 #include "bake/bake.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/height_source.h"
+#include "render/device.h"
 
 namespace {
 
@@ -165,5 +174,79 @@ void register_frames() {
 }
 
 const int registered = (register_frames(), 0);
+
+pipeline::SourceSettings water_source(int map_size, unsigned& effects) {
+  pipeline::Scene scene = pipeline::builtin_scene("water");
+  scene.map_size = map_size;
+  effects = pipeline::scene_effects(scene);
+  return pipeline::source_settings(scene);
+}
+
+void run_device_sim(benchmark::State& state) {
+  render::Renderer& renderer = bench_renderer();
+  unsigned effects = 0;
+  const pipeline::SourceSettings settings = water_source(int(state.range(0)), effects);
+  const std::unique_ptr<render::DeviceSim> device = pipeline::make_device_sim(renderer, settings, effects);
+  double time = 0.0;
+  device->simulate(time);
+  device->finish();
+  const long long ffts = device->fft_count();
+  std::vector<double> device_ms;
+  for (auto _ : state) {
+    time += 1.0 / 60.0;
+    device->simulate(time);
+    device->finish();
+    device_ms.push_back(device->device_milliseconds());
+  }
+  // accuracy: the last frame against the CPU's
+  std::vector<float> heights;
+  device->read_back(&heights, nullptr, nullptr);
+  pipeline::HeightSource cpu(settings, effects);
+  pipeline::HeightFrame expected;
+  cpu.make(time, 0, expected);
+  double worst = 0.0;
+  long long apart = 0;
+  for (std::size_t t = 0; t < heights.size(); ++t) {
+    const double off = std::abs(double(heights[t]) - double(expected.field.heights[t]));
+    worst = std::max(worst, off);
+    apart += off > 1e-5 ? 1 : 0;
+  }
+  state.counters["device_ms"] = median(device_ms);
+  state.counters["ffts_per_frame"] = double(device->fft_count() - ffts) / double(state.iterations());
+  state.counters["max_error_vs_cpu"] = worst;
+  state.counters["share_apart"] = double(apart) / double(heights.size());
+}
+
+void run_cpu_sim(benchmark::State& state) {
+  unsigned effects = 0;
+  const pipeline::SourceSettings settings = water_source(int(state.range(0)), effects);
+  pipeline::HeightSource source(settings, effects);
+  pipeline::HeightFrame frame;
+  double time = 0.0;
+  source.make(time, 0, frame);
+  long long ffts = 0;
+  for (auto _ : state) {
+    time += 1.0 / 60.0;
+    source.make(time, 0, frame);
+    ffts += frame.ffts;
+    benchmark::DoNotOptimize(frame.field.heights.data());
+  }
+  state.counters["ffts_per_frame"] = double(ffts) / double(state.iterations());
+}
+
+BENCHMARK(run_device_sim)
+    ->Name("BM_DeviceSim/ocean")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(run_cpu_sim)
+    ->Name("BM_CpuSim/ocean")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
