@@ -13,10 +13,21 @@
 //    image sizes 256, 512 and 1024, 150 frames after 10 of warm-up, in series and overlapped, each
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
-//    allocations after warm-up.
+//    allocations after warm-up. Each on both backends ([backend] sim and bake: cpu, then device), with
+//    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
+//    fewer frames.
+// 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
+//    16 threads (TBB arenas, up to the CPUs this process may use) on the water ocean's 512 and 1024
+//    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
-// test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only.
+// test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
+// =threads part 3 only.
+#include <sched.h>
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -61,9 +72,11 @@ struct Plan {
   std::vector<const char*> scenes{"water", "bricks", "cliff"};
   int width = 1920, height = 1080, water_map = 512, repeats = 9;
   std::vector<int> steps{8, 16, 32, 64};
-  std::vector<int> frame_sizes{256, 512, 1024};
+  std::vector<int> frame_sizes{256, 512, 1024, 2048};
   std::vector<int> cone_lags{0, 3};
-  int warm_up = 10, frames = 150;
+  int warm_up = 10, frames = 150, large_frames = 40;  // large: maps of 2048 and more
+  std::vector<int> thread_maps{512, 1024};
+  int thread_repeats = 5;
 };
 
 Plan quick_plan() {
@@ -77,6 +90,8 @@ Plan quick_plan() {
   plan.frame_sizes = {64};
   plan.warm_up = 2;
   plan.frames = 5;
+  plan.thread_maps = {64};
+  plan.thread_repeats = 1;
   return plan;
 }
 
@@ -126,42 +141,98 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
 
 void frame_loop(render::Renderer& renderer, const Plan& plan) {
   for (int size : plan.frame_sizes) {
-    for (int lag : plan.cone_lags) {
-      for (bool overlapped : {false, true}) {
-        pipeline::Scene scene = pipeline::builtin_scene("water");
-        scene.map_size = size;
-        scene.camera.width = scene.camera.height = size;
-        scene.method = render::Method::acm4;
-        scene.steps = 32;
-        scene.frame_ms = 0.0;
-        scene.cone_lag_frames = lag;
-        pipeline::FramePipeline frames(scene, renderer);
-        render::Frame frame;
-        for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
-        const long long allocations = renderer.memory_allocations();
-        std::vector<double> sim, bake, upload, draw, total, age;
-        auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
-          age.push_back(double(r.cone_lag));
-          sim.push_back(r.sim_ms);
-          bake.push_back(r.bake_ms);
-          upload.push_back(r.upload_ms);
-          draw.push_back(r.render_ms);
-          total.push_back(r.frame_ms);
-        };
-        if (overlapped) {
-          frames.run_frames(plan.warm_up, plan.frames, render::output_color, keep);
-        } else {
-          for (int n = 0; n < plan.frames; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
+    for (pipeline::Backend backend : {pipeline::Backend::cpu, pipeline::Backend::device}) {
+      for (int lag : plan.cone_lags) {
+        for (bool overlapped : {false, true}) {
+          const int frame_count = size >= 2048 ? plan.large_frames : plan.frames;
+          pipeline::Scene scene = pipeline::builtin_scene("water");
+          scene.sim_backend = backend;
+          scene.bake_backend = pipeline::Backend::cpu;
+          scene.map_size = size;
+          scene.camera.width = scene.camera.height = size;
+          scene.method = render::Method::acm4;
+          scene.steps = 32;
+          scene.frame_ms = 0.0;
+          scene.cone_lag_frames = lag;
+          pipeline::FramePipeline frames(scene, renderer);
+          render::Frame frame;
+          for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
+          const long long allocations = renderer.memory_allocations();
+          std::vector<double> sim, bake, upload, draw, total, age, sim_device, bake_device, draw_device;
+          auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
+            age.push_back(double(r.cone_lag));
+            sim_device.push_back(r.sim_device_ms);
+            bake_device.push_back(r.bake_device_ms);
+            draw_device.push_back(r.render_device_ms);
+            sim.push_back(r.sim_ms);
+            bake.push_back(r.bake_ms);
+            upload.push_back(r.upload_ms);
+            draw.push_back(r.render_ms);
+            total.push_back(r.frame_ms);
+          };
+          if (overlapped) {
+            frames.run_frames(plan.warm_up, frame_count, render::output_color, keep);
+          } else {
+            for (int n = 0; n < frame_count; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
+          }
+          std::printf(
+              "frame: water, map %d, %d x %d pixels, %s, cone lag %d, sim on the %s, bake on the %s: p50 sim "
+              "%.3f "
+              "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
+              "%.3f "
+              "render %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
+              size, size, size, overlapped ? "overlapped" : "in series", lag,
+              pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
+              percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5),
+              percentile(total, 0.5), percentile(total, 0.95), percentile(sim_device, 0.5),
+              percentile(bake_device, 0.5), percentile(draw_device, 0.5), percentile(age, 0.5),
+              renderer.memory_allocations() - allocations);
+          std::fflush(stdout);
         }
-        std::printf(
-            "frame: water, map %d, %d x %d pixels, %s, cone lag %d: p50 sim %.3f bake %.3f upload %.3f "
-            "render %.3f "
-            "frame %.3f ms, frame p95 %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
-            size, size, size, overlapped ? "overlapped" : "in series", lag, percentile(sim, 0.5),
-            percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5),
-            percentile(total, 0.95), percentile(age, 0.5), renderer.memory_allocations() - allocations);
-        std::fflush(stdout);
       }
+    }
+  }
+}
+
+// Stage L on 1, 2, 4, ... threads: does the CPU bake scale on this machine?
+void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
+  cpu_set_t allowed;
+  const int affinity = sched_getaffinity(0, sizeof allowed, &allowed) == 0 ? CPU_COUNT(&allowed) : -1;
+  std::printf("threads: TBB's default concurrency %d, CPUs this process may use %d\n",
+              tbb::info::default_concurrency(), affinity);
+  for (int size : plan.thread_maps) {
+    pipeline::Scene scene = pipeline::builtin_scene("water");
+    scene.map_size = size;
+    scene.sim_backend = pipeline::Backend::cpu;
+    pipeline::FramePipeline frames(scene, renderer);
+    pipeline::FrameRecord record;
+    frames.simulate(0.0, record);
+    const render::HeightField& field = frames.heights();
+    const bake::HeightView heights{field.heights.data(), field.width, field.height};
+    std::vector<float> ratios(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
+    const bake::ConeView cones{ratios.data(), size, size, 4};
+    bake::Budget budget;
+    budget.milliseconds = 0.0;
+    double one_thread = 0.0;
+    for (int threads = 1; threads <= std::max(1, tbb::info::default_concurrency()) && threads <= 16;
+         threads *= 2) {
+      tbb::task_arena arena(threads);
+      std::vector<double> times;
+      arena.execute([&] {
+        bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);
+        baker.bake(heights, budget, cones, apex);  // warm
+        for (int r = 0; r < plan.thread_repeats; ++r) {
+          const auto start = std::chrono::steady_clock::now();
+          baker.bake(heights, budget, cones, apex);
+          times.push_back(
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+        }
+      });
+      const double median = percentile(times, 0.5);
+      if (threads == 1) one_thread = median;
+      std::printf("stage L: water %d x %d, 4 sectors, %2d threads: median %.3f ms (%.2fx one thread's)\n",
+                  size, size, threads, median, one_thread / median);
+      std::fflush(stdout);
     }
   }
 }
@@ -179,9 +250,10 @@ int main(int argc, char** argv) {
     std::printf("device: %s (%s), %d sub-texel bits\n", renderer.device().name.c_str(),
                 renderer.device().type.c_str(), renderer.device().sub_texel_precision_bits);
     const char* part = std::getenv("DISPLACE_PROBE_PART");
-    const bool frames_only = part && std::string(part) == "frames";
-    if (!frames_only) method_table(renderer, plan, directory);
-    frame_loop(renderer, plan);
+    const std::string only = part ? part : "";
+    if (only.empty()) method_table(renderer, plan, directory);
+    if (only.empty() || only == "frames") frame_loop(renderer, plan);
+    if (only.empty() || only == "threads") stage_l_threads(renderer, plan);
     return 0;
   } catch (const std::exception& error) {
     std::fprintf(stderr, "displace_device_probe: error: %s\n", error.what());
