@@ -130,11 +130,13 @@ SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Re
   try {
     if (device && pipeline::simulates_on_device(scene.source)) {
       // on the device: the same effects, read back
-      sim::HeightMapping mapping;
+      pipeline::DeviceSimInfo info;
+      const pipeline::SourceSettings settings = pipeline::source_settings(scene);
       const std::unique_ptr<render::DeviceSim> made = pipeline::make_device_sim(
-          *device, pipeline::source_settings(scene),
-          pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam), &mapping);
-      made->simulate(time);
+          *device, settings, pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam), &info);
+      const sim::HeightMapping mapping = info.mapping;
+      result.loop_error = info.loop_error;
+      made->simulate(pipeline::source_time(settings, time));
       made->read_back(&result.heights, &result.raw, nullptr);
       result.width = result.height = made->size();
       result.mapping = mapping;
@@ -153,6 +155,7 @@ SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Re
       result.raw.assign(frame.raw.begin(), frame.raw.end());
       result.heights = frame.field.heights;
       result.mapping = source.mapping();
+      result.loop_error = source.loop_error();
       result.clamped = frame.clamped;
     }
   } catch (const pipeline::SceneError& error) {

@@ -27,6 +27,7 @@ struct SceneHeights {
   std::string description;  // one phrase for an output line: where they came from
   Metadata metadata;        // the source's attributes (sim's EXR; passed on to cone maps)
   double milliseconds = 0.0;
+  double loop_error = 0.0;  // an ocean loop's largest relative change to a wave frequency (0: none)
 };
 // `time` in seconds; the effects the scene consumes (pipeline::scene_effects: choppy crests are
 // resampled onto the grid, as the renderer draws them). Throws AppError.

@@ -95,7 +95,7 @@ void simulate_on_device(FramePipeline::State& s, int slot, double time, FrameRec
   record.sim_on_device = true;
   record.sim_device_ms = s.device_source->device_milliseconds();
   const long long ffts = s.device_source->fft_count();
-  s.device_source->simulate(time);
+  s.device_source->simulate(source_time(source_settings(s.scene), time));
   record.ffts = s.device_source->fft_count() - ffts;
   record.choppy_residual = 0.0;
   heights.field.width = heights.field.height = s.device_source->size();

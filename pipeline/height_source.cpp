@@ -3,6 +3,7 @@
 #include "pipeline/height_source.h"
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -37,6 +38,7 @@ SourceSettings source_settings(const Scene& scene) {
   settings.image = scene.image;
   settings.ocean = scene.ocean;
   settings.sinusoids = scene.sinusoids;
+  settings.foam_start = scene.foam_coverage;
   return settings;
 }
 
@@ -98,6 +100,12 @@ HeightSource& HeightSource::operator=(HeightSource&&) noexcept = default;
 bool HeightSource::is_static() const { return state_->is_static; }
 unsigned HeightSource::effects() const { return state_->effects; }
 sim::HeightMapping HeightSource::mapping() const { return state_->mapping; }
+double HeightSource::loop_error() const { return state_->ocean ? state_->ocean->loop_error() : 0.0; }
+
+double source_time(const SourceSettings& settings, double time) {
+  const double loop = settings.kind == SourceKind::ocean ? settings.ocean.loop_seconds : 0.0;
+  return loop > 0.0 ? time - loop * std::floor(time / loop) : time;
+}
 
 void HeightSource::State::make_image(long long frame_index, HeightFrame& out) {
   out.field = loader(is_static ? settings.image : image_for_frame(settings.image, frame_index));
@@ -131,7 +139,7 @@ void HeightSource::State::make_ocean(double time, HeightFrame& out) {
   if (foam) {
     out.foam.resize(out.jacobian.size());
     for (std::size_t t = 0; t < out.foam.size(); ++t) {
-      out.foam[t] = std::clamp((foam_start - out.jacobian[t]) / (foam_start - foam_full), 0.0f, 1.0f);
+      out.foam[t] = std::clamp((settings.foam_start - out.jacobian[t]) / foam_width, 0.0f, 1.0f);
     }
     out.foam_version = next_map_version();
   }
@@ -142,14 +150,14 @@ bool simulates_on_device(SourceKind kind) {
 }
 
 std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
-                                                   unsigned effects, sim::HeightMapping* mapping_out) {
+                                                   unsigned effects, DeviceSimInfo* info) {
   if (!simulates_on_device(settings.kind))
     throw SceneError("the device path simulates the ocean and sinusoids only");
   try {
     if (settings.kind == SourceKind::sinusoids) {
       const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(settings.sinusoids);
       const sim::HeightMapping mapping = sim::sinusoid_mapping(waves);
-      if (mapping_out) *mapping_out = mapping;
+      if (info) *info = {mapping, 0.0};
       std::vector<float> values;
       for (const sim::Wave& wave : waves)
         values.insert(values.end(), {wave.kx, wave.ky, wave.amplitude, wave.omega, wave.phase});
@@ -166,7 +174,7 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
     const sim::Ocean ocean(params);
     const sim::Ocean::HalfSpectrum spectrum = ocean.half_spectrum();
     const sim::HeightMapping mapping = ocean.mapping();
-    if (mapping_out) *mapping_out = mapping;
+    if (info) *info = {mapping, ocean.loop_error()};
     render::OceanSpectrumView view;
     view.size = params.size;
     view.patch_size = params.patch_size;
@@ -175,8 +183,8 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
     view.omega = spectrum.omega;
     view.scale = mapping.scale;
     view.bias = mapping.bias;
-    view.foam_start = foam_start;
-    view.foam_full = foam_full;
+    view.foam_start = settings.foam_start;
+    view.foam_full = settings.foam_start - foam_width;
     const unsigned device_effects =
         ((effects & effect_choppy) && params.choppiness > 0.0f ? render::device_choppy : 0u) |
         ((effects & effect_foam) ? render::device_foam : 0u);

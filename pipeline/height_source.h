@@ -35,12 +35,11 @@ enum Effect : unsigned {
   effect_choppy = 1u << 1,   // the ocean's horizontal displacement, resampled onto the grid (choppiness > 0)
   effect_foam = 1u << 2,     // the Jacobian of the displacement, as foam coverage (water material with foam)
 };
-// Foam coverage from the Jacobian J of the choppy map: none at J >= foam_start, full at J <= foam_full,
-// linear between (J = 1 on a flat sea, < 0 where the surface folds over). Measured on the default
-// ocean (256 texels, 200 m, 12 m/s): J spans [0.70, 1.34] at choppiness 1 and [0.35, 1.94] at 2.5, so
-// foam starts on the most compressed crests.
-inline constexpr float foam_start = 0.85f;
-inline constexpr float foam_full = 0.45f;
+// Foam coverage from the Jacobian J of the choppy map: none at J >= foam_start (Scene::foam_coverage),
+// full at J <= foam_start - foam_width, linear between (J = 1 on a flat sea, < 0 where the surface
+// folds over). Measured on the default ocean (256 texels, 200 m, 12 m/s): J spans [0.70, 1.34] at
+// choppiness 1 and [0.35, 1.94] at 2.5, so the default 0.85 starts foam on the most compressed crests.
+inline constexpr float foam_width = 0.4f;
 // What a scene consumes: choppy crests for an ocean with choppiness, foam for the water material.
 unsigned scene_effects(const Scene& scene);
 
@@ -56,6 +55,7 @@ struct SourceSettings {
   std::filesystem::path image;  // image: one file, or a numbered sequence (image_for_frame)
   sim::OceanParams ocean;       // its size is map_size
   sim::SinusoidParams sinusoids;
+  float foam_start = 0.85f;  // the Jacobian where foam begins (Scene::foam_coverage)
 };
 SourceSettings source_settings(const Scene& scene);
 
@@ -91,6 +91,7 @@ class HeightSource {
   bool is_static() const;              // the same heights at every time (bricks, cliff, one image)
   unsigned effects() const;            // what make() computes
   sim::HeightMapping mapping() const;  // raw -> [0, 1] (images: the identity)
+  double loop_error() const;           // sim::Ocean::loop_error (0: no ocean, or no loop)
 
   struct State;
 
@@ -102,7 +103,14 @@ class HeightSource {
 // sim::Ocean draws it, or the sinusoids' waves, with the same mapping, the foam thresholds above and
 // the effects asked for. Throws SceneError unless the source is the ocean or sinusoids.
 bool simulates_on_device(SourceKind kind);
+struct DeviceSimInfo {
+  sim::HeightMapping mapping;  // raw -> [0, 1]
+  double loop_error = 0.0;     // sim::Ocean::loop_error of the ocean's loop (0: none)
+};
 std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
-                                                   unsigned effects, sim::HeightMapping* mapping = nullptr);
+                                                   unsigned effects, DeviceSimInfo* info = nullptr);
+// The time a source's heights are made for: `time` modulo the ocean's loop_seconds (the CPU's
+// sim::Ocean takes it so itself; the device is given it), else `time`.
+double source_time(const SourceSettings& settings, double time);
 
 }  // namespace displace::pipeline

@@ -182,7 +182,16 @@ std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long
   return pattern.parent_path() / out;
 }
 
+long long loop_frames(const Scene& scene) {
+  if (scene.source != SourceKind::ocean || !(scene.ocean.loop_seconds > 0.0)) return 0;
+  const double frames = scene.ocean.loop_seconds * scene.fps;
+  const double whole = std::round(frames);
+  return whole >= 1.0 && std::abs(frames - whole) <= 1e-9 * whole ? (long long)whole : 0;
+}
+
 double frame_time(const Scene& scene, long long frame_index) {
+  const long long loop = loop_frames(scene);
+  if (loop > 0) frame_index = ((frame_index % loop) + loop) % loop;
   return scene.start + double(frame_index) / scene.fps;
 }
 
@@ -190,6 +199,8 @@ render::View scene_view(const Scene& scene, double time) {
   render::View view;
   view.camera = scene.camera;
   view.material = scene.material;
+  view.foam_color = scene.foam_color;
+  view.foam_intensity = scene.foam_intensity;
   view.surface = scene.surface;
   view.shadows = scene.shadows;
   view.light_direction = scene.light;
@@ -353,7 +364,7 @@ void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
   if (ocean) {
     read.known_keys(*ocean, "ocean",
                     {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "fetch", "spreading",
-                     "choppiness", "seed"});
+                     "choppiness", "seed", "loop_seconds"});
   }
   sim::OceanParams& params = scene.ocean;
   if (const toml::node* size = key_node(ocean, "size")) {
@@ -387,6 +398,12 @@ void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
       float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, sim::max_choppiness));
   params.seed = std::uint64_t(read.integer(ocean, "ocean", "seed", std::int64_t(params.seed), 0,
                                            std::numeric_limits<std::int64_t>::max()));
+  params.loop_seconds =
+      read.number(ocean, "ocean", "loop_seconds", params.loop_seconds, 0.0, sim::max_loop_seconds);
+  if (params.loop_seconds > 0.0 && params.loop_seconds < sim::min_loop_seconds) {
+    read.fail(key_node(ocean, "loop_seconds"), "ocean.loop_seconds",
+              "must be 0 (no loop) or at least " + std::to_string(sim::min_loop_seconds).substr(0, 3) + " s");
+  }
 }
 
 void read_sinusoids(const Reader& read, const toml::table& root, Scene& scene) {
@@ -412,7 +429,10 @@ void read_sinusoids(const Reader& read, const toml::table& root, Scene& scene) {
 void read_material(const Reader& read, const toml::table& root, const std::string& source_name,
                    Scene& scene) {
   const toml::table* material = read.section(root, "material");
-  if (material) read.known_keys(*material, "material", {"kind", "foam", "albedo"});
+  if (material) {
+    read.known_keys(*material, "material",
+                    {"kind", "foam", "albedo", "foam_coverage", "foam_color", "foam_intensity"});
+  }
   const std::string current = scene.material == render::Material::water ? "water"
                               : !scene.albedo.empty()                   ? "albedo"
                                                                         : "grid";
@@ -435,6 +455,15 @@ void read_material(const Reader& read, const toml::table& root, const std::strin
     read.fail(key_node(material, "foam"), "material.foam",
               "foam needs kind = \"water\" and the ocean source");
   }
+  scene.foam_coverage =
+      float(read.number(material, "material", "foam_coverage", scene.foam_coverage, 0.0, max_foam_coverage));
+  scene.foam_intensity =
+      float(read.number(material, "material", "foam_intensity", scene.foam_intensity, 0.0, 1.0));
+  scene.foam_color = read.vector3(key_node(material, "foam_color"), "material.foam_color", scene.foam_color);
+  const glm::vec3 colour = scene.foam_color;
+  if (!(glm::all(glm::greaterThanEqual(colour, glm::vec3(0.0f))) &&
+        glm::all(glm::lessThanEqual(colour, glm::vec3(1.0f)))))
+    read.fail(key_node(material, "foam_color"), "material.foam_color", "each channel must be in [0, 1]");
 }
 
 // [camera]; returns the section (the camera's own check runs after every section is read)
@@ -670,7 +699,8 @@ std::string scene_toml(const Scene& scene) {
           {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
           {"spreading", tidy(scene.ocean.spreading)},
           {"choppiness", tidy(scene.ocean.choppiness)},
-          {"seed", std::int64_t(scene.ocean.seed)}});
+          {"seed", std::int64_t(scene.ocean.seed)},
+          {"loop_seconds", scene.ocean.loop_seconds}});
   if (scene.ocean.spectrum == sim::Spectrum::jonswap)
     root["ocean"].as_table()->insert("fetch", tidy(scene.ocean.fetch));
   root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
@@ -682,7 +712,10 @@ std::string scene_toml(const Scene& scene) {
   toml::table material{{"kind", scene.material == render::Material::water ? "water"
                                 : !scene.albedo.empty()                   ? "albedo"
                                                                           : "grid"},
-                       {"foam", scene.foam}};
+                       {"foam", scene.foam},
+                       {"foam_coverage", tidy(scene.foam_coverage)},
+                       {"foam_color", vec(scene.foam_color)},
+                       {"foam_intensity", tidy(scene.foam_intensity)}};
   if (!scene.albedo.empty()) material.insert("albedo", scene.albedo.string());
   root.insert("material", material);
   toml::table camera{{"eye", vec(scene.camera.eye)},

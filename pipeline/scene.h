@@ -37,6 +37,7 @@ inline constexpr float min_steepness = 1e-3f;             // [sinusoids] steepne
 inline constexpr double max_frame_ms = 1e9;               // [budget] frame_ms, about 11 days
 inline constexpr long long max_bake_work = 1ll << 40;     // [budget] bake_work, texels a frame
 inline constexpr int max_cone_lag_frames = 64;            // [budget] cone_lag_frames
+inline constexpr double max_foam_coverage = 2.0;          // [material] foam_coverage, a Jacobian, from 0
 
 // How a height image is read ([source] channel, invert, height_range; kind = "image").
 struct ImageRead {
@@ -89,6 +90,11 @@ struct Scene {
   // surface folds; albedo = an image the hit is shaded with (kind = "albedo"; relative to the file)
   render::Material material = render::Material::grid;
   bool foam = false;
+  // foam where the choppy surface's Jacobian falls below foam_coverage (full foam 0.4 below it: a
+  // higher value covers more of the sea), drawn in foam_color (linear RGB) times foam_intensity
+  float foam_coverage = 0.85f;
+  glm::vec3 foam_color{0.92f, 0.95f, 0.96f};
+  float foam_intensity = 1.0f;
   std::filesystem::path albedo;
 
   // [render]
@@ -129,8 +135,11 @@ struct Scene {
 std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);
 bool is_image_sequence(const std::filesystem::path& pattern);
 
-// Frame n's scene time, in double: start + n / fps.
+// Frame n's scene time, in double: start + n / fps; with an ocean loop of T seconds that holds a whole
+// number N = T fps of frames (loop_frames), start + (n mod N) / fps, so that frames n and n + N are
+// the same frame (the sea and the camera alike).
 double frame_time(const Scene& scene, long long frame_index);
+long long loop_frames(const Scene& scene);  // N, or 0: no loop (or T fps not a whole number)
 // The view of frame time `time` (the keyframes interpolated with a cubic Hermite spline through
 // every key, tangents from the neighbouring keys; held before the first and after the last).
 render::View scene_view(const Scene& scene, double time);

@@ -154,6 +154,11 @@ void Renderer::Impl::validate_frame(const View& view, const MethodSettings& meth
       !std::isfinite(view.light_direction.z) || glm::length(view.light_direction) < 1e-6f) {
     throw RenderError("View::light_direction must be finite and non-zero");
   }
+  const glm::vec3 foam = view.foam_color;
+  if (!(foam.r >= 0.0f && foam.r <= 1.0f && foam.g >= 0.0f && foam.g <= 1.0f && foam.b >= 0.0f &&
+        foam.b <= 1.0f && view.foam_intensity >= 0.0f && view.foam_intensity <= 1.0f)) {
+    throw RenderError("View::foam_color and View::foam_intensity must be in [0, 1]");
+  }
   if (method.steps < 1 || method.steps > max_steps)
     throw RenderError("MethodSettings::steps must be between 1 and " + std::to_string(max_steps));
   if (method.refine < 0 || method.refine > max_refine)
@@ -211,6 +216,7 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   const std::array<float, 4> clear = clear_colour(view);
   uniforms.background = glm::vec4(clear[0], clear[1], clear[2], clear[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
+  uniforms.foam = glm::vec4(view.foam_color, view.foam_intensity);
   const Camera::PixelRays rays = camera.pixel_rays();
   uniforms.ray_corner = glm::vec4(glm::vec3(rays.corner), 0.0f);
   uniforms.ray_along_x = glm::vec4(glm::vec3(rays.along_x), 0.0f);

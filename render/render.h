@@ -148,6 +148,10 @@ struct View {
   Surface surface = Surface::plane;
   float radius = 0.25f;  // the quadric's outer radius R, world units (quadrics only)
   bool shadows = false;  // self-shadowing, traced towards the light with the frame's method
+  // the water material's foam (MapSet::foam): its colour (linear RGB in [0, 1]) and how much of it
+  // covers a texel of full coverage (0: none shows)
+  glm::vec3 foam_color{0.92f, 0.95f, 0.96f};
+  float foam_intensity = 1.0f;
 };
 
 inline constexpr int max_steps = 4096;  // MethodSettings::steps, from 1

@@ -126,6 +126,11 @@ void validate(const OceanParams& params) {
   if (!(params.choppiness >= 0.0f && params.choppiness <= max_choppiness))
     fail("choppiness must be in " + range_text(0.0f, max_choppiness));
   if (!positive_finite(params.gravity)) fail("gravity must be positive and finite");
+  if (!(params.loop_seconds == 0.0 ||
+        (params.loop_seconds >= min_loop_seconds && params.loop_seconds <= max_loop_seconds))) {
+    fail("loop_seconds must be 0 (no loop) or in [" + range_text(float(min_loop_seconds)) + ", " +
+         range_text(float(max_loop_seconds)) + "]");
+  }
 }
 
 // Normalisation G(s) of D_s(theta) = G(s) cos^{2s}(theta / 2) over [-pi, pi]: Gamma(s+1) / (2 sqrt(pi)
@@ -285,6 +290,7 @@ struct Ocean::Impl {
   int n = 0;
   int half = 0;  // N/2 + 1 columns of the half spectrum
   double variance = 0.0;
+  double loop_error = 0.0;  // the loop's largest relative change to a mode's w
   float omega_max = 0.0f;
   long long fft_count = 0;
 
@@ -380,9 +386,14 @@ void Ocean::Impl::draw_spectrum() {
       const double ky = lattice_y * dk;
       const double k = std::hypot(kx, ky);
       const std::size_t index = static_cast<std::size_t>(i) * n + j;
-      omega_full[index] = static_cast<float>(std::sqrt(params.gravity * k));
+      const double omega = std::sqrt(params.gravity * k);
+      // a loop of T seconds: w rounded to a multiple of 2 pi / T
+      const double loop_step = params.loop_seconds > 0.0 ? 2.0 * std::numbers::pi / params.loop_seconds : 0.0;
+      const double quantised = loop_step > 0.0 ? std::round(omega / loop_step) * loop_step : omega;
+      omega_full[index] = static_cast<float>(quantised);
       const bool nyquist = i == n / 2 || j == n / 2;
       if (k == 0.0 || nyquist) continue;
+      loop_error = std::max(loop_error, std::abs(quantised - omega) / omega);
       // travel direction of h0(k) is -k
       const double mode_variance = model.variance(-kx / k, -ky / k, k);
       const std::complex<double> xi = gaussian_pair(params.seed, lattice_x, lattice_y);
@@ -511,8 +522,16 @@ Ocean::~Ocean() = default;
 Ocean::Ocean(Ocean&&) noexcept = default;
 Ocean& Ocean::operator=(Ocean&&) noexcept = default;
 
+double Ocean::loop_time(double time) const {
+  const double loop = impl_->params.loop_seconds;
+  return loop > 0.0 ? time - loop * std::floor(time / loop) : time;
+}
+
+double Ocean::loop_error() const { return impl_->loop_error; }
+
 void Ocean::evaluate(double time, unsigned outputs, OceanFrame& frame) {
   Impl& impl = *impl_;
+  time = loop_time(time);
   frame.size = impl.n;
   const std::size_t samples = impl.grid_size();
   auto prepare = [&](unsigned output, std::vector<float>& target) {
@@ -606,6 +625,7 @@ HeightMapping Ocean::mapping() const {
 
 std::vector<std::complex<float>> Ocean::height_spectrum(double time) const {
   const Impl& impl = *impl_;
+  time = loop_time(time);
   const int n = impl.n;
   std::vector<std::complex<float>> spectrum(impl.grid_size());
   for (int i = 0; i < n; ++i) {

@@ -86,6 +86,8 @@ inline constexpr float max_fetch = 1e5f;             // km
 inline constexpr float max_spreading = 100.0f;       // OceanParams::spreading, exponent s, from 0
 inline constexpr float max_choppiness = 10.0f;       // OceanParams::choppiness, lambda, from 0
 inline constexpr float min_peak_enhancement = 1.0f;  // OceanParams::peak_enhancement, JONSWAP gamma
+inline constexpr double min_loop_seconds = 0.1;      // OceanParams::loop_seconds, when not 0
+inline constexpr double max_loop_seconds = 1e6;      // seconds
 
 struct OceanParams {
   int size = 256;             // N x N grid, N even in [min_ocean_size, max_ocean_size]
@@ -101,6 +103,10 @@ struct OceanParams {
   float choppiness = 1.0f;           // lambda, scales the horizontal displacement; > 0 sharpens crests
   std::uint64_t seed = 1;
   float gravity = 9.81f;  // m/s^2
+  // A seamless loop of this many seconds (0: none): every mode's angular frequency is rounded to the
+  // nearest multiple of 2 pi / loop_seconds (Ocean::loop_error says how far that moved them), and
+  // time is taken modulo loop_seconds, so heights at t and t + loop_seconds are equal bit for bit.
+  double loop_seconds = 0.0;
 };
 
 // Outputs beyond heights are computed only when requested; requesting none costs nothing.
@@ -165,6 +171,12 @@ class Ocean {
 
   // Work counter: inverse FFTs executed since construction.
   long long fft_count() const;
+  // With params().loop_seconds: the largest relative change |w_q - w| / w the loop's quantisation made
+  // to a mode that carries energy (0 without a loop).
+  double loop_error() const;
+  // The time the spectrum is evaluated at: `time` modulo loop_seconds (in [0, loop_seconds)), or
+  // `time` itself without a loop.
+  double loop_time(double time) const;
 
  private:
   struct Impl;

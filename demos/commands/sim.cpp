@@ -24,11 +24,16 @@ void run_sim(const SimSettings& settings, std::ostream& out) {
   const SceneHeights heights = scene_heights(settings.scene, time, renderer ? &*renderer : nullptr);
   write_height_exr(settings.output, heights);
   out << fmt::format(
-      "displace: synthesized {} heights {} x {} at t = {:g} s in {:.1f} ms on the {} (h01 = {}); wrote raw "
+      "displace: synthesized {} heights {} x {} at t = {:g} s in {:.1f} ms on the {} (h01 = {}){}; wrote raw "
       "metres to '{}'\n",
       source_name(settings.scene.source), heights.width, heights.height, time, heights.milliseconds,
       renderer ? "device (" + renderer->device().name + ")" : std::string("CPU"),
-      mapping_phrase(heights.mapping), settings.output.string());
+      mapping_phrase(heights.mapping),
+      settings.scene.ocean.loop_seconds > 0.0 && settings.scene.source == pipeline::SourceKind::ocean
+          ? fmt::format(", a {:g} s loop (wave frequencies moved by at most {:.2f}%)",
+                        settings.scene.ocean.loop_seconds, 100.0 * heights.loop_error)
+          : std::string(),
+      settings.output.string());
 }
 
 Finish add_sim_command(CLI::App& command) {

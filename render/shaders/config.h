@@ -87,6 +87,7 @@ struct FrameUniforms {
   vec4 ray_corner;
   vec4 ray_along_x;
   vec4 ray_along_y;
+  vec4 foam;  // the water material's foam: rgb colour, a intensity (View::foam_color, foam_intensity)
 };
 
 // The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this

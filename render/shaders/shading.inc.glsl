@@ -44,7 +44,6 @@ const vec3 water_deep = vec3(0.004, 0.030, 0.060);    // scattered colour over t
 const vec3 water_shallow = vec3(0.030, 0.170, 0.190); // over the crests (height 1): less water below
 const float sun_glint_exponent = 300.0;
 const float sun_glint_strength = 3.0;
-const vec3 foam_colour = vec3(0.92, 0.95, 0.96);
 
 vec3 sky(vec3 direction) {
   float up = clamp(direction.z, 0.0, 1.0);
@@ -64,7 +63,8 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   vec3 colour = mix(body, reflection, fresnel) + glint;
   if ((frame.counts.z & FLAG_FOAM) != 0) {
     float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
-    colour = mix(colour, foam_colour * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)), foam);
+    colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
+                 foam * frame.foam.a);
   }
   return min(colour, vec3(1.0));
 }

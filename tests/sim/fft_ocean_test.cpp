@@ -391,6 +391,9 @@ TEST(Ocean, BadParamsThrow) {
   throws([](OceanParams& p) { p.small_wave_cutoff = -1.0f; });
   throws([](OceanParams& p) { p.choppiness = INFINITY; });
   throws([](OceanParams& p) { p.gravity = 0.0f; });
+  throws([](OceanParams& p) { p.loop_seconds = 0.05; });
+  throws([](OceanParams& p) { p.loop_seconds = -1.0; });
+  throws([](OceanParams& p) { p.loop_seconds = NAN; });
   throws([](OceanParams& p) { p.spectrum = static_cast<Spectrum>(7); });
 }
 
@@ -412,6 +415,47 @@ TEST(Ocean, MovesAndConcurrentConstruction) {
   for (auto& thread : threads) thread.join();
   EXPECT_EQ(heights[1], heights[3]);
   EXPECT_EQ(heights[1].size(), 32u * 32u);
+}
+
+TEST(Ocean, LoopsSeamlesslyBitForBit) {
+  OceanParams params;
+  params.size = 64;
+  params.choppiness = 1.5f;
+  params.loop_seconds = 12.5;
+  Ocean ocean(params);
+  const unsigned outputs = ocean_heights | ocean_displacement | ocean_foam;
+  const double step = 2.0 * std::numbers::pi / params.loop_seconds;
+  // every frequency a multiple of 2 pi / T, and the error reported is the largest change
+  double largest_change = 0.0;
+  Ocean unlooped([&] {
+    OceanParams plain = params;
+    plain.loop_seconds = 0.0;
+    return plain;
+  }());
+  for (int i = 0; i < params.size; ++i) {
+    for (int j = 0; j < params.size; ++j) {
+      const double multiple = double(ocean.omega(i, j)) / step;
+      EXPECT_NEAR(multiple, std::round(multiple), 1e-5);
+      if (i == params.size / 2 || j == params.size / 2 || (i == 0 && j == 0)) continue;
+      largest_change =
+          std::max(largest_change, std::abs(double(ocean.omega(i, j)) - double(unlooped.omega(i, j))) /
+                                       double(unlooped.omega(i, j)));
+    }
+  }
+  EXPECT_GT(ocean.loop_error(), 0.0);
+  EXPECT_NEAR(ocean.loop_error(), largest_change, 1e-6);
+  EXPECT_EQ(unlooped.loop_error(), 0.0);
+  for (double start : {0.0, 1.25, 1e9}) {
+    SCOPED_TRACE(start);
+    OceanFrame first, later, halfway;
+    ocean.evaluate(start, outputs, first);
+    ocean.evaluate(start + params.loop_seconds, outputs, later);
+    ocean.evaluate(start + 0.5 * params.loop_seconds, outputs, halfway);
+    EXPECT_EQ(first.height, later.height);
+    EXPECT_EQ(first.displacement_x, later.displacement_x);
+    EXPECT_EQ(first.jacobian, later.jacobian);
+    EXPECT_NE(first.height, halfway.height);
+  }
 }
 
 }  // namespace
