@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,9 @@ class ComputeKernel {
                 std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes);
   ComputeKernel(ComputeKernel&&) noexcept = default;
   ComputeKernel& operator=(ComputeKernel&&) noexcept = default;
+  // A kernel with this one's pipeline (made once: a driver may take long to compile one) and a
+  // descriptor set of its own, for other resources.
+  ComputeKernel sibling() const;
 
   void bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset = 0,
                    VkDeviceSize range = VK_WHOLE_SIZE);
@@ -33,14 +37,20 @@ class ComputeKernel {
               std::uint32_t groups_z, const void* push) const;
 
  private:
+  // the pipeline and its layouts, shared with siblings
+  struct Pipeline {
+    OwnedDescriptorSetLayout set_layout;
+    OwnedPipelineLayout layout;
+    OwnedShaderModule module;
+    OwnedPipeline pipeline;
+  };
+  void allocate_set();
+
   VkDevice device_ = VK_NULL_HANDLE;
   std::vector<VkDescriptorType> bindings_;
   std::uint32_t push_bytes_ = 0;
-  OwnedDescriptorSetLayout set_layout_;
-  OwnedPipelineLayout layout_;
+  std::shared_ptr<const Pipeline> shared_;
   OwnedDescriptorPool pool_;
-  OwnedShaderModule module_;
-  OwnedPipeline pipeline_;
   VkDescriptorSet set_ = VK_NULL_HANDLE;  // freed with the pool
 };
 

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -151,7 +152,17 @@ struct Renderer::Impl {
   const Image* device_heights = nullptr;
   const Image* device_foam = nullptr;
   bool heights_from_device = false, foam_from_device = false;
-  std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
+  // device.h: the cone image a DeviceCones writes (cone_format, GENERAL layout), by cone_slot, and
+  // whether the last MapSet samples it
+  struct DeviceConeImage {
+    const Image* image = nullptr;
+    int width = 0, height = 0, sectors = 0;
+    bake::Address address = bake::Address::wrap;
+  };
+  std::array<const DeviceConeImage*, 3> device_cones{};
+  std::array<bool, 3> cones_from_device{};
+  std::shared_ptr<const struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
+  std::vector<VkBufferImageCopy> copy_regions;                   // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
