@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "demos/error.h"
+#include "render/device.h"
 
 namespace displace::app {
 namespace {
@@ -81,6 +82,33 @@ BakedCones bake_bilinear(std::span<const float> heights, int width, int height, 
     bake::BilinearBaker bilinear_baker(width, height, sector_count, address);
     baked.stats = bilinear_baker.bake(view, budget, cones, baked.apex);
   }
+  return baked;
+}
+
+BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
+                                   int height, int sector_count, Baker baker, bake::Address address,
+                                   double budget_milliseconds) {
+  if (baker != Baker::budgeted && baker != Baker::full) {
+    throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
+                      baker_name(baker));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  render::DeviceCones cones(renderer, bake::HeightView{heights.data(), width, height}, sector_count, address);
+  render::DeviceConeBudget budget;
+  budget.texels = baker == Baker::budgeted && budget_milliseconds == 0.0 ? 0 : render::unlimited_texels;
+  cones.bake(budget);
+  BakedCones baked;
+  const render::DeviceConeStats device_stats = cones.read_back(&baked.ratios, &baked.apex);
+  baked.stats.mode = bake::Mode::bilinear;
+  baked.stats.width = width;
+  baked.stats.height = height;
+  baked.stats.sector_count = sector_count;
+  baked.stats.texels_refined = device_stats.texels_refined;
+  baked.stats.milliseconds =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  double sum = 0.0;
+  for (float ratio : baked.ratios) sum += double(ratio);
+  baked.stats.mean_ratio = baked.ratios.empty() ? 0.0 : sum / double(baked.ratios.size());
   return baked;
 }
 

@@ -110,17 +110,20 @@ std::string source_name(pipeline::SourceKind kind) {
   return "unknown";
 }
 
-bool sim_wants_device(const pipeline::Scene& scene) {
-  if (!pipeline::simulates_on_device(scene.source) || scene.sim_backend == pipeline::Backend::cpu)
-    return false;
-  if (scene.sim_backend == pipeline::Backend::device) return true;
+bool wants_device(pipeline::Backend backend) {
+  if (backend == pipeline::Backend::cpu) return false;
+  if (backend == pipeline::Backend::device) return true;
   try {
     for (const render::DeviceInfo& device : render::list_devices()) {
-      if (pipeline::runs_on_device(scene.sim_backend, device)) return true;
+      if (pipeline::runs_on_device(backend, device)) return true;
     }
   } catch (const render::RenderError&) {
   }
   return false;
+}
+
+bool sim_wants_device(const pipeline::Scene& scene) {
+  return pipeline::simulates_on_device(scene.source) && wants_device(scene.sim_backend);
 }
 
 SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Renderer* device) {

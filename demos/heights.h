@@ -36,6 +36,8 @@ SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Re
 // Whether the scene's [backend] sim puts its heights on a device: "device", or "auto" where a GPU is
 // present (the CPU driver alone keeps the CPU); static sources never.
 bool sim_wants_device(const pipeline::Scene& scene);
+// Whether a stage set to `backend` runs on a device here: "device", or "auto" with a GPU present.
+bool wants_device(pipeline::Backend backend);
 
 // Raw metres to channel `height` with the source's attributes (what `displace sim` writes).
 void write_height_exr(const std::filesystem::path& file, const SceneHeights& heights);

@@ -47,6 +47,13 @@ struct FramePipeline::State {
   std::unique_ptr<render::DeviceSim> device_source;
   bool heights_to_cpu = true;
   bool sim_on_device() const { return device_source != nullptr; }
+  // the cone maps baked on the device (from the device sim's heights, or a static source's uploaded
+  // once at the first bake); the CPU's map maker then makes only the other maps
+  bool bake_on_device = false;
+  std::unique_ptr<render::DeviceCones> device_cones;
+  std::uint64_t device_cones_version = 0;  // the heights the device cones were last baked from
+  render::MapNeeds cpu_needs;              // what the map maker makes
+  render::DeviceConeBudget device_budget;
 };
 
 FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std::function<double()> clock,
@@ -65,13 +72,34 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   s.deterministic = !std::isfinite(scene.frame_ms);
   const bool lagged = !s.deterministic && !s.source.is_static() && !s.needs.relaxed;
   s.cone_lag_frames = lagged ? scene.cone_lag_frames : 0;
-  if (scene.source != SourceKind::image) s.maker.reserve(s.needs, scene.map_size, scene.map_size);
-  if (runs_on_device(scene.bake_backend, renderer.device()) && scene.bake_backend == Backend::device)
-    throw SceneError("backend.bake = \"device\": the cone maps are not made on the device yet (use \"cpu\")");
-  if (simulates_on_device(scene.source) && runs_on_device(scene.sim_backend, renderer.device())) {
+  if (simulates_on_device(scene.source) && runs_on_device(scene.sim_backend, renderer.device()))
     s.device_source = make_device_sim(renderer, source_settings(scene), scene_effects(scene));
-    s.heights_to_cpu = s.needs.cone_sectors > 0 || s.needs.max_pyramid || s.needs.distance;
+  // the cone bake on the device: the bilinear cones (a relaxed layer is the CPU's), from heights that
+  // are on the device already or never change
+  if (s.needs.cone_sectors > 0 && !s.needs.relaxed && runs_on_device(scene.bake_backend, renderer.device())) {
+    if (s.sim_on_device() || s.source.is_static()) {
+      s.bake_on_device = true;
+    } else if (scene.bake_backend == Backend::device) {
+      throw SceneError(
+          "backend.bake = \"device\" bakes heights on the device or a static map's: moving heights made on "
+          "the "
+          "CPU need backend.sim = \"device\" (or \"auto\") too");
+    }
   }
+  s.cpu_needs = s.needs;
+  if (s.bake_on_device) {
+    s.cpu_needs.cone_sectors = 0;
+    s.cpu_needs.relaxed = false;
+    s.device_budget.texels = scene.bake_work >= 0            ? scene.bake_work
+                             : std::isfinite(scene.frame_ms) ? 0
+                                                             : render::unlimited_texels;
+    if (s.sim_on_device())
+      s.device_cones =
+          std::make_unique<render::DeviceCones>(renderer, s.needs.cone_sectors, s.needs.cone_address);
+  }
+  if (s.bake_on_device) s.cone_lag_frames = 0;  // the device bakes every frame's own
+  if (scene.source != SourceKind::image) s.maker.reserve(s.cpu_needs, scene.map_size, scene.map_size);
+  s.heights_to_cpu = s.cpu_needs.cone_sectors > 0 || s.cpu_needs.max_pyramid || s.cpu_needs.distance;
 }
 
 FramePipeline::~FramePipeline() = default;
@@ -123,9 +151,27 @@ void simulate_into(FramePipeline::State& s, int slot, double time, FrameRecord& 
 
 // The maps of the frame in `slot` within the bake's share of the budget (MapMaker::make): refinement
 // carried over on a static source in real time, lagged cone maps on moving ones where the scene asks.
+// The device's cone bake: recorded into the renderer's next frame after the sim (a static map's
+// cones once per version of its heights).
+void bake_on_device(FramePipeline::State& s, const HeightFrame& frame, FrameRecord& record) {
+  if (!s.device_cones) {
+    const bake::HeightView heights{frame.field.heights.data(), frame.field.width, frame.field.height};
+    s.device_cones = std::make_unique<render::DeviceCones>(s.renderer, heights, s.needs.cone_sectors,
+                                                           s.needs.cone_address);
+  }
+  if (s.sim_on_device() || s.device_cones_version != frame.version) {
+    s.device_cones->bake(s.device_budget);
+    s.device_cones_version = frame.version;
+  }
+  record.bake_on_device = true;
+  record.bake_device_ms = s.device_cones->device_milliseconds();
+  record.cones.sector_count = s.needs.cone_sectors;
+}
+
 void bake_into(FramePipeline::State& s, int slot, double budget_ms, FrameRecord& record) {
   record.bake_budget_ms = budget_ms;
   const HeightFrame& frame = s.heights[std::size_t(slot)];
+  if (s.bake_on_device) bake_on_device(s, frame, record);
   MapHeights heights;
   heights.heights = frame.field.heights;
   heights.width = frame.field.width;
@@ -142,8 +188,8 @@ void bake_into(FramePipeline::State& s, int slot, double budget_ms, FrameRecord&
   schedule.lag_frames = s.cone_lag_frames;
   schedule.frame_index = record.index;
   MapStats stats;
-  s.maker.make(slot, heights, s.needs, schedule, stats);
-  if (s.needs.cone_sectors > 0) {
+  s.maker.make(slot, heights, s.cpu_needs, schedule, stats);
+  if (s.cpu_needs.cone_sectors > 0) {
     record.cones = stats.cones;
     record.pending = stats.pending;
     record.cone_lag = stats.cone_lag;
@@ -152,15 +198,24 @@ void bake_into(FramePipeline::State& s, int slot, double budget_ms, FrameRecord&
 }
 
 void upload_from(FramePipeline::State& s, int slot) {
-  if (!s.sim_on_device()) {
+  if (!s.sim_on_device() && !s.bake_on_device) {
     s.renderer.set_maps(s.maker.made(slot));
     return;
   }
   render::MapSet maps = s.maker.made(slot);
-  maps.width = maps.height = s.device_source->size();
-  maps.heights = {};
-  maps.heights_on_device = true;
-  maps.foam_on_device = (s.device_source->effects() & render::device_foam) != 0;
+  if (s.sim_on_device()) {
+    maps.width = maps.height = s.device_source->size();
+    maps.heights = {};
+    maps.heights_on_device = true;
+    maps.foam_on_device = (s.device_source->effects() & render::device_foam) != 0;
+  }
+  if (s.bake_on_device) {
+    render::ConeMapView& cones = maps.cones[std::size_t(render::cone_slot(s.needs.cone_sectors))];
+    cones = render::ConeMapView{};
+    cones.sector_count = s.needs.cone_sectors;
+    cones.address = s.needs.cone_address;
+    cones.on_device = true;
+  }
   s.renderer.set_maps(maps);
 }
 
@@ -179,6 +234,9 @@ void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigne
   const Scene& scene = state_->scene;
   state_->renderer.render(view, {scene.method, scene.steps, scene.refine}, frame, outputs);
   record.render_device_ms = outputs != render::output_none ? frame.gpu_milliseconds : 0.0;
+  // the device stages of this frame, when it has finished (its outputs read back)
+  if (state_->sim_on_device()) record.sim_device_ms = state_->device_source->device_milliseconds();
+  if (state_->device_cones) record.bake_device_ms = state_->device_cones->device_milliseconds();
 }
 
 FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned outputs) {
@@ -215,9 +273,9 @@ FrameRecord FramePipeline::run(long long index, const render::View& view, render
 void FramePipeline::run_frames(long long first, long long count, unsigned outputs,
                                const std::function<void(const FrameRecord&, const render::Frame&)>& consume) {
   State& s = *state_;
-  if (s.sim_on_device()) {
-    // the device records its sim into the renderer's frame, which only the render thread may do: the
-    // frames one after another (the device runs them while the CPU records the next)
+  if (s.sim_on_device() || s.bake_on_device) {
+    // the device records its sim and bake into the renderer's frame, which only the render thread may
+    // do: the frames one after another (the device runs them while the CPU records the next)
     render::Frame frame;
     for (long long n = 0; n < count; ++n) consume(run(first + n, frame, outputs), frame);
     return;

@@ -42,8 +42,8 @@ struct FrameRecord {
   float cone_lift = 0.0f;        // how far its apexes were raised for this frame's heights
   double choppy_residual = 0.0;  // metres: the resampling's largest |p + D(p) - x|
   // The device path: where the sim and the bake ran, and the device's own milliseconds from GPU
-  // timestamps (0 where none): the draw's of this frame (when its outputs were read back), the
-  // sim's of the last device sim that has finished (with frames in flight, an earlier frame's)
+  // timestamps (0 where none): this frame's when its outputs were read back (the frame finished),
+  // else the last finished frame's (with output_none, an earlier frame's; the draw's then 0)
   bool sim_on_device = false, bake_on_device = false;
   double sim_device_ms = 0.0, bake_device_ms = 0.0, render_device_ms = 0.0;
 };

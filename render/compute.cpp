@@ -10,18 +10,16 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
     : device_(context.device()),
       bindings_(bindings.begin(), bindings.end()),
       push_bytes_(push_constant_bytes) {
+  auto shared = std::make_shared<Pipeline>();
   std::vector<VkDescriptorSetLayoutBinding> layout_bindings;
-  std::vector<VkDescriptorPoolSize> sizes;
-  for (std::uint32_t i = 0; i < bindings.size(); ++i) {
+  for (std::uint32_t i = 0; i < bindings.size(); ++i)
     layout_bindings.push_back({i, bindings[i], 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
-    sizes.push_back({bindings[i], 1});
-  }
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = std::uint32_t(layout_bindings.size());
   set_info.pBindings = layout_bindings.data();
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateDescriptorSetLayout(device_, &set_info, nullptr, &set_layout));
-  set_layout_ = OwnedDescriptorSetLayout(device_, set_layout);
+  shared->set_layout = OwnedDescriptorSetLayout(device_, set_layout);
 
   VkPushConstantRange push{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
   VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
@@ -31,27 +29,14 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
   layout_info.pPushConstantRanges = &push;
   VkPipelineLayout layout = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreatePipelineLayout(device_, &layout_info, nullptr, &layout));
-  layout_ = OwnedPipelineLayout(device_, layout);
-
-  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pool_info.maxSets = 1;
-  pool_info.poolSizeCount = std::uint32_t(sizes.size());
-  pool_info.pPoolSizes = sizes.data();
-  VkDescriptorPool pool = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateDescriptorPool(device_, &pool_info, nullptr, &pool));
-  pool_ = OwnedDescriptorPool(device_, pool);
-  VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-  allocate.descriptorPool = pool;
-  allocate.descriptorSetCount = 1;
-  allocate.pSetLayouts = &set_layout;
-  DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device_, &allocate, &set_));
+  shared->layout = OwnedPipelineLayout(device_, layout);
 
   VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   module_info.codeSize = spirv.size_bytes();
   module_info.pCode = spirv.data();
   VkShaderModule module = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateShaderModule(device_, &module_info, nullptr, &module));
-  module_ = OwnedShaderModule(device_, module);
+  shared->module = OwnedShaderModule(device_, module);
 
   VkComputePipelineCreateInfo pipeline_info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   pipeline_info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
@@ -61,7 +46,37 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
   pipeline_info.layout = layout;
   VkPipeline pipeline = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &pipeline_info, nullptr, &pipeline));
-  pipeline_ = OwnedPipeline(device_, pipeline);
+  shared->pipeline = OwnedPipeline(device_, pipeline);
+  shared_ = std::move(shared);
+  allocate_set();
+}
+
+ComputeKernel ComputeKernel::sibling() const {
+  ComputeKernel kernel;
+  kernel.device_ = device_;
+  kernel.bindings_ = bindings_;
+  kernel.push_bytes_ = push_bytes_;
+  kernel.shared_ = shared_;
+  kernel.allocate_set();
+  return kernel;
+}
+
+void ComputeKernel::allocate_set() {
+  std::vector<VkDescriptorPoolSize> sizes;
+  for (VkDescriptorType type : bindings_) sizes.push_back({type, 1});
+  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pool_info.maxSets = 1;
+  pool_info.poolSizeCount = std::uint32_t(sizes.size());
+  pool_info.pPoolSizes = sizes.data();
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateDescriptorPool(device_, &pool_info, nullptr, &pool));
+  pool_ = OwnedDescriptorPool(device_, pool);
+  const VkDescriptorSetLayout set_layout = shared_->set_layout.get();
+  VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  allocate.descriptorPool = pool;
+  allocate.descriptorSetCount = 1;
+  allocate.pSetLayouts = &set_layout;
+  DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device_, &allocate, &set_));
 }
 
 void ComputeKernel::bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset,
@@ -90,13 +105,51 @@ void ComputeKernel::bind_image(std::uint32_t binding, VkImageView view, VkImageL
 
 void ComputeKernel::record(VkCommandBuffer commands, std::uint32_t groups_x, std::uint32_t groups_y,
                            std::uint32_t groups_z, const void* push) const {
-  vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.get());
+  vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_COMPUTE, shared_->pipeline.get());
   VkDescriptorSet set = set_;
-  vkCmdBindDescriptorSets(commands, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1, &set, 0, nullptr);
+  vkCmdBindDescriptorSets(commands, VK_PIPELINE_BIND_POINT_COMPUTE, shared_->layout.get(), 0, 1, &set, 0,
+                          nullptr);
   if (push_bytes_ > 0) {
-    vkCmdPushConstants(commands, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes_, push);
+    vkCmdPushConstants(commands, shared_->layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes_, push);
   }
   vkCmdDispatch(commands, groups_x, groups_y, groups_z);
+}
+
+StageTimer::StageTimer(const Context& context)
+    : device_(context.device()), period_ns_(context.timestamp_period_ns()) {
+  if (!context.has_timestamps()) return;
+  VkQueryPoolCreateInfo info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+  info.queryType = VK_QUERY_TYPE_TIMESTAMP;
+  info.queryCount = 2 * 32;  // two per frame slot
+  VkQueryPool pool = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateQueryPool(device_, &info, nullptr, &pool));
+  queries_ = OwnedQueryPool(device_, pool);
+}
+
+void StageTimer::read(int slot) {
+  if (!queries_.get() || slot < 0 || slot >= 32 || !(written_ & (1u << slot))) return;
+  std::uint64_t ticks[2] = {};
+  if (vkGetQueryPoolResults(device_, queries_.get(), std::uint32_t(2 * slot), 2, sizeof ticks, ticks,
+                            sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
+    milliseconds_ = double(ticks[1] - ticks[0]) * double(period_ns_) * 1e-6;
+  }
+}
+
+void StageTimer::begin(VkCommandBuffer commands, int slot) {
+  if (!queries_.get() || slot < 0 || slot >= 32) return;
+  const auto first = std::uint32_t(2 * slot);
+  read(slot);  // the slot's last frame has finished (begin_slot waited for it)
+  written_ &= ~(1u << slot);
+  vkCmdResetQueryPool(commands, queries_.get(), first, 2);
+  vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_.get(), first);
+}
+
+void StageTimer::end(VkCommandBuffer commands, int slot) {
+  if (!queries_.get() || slot < 0 || slot >= 32) return;
+  vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_.get(),
+                      std::uint32_t(2 * slot + 1));
+  written_ |= 1u << slot;
+  last_slot_ = slot;
 }
 
 void compute_barrier(VkCommandBuffer commands) {

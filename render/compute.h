@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,9 @@ class ComputeKernel {
                 std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes);
   ComputeKernel(ComputeKernel&&) noexcept = default;
   ComputeKernel& operator=(ComputeKernel&&) noexcept = default;
+  // A kernel with this one's pipeline (made once: a driver may take long to compile one) and a
+  // descriptor set of its own, for other resources.
+  ComputeKernel sibling() const;
 
   void bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset = 0,
                    VkDeviceSize range = VK_WHOLE_SIZE);
@@ -33,20 +37,51 @@ class ComputeKernel {
               std::uint32_t groups_z, const void* push) const;
 
  private:
+  // the pipeline and its layouts, shared with siblings
+  struct Pipeline {
+    OwnedDescriptorSetLayout set_layout;
+    OwnedPipelineLayout layout;
+    OwnedShaderModule module;
+    OwnedPipeline pipeline;
+  };
+  void allocate_set();
+
   VkDevice device_ = VK_NULL_HANDLE;
   std::vector<VkDescriptorType> bindings_;
   std::uint32_t push_bytes_ = 0;
-  OwnedDescriptorSetLayout set_layout_;
-  OwnedPipelineLayout layout_;
+  std::shared_ptr<const Pipeline> shared_;
   OwnedDescriptorPool pool_;
-  OwnedShaderModule module_;
-  OwnedPipeline pipeline_;
   VkDescriptorSet set_ = VK_NULL_HANDLE;  // freed with the pool
 };
 
 // Shader writes (storage buffers and images) of the compute work recorded so far made visible to the
 // compute, transfer and fragment/vertex work recorded after it.
 void compute_barrier(VkCommandBuffer commands);
+
+// A device stage's own time: two timestamps per frame slot around its commands, read back once that
+// slot's frame has finished (the next begin() on the slot, after begin_slot waited for it). Nothing
+// where the device has no timestamps.
+class StageTimer {
+ public:
+  StageTimer() = default;
+  explicit StageTimer(const Context& context);
+  void begin(VkCommandBuffer commands, int slot);
+  void end(VkCommandBuffer commands, int slot);
+  // The slot of the last end() (-1: none); read its timestamps now when the caller knows that slot's
+  // frame has finished.
+  int last_slot() const { return last_slot_; }
+  void read(int slot);
+  // Milliseconds of the last finished stage read (0: none yet, or no timestamps).
+  double milliseconds() const { return milliseconds_; }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  float period_ns_ = 0.0f;
+  OwnedQueryPool queries_;
+  std::uint32_t written_ = 0;  // bit s: slot s holds a stage's two timestamps
+  int last_slot_ = -1;
+  double milliseconds_ = 0.0;
+};
 
 // Groups of `local` invocations that cover `count`.
 inline std::uint32_t group_count(std::uint32_t count, std::uint32_t local) {

@@ -9,6 +9,11 @@
 // water folds over, the inverse of the displacement is not unique and a texel may take another
 // fold's height. Time is double on the host; phases reach the shader reduced (w t_anchor modulo
 // 2 pi in double, plus |w (t - t_anchor)| < 1e5 rad in split floats), so t = 1e9 s is as precise as 0.
+//
+// DeviceCones: the renderer's cone maps (bake.h's bake_bilinear_cones contract: apex H_c = max of the
+// bilinear surface over the texel's square, r_k valid from every point of it) made in compute from
+// heights on the device - a DeviceSim's, or a static map uploaded once - into the cone image the
+// renderer samples (ConeMapView::on_device). Proof and figures: docs/design/device-cones.md.
 #pragma once
 
 #include <memory>
@@ -74,6 +79,53 @@ class DeviceSim {
       const;  // inverse FFTs recorded: per ocean frame 1 for heights, 3 choppy, 4 foam, 6 both
   // The device's milliseconds for the last simulate() whose frame has finished (GPU timestamps around
   // its kernels); 0 where the device has no timestamps or none has finished.
+  double device_milliseconds() const;
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
+// How much of a DeviceCones bake goes beyond the first pass. The first pass (always) bounds every
+// texel from its slope window, the Lipschitz floor and the max pyramid opened down to blocks of 4 x 4
+// cells; a texel whose search bounded such a block whole is "cut", and up to `texels` cut texels (which
+// ones: the order the device runs them in) are searched again down to the cells. unlimited_texels:
+// no first pass, every texel searched to the cells. Each is conservative on its own.
+inline constexpr long long unlimited_texels = -1;
+struct DeviceConeBudget {
+  long long texels = unlimited_texels;  // cut texels searched again per bake, at most; 0: the first pass only
+};
+
+struct DeviceConeStats {
+  long long texels_refined = 0;  // texels searched down to the cells (all of them when unlimited)
+  long long texels_cut = 0;      // texels the first pass cut (0 when unlimited: no first pass)
+};
+
+class DeviceCones {
+ public:
+  // Cones of the heights this renderer's DeviceSim writes (made before, alive while this is used).
+  DeviceCones(Renderer& renderer, int sector_count, bake::Address address);
+  // Cones of a static map, uploaded once (heights finite, in [0, 1]).
+  DeviceCones(Renderer& renderer, bake::HeightView heights, int sector_count, bake::Address address);
+  ~DeviceCones();
+  DeviceCones(const DeviceCones&) = delete;
+  DeviceCones& operator=(const DeviceCones&) = delete;
+
+  // Records the bake into the renderer's next frame, after the ocean's simulate() recorded there and
+  // ahead of the draw; frames whose MapSet has cones[cone_slot(sector_count)].on_device sample it.
+  void bake(const DeviceConeBudget& budget = {});
+  // Submits what is recorded, waits, and reads back what the renderer samples (either may be null):
+  // ratios decoded, W x H x sectors interleaved (bake::ConeView's layout), and apex heights decoded.
+  // Throws RenderError where the heights held a NaN or a value outside [0, 1].
+  DeviceConeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
+
+  int width() const;
+  int height() const;
+  int sector_count() const;
+  bake::Address address() const;
+  // The device's milliseconds for the last bake() whose frame has finished (GPU timestamps); 0 where
+  // none has, or the device has no timestamps.
   double device_milliseconds() const;
 
   struct State;

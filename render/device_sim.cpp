@@ -83,10 +83,7 @@ struct DeviceSim::State {
   Buffer readback;
   ComputeKernel spectrum_kernel, assemble_kernel, sinusoid_kernel;
   std::unique_ptr<DeviceFft> fft;
-  // timestamps: two per frame slot, and whether the slot's were written
-  OwnedQueryPool queries;
-  std::array<bool, frames_in_flight> timed{};
-  double device_ms = 0.0;
+  StageTimer timer;
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t items() const {
@@ -95,7 +92,6 @@ struct DeviceSim::State {
   std::size_t texels() const { return std::size_t(size) * std::size_t(size); }
   void make_common(Renderer::Impl& renderer);
   void write_anchor(double time);
-  void read_timestamps(int slot);
 };
 
 // What both sources make: the outputs (heights image, metres, foam image), the phase buffers, the
@@ -119,14 +115,7 @@ void DeviceSim::State::make_common(Renderer::Impl& renderer) {
   const std::uint32_t foam_side = (effects & device_foam) ? std::uint32_t(size) : 1u;
   foam = Image(context, VK_FORMAT_R32_SFLOAT, foam_side, foam_side, 1, image_usage, VK_IMAGE_ASPECT_COLOR_BIT,
                VK_IMAGE_VIEW_TYPE_2D);
-  if (context.has_timestamps()) {
-    VkQueryPoolCreateInfo info{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
-    info.queryType = VK_QUERY_TYPE_TIMESTAMP;
-    info.queryCount = 2 * frames_in_flight;
-    VkQueryPool pool = VK_NULL_HANDLE;
-    DISPLACE_VK_CHECK(vkCreateQueryPool(context.device(), &info, nullptr, &pool));
-    queries = OwnedQueryPool(context.device(), pool);
-  }
+  timer = StageTimer(context);
   // w split, through a staging buffer; the images to GENERAL, where the kernels write them
   Buffer staging(context, items() * 8, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, host);
   auto* split = static_cast<float*>(staging.mapped());
@@ -157,16 +146,6 @@ void DeviceSim::State::write_anchor(double time) {
   }
   anchor_time = time;
   anchored = true;
-}
-
-// The timestamps of the frame slot's last simulate(), once that frame has finished.
-void DeviceSim::State::read_timestamps(int slot) {
-  if (!queries.get() || !timed[std::size_t(slot)]) return;
-  std::array<std::uint64_t, 2> ticks{};
-  if (vkGetQueryPoolResults(impl.context.device(), queries.get(), std::uint32_t(2 * slot), 2, sizeof ticks,
-                            ticks.data(), sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
-    device_ms = double(ticks[1] - ticks[0]) * impl.context.timestamp_period_ns() * 1e-6;
-  }
 }
 
 DeviceSim::DeviceSim(Renderer& renderer, const OceanSpectrumView& spectrum, unsigned effects)
@@ -322,12 +301,7 @@ void DeviceSim::simulate(double time) {
   }
   const int slot = s.impl.slot;
   const VkCommandBuffer commands = s.impl.begin_slot().commands;  // waits for the slot's last frame
-  s.read_timestamps(slot);
-  const VkQueryPool queries = s.queries.get();
-  if (queries) {
-    vkCmdResetQueryPool(commands, queries, std::uint32_t(2 * slot), 2);
-    vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, std::uint32_t(2 * slot));
-  }
+  s.timer.begin(commands, slot);
 
   // the frames before read the maps and buffers this one writes
   VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -395,10 +369,7 @@ void DeviceSim::simulate(double time) {
     s.assemble_kernel.record(commands, tiles, tiles, 1, &assemble_push);
   }
   compute_barrier(commands);
-  if (queries) {
-    vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, queries, std::uint32_t(2 * slot + 1));
-    s.timed[std::size_t(slot)] = true;
-  }
+  s.timer.end(commands, slot);
 }
 
 void DeviceSim::read_back(std::vector<float>* heights, std::vector<float>* metres, std::vector<float>* foam) {
@@ -453,6 +424,11 @@ void DeviceSim::finish() { state_->impl.submit_slot(true); }
 int DeviceSim::size() const { return state_->size; }
 unsigned DeviceSim::effects() const { return state_->effects; }
 long long DeviceSim::fft_count() const { return state_->fft_count; }
-double DeviceSim::device_milliseconds() const { return state_->device_ms; }
+double DeviceSim::device_milliseconds() const {
+  State& s = *state_;
+  if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
+    s.timer.read(s.timer.last_slot());
+  return s.timer.milliseconds();
+}
 
 }  // namespace displace::render

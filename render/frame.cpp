@@ -72,9 +72,11 @@ void Renderer::Impl::ensure_mesh_reference(int tile) {
 void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info) {
   const bool wrap = view.address == bake::Address::wrap;
   const bool quadric = is_quadric(view.surface);
-  const VkImageView cone_view = info.cone_sectors > 0
-                                    ? cones[std::size_t(cone_slot(info.cone_sectors))].image.view()
-                                    : dummy_cones.view();
+  const std::size_t cone_index = info.cone_sectors > 0 ? std::size_t(cone_slot(info.cone_sectors)) : 0;
+  const bool device_cone_map = info.cone_sectors > 0 && cones_from_device[cone_index];
+  const VkImageView cone_view = device_cone_map         ? device_cones[cone_index]->image->view()
+                                : info.cone_sectors > 0 ? cones[cone_index].image.view()
+                                                        : dummy_cones.view();
   const VkBuffer pyramid_buffer =
       info.family == MethodFamily::pyramid ? max_pyramid.buffer.handle() : dummy_pyramid.handle();
   const VkImageView distance_view =
@@ -87,9 +89,9 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
       heights_from_device ? VkDescriptorImageInfo{linear, device_heights->view(), VK_IMAGE_LAYOUT_GENERAL}
                           : VkDescriptorImageInfo{linear, heights.image.view(), heights.read_layout()};
   const VkDescriptorImageInfo cone_info{nearest, cone_view,
-                                        info.cone_sectors > 0
-                                            ? cones[std::size_t(cone_slot(info.cone_sectors))].read_layout()
-                                            : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+                                        device_cone_map         ? VK_IMAGE_LAYOUT_GENERAL
+                                        : info.cone_sectors > 0 ? cones[cone_index].read_layout()
+                                                                : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo albedo_info{linear, has_albedo ? albedo_image.view() : dummy_albedo.view(),
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorBufferInfo pyramid_info{pyramid_buffer, 0, VK_WHOLE_SIZE};
@@ -154,9 +156,10 @@ void Renderer::Impl::validate_frame(const View& view, const MethodSettings& meth
       !std::isfinite(view.light_direction.z) || glm::length(view.light_direction) < 1e-6f) {
     throw RenderError("View::light_direction must be finite and non-zero");
   }
-  const glm::vec3 foam = view.foam_color;
-  if (!(foam.r >= 0.0f && foam.r <= 1.0f && foam.g >= 0.0f && foam.g <= 1.0f && foam.b >= 0.0f &&
-        foam.b <= 1.0f && view.foam_intensity >= 0.0f && view.foam_intensity <= 1.0f)) {
+  const glm::vec3 foam_colour = view.foam_color;
+  if (!(foam_colour.r >= 0.0f && foam_colour.r <= 1.0f && foam_colour.g >= 0.0f && foam_colour.g <= 1.0f &&
+        foam_colour.b >= 0.0f && foam_colour.b <= 1.0f && view.foam_intensity >= 0.0f &&
+        view.foam_intensity <= 1.0f)) {
     throw RenderError("View::foam_color and View::foam_intensity must be in [0, 1]");
   }
   if (method.steps < 1 || method.steps > max_steps)

@@ -137,6 +137,7 @@ void validate_cone_sizes(const MapSet& maps) {
       throw RenderError(std::string("maps: the ") + name + " belongs in cones[" +
                         std::to_string(cone_slot(given.sector_count)) + "]");
     }
+    if (given.on_device) continue;  // reshape_cones checks the DeviceCones
     if (given.ratios.size() != texels * std::size_t(given.sector_count) || given.apex.size() != texels ||
         !(given.relaxed.empty() || given.relaxed.size() == texels)) {
       throw RenderError(std::string("maps: the ") + name + " does not match the " + size_text(width, height) +
@@ -274,7 +275,20 @@ void reshape_cones(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   for (std::size_t index = 0; index < reshaper.impl.cones.size(); ++index) {
     const ConeMapView& view = maps.cones[index];
     DeviceMap& map = reshaper.impl.cones[index];
+    reshaper.impl.cones_from_device[index] = false;
     if (view.sector_count == 0) {
+      map.held = false;
+      continue;
+    }
+    if (view.on_device) {  // the DeviceCones' image: nothing to upload, the host's map is stale
+      const Renderer::Impl::DeviceConeImage* device = reshaper.impl.device_cones[index];
+      if (device == nullptr || device->width != width || device->height != height) {
+        throw RenderError("maps: cones[" + std::to_string(index) + "].on_device needs this renderer's " +
+                          std::to_string(view.sector_count) + "-sector DeviceCones of " +
+                          size_text(width, height) + " texels");
+      }
+      reshaper.impl.cones_from_device[index] = true;
+      copies.cones[index] = Copy::none;
       map.held = false;
       continue;
     }
@@ -600,7 +614,17 @@ void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info)
   const std::string method = std::string("MethodSettings::method ") + info.name;
   if (!heights.held && !heights_from_device)
     throw RenderError("render: no height map was given (Renderer::set_maps)");
-  if (needs.cone_sectors > 0) {
+  if (needs.cone_sectors > 0 && cones_from_device[std::size_t(cone_slot(needs.cone_sectors))]) {
+    const DeviceConeImage& device = *device_cones[std::size_t(cone_slot(needs.cone_sectors))];
+    const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";
+    if (needs.relaxed)
+      throw RenderError(method + " needs the " + wanted + " with its relaxed ratios; DeviceCones makes none");
+    if (device.address != needs.cone_address) {
+      throw RenderError(method + " needs a " + wanted + " baked with address " +
+                        address_name(needs.cone_address) + "; the DeviceCones bakes with " +
+                        address_name(device.address));
+    }
+  } else if (needs.cone_sectors > 0) {
     const DeviceMap& map = cones[std::size_t(cone_slot(needs.cone_sectors))];
     const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";
     if (!map.held)

@@ -258,6 +258,9 @@ struct ConeMapView {
   std::uint64_t version = 0;
   std::uint64_t dirty_since = 0;
   std::span<const bake::Rect> dirty;
+  // The device path (render/device.h): the cones this renderer's DeviceCones of this sector count made
+  // on the device (ratios, apex and relaxed then stay empty; address is the DeviceCones').
+  bool on_device = false;
 };
 
 // bake::build_dual_max_pyramid's pyramid of the heights (maxmip, qdm).
@@ -451,6 +454,7 @@ class Renderer {
  private:
   friend class Swapchain;
   friend class DeviceSim;
+  friend class DeviceCones;
   std::unique_ptr<Impl> impl_;
 };
 

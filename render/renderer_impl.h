@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -134,7 +135,12 @@ struct Renderer::Impl {
   FrameSlot& begin_slot();      // the current slot, recording (waits for its previous frame)
   void submit_slot(bool wait);  // ends, submits the current slot; moves on to the next slot
   void drain();                 // submits what is recorded, waits for every slot
-  void wait_submitted();        // waits for every frame submitted (what is recorded stays so)
+  // Whether the frame last submitted from `slot` has finished (and nothing is being recorded there).
+  bool slot_finished(int index) const {
+    const FrameSlot& frame_slot = slots[std::size_t(index)];
+    return !frame_slot.recording && vkGetFenceStatus(context.device(), frame_slot.fence.get()) == VK_SUCCESS;
+  }
+  void wait_submitted();  // waits for every frame submitted (what is recorded stays so)
   Image upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
                          const void* data, std::size_t bytes);
   template <typename T>
@@ -151,7 +157,17 @@ struct Renderer::Impl {
   const Image* device_heights = nullptr;
   const Image* device_foam = nullptr;
   bool heights_from_device = false, foam_from_device = false;
-  std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
+  // device.h: the cone image a DeviceCones writes (cone_format, GENERAL layout), by cone_slot, and
+  // whether the last MapSet samples it
+  struct DeviceConeImage {
+    const Image* image = nullptr;
+    int width = 0, height = 0, sectors = 0;
+    bake::Address address = bake::Address::wrap;
+  };
+  std::array<const DeviceConeImage*, 3> device_cones{};
+  std::array<bool, 3> cones_from_device{};
+  std::shared_ptr<const struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
+  std::vector<VkBufferImageCopy> copy_regions;                   // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <iostream>
+#include <optional>
 #include <ostream>
 
 #include "demos/cli/command.h"
@@ -129,7 +130,12 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
     }
     require_memory(needs, limits);
   }
-  SceneHeights input = scene_heights(scene, scene.start);
+  // the renderer's bilinear cones on the device ([backend] bake): the device's heights too where the sim
+  // runs there
+  const bool on_device = settings.cones == ConeKind::bilinear && wants_device(scene.bake_backend);
+  std::optional<render::Renderer> renderer;
+  if (on_device || sim_wants_device(scene)) renderer.emplace(render::RendererOptions{});
+  SceneHeights input = scene_heights(scene, scene.start, sim_wants_device(scene) ? &*renderer : nullptr);
   if (image) {
     require_memory(
         bake_memory(input.width, input.height, settings.sector_count, settings.baker, settings.cones),
@@ -143,9 +149,14 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
                         "baking " + std::to_string(settings.sector_count) + "-sector " +
                             (bilinear ? "bilinear cones" : "cones") + " (" + baker_name(settings.baker) +
                             ")");
-  const BakedCones baked = (bilinear ? bake_bilinear : bake_cones)(
-      input.heights, input.width, input.height, settings.sector_count, settings.baker, settings.address,
-      settings.budget_milliseconds, settings.tolerance, progress.callback());
+  const BakedCones baked =
+      on_device
+          ? bake_bilinear_on_device(*renderer, input.heights, input.width, input.height,
+                                    settings.sector_count, settings.baker, settings.address,
+                                    settings.budget_milliseconds)
+          : (bilinear ? bake_bilinear : bake_cones)(
+                input.heights, input.width, input.height, settings.sector_count, settings.baker,
+                settings.address, settings.budget_milliseconds, settings.tolerance, progress.callback());
   progress.finish();
   const ConeMapExport cones{input.width,    input.height,   settings.sector_count,
                             input.heights,  baked.ratios,   settings.address,
@@ -164,7 +175,9 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   out << "displace: baked " << settings.sector_count
       << (bilinear ? "-sector bilinear cones (with apex heights) for " : "-sector cones for ") << input.width
       << " x " << input.height << " heights from " << input.description << " with the "
-      << baker_name(settings.baker) << " baker (" << address_name(settings.address)
+      << baker_name(settings.baker) << " baker"
+      << (on_device ? " on the device (" + renderer->device().name + ")" : "") << " ("
+      << address_name(settings.address)
       << (settings.baker == Baker::budgeted ? ", " + budget_phrase(settings.budget_milliseconds) : "")
       << "): " << stats_phrase(baked.stats) << "; wrote '" << settings.output.string() << "'"
       << (png ? " (heights quantized to 8 bits before baking)" : "") << '\n';

@@ -183,8 +183,7 @@ nlohmann::ordered_json print_bench_table(const BenchFrameSettings& settings, con
     if (row.device)
       stages[row.name]["device_p50_ms"] = device_p50 > 0.0 ? nlohmann::ordered_json(device_p50) : nullptr;
   }
-  out << "  device = the GPU's own time from timestamps (the sim's lags a frame or two: the last one "
-         "finished)\n";
+  out << "  device = the device's own time (GPU timestamps) of the stages that ran there\n";
   if (settings.serial) {
     out << fmt::format(
         "  frame = the time between finished frames (the stages one after another, each with the\n"

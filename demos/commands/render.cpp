@@ -39,6 +39,14 @@ Metadata render_metadata(const pipeline::Scene& scene) {
 // What the cone maps cost and claim.
 void print_cone_line(const pipeline::Scene& scene, const pipeline::FrameRecord& record, std::ostream& out) {
   const bake::BakeStats& stats = record.cones;
+  if (record.bake_on_device) {
+    out << fmt::format("  cone maps baked on the device ({} sectors{}; {})\n", stats.sector_count,
+                       record.sim_on_device ? ", from the device's heights" : "",
+                       record.bake_device_ms > 0.0
+                           ? fmt::format("{:.2f} ms of device time", record.bake_device_ms)
+                           : std::string("its time not measured yet"));
+    return;
+  }
   out << "  cone maps baked by the budgeted bilinear baker " << baked_within(scene.frame_ms)
       << (scene.tolerance == bake::Budget{}.tolerance ? std::string()
                                                       : fmt::format(" at tolerance {:g}", scene.tolerance));

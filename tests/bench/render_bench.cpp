@@ -5,14 +5,23 @@
 // host's memory written straight into the images, and (`staged`) through the staging ring and a
 // device copy as on a discrete GPU. Counters: MB/s of the caller's bytes, and Vulkan allocations per
 // frame (must be 0 after the first).
+//
+// BM_DeviceBake/ocean/<N>: render::DeviceCones' bake of a device ocean's N x N heights (4 sectors,
+// wrap; the ocean simulated once), unlimited and (/first-pass) budget 0, each bake waited for. Counters:
+// mean_ratio_vs_full, the mean ratio read back over bake::bake_bilinear_cones' on the same heights
+// (not computed at 2048: minutes of CPU), and texels_refined.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <vector>
 
+#include "bake/bake.h"
+#include "pipeline/height_source.h"
+#include "render/device.h"
 #include "render/render.h"
 
 namespace {
@@ -118,5 +127,66 @@ BENCHMARK_CAPTURE(run_upload, rect64_staged, 64, false)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(run_memcpy)->Name("BM_UploadMaps/512/memcpy")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// ---- BM_DeviceBake
+
+constexpr int device_bake_sectors = 4;
+constexpr int full_reference_limit = 1024;  // texels a side: above, no CPU reference bake
+
+void run_device_bake(benchmark::State& state, long long budget) {
+  const int side = int(state.range(0));
+  static render::Renderer renderer([] {
+    render::RendererOptions options;
+    options.pipeline_cache = "off";
+    return options;
+  }());
+  pipeline::SourceSettings settings;
+  settings.kind = pipeline::SourceKind::ocean;
+  settings.map_size = side;
+  const std::unique_ptr<render::DeviceSim> made =
+      pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+  render::DeviceSim& ocean = *made;
+  ocean.simulate(3.0);
+  render::DeviceCones cones(renderer, device_bake_sectors, bake::Address::wrap);
+  render::DeviceConeStats stats;
+  for (auto _ : state) {
+    cones.bake({budget});
+    stats = cones.read_back(nullptr, nullptr);
+  }
+  std::vector<float> ratios, heights;
+  cones.read_back(&ratios, nullptr);
+  state.counters["texels_refined"] = double(stats.texels_refined);
+  state.counters["texels_cut"] = double(stats.texels_cut);
+  if (side <= full_reference_limit) {
+    ocean.read_back(&heights, nullptr, nullptr);
+    std::vector<float> full(ratios.size()), apex(heights.size());
+    bake::bake_bilinear_cones({heights.data(), side, side}, bake::Address::wrap,
+                              {full.data(), side, side, device_bake_sectors}, apex);
+    double device_sum = 0.0, full_sum = 0.0;
+    for (std::size_t v = 0; v < ratios.size(); ++v) {
+      device_sum += ratios[v];
+      full_sum += full[v];
+    }
+    state.counters["mean_ratio_vs_full"] = device_sum / full_sum;
+  }
+  state.SetLabel(renderer.device().name);
+}
+
+BENCHMARK_CAPTURE(run_device_bake, unlimited, render::unlimited_texels)
+    ->Name("BM_DeviceBake/ocean")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(run_device_bake, first_pass, 0)
+    ->Name("BM_DeviceBake/ocean/first-pass")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace

@@ -23,12 +23,13 @@ render::Renderer& frames_renderer() {
   return renderer;
 }
 
-pipeline::Scene small_scene(const std::string& name, pipeline::Backend sim) {
+pipeline::Scene small_scene(const std::string& name, pipeline::Backend sim,
+                            pipeline::Backend bake = pipeline::Backend::cpu) {
   pipeline::Scene scene = pipeline::builtin_scene(name);
   scene.map_size = 128;
   scene.camera.width = scene.camera.height = 96;
   scene.sim_backend = sim;
-  scene.bake_backend = pipeline::Backend::cpu;
+  scene.bake_backend = bake;
   return scene;
 }
 
@@ -56,17 +57,21 @@ TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
     SCOPED_TRACE(name);
     render::Frame cpu_frame, device_frame;
     const pipeline::Scene cpu_scene = small_scene(name, pipeline::Backend::cpu);
-    const pipeline::Scene device_scene = small_scene(name, pipeline::Backend::device);
     for (long long index : {0LL, 90LL}) {
       SCOPED_TRACE("frame " + std::to_string(index));
       {
         pipeline::FramePipeline cpu(cpu_scene, renderer);
         EXPECT_FALSE(cpu.run(index, cpu_frame, render::output_uv).sim_on_device);
       }
-      pipeline::FramePipeline device(device_scene, renderer);
-      const pipeline::FrameRecord record = device.run(index, device_frame, render::output_uv);
-      EXPECT_TRUE(record.sim_on_device);
-      EXPECT_GE(agreeing_share(cpu_frame, device_frame, cpu_scene.map_size), 0.999);
+      // the sim on the device (the cones baked on the CPU from its heights), then the bake there too
+      for (pipeline::Backend bake : {pipeline::Backend::cpu, pipeline::Backend::device}) {
+        SCOPED_TRACE(std::string("bake on the ") + pipeline::backend_word(bake));
+        pipeline::FramePipeline device(small_scene(name, pipeline::Backend::device, bake), renderer);
+        const pipeline::FrameRecord record = device.run(index, device_frame, render::output_uv);
+        EXPECT_TRUE(record.sim_on_device);
+        EXPECT_EQ(record.bake_on_device, bake == pipeline::Backend::device);
+        EXPECT_GE(agreeing_share(cpu_frame, device_frame, cpu_scene.map_size), 0.999);
+      }
     }
   }
   EXPECT_EQ(renderer.validation_messages(), 0);
@@ -74,13 +79,15 @@ TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
 
 TEST(DeviceFrames, AllocateNothingAfterWarmUp) {
   render::Renderer& renderer = frames_renderer();
-  pipeline::FramePipeline device(small_scene("water", pipeline::Backend::device), renderer);
+  pipeline::FramePipeline device(small_scene("water", pipeline::Backend::device, pipeline::Backend::device),
+                                 renderer);
   render::Frame frame;
   for (long long index = 0; index < 2; ++index) device.run(index, frame, render::output_color);
   const long long allocations = renderer.memory_allocations();
   for (long long index = 2; index < 6; ++index) {
     const pipeline::FrameRecord record = device.run(index, frame, render::output_color);
     EXPECT_EQ(record.ffts, 6);  // heights, the choppy displacement, the foam's Jacobian
+    EXPECT_TRUE(record.bake_on_device);
   }
   EXPECT_EQ(renderer.memory_allocations(), allocations);
   EXPECT_EQ(renderer.validation_messages(), 0);

@@ -1,0 +1,429 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+// render/shaders/cone_texel.comp.glsl - the device cone maps' search, one invocation per texel
+// (render/device_cones.cpp): bake.h's bake_bilinear_cones contract - apex H_c = max of the bilinear
+// surface s over the texel's square Q_c, and per sector k an r_k with s(x) <= H_c + |x - p| / r_k for
+// every p in Q_c and x in sector k from p - in float, with the margins below.
+//
+// The one fact: every ratio is the largest of three lower bounds, each valid alone: the Lipschitz
+// floor 1 / L (s rises at most L per uv from any p, which lies at or below H_c); the slope window
+// (the 8 x 8 cells around c, cut at Q_c's edge lines, bounded by their distance and by how fast s can
+// rise from Q_c's edge towards them: bake/cone_bilinear.cpp's window_cells, ported); and a top-down
+// search of the max pyramid over cells for the rest, each block bounding its cells outside the window
+// by (distance from Q_c) / (block max - H_c). The first pass opens no node at or below
+// first_pass_level (it bounds them whole, which is valid, and is "cut"); a cut texel that gets one of
+// refine_limit tickets is searched again down to the cells. Proof and margins:
+// docs/design/device-cones.md.
+#include "cones.h"
+#include "cone_axis.inc.glsl"
+
+layout(local_size_x = CONE_TILE, local_size_y = CONE_TILE, local_size_z = 1) in;
+
+layout(binding = 0, r32f) uniform readonly image2D heights;
+layout(std430, binding = 1) readonly buffer Pyramid { float node_max[]; };
+layout(std430, binding = 2) buffer Counters { uint counters[]; };
+// layer l, texel (i, j) at l * W * H + i * W + j: (ratio as a half rounded down) | (apex q) << 16
+layout(std430, binding = 3) writeonly buffer Cones { uint cone_values[]; };
+
+layout(push_constant) uniform Push { ConeTexelPush push; };
+
+// margins (docs/design/device-cones.md#rounding): float surface values are within 5e-7 of s
+const float height_margin = 2e-6;   // height units: raises every computed maximum of s, and H_c
+const float slope_margin = 2e-6;    // height units per cell: raises every rate of rise (before x W, H)
+const float guard = 4e-6;           // relative: rounds the ill-conditioned far term of piece_bound safely
+const float ratio_margin = 1e-5;    // relative: shrinks every ratio before it is stored (covers roundings)
+const float unclaimed = 1.0001;     // a ratio no bound has lowered: stores as 1 after the margin
+const float infinite_bound = 3.0e38;
+const int R = CONE_SLOPE_WINDOW;
+
+bool wrap;
+int W, H, sectors;
+int i, j;                    // the texel: row, column
+int qu0, qu1, qv0, qv1;      // Q_c in half texels
+float half_u, half_v;        // uv per half texel
+float apex;                  // H_c, raised by height_margin
+float floor_ratio;           // 1 / L
+float best[8];               // per sector: the least bound so far
+float neighbourhood[2 * R + 1][2 * R + 1];  // heights of texels (i + db, j + da) at [db + R][da + R]
+float square[3][3];          // s at Q_c's corners, edge midpoints and centre
+uint beyond[4];              // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
+bool cut;                    // the search bounded a node it would have opened
+int level_width[CONE_MAX_LEVELS], level_height[CONE_MAX_LEVELS], level_offset[CONE_MAX_LEVELS];
+
+// ---- geometry
+
+// Gap between Q_c's span [2t - 1, 2t + 1] and [first, last] (half texels).
+int span_gap(int t, int first, int last) { return max(0, max(first - (2 * t + 1), (2 * t - 1) - last)); }
+
+float gap_distance(int gap_u, int gap_v) {
+  const float u = float(gap_u) * half_u, v = float(gap_v) * half_v;
+  return sqrt(u * u + v * v);
+}
+
+// a * a_scale <= b * b_scale for a, b >= 0 (integers below 2^24, scales below 2^16): true wherever the
+// exact products say so (float products round by 6e-8 relative), so a mask only gains sectors
+bool at_most(int a, int b, int a_scale, int b_scale) {
+  return float(a) * float(a_scale) <= float(b) * float(b_scale) * (1.0 + 1e-6);
+}
+
+// Sectors whose closed wedge meets the box of directions [x0, x1] x [y0, y1] (half texels; the uv
+// direction of (x, y) is that of (x H, y W)): bake/geometry.h's rect_sectors, a superset in float.
+uint rect_sectors(int x0, int x1, int y0, int y1) {
+  if (sectors == 1) return 1u;
+  uint mask = 0u;
+  if (sectors == 4) {
+    if (x1 >= 0 && y1 >= 0) mask |= 1u;
+    if (x0 <= 0 && y1 >= 0) mask |= 2u;
+    if (x0 <= 0 && y0 <= 0) mask |= 4u;
+    if (x1 >= 0 && y0 <= 0) mask |= 8u;
+    return mask;
+  }
+  if (x1 >= 0 && y1 >= 0 && at_most(max(y0, 0), x1, W, H)) mask |= 1u << 0;
+  if (x1 >= 0 && y1 >= 0 && at_most(max(x0, 0), y1, H, W)) mask |= 1u << 1;
+  if (x0 <= 0 && y1 >= 0 && at_most(-min(x1, 0), y1, H, W)) mask |= 1u << 2;
+  if (x0 <= 0 && y1 >= 0 && at_most(max(y0, 0), -x0, W, H)) mask |= 1u << 3;
+  if (x0 <= 0 && y0 <= 0 && at_most(-min(y1, 0), -x0, W, H)) mask |= 1u << 4;
+  if (x0 <= 0 && y0 <= 0 && at_most(-min(x1, 0), -y0, H, W)) mask |= 1u << 5;
+  if (x1 >= 0 && y0 <= 0 && at_most(max(x0, 0), -y0, H, W)) mask |= 1u << 6;
+  if (x1 >= 0 && y0 <= 0 && at_most(-min(y1, 0), x1, W, H)) mask |= 1u << 7;
+  return mask;
+}
+
+// ---- ratios
+
+bool improves(int k, float bound) { return bound < best[k] && best[k] > floor_ratio; }
+
+void lower(uint mask, float bound) {
+  for (int k = 0; k < sectors; ++k)
+    if ((mask >> k & 1u) != 0u && bound < best[k]) best[k] = bound;
+}
+
+// the sectors of `mask` that `bound` could still lower
+uint useful_sectors(uint mask, float bound) {
+  uint useful = 0u;
+  for (int k = 0; k < sectors; ++k)
+    if ((mask >> k & 1u) != 0u && improves(k, bound)) useful |= 1u << k;
+  return useful;
+}
+
+// ---- the slope window (bake/cone_bilinear.cpp's window_cells)
+
+// s on the cell whose lower-left centre is (j + da, i + db), at cell coordinates (fx, fy) in [0, 1]^2
+float patch_value(int da, int db, float fx, float fy) {
+  const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
+  const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
+  return (h0 * (1.0 - fx) + h1 * fx) * (1.0 - fy) + (h2 * (1.0 - fx) + h3 * fx) * fy;
+}
+
+// The largest rates of rise of s (uv units) over the box [fx0, fx1] x [fy0, fy1] of that cell, towards
+// +u, -u, +v, -v, raised by slope_margin: ds/du = W lerp(e0, e1, fy) and ds/dv = H lerp(f0, f1, fx)
+// are linear in one coordinate, so their extremes lie at the box's edges.
+vec4 patch_rise(int da, int db, float fx0, float fx1, float fy0, float fy1) {
+  const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
+  const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
+  const float e0 = h1 - h0, e1 = h3 - h2, f0 = h2 - h0, f1 = h3 - h1;
+  const float du0 = e0 + (e1 - e0) * fy0, du1 = e0 + (e1 - e0) * fy1;
+  const float dv0 = f0 + (f1 - f0) * fx0, dv1 = f0 + (f1 - f0) * fx1;
+  return vec4((max(du0, du1) + slope_margin) * float(W), (slope_margin - min(du0, du1)) * float(W),
+              (max(dv0, dv1) + slope_margin) * float(H), (slope_margin - min(dv0, dv1)) * float(H));
+}
+
+// The largest of s over the clamp onto Q_c of the box [u0, u1] x [v0, v1] (an edge segment or a
+// corner of Q_c, where s is linear between the points of `square`).
+float clamp_max(int u0, int u1, int v0, int v1) {
+  const int a0 = clamp(u0 - qu0, 0, 2), a1 = clamp(u1 - qu0, 0, 2);
+  const int b0 = clamp(v0 - qv0, 0, 2), b1 = clamp(v1 - qv0, 0, 2);
+  float m = -infinite_bound;
+  for (int b = b0; b <= b1; ++b)
+    for (int a = a0; a <= a1; ++a) m = max(m, square[b][a]);
+  return m;
+}
+
+// A lower bound of delta / min(rise, slope delta - drop) over delta in [near, far]: a piece whose
+// points lie between near and far from Q_c, at most `rise` above H_c and at most slope delta - drop
+// (s(y) <= H_c - drop at the clamp y onto Q_c). Evaluated in closed form at the kink, never at a
+// rounded argmin: delta* / rise (the least over every delta > 0) in between, near / rise before,
+// far / (slope far - drop) past it with the denominator rounded up (it may cancel).
+float piece_bound(float near, float far, float rise, float drop, float slope) {
+  if (drop <= 0.0) return max(near / rise, 1.0 / slope);
+  const float crossing = (rise + drop) / slope;  // chooses the branch only
+  if (crossing <= near) return near / rise;
+  if (crossing < far) return (rise + drop) / (slope * rise);
+  const float far_up = far * (1.0 + guard);
+  const float denominator = (slope * far_up * (1.0 + guard) - drop) * (1.0 + guard);
+  return denominator > 0.0 ? far_up / denominator : infinite_bound;
+}
+
+void window_cells() {
+  float hull_u[2 * R][2 * R], hull_v[2 * R][2 * R];  // running largest rates outward from Q_c
+  [[dont_unroll]] for (int y = 0; y < 2 * R; ++y) {
+    const int db = y < R ? y : R - 1 - y;  // 0, 1, ..., R - 1, then -1, ..., -R
+    const int nv = cell_of_left_centre(i + db, wrap);
+    [[dont_unroll]] for (int x = 0; x < 2 * R; ++x) {
+      const int da = x < R ? x : R - 1 - x;
+      const int nu = cell_of_left_centre(j + da, wrap);
+      const bool exists = cell_exists(nu, push.cells_u, wrap) && cell_exists(nv, push.cells_v, wrap);
+      float rise_u = 0.0, rise_v = 0.0;
+      if (exists) {
+        const vec4 cell = patch_rise(da, db, 0.0, 1.0, 0.0, 1.0);
+        rise_u = max(da >= 0 ? cell.x : cell.y, 0.0);
+        rise_v = max(db >= 0 ? cell.z : cell.w, 0.0);
+      }
+      if (da != 0 && da != -1) {
+        const int inner = (da > 0 ? da - 1 : da + 1) + R;
+        rise_u = max(rise_u, hull_u[db + R][inner]);
+        rise_v = max(rise_v, hull_v[db + R][inner]);
+      }
+      if (db != 0 && db != -1) {
+        const int inner = (db > 0 ? db - 1 : db + 1) + R;
+        rise_u = max(rise_u, hull_u[inner][da + R]);
+        rise_v = max(rise_v, hull_v[inner][da + R]);
+      }
+      hull_u[db + R][da + R] = rise_u;
+      hull_v[db + R][da + R] = rise_v;
+      if (!exists) continue;
+      const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
+      const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
+      const float cell_max = max(max(h0, h1), max(h2, h3));  // exact: a patch peaks at a corner
+      if (!(cell_max > apex)) continue;
+      const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
+      const int cu0 = cell_begin(nu, wrap), cu1 = cell_end(nu, W, wrap);
+      const int cv0 = cell_begin(nv, wrap), cv1 = cell_end(nv, H, wrap);
+      if (!centre) {
+        // every piece is at least the cell's gap away and at most its maximum (plus the margin twice)
+        // high: when that bound reaches every ratio it could lower, no piece lowers one
+        const uint cell_sectors = rect_sectors(cu0 - qu1, cu1 - qu0, cv0 - qv1, cv1 - qv0);
+        const float gap = gap_distance(span_gap(j, cu0, cu1), span_gap(i, cv0, cv1));
+        if (useful_sectors(cell_sectors, gap / (cell_max + 2.0 * height_margin - apex)) == 0u) continue;
+      }
+      const int origin_u = 2 * cell_left_centre(nu, wrap), origin_v = 2 * cell_left_centre(nv, wrap);
+      // the ranges along each axis before Q_c, across it and beyond it (side -1, 0, +1)
+      [[dont_unroll]] for (int sv = -1; sv <= 1; ++sv) {
+        const int v0 = max(cv0, sv < 0 ? cv0 : (sv == 0 ? qv0 : qv1));
+        const int v1 = min(cv1, sv < 0 ? qv0 : (sv == 0 ? qv1 : cv1));
+        if (v0 >= v1) continue;
+        [[dont_unroll]] for (int su = -1; su <= 1; ++su) {
+          if (su == 0 && sv == 0) continue;  // inside Q_c: s <= H_c
+          const int u0 = max(cu0, su < 0 ? cu0 : (su == 0 ? qu0 : qu1));
+          const int u1 = min(cu1, su < 0 ? qu0 : (su == 0 ? qu1 : cu1));
+          if (u0 >= u1) continue;
+          const float fu0 = float(u0 - origin_u) * 0.5, fu1 = float(u1 - origin_u) * 0.5;
+          const float fv0 = float(v0 - origin_v) * 0.5, fv1 = float(v1 - origin_v) * 0.5;
+          const float top = max(max(patch_value(da, db, fu0, fv0), patch_value(da, db, fu1, fv0)),
+                                max(patch_value(da, db, fu0, fv1), patch_value(da, db, fu1, fv1))) +
+                            height_margin;
+          if (!(top > apex)) continue;
+          float along_u = rise_u, along_v = rise_v;
+          if (centre) {
+            const vec4 own = patch_rise(da, db, fu0, fu1, fv0, fv1);
+            along_u = max(su > 0 ? own.x : own.y, 0.0);
+            along_v = max(sv > 0 ? own.z : own.w, 0.0);
+          }
+          const float slope = su == 0 ? along_v : (sv == 0 ? along_u : sqrt(along_u * along_u + along_v * along_v));
+          const int far_u = su > 0 ? u1 - qu1 : (su < 0 ? qu0 - u0 : 0);
+          const int far_v = sv > 0 ? v1 - qv1 : (sv < 0 ? qv0 - v0 : 0);
+          // shrunk so that it never exceeds the exact drop (a cancelling term divides by it)
+          const float drop = max(0.0, (apex - (clamp_max(u0, u1, v0, v1) + height_margin)) * (1.0 - guard));
+          const float bound = piece_bound(gap_distance(span_gap(j, u0, u1), span_gap(i, v0, v1)),
+                                          gap_distance(far_u, far_v), top - apex, drop, slope);
+          uint mask = rect_sectors(u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0);
+          if (su != 0) mask &= beyond[su > 0 ? 0 : 1];
+          if (sv != 0) mask &= beyond[sv > 0 ? 2 : 3];
+          lower(mask, bound);
+        }
+      }
+    }
+  }
+}
+
+// ---- the pyramid search
+
+// The window in unrolled cells.
+int wu0, wu1, wv0, wv1;
+
+// uv distance from Q_c to the cells [fu, lu] x [fv, lv] (unrolled)
+float cells_gap(int fu, int lu, int fv, int lv) {
+  return gap_distance(span_gap(j, cell_begin(fu, wrap), cell_end(lu, W, wrap)),
+                      span_gap(i, cell_begin(fv, wrap), cell_end(lv, H, wrap)));
+}
+
+// A node: its level, tile and index in the tile along each axis; its bound and the sectors it could
+// lower when it was examined.
+struct Node {
+  int level, tile_u, tile_v, bu, bv;
+  float bound;
+  uint mask;
+};
+
+// Whether `node` is to be opened (its bound and useful sectors filled in); a node it need not open it
+// bounds here, or skips when it can lower nothing. floor_level: nodes at or below it are not opened.
+bool examine(inout Node node, int floor_level) {
+  const float top = node_max[level_offset[node.level] + node.bv * level_width[node.level] + node.bu];
+  if (!(top > apex)) return false;
+  const int first_u = node.tile_u * push.cells_u + (node.bu << node.level);
+  const int last_u = node.tile_u * push.cells_u + min((node.bu + 1) << node.level, push.cells_u) - 1;
+  const int first_v = node.tile_v * push.cells_v + (node.bv << node.level);
+  const int last_v = node.tile_v * push.cells_v + min((node.bv + 1) << node.level, push.cells_v) - 1;
+  if (first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;  // the window's
+  // its cells outside the window: left and right of it, then below and above it within its columns
+  float gap;
+  if (first_u <= wu1 && last_u >= wu0 && first_v <= wv1 && last_v >= wv0) {
+    gap = infinite_bound;
+    if (first_u < wu0) gap = min(gap, cells_gap(first_u, wu0 - 1, first_v, last_v));
+    if (last_u > wu1) gap = min(gap, cells_gap(wu1 + 1, last_u, first_v, last_v));
+    const int inner_u0 = max(first_u, wu0), inner_u1 = min(last_u, wu1);
+    if (first_v < wv0) gap = min(gap, cells_gap(inner_u0, inner_u1, first_v, wv0 - 1));
+    if (last_v > wv1) gap = min(gap, cells_gap(inner_u0, inner_u1, wv1 + 1, last_v));
+  } else {
+    gap = cells_gap(first_u, last_u, first_v, last_v);
+  }
+  const uint mask = rect_sectors(cell_begin(first_u, wrap) - qu1, cell_end(last_u, W, wrap) - qu0,
+                                 cell_begin(first_v, wrap) - qv1, cell_end(last_v, H, wrap) - qv0);
+  node.bound = gap / (top - apex);
+  node.mask = useful_sectors(mask, node.bound);
+  if (node.mask == 0u) return false;
+  if (node.level == 0) {
+    lower(node.mask, node.bound);
+    return false;
+  }
+  if (node.level <= floor_level) {
+    lower(node.mask, node.bound);
+    cut = true;
+    return false;
+  }
+  return true;
+}
+
+Node stack[CONE_STACK];
+
+void push_sorted(inout int count, Node node) {  // the largest bound deepest: the nearest is opened first
+  if (count == CONE_STACK) {  // never reached (25 roots + 3 a level); bounding it whole is valid
+    lower(node.mask, node.bound);
+    cut = true;
+    return;
+  }
+  stack[count] = node;
+  ++count;
+}
+
+void far_cells(int floor_level) {
+  int count = 0;
+  const int tiles = wrap ? 2 : 0;  // with wrap, the images within uv distance 1 of Q_c: tiles -2..1
+  const int top_level = push.levels - 1;
+  [[dont_unroll]] for (int tv = -tiles; tv <= tiles; ++tv)
+    [[dont_unroll]] for (int tu = -tiles; tu <= tiles; ++tu) {
+      Node root = Node(top_level, tu, tv, 0, 0, 0.0, 0u);
+      if (examine(root, floor_level)) push_sorted(count, root);
+    }
+  for (int a = 1; a < count; ++a)
+    for (int b = a; b > 0 && stack[b - 1].bound < stack[b].bound; --b) {
+      const Node swap = stack[b - 1];
+      stack[b - 1] = stack[b];
+      stack[b] = swap;
+    }
+  while (count > 0) {
+    --count;
+    const Node node = stack[count];
+    if (useful_sectors(node.mask, node.bound) == 0u) continue;  // the ratios dropped since
+    const int level = node.level - 1;
+    Node children[4];
+    int child_count = 0;
+    for (int dv = 0; dv < 2 && 2 * node.bv + dv < level_height[level]; ++dv)
+      for (int du = 0; du < 2 && 2 * node.bu + du < level_width[level]; ++du) {
+        Node child = Node(level, node.tile_u, node.tile_v, 2 * node.bu + du, 2 * node.bv + dv, 0.0, 0u);
+        if (examine(child, floor_level)) {
+          children[child_count] = child;
+          ++child_count;
+        }
+      }
+    for (int a = 1; a < child_count; ++a)
+      for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) {
+        const Node swap = children[b - 1];
+        children[b - 1] = children[b];
+        children[b] = swap;
+      }
+    for (int c = 0; c < child_count; ++c) push_sorted(count, children[c]);
+  }
+}
+
+// ---- the stored values (render/map_pack.h's encode_ratio and encode_apex)
+
+uint encode_ratio(float ratio) {
+  const float clamped = min(ratio, 1.0);
+  if (!(clamped >= 6.103515625e-05)) return 0u;  // 2^-14: map_pack.h's smallest_half_ratio
+  return (floatBitsToUint(clamped) >> 13) - ((127u - 15u) << 10);
+}
+uint encode_apex(float height) { return uint(min(height * 65535.0 + 2.0, 65535.0)); }
+
+void main() {
+  j = int(gl_GlobalInvocationID.x);
+  i = int(gl_GlobalInvocationID.y);
+  W = push.width;
+  H = push.height;
+  if (j >= W || i >= H) return;
+  wrap = push.wrap != 0;
+  sectors = push.sectors;
+  qu0 = 2 * j - 1;
+  qu1 = 2 * j + 1;
+  qv0 = 2 * i - 1;
+  qv1 = 2 * i + 1;
+  half_u = 0.5 / float(W);
+  half_v = 0.5 / float(H);
+  for (int level = 0, offset = 0; level < push.levels; ++level) {
+    level_width[level] = (push.cells_u + (1 << level) - 1) >> level;
+    level_height[level] = (push.cells_v + (1 << level) - 1) >> level;
+    level_offset[level] = offset;
+    offset += level_width[level] * level_height[level];
+  }
+  const int reach = 4 * max(W, H);
+  beyond[0] = rect_sectors(1, 1, -reach, reach);
+  beyond[1] = rect_sectors(-1, -1, -reach, reach);
+  beyond[2] = rect_sectors(-reach, reach, 1, 1);
+  beyond[3] = rect_sectors(-reach, reach, -1, -1);
+
+  // the heights around c, and H_c: s is bilinear on each quarter of Q_c, so its nine grid points bound it
+  [[dont_unroll]] for (int db = -R; db <= R; ++db)
+    [[dont_unroll]] for (int da = -R; da <= R; ++da)
+      neighbourhood[db + R][da + R] =
+          imageLoad(heights, ivec2(axis_texel(j + da, W, wrap), axis_texel(i + db, H, wrap))).r;
+  float highest = 0.0;
+  for (int b = 0; b < 3; ++b)
+    for (int a = 0; a < 3; ++a) {
+      const int row = b == 1 ? R : R + b - 1, column = a == 1 ? R : R + a - 1;
+      square[b][a] = 0.25 * (neighbourhood[R][R] + neighbourhood[R][column] + neighbourhood[row][R] +
+                             neighbourhood[row][column]);
+      highest = max(highest, square[b][a]);
+    }
+  apex = highest + height_margin;
+  const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
+  floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
+  wu0 = cell_of_left_centre(j - R, wrap);
+  wu1 = cell_of_left_centre(j + R - 1, wrap);
+  wv0 = cell_of_left_centre(i - R, wrap);
+  wv1 = cell_of_left_centre(i + R - 1, wrap);
+
+  // the window, then the pyramid: the first pass, and the texels it cut searched again if they may
+  for (int k = 0; k < 8; ++k) best[k] = unclaimed;
+  window_cells();
+  float window_best[8] = best;
+  cut = false;
+  far_cells(push.first_pass_level);
+  if (cut && atomicAdd(counters[CONE_COUNTER_TICKETS], 1u) < uint(push.refine_limit)) {
+    const float first_pass[8] = best;
+    best = window_best;
+    far_cells(-1);
+    for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
+  }
+
+  // stored: each ratio raised to the floor, shrunk by the margin, clamped to 1 and rounded down
+  const uint apex_bits = encode_apex(apex) << 16;
+  const int texels = W * H, texel = i * W + j;
+  uint least = 0xffffu;
+  for (int k = 0; k < sectors; ++k) {
+    const uint ratio = encode_ratio(max(best[k], floor_ratio) * (1.0 - ratio_margin));
+    least = min(least, ratio);
+    cone_values[k * texels + texel] = ratio | apex_bits;
+  }
+  if (sectors > 1) cone_values[sectors * texels + texel] = least | apex_bits;
+}

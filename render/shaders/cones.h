@@ -1,0 +1,48 @@
+// render/shaders/cones.h - the device cone maps' push constants and limits (cone_cells.comp.glsl,
+// cone_reduce.comp.glsl, cone_texel.comp.glsl), shared by GLSL and C++ (render/device_cones.cpp, with
+// static_asserts).
+#ifndef DISPLACE_RENDER_CONES_H
+#define DISPLACE_RENDER_CONES_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace displace::render::gpu {
+#endif
+
+#define CONE_TILE 8          // the kernels' groups: 8 x 8 texels, cells or nodes
+#define CONE_SLOPE_WINDOW 4  // cells: radius around a texel where the slope bound applies (bake.h's default)
+#define CONE_MAX_LEVELS 17   // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
+#define CONE_STACK 80        // search stack entries: 25 roots + 3 per level below the top, rounded up
+#define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
+#define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
+#define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
+#define CONE_COUNTERS 4
+
+struct ConeCellsPush {
+  int width, height;     // texels
+  int cells_u, cells_v;  // W x H (wrap) or (W + 1) x (H + 1) (clamp)
+  int wrap;              // 1: Address::wrap
+  int pad0, pad1, pad2;
+};
+
+struct ConeReducePush {
+  int source_offset, source_width, source_height;  // level L in the pyramid buffer (floats)
+  int target_offset, target_width, target_height;  // level L + 1
+  int pad0, pad1;
+};
+
+struct ConeTexelPush {
+  int width, height;
+  int cells_u, cells_v;
+  int wrap;
+  int sectors;           // 1, 4 or 8
+  int levels;            // pyramid levels (the last one 1 x 1)
+  int first_pass_level;  // nodes at or below it are bounded, not opened, in the first pass; < 0: none
+  int refine_limit;      // texels whose cut first pass is searched again to the cells, at most
+  int pad0, pad1, pad2;
+};
+
+#ifdef __cplusplus
+}  // namespace displace::render::gpu
+#endif
+#endif

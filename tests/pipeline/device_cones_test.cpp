@@ -1,0 +1,291 @@
+// tests/pipeline/device_cones_test.cpp - the cone maps made on the device (render/device.h,
+// DeviceCones) against bake.h's contract for the bilinear surface, checked by brute force
+// (tests/bake/bake_checks.h's check_bilinear) on what the renderer samples: hard, random, spike and
+// non-square maps, 1, 4 and 8 sectors, wrap and clamp, every budget; against the full CPU bake's mean
+// ratio; with a DeviceSim's heights and in a rendered frame.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "pipeline/height_source.h"
+#include "render/device.h"
+#include "render/render.h"
+#include "tests/bake/bake_checks.h"
+#include "tests/test_maps.h"
+
+namespace {
+
+using namespace displace;
+using bake::Address;
+using test::Map;
+
+render::Renderer& cones_renderer() {
+  static render::Renderer renderer([] {
+    render::RendererOptions options;
+    options.validate = true;
+    return options;
+  }());
+  return renderer;
+}
+
+struct DeviceBake {
+  bake::ConeMap cones;
+  std::vector<float> apex;
+  render::DeviceConeStats stats;
+};
+
+DeviceBake read(render::DeviceCones& device, int width, int height) {
+  DeviceBake b;
+  b.cones = {width, height, device.sector_count(), {}};
+  b.stats = device.read_back(&b.cones.ratios, &b.apex);
+  return b;
+}
+
+DeviceBake bake_on_device(render::DeviceCones& device, long long budget) {
+  device.bake({budget});
+  return read(device, device.width(), device.height());
+}
+
+// The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited.
+const long long budgets[] = {0, 7, render::unlimited_texels};
+
+// Texels checked: all of a small map, every stride-th of a larger one (the check is O(texels x map)),
+// and an eighth of those for a budget between the first pass and unlimited (its texels hold the first
+// pass's ratios or the full search's, both checked whole; TheBudgetBoundsTheTexelsRefined has the rest).
+int stride_for(const Map& map, long long budget) {
+  const int texels = map.width * map.height;
+  const int stride = texels <= 100 ? 1 : (texels <= 250 ? 3 : 11);
+  return budget == 0 || budget == render::unlimited_texels ? stride : 8 * stride + 1;
+}
+
+std::string where(const Map& map, int sectors, Address address, long long budget) {
+  return map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) + " sectors " +
+         std::to_string(sectors) + " " + bake::address_name(address) + " budget " + std::to_string(budget);
+}
+
+// Every ratio and apex the device stores meets the contract, at every budget; the apex is never below
+// the CPU bake's (bake_bilinear_cones: the largest of s over Q_c, rounded up).
+void expect_contract(const std::vector<Map>& maps, long long& pairs) {
+  render::Renderer& renderer = cones_renderer();
+  for (const Map& map : maps)
+    for (int sectors : {1, 4, 8})
+      for (Address address : {Address::wrap, Address::clamp}) {
+        render::DeviceCones device(renderer, bake::view_of(map), sectors, address);
+        const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
+        for (long long budget : budgets) {
+          const DeviceBake b = bake_on_device(device, budget);
+          const std::string at = where(map, sectors, address, budget);
+          for (std::size_t t = 0; t < b.apex.size(); ++t) ASSERT_GE(b.apex[t], full.apex[t]) << at;
+          for (float r : b.cones.ratios) ASSERT_TRUE(r >= 0.0f && r <= 1.0f) << at << " " << r;
+          if (budget == 0) {
+            EXPECT_EQ(b.stats.texels_refined, 0) << at;
+          }
+          if (budget > 0) {
+            EXPECT_LE(b.stats.texels_refined, budget) << at;
+          }
+          const bake::BilinearCheck check =
+              bake::check_bilinear(map, address, b.cones, b.apex, stride_for(map, budget));
+          pairs += check.pairs;
+          ASSERT_EQ(check.violations, 0) << at << " worst " << check.worst;
+        }
+      }
+}
+
+TEST(DeviceCones, HardMapsMeetTheContractAtEveryBudget) {
+  std::vector<Map> maps = bake::bilinear_maps();
+  for (const Map& map : bake::hard_maps())
+    if (map.width * map.height <= 600) maps.push_back(map);
+  long long pairs = 0;
+  expect_contract(maps, pairs);
+  std::printf("device cones, hard maps: %lld (p, x) pairs checked\n", pairs);
+  EXPECT_GT(pairs, 1000000);
+  EXPECT_EQ(cones_renderer().validation_messages(), 0);
+}
+
+TEST(DeviceCones, RandomSpikeAndNonSquareMapsMeetTheContract) {
+  std::vector<Map> maps;
+  for (int n = 0; n < 4; ++n) {
+    const int w = 1 + int(test::hash01(71, n, 1) * 12), h = 1 + int(test::hash01(71, n, 2) * 12);
+    Map random = bake::make_noise(w, h);
+    random.name = "random-" + std::to_string(n);
+    maps.push_back(random);
+  }
+  maps.push_back(bake::make_single_spike(13, 6));
+  maps.push_back(test::make_spikes(5, 17, 11));
+  maps.push_back(test::make_fractal_cliff(24, 8, 5));
+  maps.push_back(test::make_bricks(8, 20));
+  long long pairs = 0;
+  expect_contract(maps, pairs);
+  std::printf("device cones, random maps: %lld (p, x) pairs checked\n", pairs);
+  EXPECT_GT(pairs, 100000);
+  EXPECT_EQ(cones_renderer().validation_messages(), 0);
+}
+
+// Unlimited keeps at least 0.9 of the full CPU bake's mean ratio (both lower bounds of the same
+// contract; the device's are rounded down to 11 bits and its apexes raised to 16, as stored).
+TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
+  render::Renderer& renderer = cones_renderer();
+  for (const Map& map :
+       {test::make_ocean(64, 64), test::make_fractal_cliff(48, 40), test::make_bricks(40, 40)})
+    for (int sectors : {1, 4, 8}) {
+      const Address address = Address::wrap;
+      render::DeviceCones device(renderer, bake::view_of(map), sectors, address);
+      const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
+      const double full_mean = bake::mean_ratio(full.cones);
+      const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
+      const DeviceBake first = bake_on_device(device, 0);
+      const double kept = bake::mean_ratio(unlimited.cones) / full_mean;
+      std::printf(
+          "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, first pass %.4f (%lld of %d "
+          "texels cut)\n",
+          map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean, first.stats.texels_cut,
+          map.width * map.height);
+      EXPECT_GE(kept, 0.9) << map.name << " sectors " << sectors;
+      EXPECT_EQ(unlimited.stats.texels_refined, map.width * map.height);
+      // the first pass never claims more than the full search: each of its blocks bounds its cells
+      EXPECT_LE(bake::mean_ratio(first.cones), bake::mean_ratio(unlimited.cones) + 1e-9) << map.name;
+    }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// The check has teeth on the device's maps: ratios 10% too large are caught.
+TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
+  render::Renderer& renderer = cones_renderer();
+  int caught = 0, tried = 0;
+  for (const Map& map : {bake::make_ramp(8, 6), bake::make_noise(6, 6), test::make_fractal_cliff(10, 8),
+                         test::make_bricks(12, 8), bake::make_single_spike(7, 5)})
+    for (Address address : {Address::wrap, Address::clamp})
+      for (long long budget : {0ll, render::unlimited_texels}) {
+        render::DeviceCones device(renderer, bake::view_of(map), 4, address);
+        DeviceBake b = bake_on_device(device, budget);
+        ASSERT_EQ(bake::check_bilinear(map, address, b.cones, b.apex).violations, 0) << map.name;
+        for (float& r : b.cones.ratios) r = std::min(1.0f, r * 1.1f);
+        ++tried;
+        if (bake::check_bilinear(map, address, b.cones, b.apex).violations > 0) ++caught;
+      }
+  std::printf("device ratios x1.1 caught on %d of %d maps\n", caught, tried);
+  EXPECT_GE(caught, tried * 3 / 4);
+}
+
+// The budget bounds the refinement: at most `texels` cut texels are searched again, and every one
+// of them only raises ratios; the cut count does not depend on the budget.
+TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
+  render::Renderer& renderer = cones_renderer();
+  const Map map = test::make_fractal_cliff(40, 24);
+  render::DeviceCones device(renderer, bake::view_of(map), 4, Address::clamp);
+  const DeviceBake first = bake_on_device(device, 0);
+  ASSERT_GT(first.stats.texels_cut, 10);
+  EXPECT_EQ(first.stats.texels_refined, 0);
+  double previous = bake::mean_ratio(first.cones);
+  for (long long budget : {5ll, 50ll, 1000000ll}) {
+    const DeviceBake b = bake_on_device(device, budget);
+    EXPECT_EQ(b.stats.texels_cut, first.stats.texels_cut);
+    EXPECT_EQ(b.stats.texels_refined, std::min(budget, first.stats.texels_cut));
+    for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+      ASSERT_GE(b.cones.ratios[v], first.cones.ratios[v]);
+    EXPECT_EQ(b.apex, first.apex);
+    const double mean = bake::mean_ratio(b.cones);
+    EXPECT_GE(mean, previous - 1e-3);  // which texels get the tickets is the device's order
+    previous = mean;
+  }
+  const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
+  EXPECT_NEAR(previous, bake::mean_ratio(unlimited.cones), 1e-6);  // all cut texels refined: the same map
+}
+
+// The cones of a DeviceSim's heights, sampled by the renderer with no upload: the contract on the
+// heights read back, the frame drawn from both device maps, and nothing allocated per frame.
+TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
+  render::Renderer& renderer = cones_renderer();
+  pipeline::SourceSettings settings;
+  settings.kind = pipeline::SourceKind::ocean;
+  settings.map_size = 32;
+  settings.ocean.patch_size = 200.0f;
+  settings.ocean.wind_speed = 12.0f;
+  settings.ocean.seed = 7;
+  const std::unique_ptr<render::DeviceSim> made =
+      pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+  render::DeviceSim& ocean = *made;
+  render::DeviceCones cones(renderer, 4, Address::wrap);
+  ASSERT_EQ(cones.width(), 32);
+  render::MapSet maps;
+  maps.width = maps.height = 32;
+  maps.heights_on_device = true;
+  maps.cones[std::size_t(render::cone_slot(4))].sector_count = 4;
+  maps.cones[std::size_t(render::cone_slot(4))].on_device = true;
+  render::View view;
+  view.camera.width = view.camera.height = 24;
+  const render::MethodSettings method{render::Method::acm4, 32, 4};
+  render::Frame frame;
+  long long allocations = 0;
+  for (int step = 0; step < 4; ++step) {
+    ocean.simulate(2.0 + step / 30.0);
+    cones.bake({step % 2 == 0 ? 0 : render::unlimited_texels});
+    renderer.set_maps(maps);
+    renderer.render(view, method, frame, render::output_uv);
+    if (step == 1) allocations = renderer.memory_allocations();
+  }
+  EXPECT_EQ(renderer.memory_allocations(), allocations);
+  long long hits = 0;
+  for (std::size_t p = 0; p < frame.uv.size(); p += 3) hits += frame.uv[p + 2] > 0.0f ? 1 : 0;
+  EXPECT_GT(hits, 0);
+  std::vector<float> heights;
+  ocean.read_back(&heights, nullptr, nullptr);
+  const DeviceBake b = read(cones, 32, 32);
+  const Map map{"device-ocean", 32, 32, heights};
+  EXPECT_EQ(bake::check_bilinear(map, Address::wrap, b.cones, b.apex, 5).violations, 0);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+TEST(DeviceCones, RefusesWhatItCannotBake) {
+  render::Renderer& renderer = cones_renderer();
+  std::vector<float> heights(16, 0.5f);
+  auto message_of = [](auto&& make) -> std::string {
+    try {
+      make();
+    } catch (const render::RenderError& error) {
+      return error.what();
+    }
+    return "";
+  };
+  EXPECT_NE(message_of([&] {
+              render::DeviceCones(renderer, bake::HeightView{heights.data(), 0, 0}, 4, Address::wrap);
+            }).find("between 1 and"),
+            std::string::npos);
+  heights[5] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_NE(message_of([&] {
+              render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
+            }).find("row 1, column 1"),
+            std::string::npos);
+  heights[5] = 1.5f;
+  EXPECT_THROW(render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap),
+               render::RenderError);
+  heights[5] = 0.5f;
+  EXPECT_NE(message_of([&] {
+              render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 3, Address::wrap);
+            }).find("1, 4 or 8 sectors"),
+            std::string::npos);
+  EXPECT_NE(message_of([&] { render::DeviceCones(renderer, 4, Address::wrap); }).find("no DeviceSim"),
+            std::string::npos);
+  {
+    render::DeviceCones cones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
+    EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
+  }
+  // a MapSet asking for device cones the renderer does not have (the DeviceCones above is gone)
+  render::MapSet maps;
+  maps.width = maps.height = 4;
+  maps.heights = heights;
+  maps.cones[std::size_t(render::cone_slot(4))].sector_count = 4;
+  maps.cones[std::size_t(render::cone_slot(4))].on_device = true;
+  EXPECT_NE(message_of([&] { renderer.set_maps(maps); }).find("needs this renderer's 4-sector DeviceCones"),
+            std::string::npos);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+}  // namespace
