@@ -276,7 +276,8 @@ void frame_part(render::Renderer& renderer, const Plan& plan, const std::filesys
     scene.bake_work = -1;
     pipeline::FramePipeline pipe(scene, renderer);
     for (long long index = 0; index < plan.frame_count; ++index) {
-      const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, index));
+      render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, index));
+      view.unbounded = false;  // on the patch, which the reference tessellates
       const pipeline::FrameRecord record = pipe.run(index, view, frame, render::output_all);
       // the reference of the same heights, foam and view: what the frame would show if exact
       renderer.render(view, {render::Method::reference, 1, 0}, reference,

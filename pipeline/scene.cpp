@@ -199,6 +199,7 @@ render::View scene_view(const Scene& scene, double time) {
   render::View view;
   view.camera = scene.camera;
   view.material = scene.material;
+  view.unbounded = scene.unbounded;
   view.foam_color = scene.foam_color;
   view.foam_intensity = scene.foam_intensity;
   view.surface = scene.surface;
@@ -259,10 +260,12 @@ Scene builtin_scene(std::string_view name) {
     scene.light = {0.0f, 1.0f, 0.3f};  // a low sun ahead: its glint path runs towards the eye
     scene.camera.eye = {0.5f, -0.25f, 0.22f};
     scene.camera.look_at = {0.5f, 0.6f, -0.02f};
+    scene.unbounded = true;
   } else if (name == "ripples") {
     scene.source = SourceKind::sinusoids;
     scene.material = render::Material::water;
     scene.light = {0.0f, 1.0f, 0.3f};
+    scene.unbounded = true;
   } else if (name == "ocean") {
     scene.source = SourceKind::ocean;  // the default ocean on the grid, seen from above: the method sweeps'
   } else if (name == "bricks" || name == "cliff") {
@@ -550,7 +553,7 @@ void read_render(const Reader& read, const toml::table& root, const std::string&
   if (render_table) {
     read.known_keys(*render_table, "render",
                     {"method", "steps", "refine", "size", "surface", "mesh", "radius", "address", "shadows",
-                     "light", "depth_scale", "tile"});
+                     "light", "depth_scale", "tile", "extent"});
   }
   read_render_method(read, render_table, scene);
   const std::string surface = read.word(render_table, "render", "surface", surface_word(scene.surface),
@@ -586,6 +589,16 @@ void read_render(const Reader& read, const toml::table& root, const std::string&
   scene.tile = int(read.integer(render_table, "render", "tile", scene.tile, 1, render::max_tile));
   if (scene.tile > 1 && scene.address != bake::Address::wrap)
     read.fail(key_node(render_table, "tile"), "render.tile", "above 1 needs address = \"wrap\"");
+  scene.unbounded = read.word(render_table, "render", "extent", scene.unbounded ? "unbounded" : "patch",
+                              {"patch", "unbounded"}) == "unbounded";
+  if (scene.unbounded && (scene.surface != render::Surface::plane || scene.address != bake::Address::wrap ||
+                          scene.method == render::Method::reference)) {
+    const toml::node* where =
+        key_node(render_table, "extent") ? key_node(render_table, "extent") : render_table;
+    read.fail(where, "render.extent",
+              "\"unbounded\" tiles the plane with address = \"wrap\" and a method other than the reference "
+              "(extent = \"patch\" for the others)");
+  }
   if (!render::supports_surface(scene.method, scene.surface)) {
     read.fail(key_node(render_table, "surface"), "render.surface",
               std::string("render.method ") + render::method_info(scene.method).name +
@@ -740,7 +753,8 @@ std::string scene_toml(const Scene& scene) {
                            {"shadows", scene.shadows},
                            {"light", vec(scene.light)},
                            {"depth_scale", tidy(scene.depth_scale)},
-                           {"tile", scene.tile}};
+                           {"tile", scene.tile},
+                           {"extent", scene.unbounded ? "unbounded" : "patch"}};
   if (scene.surface == render::Surface::mesh) render_table.insert("mesh", scene.mesh.string());
   root.insert("render", render_table);
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});

@@ -109,6 +109,9 @@ struct Scene {
   glm::vec3 light{0.35f, 0.25f, 1.0f};  // towards the light (the sun); normalized when used
   float depth_scale = 0.1f;
   int tile = 1;
+  // extent = "unbounded": the plane tiled to the horizon under the sky (render::View::unbounded; the
+  // water scenes), or "patch": the one patch (every other scene, and every accuracy comparison)
+  bool unbounded = false;
 
   // [time]: frame n is shown at start + n / fps
   double start = 0.0;  // seconds

@@ -148,6 +148,11 @@ void Renderer::Impl::validate_frame(const View& view, const MethodSettings& meth
     throw RenderError("View::tile must be between 1 and " + std::to_string(max_tile));
   if (view.tile > 1 && view.address != bake::Address::wrap)
     throw RenderError("View::tile above 1 needs View::address = Address::wrap");
+  if (view.unbounded && (view.surface != Surface::plane || view.address != bake::Address::wrap ||
+                         method.method == Method::reference)) {
+    throw RenderError(
+        "View::unbounded tiles the plane with Address::wrap, for a method other than the reference");
+  }
   if (!(view.depth_scale >= min_depth_scale && view.depth_scale <= max_depth_scale)) {
     throw RenderError(
         limits_text("View::depth_scale", double(min_depth_scale), double(max_depth_scale), " world units"));
@@ -214,7 +219,8 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   const bool water = view.material == Material::water;
   const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) |
                     (view.shadows ? FLAG_SHADOWS : 0) | (has_albedo ? FLAG_ALBEDO : 0) |
-                    (water ? FLAG_WATER : 0) | (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0);
+                    (water ? FLAG_WATER : 0) | (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0) |
+                    (view.unbounded ? FLAG_UNBOUNDED : 0);
   uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
   const std::array<float, 4> clear = clear_colour(view);
   uniforms.background = glm::vec4(clear[0], clear[1], clear[2], clear[3]);

@@ -152,6 +152,10 @@ struct View {
   // covers a texel of full coverage (0: none shows)
   glm::vec3 foam_color{0.92f, 0.95f, 0.96f};
   float foam_intensity = 1.0f;
+  // The plane without edges: the map tiled in every direction to the horizon (wrap, the plane, a method
+  // other than the reference), under a sky with a gradient and the sun, with aerial perspective
+  // towards the horizon. Every pixel whose ray points below the horizon hits the relief.
+  bool unbounded = false;
 };
 
 inline constexpr int max_steps = 4096;  // MethodSettings::steps, from 1

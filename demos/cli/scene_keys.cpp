@@ -329,6 +329,19 @@ const std::vector<Entry>& entries() {
        "X,Y,Z",
        "direction towards the light",
        [] { return vector_value(); }},
+      {"--extent",
+       scene_view,
+       {"render.extent"},
+       Kind::word,
+       "patch|unbounded",
+       "the one patch, or the plane tiled to the horizon under the sky (the water scenes)",
+       [] {
+         return text_check([](const std::string& text) -> std::string {
+           return text == "patch" || text == "unbounded"
+                      ? std::string()
+                      : "must be patch or unbounded, got " + in_quotes(text);
+         });
+       }},
       {"--shadows",
        scene_view,
        {"render.shadows"},

@@ -61,6 +61,9 @@ void print_cone_line(const pipeline::Scene& scene, const pipeline::FrameRecord& 
 
 void run_render(const RenderSettings& settings, std::ostream& out) {
   const pipeline::Scene& scene = settings.scene;
+  if (settings.compare_reference && scene.unbounded)
+    throw usage_error(
+        "--compare-reference compares on the patch the reference tessellates: add --extent patch");
   // the device first: what it offers decides what fits, before anything is synthesized or baked
   render::Renderer renderer(settings.renderer);
   const unsigned outputs =

@@ -57,10 +57,12 @@ using mat4 = glm::mat4;
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
-#define FLAG_SHADOWS 2  // self-shadowing: trace from the hit towards the light with the same method
-#define FLAG_ALBEDO 4   // shade with the albedo image instead of the procedural grid
-#define FLAG_WATER 8    // the water material (shading.inc.glsl) instead of the grid or albedo
-#define FLAG_FOAM 16    // the water material reads foam coverage at BINDING_FOAM
+#define FLAG_SHADOWS 2        // self-shadowing: trace from the hit towards the light with the same method
+#define FLAG_ALBEDO 4         // shade with the albedo image instead of the procedural grid
+#define FLAG_WATER 8          // the water material (shading.inc.glsl) instead of the grid or albedo
+#define FLAG_FOAM 16          // the water material reads foam coverage at BINDING_FOAM
+#define FLAG_UNBOUNDED 32     // the plane tiled to the horizon under the sky (View::unbounded)
+#define AERIAL_DISTANCE 40.0  // world units: light from that far keeps 1/e of its colour (unbounded)
 
 // the water material's sky at the horizon (shading.inc.glsl), also the background of water frames
 #define SKY_HORIZON_R 0.72

@@ -50,6 +50,16 @@ vec3 sky(vec3 direction) {
   return mix(sky_horizon, sky_zenith, pow(up, 0.6));
 }
 
+// The sky seen directly (the unbounded plane's background): the gradient, the sun's disc and its glow.
+const float sun_disc_cosine = 0.99990;  // cos of the disc's angular radius (about 0.8 degrees)
+vec3 sky_with_sun(vec3 direction) {
+  vec3 l = normalize(frame.light.xyz);
+  float towards = max(dot(normalize(direction), l), 0.0);
+  vec3 glow = vec3(1.0, 0.85, 0.6) * (0.35 * pow(towards, 64.0) + 0.15 * pow(towards, 8.0));
+  vec3 disc = towards >= sun_disc_cosine ? vec3(8.0, 7.5, 6.5) : vec3(0.0);
+  return sky(direction) + glow + disc;
+}
+
 vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   vec3 to_eye = -view_direction;
   float cosine = clamp(dot(n, to_eye), 0.0, 1.0);

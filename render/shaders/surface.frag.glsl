@@ -109,9 +109,16 @@ Entry tangent_plane_entry(vec3 d, vec3 normal, mat3 to_texture) {
 void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_world, vec3 base_texture) {
   vec3 world_hit = base_world + tangent_frame * (hit - base_texture);
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
-  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
+  // (the unbounded plane's hits past the far plane keep the farthest depth the LESS test passes)
+  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0 - 1.0 / 16777216.0);
   float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
-  out_color = vec4(shade(hit.xy, tangent_frame, d, lit), 1.0);
+  vec3 colour = shade(hit.xy, tangent_frame, d, lit);
+  if ((frame.counts.z & FLAG_UNBOUNDED) != 0) {
+    // aerial perspective: towards the sky's colour at the horizon with the distance
+    float seen = exp(-length(world_hit - frame.eye.xyz) / AERIAL_DISTANCE);
+    colour = mix(sky(vec3(d.xy, 0.0)), colour, seen);
+  }
+  out_color = vec4(colour, 1.0);
   out_hit = vec4(hit.xy, 1.0, length(world_hit - frame.eye.xyz));
   out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
 }
@@ -128,18 +135,28 @@ void main() {
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
   mat3 to_texture = inverse(tangent_frame);
+  const bool unbounded = (frame.counts.z & FLAG_UNBOUNDED) != 0;
+  if (unbounded && (frame.eye.z <= 0.0 || d.z >= 0.0)) {  // above the horizon: the sky
+    out_color = vec4(sky_with_sun(d), 1.0);
+    out_hit = vec4(0.0);
+    out_counters = vec4(0.0);
+    gl_FragDepth = 1.0 - 1.0 / 16777216.0;  // the farthest depth the LESS test keeps
+    return;
+  }
   if (frame.eye.z <= 0.0 || d.z >= 0.0) discard;  // the relief is seen from above only
   // Only what is seen through the base polygon: a ray that enters the relief box through one of its
   // sides has no fragment there (nor has a fragment on the polygon's edge whose ray misses it). The
   // reference's fragments lie on the displaced surface (reference.vert.glsl), not on the base plane.
   Entry entry;
-  if (METHOD == METHOD_REFERENCE) {
+  if (METHOD == METHOD_REFERENCE || unbounded) {
     entry.world = frame.eye.xyz - (frame.eye.z / d.z) * d;
     entry.texture = vec3(entry.world.xy * frame.surface.x, 1.0);
   } else {
     entry = tangent_plane_entry(d, normal, to_texture);
   }
-  if (any(lessThan(entry.world.xy, vec2(0.0))) || any(greaterThan(entry.world.xy, vec2(1.0)))) discard;
+  if (!unbounded &&
+      (any(lessThan(entry.world.xy, vec2(0.0))) || any(greaterThan(entry.world.xy, vec2(1.0)))))
+    discard;
   vec3 direction = to_texture * d;
   vec3 origin = vec3(entry.texture.xy, 1.0);
   vec3 hit;
@@ -151,7 +168,8 @@ void main() {
     hit = traced.p;
   }
   // the ray left the relief volume through a side of the patch
-  if (any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)))) discard;
+  if (!unbounded && (any(lessThan(hit.xy, vec2(0.0))) || any(greaterThan(hit.xy, vec2(frame.surface.x)))))
+    discard;
   write_hit(hit, tangent_frame, d, normal, entry.world, entry.texture);
 }
 #else

@@ -98,6 +98,7 @@ Plan quick_plan() {
 void method_table(render::Renderer& renderer, const Plan& plan, const std::string& directory) {
   for (const char* name : plan.scenes) {
     pipeline::Scene scene = pipeline::builtin_scene(name);
+    scene.unbounded = false;  // the patch, which the reference tessellates
     if (std::string(name) == "water") scene.map_size = plan.water_map;
     scene.camera.width = plan.width;
     scene.camera.height = plan.height;
