@@ -25,12 +25,15 @@ struct FramePipeline::State {
       : scene(s),
         renderer(r),
         clock(c ? std::move(c) : std::function<double()>(steady_milliseconds)),
+        loader_for_queries(loader),
         source(source_settings(s), scene_effects(s), std::move(loader)),
         maker(r.device().max_image_dimension_3d, int(heights.size())) {}
 
   Scene scene;
   render::Renderer& renderer;
   std::function<double()> clock;
+  HeightLoader loader_for_queries;
+  std::unique_ptr<HeightQuery> queries;  // made at the first query
   render::MapNeeds needs;
   bool deterministic = true;  // a work budget or none: a frame depends on its index only
   int cone_lag_frames = 0;    // lagged cone maps: the scene's lag where it applies, else 0
@@ -107,6 +110,12 @@ FramePipeline::FramePipeline(FramePipeline&&) noexcept = default;
 FramePipeline& FramePipeline::operator=(FramePipeline&&) noexcept = default;
 
 const Scene& FramePipeline::scene() const { return state_->scene; }
+
+void FramePipeline::query(std::span<const QueryPoint> points, double time, QueryResult& out) {
+  State& s = *state_;
+  if (!s.queries) s.queries = std::make_unique<HeightQuery>(s.scene, s.loader_for_queries);
+  s.queries->query(points, time, out);
+}
 const render::HeightField& FramePipeline::heights() const {
   return state_->heights[std::size_t(state_->current)].field;
 }

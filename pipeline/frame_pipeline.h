@@ -23,6 +23,7 @@
 #include "bake/bake.h"
 #include "pipeline/height_source.h"
 #include "pipeline/maps.h"
+#include "pipeline/query.h"
 #include "pipeline/scene.h"
 #include "render/render.h"
 
@@ -80,6 +81,11 @@ class FramePipeline {
   void bake(double budget_ms, FrameRecord& record);
   void upload(FrameRecord& record);
   void draw(const render::View& view, render::Frame& frame, unsigned outputs, FrameRecord& record);
+
+  // Height queries (pipeline/query.h) of the surface this pipeline's scene draws, at any time and
+  // camera-independent: the heights for `time` are made for the queries (and kept for the next ones
+  // at that time), apart from the frames'.
+  void query(std::span<const QueryPoint> points, double time, QueryResult& out);
 
   const Scene& scene() const;
   const render::HeightField& heights() const;  // [0, 1], the source's fixed mapping applied

@@ -24,6 +24,13 @@ struct SimSettings {
   std::filesystem::path output;  // .exr
 };
 
+struct QuerySettings {
+  pipeline::Scene scene;  // the surface at scene.start
+  std::string points;     // CSV x,y in metres, or "-" for standard input
+  std::string output;     // CSV (or JSON with `json`), or "-" for standard output
+  bool json = false;
+};
+
 struct BakeSettings {
   pipeline::Scene scene;  // the heights at scene.start (an image: --input)
   int sector_count = 4;
@@ -110,6 +117,7 @@ struct DemoSettings {
 };
 
 void run_sim(const SimSettings& settings, std::ostream& out);
+void run_query(const QuerySettings& settings, std::ostream& out);
 void run_bake(const BakeSettings& settings, std::ostream& out);
 void run_render(const RenderSettings& settings, std::ostream& out);
 void run_sweep(const SweepSettings& settings, std::ostream& out);

@@ -17,6 +17,9 @@
 // the device's own milliseconds per frame (GPU timestamps), FFTs per frame, and (device) the largest
 // difference from the CPU's heights of the last frame in [0, 1] units and the share of texels more than
 // 1e-5 apart (choppy folds).
+//
+// Height queries (pipeline/query.h): BM_Query/<points> answers that many random points of the water
+// scene (256 map, choppy) at one time, once its heights exist; items per second is points per second.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -28,6 +31,7 @@
 #include "bake/bake.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/height_source.h"
+#include "pipeline/query.h"
 #include "render/device.h"
 
 namespace {
@@ -247,6 +251,34 @@ BENCHMARK(run_cpu_sim)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+void run_query(benchmark::State& state) {
+  pipeline::Scene scene = pipeline::builtin_scene("water");
+  pipeline::HeightQuery query(scene);
+  std::vector<pipeline::QueryPoint> points(std::size_t(state.range(0)));
+  std::uint64_t seed = 12345;
+  for (pipeline::QueryPoint& point : points) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    point.x = double(seed >> 11) * 0x1.0p-53 * 1000.0 - 500.0;
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    point.y = double(seed >> 11) * 0x1.0p-53 * 1000.0 - 500.0;
+  }
+  pipeline::QueryResult result;
+  query.query(points, 1.0, result);  // the heights made, the vectors sized
+  for (auto _ : state) {
+    query.query(points, 1.0, result);
+    benchmark::DoNotOptimize(result.height_m.data());
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+  state.counters["heights_made"] = double(query.heights_made());
+}
+BENCHMARK(run_query)
+    ->Name("BM_Query")
+    ->Arg(1000)
+    ->Arg(100000)
+    ->Arg(1000000)
+    ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 
 }  // namespace
