@@ -6,7 +6,6 @@
 // precision, kept by anchoring: the phase at t_anchor is reduced modulo 2 pi on the host in double,
 // the shaders add w (t - t_anchor) in split floats, and the anchor moves before that exceeds 1e5 rad.
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstring>
 #include <numbers>
