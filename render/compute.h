@@ -83,6 +83,10 @@ class StageTimer {
   double milliseconds_ = 0.0;
 };
 
+// Before a device stage writes again what earlier frames' shaders and copies read or wrote (its maps
+// and buffers): their vertex, fragment, compute and transfer work ends first.
+void rewrite_barrier(VkCommandBuffer commands);
+
 // Groups of `local` invocations that cover `count`.
 inline std::uint32_t group_count(std::uint32_t count, std::uint32_t local) {
   return (count + local - 1) / local;

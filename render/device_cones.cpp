@@ -213,14 +213,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   s.timer.begin(commands, slot);
 
   // the frames before read the cone image and the buffers this one writes
-  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  before.srcAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-  before.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-  vkCmdPipelineBarrier(commands,
-                       VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
-                           VK_PIPELINE_STAGE_TRANSFER_BIT,
-                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before,
-                       0, nullptr, 0, nullptr);
+  rewrite_barrier(commands);
   vkCmdFillBuffer(commands, s.counters.handle(), 0, VK_WHOLE_SIZE, 0);
   VkMemoryBarrier cleared{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   cleared.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;

@@ -303,14 +303,7 @@ void DeviceSim::simulate(double time) {
   s.timer.begin(commands, slot);
 
   // the frames before read the maps and buffers this one writes
-  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  before.srcAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-  before.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-  vkCmdPipelineBarrier(commands,
-                       VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
-                           VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before,
-                       0, nullptr, 0, nullptr);
+  rewrite_barrier(commands);
   if (reanchor) {
     const VkBufferCopy copy{0, 0, s.items() * 8};
     vkCmdCopyBuffer(commands, s.anchor_staging.handle(), s.anchor.handle(), 1, &copy);

@@ -10,6 +10,7 @@
 // of 12 significant bits (whose product is exact in float) and the rest, then reduced by 2 pi in three
 // Cody-Waite steps; so frames at t = 1e9 s are as precise as at t = 0.
 #include "ocean.h"
+#include "phase.inc.glsl"
 
 layout(local_size_x = OCEAN_LOCAL_SIZE, local_size_y = 1, local_size_z = 1) in;
 
@@ -28,14 +29,7 @@ void main() {
   const int i = int(mode / half_width), j = int(mode % half_width);
 
   // w (t - t_anchor), reduced to [-pi, pi]
-  const vec2 w = omega_split[mode];
-  const float phase_high = w.x * push.time_high;
-  const float phase_low = w.x * push.time_low + w.y * push.time_high + w.y * push.time_low;
-  // 2 pi = 6.28125 + 1.934051513671875e-3 + 1.2556659e-6: the first two parts of 8 and 10 significant
-  // bits, so that their products with turns < 2^14 are exact
-  const float turns = round((phase_high + phase_low) * 0.15915494309189535);
-  const float reduced =
-      (((phase_high - turns * 6.28125) - turns * 1.934051513671875e-3) - turns * 1.2556659e-6) + phase_low;
+  const float reduced = phase_since_anchor(omega_split[mode], push.time_high, push.time_low);
   const vec2 step_rotation = vec2(cos(reduced), sin(reduced));
   const vec2 start = anchor[mode];
   const float c = start.x * step_rotation.x - start.y * step_rotation.y;

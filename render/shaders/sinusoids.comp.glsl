@@ -6,8 +6,9 @@
 // Precision: k_i . x in turns from integers where the wave lies on the patch's lattice (k = 2 pi (m, n)
 // / L: the turns are m (2 j + 1) / (2 W) + n (2 i + 1) / (2 H), exact modulo 1), else in float; the
 // time part phi_i - w_i t as in ocean_spectrum.comp.glsl (an anchor reduced on the host, plus w (t -
-// t_anchor) in split floats), so t = 1e9 s is as precise as t = 0.
+// t_anchor) in split floats: phase.inc.glsl), so t = 1e9 s is as precise as t = 0.
 #include "ocean.h"
+#include "phase.inc.glsl"
 
 layout(local_size_x = OCEAN_TILE, local_size_y = OCEAN_TILE, local_size_z = 1) in;
 
@@ -40,12 +41,7 @@ void main() {
     }
     const float space = turns * 6.283185307179586;
     // phi - w t = anchor - w (t - t_anchor)
-    const vec2 w = omega_split[i];
-    const float phase_high = w.x * push.time_high;
-    const float phase_low = w.x * push.time_low + w.y * push.time_high + w.y * push.time_low;
-    const float whole = round((phase_high + phase_low) * 0.15915494309189535);
-    const float reduced =
-        (((phase_high - whole * 6.28125) - whole * 1.934051513671875e-3) - whole * 1.2556659e-6) + phase_low;
+    const float reduced = phase_since_anchor(omega_split[i], push.time_high, push.time_low);
     const vec2 start = anchor[i];
     const float c = start.x * cos(reduced) + start.y * sin(reduced);  // cos(anchor - reduced)
     const float s = start.y * cos(reduced) - start.x * sin(reduced);  // sin(anchor - reduced)
