@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The installed package from a program outside the project (issue 33): installs the build into a
+# temporary prefix, configures demos/embed against it alone, builds and runs it.
+#   install_test.sh SOURCE_DIR BUILD_DIR WORK_DIR CXX_COMPILER
+set -euo pipefail
+source_dir="$1"
+build_dir="$2"
+work="$3"
+compiler="$4"
+rm -rf "$work"
+mkdir -p "$work"
+prefix="$work/prefix"
+
+cmake --install "$build_dir" --prefix "$prefix" >"$work/install.log"
+# the package names nothing of the source or build tree: it works where they are gone
+if grep -rlF -e "$source_dir" -e "$build_dir" "$prefix/lib/cmake/displace"; then
+  echo "install_test: the package refers to the source or build tree (above)" >&2
+  exit 1
+fi
+for header in sim/sim.h bake/bake.h render/render.h render/device.h pipeline/frame_pipeline.h pipeline/query.h; do
+  test -f "$prefix/include/displace/$header" || { echo "install_test: $header not installed" >&2; exit 1; }
+done
+
+cmake -S "$source_dir/demos/embed" -B "$work/embed" -DCMAKE_PREFIX_PATH="$prefix" \
+  -DCMAKE_CXX_COMPILER="$compiler" >"$work/configure.log"
+cmake --build "$work/embed" >"$work/build.log"
+"$work/embed/embed" "$work/last.png" | tee "$work/run.log"
+grep -q "^frame 9 at" "$work/run.log"
+test "$(grep -c "^height at" "$work/run.log")" -eq 3
+test -s "$work/last.png"
+
+# the version: the project's, and an incompatible request is refused
+version="$(sed -n 's/^set(PACKAGE_VERSION "\(.*\)")$/\1/p' "$prefix/lib/cmake/displace/displaceConfigVersion.cmake")"
+project_version="$(sed -n 's/^project(displace VERSION \([0-9.]*\) .*/\1/p' "$source_dir/CMakeLists.txt")"
+test "$version" = "$project_version" || { echo "install_test: package version $version, project $project_version" >&2; exit 1; }
+mkdir -p "$work/newer"
+printf 'cmake_minimum_required(VERSION 3.25)\nproject(newer LANGUAGES CXX)\nfind_package(displace 99.0 CONFIG REQUIRED)\n' \
+  >"$work/newer/CMakeLists.txt"
+if cmake -S "$work/newer" -B "$work/newer/build" -DCMAKE_PREFIX_PATH="$prefix" >"$work/newer.log" 2>&1; then
+  echo "install_test: find_package(displace 99.0) accepted version $version" >&2
+  exit 1
+fi
+echo "install_test: displace $version installed, demos/embed built against it and ran"
