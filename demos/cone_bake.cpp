@@ -121,10 +121,10 @@ std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address 
       {"height", stats.height},
       {"sectors", stats.sector_count},
       {"address", address_name(address)},
-      {"milliseconds", finite(stats.milliseconds)},
+      {"bake_ms", finite(stats.milliseconds)},
       {"texels_refined", stats.texels_refined},
       {"texels_fallback", stats.texels_fallback},
-      {"work", stats.work},
+      {"blocker_tests", stats.work},
       {"mean_ratio", finite(stats.mean_ratio)},
   };
   return line.dump();

@@ -190,6 +190,13 @@ Finish add_bake_command(CLI::App& command) {
       "wrote them. A .png output quantizes the heights to 8 bits before baking, so that its cones hold "
       "for the heights it stores. --cones bilinear: the renderer's cone maps, safe for the bilinear "
       "surface from anywhere in a texel's square, with an apex height per texel.");
+  command.footer(
+      "--stats prints one JSON object on a line (the output style of docs/cli.md: snake_case keys, units in "
+      "the\n"
+      "names): mode (exact, budgeted, ...), cones (center, bilinear), width, height (texels), sectors, "
+      "address\n"
+      "(wrap, clamp), bake_ms (the bake's wall time), texels_refined, texels_fallback (texels left at the\n"
+      "conservative fallback), blocker_tests (texel pairs and pyramid nodes examined), mean_ratio.");
   auto draft = std::make_shared<BakeDraft>();
   cli::add_scene_flags(command, draft->scene, cli::scene_source, "ocean");
   declare_bake_flags(command, *draft);

@@ -275,6 +275,15 @@ Finish add_bench_frame_command(CLI::App& command) {
   command.description(
       "Run the frame pipeline for F frames after a warm-up and print, per stage, the p50, p95 and p99 "
       "milliseconds, the frames within budget, FFTs per frame, the effects, and Vulkan allocations.");
+  command.footer(
+      "--json writes the table as one JSON object (snake_case keys, units in the names): frames,\n"
+      "backend.sim and backend.bake (cpu, device), budget_ms (null: unlimited), stages.STAGE.p50_ms, "
+      "p95_ms,\n"
+      "p99_ms and device_p50_ms (STAGE: sim, bake, upload, render, frame, latency; device_p50_ms null where\n"
+      "the stage has no device time), within_budget (fraction of frames), ffts_per_frame, effects,\n"
+      "vulkan_allocations_after_warmup, frames_rendered, cone_lag_frames.p50 and max, cone_lift.p50 and max\n"
+      "(fraction of the height range; null without cone maps), overlapped, pinned_threads,\n"
+      "rss_kb.after_warmup, end, growth and max (null where unknown), scene, device.");
   struct Draft {
     cli::SceneFlags scene;
     BenchFrameSettings settings;

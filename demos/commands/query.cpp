@@ -114,6 +114,10 @@ Finish add_query_command(CLI::App& command) {
       "time (--time): the surface the renderer draws, camera-independent, with its normal and, for choppy "
       "water, the horizontal displacement. CSV columns x,y,height_m,z,nx,ny,nz,dx,dy (z and the normal in "
       "the renderer's world), or JSON with --json.");
+  command.footer(
+      "--json writes one object (snake_case keys, units in the names): scene, time_s, points: an array of\n"
+      "{x_m, y_m, height_m, z (the renderer's world z), normal ([x, y, z], unit length, the renderer's\n"
+      "world), displacement_m ([x, y]: where the water there came from; 0 without choppy crests)}.");
   auto flags = std::make_shared<cli::SceneFlags>();
   auto settings = std::make_shared<QuerySettings>();
   cli::add_scene_flags(command, *flags, cli::scene_source | cli::scene_view, "ocean");

@@ -94,7 +94,7 @@ std::FILE* start_video(const SequenceSettings& settings) {
 
 constexpr const char* sequence_csv_header =
     "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
-    "mean_ratio,pending_texels,cone_lag_frames,cone_lift,sim_backend,bake_backend,sim_device_ms,"
+    "mean_ratio,texels_pending,cone_lag_frames,cone_lift,sim_backend,bake_backend,sim_device_ms,"
     "bake_device_ms,render_device_ms\n";
 
 std::string sequence_csv_row(long long n, const pipeline::FrameRecord& record) {
@@ -226,6 +226,13 @@ Finish add_sequence_command(CLI::App& command) {
   command.description(
       "Render frames A..B of a scene headless, each to its own file; deterministic, so any split into "
       "shards, any order and a resumed run give the same files.");
+  command.footer(
+      "Next to the frames, OUTPUT_STEM.csv has a row per frame (snake_case columns, units in the names):\n"
+      "frame, time_s, sim_ms, bake_ms, upload_ms, render_ms, frame_ms (wall times of the stages and the\n"
+      "frame), bake_budget_ms (the bake's share; inf: unlimited), overrun (1: the frame took longer than\n"
+      "the budget), ffts, effects (+-joined), cone_mean_ratio, texels_pending (left to refine),\n"
+      "cone_lag_frames, cone_lift (apexes raised, fraction of the height range), sim_backend, bake_backend\n"
+      "(cpu, device), sim_device_ms, bake_device_ms, render_device_ms (GPU timestamps; 0: none).");
   struct Draft {
     cli::SceneFlags scene;
     SequenceSettings settings;
