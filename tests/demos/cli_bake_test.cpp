@@ -51,9 +51,9 @@ TEST(Cli, BakesAPngWhoseConesHoldForItsHeights) {
                                                  (dir / "c.png").string() + "' --stats");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_EQ(std::count(result.out.begin(), result.out.end(), '\n'), 1) << result.out;
-  for (const char* key :
-       {"\"mode\":\"exact\"", "\"width\":16", "\"height\":12", "\"sectors\":4", "\"address\":\"clamp\"",
-        "\"bake_ms\":", "\"texels_refined\":", "\"texels_fallback\":", "\"blocker_tests\":", "\"mean_ratio\":"}) {
+  for (const char* key : {"\"mode\":\"exact\"", "\"width\":16", "\"height\":12", "\"sectors\":4",
+                          "\"address\":\"clamp\"", "\"bake_ms\":", "\"texels_refined\":",
+                          "\"texels_fallback\":", "\"blocker_tests\":", "\"mean_ratio\":"}) {
     EXPECT_NE(result.out.find(key), std::string::npos) << key << " in " << result.out;
   }
 
