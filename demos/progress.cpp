@@ -43,6 +43,23 @@ void ProgressLine::update(double fraction_done) {
   drawn_at_seconds_ = elapsed;
 }
 
+StageLines::StageLines(std::ostream& stream, std::string command, Clock clock)
+    : stream_(stream), command_(std::move(command)), clock_(std::move(clock)) {
+  if (!clock_) clock_ = steady_seconds;
+  start_seconds_ = last_seconds_ = clock_();
+}
+
+void StageLines::done(std::string_view stage) {
+  const double now = clock_();
+  held_.push_back(fmt::format("{}: {} in {:.2f} s", command_, stage, now - last_seconds_));
+  last_seconds_ = now;
+  showing_ = showing_ || now - start_seconds_ >= show_after_seconds;
+  if (!showing_) return;
+  for (const std::string& line : held_) stream_ << line << '\n';
+  stream_ << std::flush;
+  held_.clear();
+}
+
 void ProgressLine::finish() {
   const std::lock_guard lock(mutex_);
   if (finished_) return;

@@ -10,6 +10,8 @@
 #include <mutex>
 #include <ostream>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "bake/bake.h"
 
@@ -45,6 +47,25 @@ class ProgressLine {
   double drawn_at_seconds_ = -1.0;  // when the line was last drawn, -1 before the first time
   std::size_t drawn_length_ = 0;    // characters on the line now
   bool finished_ = false;
+};
+
+// One line per stage of a long command ("displace render: cone maps baked in 1.41 s"): nothing while
+// the command is quick; once it has run for show_after_seconds, the lines held so far and every
+// later one, each as its stage ends, on a terminal or not - so that a long render says what it does
+// where no progress line can be drawn (a pipe, a log file).
+class StageLines {
+ public:
+  using Clock = ProgressLine::Clock;
+  StageLines(std::ostream& stream, std::string command, Clock clock = {});
+  void done(std::string_view stage);  // the stage that just ended, e.g. "cone maps baked"
+
+ private:
+  std::ostream& stream_;
+  std::string command_;
+  Clock clock_;
+  double start_seconds_ = 0.0, last_seconds_ = 0.0;
+  std::vector<std::string> held_;
+  bool showing_ = false;
 };
 
 // Whether the process's stderr is a terminal.

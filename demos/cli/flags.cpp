@@ -176,6 +176,24 @@ CLI::Validator vector_value() {
   });
 }
 
+// A bake's time budget: milliseconds, or "unlimited".
+CLI::Validator bake_budget_in(double maximum_ms) {
+  const CLI::Validator milliseconds = number_in({0.0, maximum_ms, "ms"});
+  return CLI::Validator(
+      [milliseconds](std::string& text) -> std::string {
+        if (text == "unlimited") return {};
+        double value = 0.0;
+        if (read_number(text, value) != std::errc{} || !std::isfinite(value))
+          return "expects milliseconds or 'unlimited', got " + in_quotes(text);
+        return milliseconds(text);
+      },
+      fmt::format("[0, {:g}] ms|unlimited", maximum_ms));
+}
+
+double bake_budget_value(const std::string& text) {
+  return text == "unlimited" ? std::numeric_limits<double>::infinity() : std::stod(text);
+}
+
 // A baker's tolerance (bake::Budget::tolerance): a finite number in [0, bake::max_tolerance).
 CLI::Validator tolerance_in_range() {
   return CLI::Validator(

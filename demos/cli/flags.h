@@ -60,6 +60,10 @@ CLI::Validator not_empty();
 CLI::Validator output_file(std::vector<std::string> extensions);
 CLI::Validator image_size_check();
 CLI::Validator vector_value();
+// A bake's time budget: milliseconds in [0, maximum_ms], or "unlimited"; bake_budget_value reads
+// what it let through (infinity for "unlimited").
+CLI::Validator bake_budget_in(double maximum_ms);
+double bake_budget_value(const std::string& text);
 CLI::Validator tolerance_in_range();                                // [0, bake::max_tolerance)
 CLI::Validator frame_pattern(std::vector<std::string> extensions);  // a '#' in the name
 

@@ -5,6 +5,7 @@
 #include <fmt/ranges.h>
 
 #include <cmath>
+#include <iostream>
 #include <ostream>
 
 #include "demos/cli/command.h"
@@ -14,6 +15,7 @@
 #include "demos/error.h"
 #include "demos/heights.h"
 #include "demos/memory.h"
+#include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
 
 namespace displace::app {
@@ -54,7 +56,12 @@ void print_cone_line(const pipeline::Scene& scene, const pipeline::FrameRecord& 
     out << fmt::format(": {:.1f} ms, mean ratio {:.4f}, {} of {} texels searched", stats.milliseconds,
                        stats.mean_ratio, stats.texels_refined, (long long)stats.width * stats.height);
   }
-  out << " (conservative at any budget)\n";
+  out << " (conservative at any budget"
+      << (record.pending > 0 && std::isfinite(scene.frame_ms)
+              ? fmt::format("; {} texels left to refine: --bake-budget-ms unlimited for the tightest maps",
+                            record.pending)
+              : std::string())
+      << ")\n";
 }
 
 }  // namespace
@@ -64,6 +71,8 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
   if (settings.compare_reference && scene.unbounded)
     throw usage_error(
         "--compare-reference compares on the patch the reference tessellates: add --extent patch");
+  // a line per stage on stderr when the render takes long
+  StageLines stages(std::cerr, "displace render");
   // the device first: what it offers decides what fits, before anything is synthesized or baked
   render::Renderer renderer(settings.renderer);
   const unsigned outputs =
@@ -73,13 +82,24 @@ void run_render(const RenderSettings& settings, std::ostream& out) {
                    renderer.memory_limits());
   }
   load_scene_mesh(renderer, scene);
+  stages.done("the device ready");
   pipeline::FramePipeline pipeline(scene, renderer, {}, height_loader(scene.image_read), albedo_loader());
+  // frame 0, as FramePipeline::run(0) makes it (the whole frame budget to the bake), a stage at a time
   render::Frame frame;
-  const pipeline::FrameRecord record = pipeline.run(0, frame, outputs | render::output_all);
+  pipeline::FrameRecord record;
+  record.time = pipeline::frame_time(scene, 0);
+  pipeline.simulate(record.time, record);
+  stages.done("heights made");
+  pipeline.bake(scene.frame_ms, record);
+  stages.done(fmt::format("maps baked ({})", baked_within(scene.frame_ms)));
+  pipeline.upload(record);
+  pipeline.draw(pipeline::scene_view(scene, record.time), frame, outputs | render::output_all, record);
+  stages.done("uploaded and drawn");
   const render::MethodInfo& info = render::method_info(scene.method);
   const Metadata metadata = render_metadata(scene);
   write_frame_image(settings.output, frame, metadata);
   for (const AovOutput& aov : settings.aovs) write_aov(aov, frame, metadata);
+  stages.done("written");
   const FrameSummary summary = summarize(frame);
   out << fmt::format(
       "displace render: {}, {} steps, {} refine, on {} ({}): {} x {}, {} pixels hit, "
@@ -111,7 +131,7 @@ Finish add_render_command(CLI::App& command) {
   struct Draft {
     cli::SceneFlags scene;
     RenderSettings settings;
-    std::string output, compare;
+    std::string output, compare, bake_budget;
     std::vector<std::string> aovs;
   };
   auto draft = std::make_shared<Draft>();
@@ -119,9 +139,13 @@ Finish add_render_command(CLI::App& command) {
   command.option_defaults()->group("Cone maps (scene keys)");
   // the frame's bake: its budget and tolerance ([budget] frame_ms and tolerance)
   cli::SceneFlags& scene_flags = draft->scene;
-  cli::add_value(command, "--budget-ms", scene_flags.values["--budget-ms"],
-                 "cone methods: bake their cone maps within this time (default unlimited; 0 allowed)", "MS",
-                 cli::number_in({0.0, pipeline::max_frame_ms, "ms"}));
+  cli::add_value(
+      command, "--bake-budget-ms", draft->bake_budget,
+      fmt::format("cone methods: bake their cone maps within this time (default: the scene's [budget] "
+                  "frame_ms, or {:g} ms - the first picture in seconds; 0: the first stage alone; "
+                  "unlimited: the tightest maps)",
+                  first_picture_budget_ms),
+      "MS|unlimited", cli::bake_budget_in(pipeline::max_frame_ms));
   cli::add_value(command, "--tolerance", scene_flags.values["--tolerance"],
                  "cone methods: refine while a ratio may be more than T below the best (default 0.25)", "T",
                  cli::tolerance_in_range());
@@ -142,7 +166,12 @@ Finish add_render_command(CLI::App& command) {
     RenderSettings settings = draft->settings;
     settings.scene = cli::finish_scene(command, draft->scene);
     const render::MethodInfo& info = render::method_info(settings.scene.method);
-    for (const char* flag : {"--budget-ms", "--tolerance"}) {
+    if (cli::given(command, "--bake-budget-ms")) {
+      settings.scene.frame_ms = cli::bake_budget_value(draft->bake_budget);
+    } else if (!std::isfinite(settings.scene.frame_ms) && info.cone_sectors != 0) {
+      settings.scene.frame_ms = first_picture_budget_ms;
+    }
+    for (const char* flag : {"--bake-budget-ms", "--tolerance"}) {
       if (!cli::given(command, flag) || info.cone_sectors != 0) continue;
       std::vector<std::string> cone_methods;
       for (const render::MethodInfo& known : render::method_table()) {

@@ -156,9 +156,12 @@ void declare_sweep_flags(CLI::App& command, SweepDraft& draft) {
   command.add_option("--size", draft.size, "the image in pixels of every scene (scene key [render] size)")
       ->type_name("WxH")
       ->check(cli::image_size_check());
-  cli::add_value(command, "--budget-ms", draft.budget,
-                 "cone methods: bake their cone maps within this time (scene key [budget] frame_ms)", "MS",
-                 cli::number_in({0.0, pipeline::max_frame_ms, "ms"}));
+  cli::add_value(
+      command, "--bake-budget-ms", draft.budget,
+      fmt::format("cone methods: bake each scene's cone maps within this time (default: the scene's "
+                  "[budget] frame_ms, or {:g} ms; unlimited: the tightest maps)",
+                  first_picture_budget_ms),
+      "MS|unlimited", cli::bake_budget_in(pipeline::max_frame_ms));
   cli::add_value(command, "--tolerance", draft.tolerance,
                  "cone methods: refine while a ratio may be more than T below the best ([budget] tolerance)",
                  "T", cli::tolerance_in_range());
@@ -198,7 +201,11 @@ Finish add_sweep_command(CLI::App& command) {
     for (pipeline::Scene& scene : settings.scenes) {
       if (cli::given(command, "--size"))
         std::tie(scene.camera.width, scene.camera.height) = *cli::read_image_size(draft->size);
-      if (cli::given(command, "--budget-ms")) scene.frame_ms = std::stod(draft->budget);
+      if (cli::given(command, "--bake-budget-ms")) {
+        scene.frame_ms = cli::bake_budget_value(draft->budget);
+      } else if (!std::isfinite(scene.frame_ms)) {
+        scene.frame_ms = first_picture_budget_ms;
+      }
       if (cli::given(command, "--tolerance")) scene.tolerance = std::stof(draft->tolerance);
     }
     if (draft->methods.empty() || draft->methods == "all") {

@@ -73,7 +73,7 @@ TEST(Cli, RendersWithAovsAndComparesToTheReference) {
   EXPECT_TRUE(fs::exists(out));
 }
 
-// --budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
+// --bake-budget-ms: the cone methods render from maps baked at that budget, 0 included, and the
 // picture still matches the reference (the maps are conservative at any budget).
 TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
   TempDir dir;
@@ -81,7 +81,7 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
     const std::string out = (dir / (std::string(method) + ".png")).string();
     const RunResult result = run_displace(
         dir, std::string("render --source bricks --map-size 32 --seed 2 --size 48x40 --steps 64 --method ") +
-                 method + " --budget-ms 0 --compare reference --output '" + out + "'");
+                 method + " --bake-budget-ms 0 --compare reference --output '" + out + "'");
     ASSERT_EQ(result.exit_code, 0) << method << "\n" << result.err;
     EXPECT_NE(result.out.find("within a 0 ms budget"), std::string::npos) << result.out;
     const std::size_t at = result.out.find("compare reference: rmse ");
@@ -91,6 +91,26 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtBudgetZero) {
     const Attribute* budget = find_attribute(written.metadata, "displace:bake_budget_ms");
     ASSERT_NE(budget, nullptr) << method;
     EXPECT_EQ(std::get<std::string>(budget->value), "0") << method;  // PNG text chunks hold numbers as text
+  }
+}
+
+// A one-off render bakes within the first picture's budget unless told otherwise, and says so; a
+// long one prints a line per stage on stderr (StageLines, whose own test holds the timing).
+TEST(Cli, RenderBakesWithinTheFirstPicturesBudgetByDefault) {
+  TempDir dir;
+  const RunResult result = run_displace(dir, "render --source ocean --map-size 32 --size 48x40 --output '" +
+                                                 (dir / "first.png").string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("within a " + std::to_string(int(first_picture_budget_ms)) + " ms budget: "),
+            std::string::npos)
+      << result.out;
+  EXPECT_NE(result.out.find(", mean ratio 0."), std::string::npos) << result.out;
+  // stderr: nothing, or (on a loaded machine, past a second) one "displace render: STAGE in T s" line
+  // per stage
+  std::istringstream lines(result.err);
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_EQ(line.rfind("displace render: ", 0), 0u) << result.err;
+    EXPECT_EQ(line.substr(line.size() - 2), " s") << result.err;
   }
 }
 
@@ -107,7 +127,7 @@ TEST(Cli, RendersConeMethodsFromMapsBakedAtALooseTolerance) {
   };
   const std::string common =
       "render --source ocean --map-size 32 --time 0 --size 48x40 --steps 64 "
-      "--method acm8 --compare reference --output '" +
+      "--method acm8 --bake-budget-ms unlimited --compare reference --output '" +
       out + "' --tolerance ";
   const RunResult tight = run_displace(dir, common + "0");
   ASSERT_EQ(tight.exit_code, 0) << tight.err;
@@ -207,9 +227,11 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
       {ok + " --method pom --shadows yes", 2},
       {ok + " --method pom --surface mesh:", 2},
       {ok + " --method pom --surface mesh:'" + (dir / "missing.obj").string() + "'", 1},
-      {ok + " --method pom --budget-ms 0", 2},  // pom reads no cone map
-      {ok + " --method acm4 --budget-ms -1", 2},
-      {ok + " --method acm4 --budget-ms inf", 2},
+      {ok + " --method pom --bake-budget-ms 0", 2},  // pom reads no cone map
+      {ok + " --method acm4 --bake-budget-ms -1", 2},
+      {ok + " --method acm4 --bake-budget-ms inf", 2},
+      {ok + " --method acm4 --bake-budget-ms unlimit", 2},
+      {ok + " --method acm4 --budget-ms 5", 2},      // render's flag is --bake-budget-ms
       {ok + " --method relief --tolerance 0.5", 2},  // relief reads no cone map
       {ok + " --method acm4 --tolerance 1", 2},
       {ok + " --method acm4 --tolerance -0.1", 2},

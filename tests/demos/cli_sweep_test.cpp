@@ -56,7 +56,7 @@ TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
     const std::size_t from = out.rfind(", ", of);
     return std::stol(out.substr(from + 2, of - from - 2));
   };
-  const RunResult starved = run_displace(dir, common + "--budget-ms 0");
+  const RunResult starved = run_displace(dir, common + "--bake-budget-ms 0");
   ASSERT_EQ(starved.exit_code, 0) << starved.err;
   EXPECT_NE(starved.out.find("cone maps baked within a 0 ms budget at tolerance 0.25"), std::string::npos)
       << starved.out;
@@ -70,7 +70,7 @@ TEST(Cli, SweepsASceneFileAndSaysWhatItsConeMapsCost) {
   EXPECT_EQ(line.rfind("scene,method,steps,", 0), 0u) << line;
   while (std::getline(table, line)) rows += line.rfind("small,", 0) == 0 ? 1 : 0;
   EXPECT_EQ(rows, 4);  // 2 methods x 2 step counts
-  const RunResult exact = run_displace(dir, common + "--tolerance 0");
+  const RunResult exact = run_displace(dir, common + "--tolerance 0 --bake-budget-ms unlimited");
   ASSERT_EQ(exact.exit_code, 0) << exact.err;
   EXPECT_NE(exact.out.find("cone maps baked with an unlimited budget at tolerance 0\n"), std::string::npos)
       << exact.out;

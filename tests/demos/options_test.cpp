@@ -161,9 +161,12 @@ TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
   ASSERT_EQ(sweep.scenes.size(), 2u);
   EXPECT_EQ(sweep.scenes[1].name, "cliff");
   EXPECT_EQ(sweep.steps, (std::vector<int>{4, 8}));
-  EXPECT_TRUE(std::isinf(sweep.scenes[0].frame_ms));
-  const SweepSettings starved = settings_of<SweepSettings>(
-      parse({"sweep", "--budget-ms", "2.5", "--tolerance", "0.4", "--methods", "csm", "--output", "s.csv"}));
+  EXPECT_EQ(sweep.scenes[0].frame_ms, first_picture_budget_ms);  // a scene that sets none
+  const SweepSettings tightest = settings_of<SweepSettings>(
+      parse({"sweep", "--scene", "bricks", "--bake-budget-ms", "unlimited", "--output", "s.csv"}));
+  EXPECT_TRUE(std::isinf(tightest.scenes[0].frame_ms));
+  const SweepSettings starved = settings_of<SweepSettings>(parse(
+      {"sweep", "--bake-budget-ms", "2.5", "--tolerance", "0.4", "--methods", "csm", "--output", "s.csv"}));
   ASSERT_EQ(starved.scenes.size(), 3u);  // the default scenes, each with the cone maps' budget
   for (const displace::pipeline::Scene& scene : starved.scenes) {
     EXPECT_EQ(scene.frame_ms, 2.5);
@@ -186,18 +189,27 @@ TEST(Options, ReadsDecimalNumbersRepeatsAndHelp) {
 TEST(Options, ParsesTheRenderBakeBudget) {
   const RenderSettings budget =
       settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
-                                         "--method", "acm8", "--budget-ms", "0", "--output", "f.png"}));
+                                         "--method", "acm8", "--bake-budget-ms", "0", "--output", "f.png"}));
   EXPECT_EQ(budget.scene.frame_ms, 0.0);
-  const RenderSettings unlimited =
+  // the first picture's budget when nothing sets one; unlimited on request; none for a method
+  // without cone maps
+  const RenderSettings first =
       settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                          "--method", "acm8", "--output", "f.png"}));
+  EXPECT_EQ(first.scene.frame_ms, first_picture_budget_ms);
+  const RenderSettings unlimited = settings_of<RenderSettings>(
+      parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0", "--method", "acm8",
+             "--bake-budget-ms", "unlimited", "--output", "f.png"}));
   EXPECT_TRUE(std::isinf(unlimited.scene.frame_ms));
+  const RenderSettings relief = settings_of<RenderSettings>(
+      parse({"render", "--source", "ocean", "--map-size", "16", "--method", "relief", "--output", "f.png"}));
+  EXPECT_TRUE(std::isinf(relief.scene.frame_ms));
   EXPECT_EQ(unlimited.scene.tolerance, displace::bake::Budget{}.tolerance);
   const RenderSettings loose =
       settings_of<RenderSettings>(parse({"render", "--source", "ocean", "--map-size", "16", "--time", "0",
                                          "--method", "csm", "--tolerance", "0.45", "--output", "f.png"}));
   EXPECT_EQ(loose.scene.tolerance, 0.45f);
-  EXPECT_TRUE(std::isinf(loose.scene.frame_ms));
+  EXPECT_EQ(loose.scene.frame_ms, first_picture_budget_ms);
 }
 
 // Interactive play starts a scene that sets no budget at a real-time frame budget (an unlimited bake

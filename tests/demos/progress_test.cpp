@@ -100,6 +100,34 @@ TEST(ProgressLine, DrawsNothingWhenNotATerminalOrWhenQuick) {
   EXPECT_EQ(stream.str(), "");
 }
 
+// A quick command's stages print nothing; once one has run for a second, every stage so far and
+// every later one prints one line as it ends, with its own time.
+TEST(StageLines, PrintNothingWhileQuickThenALinePerStage) {
+  std::ostringstream stream;
+  FakeClock time;
+  {
+    StageLines quick(stream, "displace render", time.clock());
+    time.now += 0.3;
+    quick.done("heights made");
+    time.now += 0.6;
+    quick.done("cone maps baked");
+  }
+  EXPECT_EQ(stream.str(), "");
+  StageLines slow(stream, "displace render", time.clock());
+  time.now += 0.25;
+  slow.done("heights made");
+  EXPECT_EQ(stream.str(), "");
+  time.now += 1.5;
+  slow.done("cone maps baked");
+  EXPECT_EQ(stream.str(),
+            "displace render: heights made in 0.25 s\ndisplace render: cone maps baked in 1.50 s\n");
+  time.now += 0.1;
+  slow.done("drawn");
+  EXPECT_EQ(stream.str(),
+            "displace render: heights made in 0.25 s\ndisplace render: cone maps baked in 1.50 s\n"
+            "displace render: drawn in 0.10 s\n");
+}
+
 // From many threads at once (as a bake's reports could come, were they not serialized): every draw
 // is whole.
 TEST(ProgressLine, UpdatesFromManyThreadsDrawWholeLines) {
