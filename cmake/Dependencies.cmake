@@ -30,6 +30,12 @@ displace_require_package(fmt libfmt-dev CONFIG)
 displace_require_package(nlohmann_json nlohmann-json3-dev CONFIG)
 # demos/: the `displace play` window (a Vulkan surface through GLFW; its tests run under xvfb-run)
 displace_require_package(glfw3 libglfw3-dev CONFIG)
+# demos/: the play window's overlay, Dear ImGui with its GLFW and Vulkan backends (Debian's static
+# library holds both; its pkg-config file adds stb, whose stb_truetype and stb_rect_pack it calls)
+pkg_check_modules(IMGUI QUIET IMPORTED_TARGET imgui)
+if(NOT IMGUI_FOUND)
+  message(FATAL_ERROR "Dear ImGui not found: install the Debian package 'libimgui-dev'")
+endif()
 
 # render/: Vulkan (loader + headers), GLM, and glslang's compiler for the shaders at build time.
 # The CPU driver (mesa-vulkan-drivers: lavapipe) and the validation layers are runtime packages;

@@ -1,8 +1,10 @@
 // demos/play.cpp - `displace play` (play.h): a GLFW window, the frame pipeline, the swapchain.
 //
 // The one fact to know: the loop is a sequence of named steps - poll input (Controls), remake the
-// pipeline when a key changed the scene, run one frame (FramePipeline::run, output_none), present it
-// (a blit on the device), report - and a frame is read back only for a screenshot.
+// pipeline when a key or the overlay changed the scene, run one frame (FramePipeline::run,
+// output_none), lay out the overlay (PlayOverlay), present it (a blit on the device, the overlay drawn
+// over it in the swapchain image), report - and a frame is read back only for a screenshot, which
+// is the renderer's picture without the overlay.
 #define GLFW_INCLUDE_VULKAN
 #include "demos/play.h"
 
@@ -26,6 +28,7 @@
 #include "demos/image_io.h"
 #include "demos/memory.h"
 #include "demos/play_controls.h"
+#include "demos/play_overlay.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/thread_pinning.h"
 #include "render/render.h"
@@ -78,6 +81,7 @@ class Glfw {
 void on_key(GLFWwindow* window, int key, int, int action, int mods) {
   if (action != GLFW_PRESS && action != GLFW_REPEAT) return;
   auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  if (controls.typing_in_overlay) return;
   const bool shift = mods & GLFW_MOD_SHIFT;
   switch (key) {
     case GLFW_KEY_M: controls.method_delta += shift ? -1 : 1; break;
@@ -89,6 +93,7 @@ void on_key(GLFWwindow* window, int key, int, int action, int mods) {
     case GLFW_KEY_SPACE: controls.paused = !controls.paused; break;
     case GLFW_KEY_N: controls.step = true; break;
     case GLFW_KEY_S: controls.screenshot = true; break;
+    case GLFW_KEY_H: controls.overlay_shown = !controls.overlay_shown; break;
     case GLFW_KEY_R:
       controls.yaw = controls.pitch = 0.0f;
       controls.zoom = 1.0f;
@@ -104,6 +109,7 @@ void on_key(GLFWwindow* window, int key, int, int action, int mods) {
 void on_mouse_button(GLFWwindow* window, int button, int action, int) {
   auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
   if (button != GLFW_MOUSE_BUTTON_LEFT) return;
+  if (action == GLFW_PRESS && controls.pointer_on_overlay) return;  // a click on the overlay's controls
   controls.dragging = action == GLFW_PRESS;
   glfwGetCursorPos(window, &controls.last_x, &controls.last_y);
 }
@@ -121,6 +127,7 @@ void on_cursor(GLFWwindow* window, double x, double y) {
 
 void on_scroll(GLFWwindow* window, double, double y_offset) {
   auto& controls = *static_cast<Controls*>(glfwGetWindowUserPointer(window));
+  if (controls.pointer_on_overlay) return;
   controls.zoom = std::clamp(controls.zoom * std::pow(zoom_per_wheel_step, float(y_offset)), 0.05f, 20.0f);
   controls.orbited = true;
   controls.camera_moved = true;
@@ -198,6 +205,31 @@ render::SurfaceFactory window_surface(GLFWwindow* window) {
   };
 }
 
+using PipelinePointer = std::unique_ptr<pipeline::FramePipeline>;
+
+PipelinePointer make_pipeline(const pipeline::Scene& scene, render::Renderer& renderer) {
+  return std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
+                                                   height_loader(scene.image_read), albedo_loader());
+}
+
+// The scene the keys or the overlay asked for, with its pipeline; a scene that cannot run (a
+// backend the device lacks) leaves the current one, and the overlay says why.
+void change_scene(pipeline::Scene& scene, const pipeline::Scene& wanted, render::Renderer& renderer,
+                  PipelinePointer& pipeline, PlayOverlay& overlay) {
+  renderer.wait_idle();
+  pipeline.reset();
+  try {
+    pipeline = make_pipeline(wanted, renderer);
+    scene = wanted;
+    overlay.set_message({});
+  } catch (const pipeline::SceneError& error) {
+    overlay.set_message(std::string("not changed: ") + error.what());
+  } catch (const render::RenderError& error) {
+    overlay.set_message(std::string("not changed: ") + error.what());
+  }
+  if (!pipeline) pipeline = make_pipeline(scene, renderer);
+}
+
 // The last line: frames shown, the device allocations after the warm-up, the screenshot.
 void print_play_summary(std::ostream& out, const PlaySettings& settings, const pipeline::Scene& scene,
                         long long frames_shown, const pipeline::FrameRecord& record,
@@ -209,7 +241,7 @@ void print_play_summary(std::ostream& out, const PlaySettings& settings, const p
                        warm_up_frames, frames_shown - 2);
   }
   out << (settings.screenshot.empty() ? std::string() : ", screenshot " + settings.screenshot.string())
-      << '\n';
+      << (settings.window_shot.empty() ? std::string() : ", window " + settings.window_shot.string()) << '\n';
 }
 
 }  // namespace
@@ -230,15 +262,18 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
   glfwGetFramebufferSize(window.get(), &framebuffer_width, &framebuffer_height);
   render::Swapchain swapchain(renderer, window_surface(window.get()), framebuffer_width, framebuffer_height,
                               settings.vsync);
+  PlayOverlay overlay(window.get(), swapchain);  // after the window's callbacks: it chains them
+  controls.overlay_shown = settings.overlay;
 
-  auto pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
-                                                            height_loader(scene.image_read), albedo_loader());
+  PipelinePointer pipeline = make_pipeline(scene, renderer);
   // after the renderer and the swapchain: lavapipe's rasterizer threads exist now
   std::optional<pipeline::ThreadPinning> pinning;
   if (settings.pin_threads) pinning.emplace();
   render::Frame frame;
+  render::Frame window_picture;  // --window-shot: the last frame as presented
   pipeline::FrameRecord record;
-  long long index = 0;  // the next frame
+  std::optional<pipeline::Scene> overlay_asked;  // the scene the overlay's controls asked for
+  long long index = 0;                           // the next frame
   bool have_frame = false;
   double status_time = now_seconds();
   long long status_frames = 0;
@@ -250,13 +285,16 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     glfwPollEvents();
     if (fixed && index >= settings.frames) break;
 
-    // keys that change the scene: the pipeline is made again (its maps and budget follow the scene)
-    if (!fixed && apply_scene_keys(controls, scene)) {
-      renderer.wait_idle();
-      pipeline.reset();
-      pipeline = std::make_unique<pipeline::FramePipeline>(scene, renderer, std::function<double()>{},
-                                                           height_loader(scene.image_read), albedo_loader());
-      have_frame = false;
+    // keys or controls that change the scene: the pipeline is made again (its maps and budget follow
+    // the scene)
+    if (!fixed) {
+      pipeline::Scene wanted = overlay_asked ? *overlay_asked : scene;
+      const bool keys_changed = apply_scene_keys(controls, wanted);
+      if (keys_changed || overlay_asked) {
+        change_scene(scene, wanted, renderer, pipeline, overlay);
+        have_frame = false;
+      }
+      overlay_asked.reset();
     }
 
     // one frame: the next one, or the shown one again (paused, the camera moved or a screenshot)
@@ -277,6 +315,7 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
       if (last)
         settled_allocations = renderer.memory_allocations();  // before the screenshot's readback buffer
       record = pipeline->run(shown, view, frame, read_back ? render::output_color : render::output_none);
+      overlay.add(record);
       have_frame = true;
       if (advance) index = shown + 1;
       if (fixed && index == warm_up_frames) warm_allocations = renderer.memory_allocations();
@@ -292,7 +331,16 @@ void run_play(const PlaySettings& settings, std::ostream& out) {
     }
     if (last && !settings.screenshot.empty()) write_screenshot(settings.screenshot, frame, scene, record);
 
-    swapchain.present(framebuffer_width, framebuffer_height);
+    overlay_asked = overlay.build(scene, record, frames_per_second, controls.overlay_shown, !fixed);
+    controls.pointer_on_overlay = overlay.wants_pointer();
+    controls.typing_in_overlay = overlay.wants_keys();
+    const bool window_shot = last && !settings.window_shot.empty();
+    const bool presented =
+        swapchain.present(framebuffer_width, framebuffer_height, window_shot ? &window_picture : nullptr);
+    if (window_shot) {
+      if (!presented) throw runtime_error("the window did not show the last frame: no --window-shot written");
+      write_screenshot(settings.window_shot, window_picture, scene, record);
+    }
 
     // report: the title and the terminal, once a second
     const double now = now_seconds();

@@ -14,10 +14,6 @@ namespace {
 
 constexpr float min_elevation = 0.02f;  // radians above the look-at point's horizon
 constexpr float max_elevation = 1.5f;
-constexpr int max_play_steps = render::max_steps;  // Up doubles the steps up to here
-// the frame budgets the Right / Left keys step through (ms; infinity: unlimited)
-constexpr std::array<double, 10> budget_levels = {
-    0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 33.0, 50.0, 100.0, std::numeric_limits<double>::infinity()};
 static_assert(std::find(budget_levels.begin(), budget_levels.end(), interactive_budget_ms) !=
               budget_levels.end());
 
@@ -38,14 +34,18 @@ render::View orbit_view(render::View view, const Controls& controls) {
   return view;
 }
 
-namespace {
-
-// The methods M cycles through: those the scene's surface supports, in the table's order.
-const render::MethodInfo& next_method(render::Method current, int delta, render::Surface surface) {
+std::vector<const render::MethodInfo*> play_methods(render::Surface surface) {
   std::vector<const render::MethodInfo*> usable;
   for (const render::MethodInfo& info : render::method_table()) {
     if (render::supports_surface(info.method, surface)) usable.push_back(&info);
   }
+  return usable;
+}
+
+namespace {
+
+const render::MethodInfo& next_method(render::Method current, int delta, render::Surface surface) {
+  const std::vector<const render::MethodInfo*> usable = play_methods(surface);
   const auto at =
       std::find_if(usable.begin(), usable.end(), [&](auto* info) { return info->method == current; });
   const int count = int(usable.size());

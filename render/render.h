@@ -487,9 +487,38 @@ class Swapchain {
   // size now; the picture is scaled when its size differs). Returns false when nothing was shown:
   // a zero-sized (minimized) window, or a swapchain that went out of date (made again for the next
   // call).
-  bool present(int width, int height);
+  // With `shown`, the window's picture as presented (overlay included) is also copied back into its
+  // width, height and color (RGBA8, top row first) when present() returns true, waited for; the
+  // copy's buffer is allocated for the first such call of a swapchain size.
+  bool present(int width, int height, Frame* shown = nullptr);
   int width() const;  // of the swapchain images
   int height() const;
+
+  // An overlay drawn over the picture in the window by the caller's own Vulkan code (a GUI). After
+  // the blit, present() records `prepare` outside any render pass (the overlay's uploads), then
+  // begins overlay_render_pass over the swapchain image (the blitted picture loaded, colour
+  // attachment optimal), records `draw` inside it and ends it. Both record into present()'s command
+  // buffer on its thread; what they use must live until that present has finished (at most
+  // frames_in_flight are in flight). An empty `draw` (the default) records no overlay pass. The
+  // callbacks are only called inside present(): replacing them waits for nothing.
+  struct Overlay {
+    std::function<void(VkCommandBuffer commands)> prepare;
+    std::function<void(VkCommandBuffer commands)> draw;
+  };
+  void set_overlay(Overlay overlay) noexcept;
+  // What the overlay's code needs to make its own objects (Dear ImGui's ImGui_ImplVulkan_InitInfo).
+  // render/ does not count those objects' memory; the queue is the renderer's: submit nothing to it
+  // while a frame is being rendered or presented on another thread.
+  struct Handles {
+    VkInstance instance = VK_NULL_HANDLE;
+    VkPhysicalDevice physical_device = VK_NULL_HANDLE;
+    VkDevice device = VK_NULL_HANDLE;
+    std::uint32_t queue_family = 0;
+    VkQueue queue = VK_NULL_HANDLE;
+    VkRenderPass overlay_render_pass = VK_NULL_HANDLE;  // one colour attachment of the swapchain's format
+    std::uint32_t present_slots = frames_in_flight;     // presents in flight: buffers the overlay rotates
+  };
+  Handles handles() const;
 
   struct Impl;
 

@@ -3,10 +3,13 @@
 // The one fact to know: the picture never leaves the device. present() records a blit from the
 // renderer's colour target (TRANSFER_SRC_OPTIMAL after every frame) into the acquired swapchain image
 // and submits it on the renderer's queue after the frame; the render pass's external dependencies
-// (colour writes -> transfer reads, transfer reads -> the next frame's writes) order the two.
+// (colour writes -> transfer reads, transfer reads -> the next frame's writes) order the two. An
+// overlay (Swapchain::Overlay) is drawn in a render pass of its own over the blitted image, between
+// explicit barriers (transfer write -> colour attachment -> present or the shown picture's copy).
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "render/renderer_impl.h"
@@ -18,6 +21,35 @@ constexpr std::uint64_t no_timeout = std::numeric_limits<std::uint64_t>::max();
 
 // 8-bit UNORM formats only: the renderer's bytes are shown as they are (no sRGB encoding on top).
 constexpr std::array<VkFormat, 2> wanted_formats = {VK_FORMAT_B8G8R8A8_UNORM, VK_FORMAT_R8G8B8A8_UNORM};
+
+using OwnedImageView = Owned<VkImageView, vkDestroyImageView>;
+
+// The overlay's render pass: one colour attachment, its picture loaded and kept, in
+// COLOR_ATTACHMENT_OPTIMAL before and after (the barriers around the pass move it).
+VkRenderPass create_overlay_pass(VkDevice device, VkFormat format) {
+  VkAttachmentDescription attachment{};
+  attachment.format = format;
+  attachment.samples = VK_SAMPLE_COUNT_1_BIT;
+  attachment.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+  attachment.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  attachment.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+  attachment.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  attachment.initialLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  attachment.finalLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  VkAttachmentReference reference{0, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription subpass{};
+  subpass.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  subpass.colorAttachmentCount = 1;
+  subpass.pColorAttachments = &reference;
+  VkRenderPassCreateInfo info{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  info.attachmentCount = 1;
+  info.pAttachments = &attachment;
+  info.subpassCount = 1;
+  info.pSubpasses = &subpass;
+  VkRenderPass pass = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateRenderPass(device, &info, nullptr, &pass));
+  return pass;
+}
 
 }  // namespace
 
@@ -40,7 +72,11 @@ struct Swapchain::Impl {
   Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted);
   ~Impl();
   void recreate(int width, int height);
-  bool present(int width, int height);
+  void make_overlay_framebuffers();
+  void record_overlay(VkCommandBuffer commands, std::uint32_t index);
+  void record_shown_copy(VkCommandBuffer commands, VkImage image);
+  void copy_shown(Frame& shown);
+  bool present(int width, int height, Frame* shown);
 
   Renderer::Impl& renderer;
   const Context& context;
@@ -56,6 +92,13 @@ struct Swapchain::Impl {
   std::vector<OwnedSemaphore> blitted;  // per swapchain image: the present waits for its blit
   std::array<PresentSlot, frames_in_flight> slots;
   int slot = 0;
+  VkImageUsageFlags usage = 0;  // of the swapchain images
+  // the overlay: its pass (made once, for the format) and per swapchain image a view and framebuffer
+  Swapchain::Overlay overlay;
+  OwnedRenderPass overlay_pass;
+  std::vector<OwnedImageView> views;
+  std::vector<OwnedFramebuffer> framebuffers;
+  Buffer shown_readback;  // present(..., shown): the presented picture, per swapchain size
 };
 
 Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted)
@@ -109,6 +152,8 @@ Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, boo
     }
   }
 
+  overlay_pass = OwnedRenderPass(device, create_overlay_pass(device, format.format));
+
   for (PresentSlot& present_slot : slots) {
     present_slot.commands = context.allocate_command_buffer();
     present_slot.fence = OwnedFence(device, context.create_fence(true));
@@ -138,6 +183,9 @@ void Swapchain::Impl::recreate(int width, int height) {
     throw RenderError(
         "the window's swapchain images cannot be written by a transfer (no TRANSFER_DST usage)");
   }
+  // colour attachment: the overlay (always supported); transfer source: the shown picture, when offered
+  usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT |
+          (capabilities.supportedUsageFlags & VK_IMAGE_USAGE_TRANSFER_SRC_BIT);
   requested_width = width;
   requested_height = height;
   extent = capabilities.currentExtent;
@@ -158,7 +206,7 @@ void Swapchain::Impl::recreate(int width, int height) {
   info.imageColorSpace = format.colorSpace;
   info.imageExtent = extent;
   info.imageArrayLayers = 1;
-  info.imageUsage = VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+  info.imageUsage = usage;
   info.imageSharingMode = VK_SHARING_MODE_EXCLUSIVE;
   info.preTransform = (capabilities.supportedTransforms & VK_SURFACE_TRANSFORM_IDENTITY_BIT_KHR)
                           ? VK_SURFACE_TRANSFORM_IDENTITY_BIT_KHR
@@ -190,10 +238,93 @@ void Swapchain::Impl::recreate(int width, int height) {
     DISPLACE_VK_CHECK(vkCreateSemaphore(device, &semaphore_info, nullptr, &semaphore));
     blitted.emplace_back(device, semaphore);
   }
+  make_overlay_framebuffers();
+  shown_readback = Buffer{};
   stale = false;
 }
 
-bool Swapchain::Impl::present(int width, int height) {
+void Swapchain::Impl::make_overlay_framebuffers() {
+  const VkDevice device = context.device();
+  framebuffers.clear();
+  views.clear();
+  for (VkImage image : images) {
+    VkImageViewCreateInfo view_info{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+    view_info.image = image;
+    view_info.viewType = VK_IMAGE_VIEW_TYPE_2D;
+    view_info.format = format.format;
+    view_info.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    VkImageView view = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateImageView(device, &view_info, nullptr, &view));
+    views.emplace_back(device, view);
+    VkFramebufferCreateInfo framebuffer_info{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+    framebuffer_info.renderPass = overlay_pass.get();
+    framebuffer_info.attachmentCount = 1;
+    framebuffer_info.pAttachments = &view;
+    framebuffer_info.width = extent.width;
+    framebuffer_info.height = extent.height;
+    framebuffer_info.layers = 1;
+    VkFramebuffer framebuffer = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateFramebuffer(device, &framebuffer_info, nullptr, &framebuffer));
+    framebuffers.emplace_back(device, framebuffer);
+  }
+}
+
+// transfer dst -> colour attachment; the caller's uploads, then its pass over the image
+void Swapchain::Impl::record_overlay(VkCommandBuffer commands, std::uint32_t index) {
+  const VkImage image = images[index];
+  image_barrier(commands, image, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,
+                VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT,
+                VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT);
+  if (overlay.prepare) overlay.prepare(commands);
+  VkRenderPassBeginInfo begin{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+  begin.renderPass = overlay_pass.get();
+  begin.framebuffer = framebuffers[index].get();
+  begin.renderArea.extent = extent;
+  vkCmdBeginRenderPass(commands, &begin, VK_SUBPASS_CONTENTS_INLINE);
+  overlay.draw(commands);
+  vkCmdEndRenderPass(commands);
+}
+
+// the presented picture (TRANSFER_SRC_OPTIMAL) into the readback buffer, for the host
+void Swapchain::Impl::record_shown_copy(VkCommandBuffer commands, VkImage image) {
+  if (!(usage & VK_IMAGE_USAGE_TRANSFER_SRC_BIT)) {
+    throw RenderError("the window's swapchain images cannot be read back (no TRANSFER_SRC usage)");
+  }
+  const VkDeviceSize bytes = VkDeviceSize(extent.width) * extent.height * 4;
+  if (!shown_readback.handle()) {
+    shown_readback = Buffer(context, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                            VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+  }
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {extent.width, extent.height, 1};
+  vkCmdCopyImageToBuffer(commands, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, shown_readback.handle(), 1,
+                         &region);
+  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
+                       0, nullptr, 0, nullptr);
+}
+
+// the readback as RGBA8 (the swapchain's B8G8R8A8 swizzled); its present's fence has signalled
+void Swapchain::Impl::copy_shown(Frame& shown) {
+  shown.width = int(extent.width);
+  shown.height = int(extent.height);
+  const std::size_t bytes = std::size_t(extent.width) * extent.height * 4;
+  shown.color.resize(bytes);
+  const auto* source = static_cast<const std::uint8_t*>(shown_readback.mapped());
+  const bool bgra = format.format == VK_FORMAT_B8G8R8A8_UNORM;
+  for (std::size_t i = 0; i < bytes; i += 4) {
+    shown.color[i + 0] = source[i + (bgra ? 2 : 0)];
+    shown.color[i + 1] = source[i + 1];
+    shown.color[i + 2] = source[i + (bgra ? 0 : 2)];
+    shown.color[i + 3] = source[i + 3];
+  }
+}
+
+bool Swapchain::Impl::present(int width, int height, Frame* shown) {
   if (width <= 0 || height <= 0) return false;
   const Targets& targets = renderer.targets;
   if (targets.width == 0 || !targets.color.handle()) return false;  // nothing rendered yet
@@ -220,7 +351,8 @@ bool Swapchain::Impl::present(int width, int height) {
     DISPLACE_VK_CHECK(acquired);
   }
 
-  // record: swapchain image -> transfer dst, blit the colour target, -> present
+  // record: swapchain image -> transfer dst, blit the colour target, the overlay, (the shown copy,) ->
+  // present
   const VkCommandBuffer commands = present_slot.commands;
   DISPLACE_VK_CHECK(vkResetCommandBuffer(commands, 0));
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
@@ -236,8 +368,24 @@ bool Swapchain::Impl::present(int width, int height) {
   blit.dstOffsets[1] = {std::int32_t(extent.width), std::int32_t(extent.height), 1};
   vkCmdBlitImage(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image,
                  VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_NEAREST);
-  image_barrier(commands, image, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_PRESENT_SRC_KHR,
-                VK_ACCESS_TRANSFER_WRITE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+  VkImageLayout layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+  VkAccessFlags written = VK_ACCESS_TRANSFER_WRITE_BIT;
+  VkPipelineStageFlags written_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  if (overlay.draw) {
+    record_overlay(commands, index);
+    layout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    written = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+    written_stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+  }
+  if (shown) {
+    image_barrier(commands, image, 1, layout, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, written,
+                  VK_ACCESS_TRANSFER_READ_BIT, written_stage, VK_PIPELINE_STAGE_TRANSFER_BIT);
+    record_shown_copy(commands, image);
+    layout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    written = 0;
+    written_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  }
+  image_barrier(commands, image, 1, layout, VK_IMAGE_LAYOUT_PRESENT_SRC_KHR, written, 0, written_stage,
                 VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   DISPLACE_VK_CHECK(vkEndCommandBuffer(commands));
 
@@ -256,6 +404,10 @@ bool Swapchain::Impl::present(int width, int height) {
   submit.pSignalSemaphores = &signal;
   DISPLACE_VK_CHECK(vkQueueSubmit(context.queue(), 1, &submit, fence));
   slot = (slot + 1) % frames_in_flight;
+  if (shown) {
+    DISPLACE_VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, no_timeout));
+    copy_shown(*shown);
+  }
 
   const VkSwapchainKHR handle = swapchain.get();
   VkPresentInfoKHR present_info{VK_STRUCTURE_TYPE_PRESENT_INFO_KHR};
@@ -282,8 +434,22 @@ Swapchain::~Swapchain() = default;
 Swapchain::Swapchain(Swapchain&&) noexcept = default;
 Swapchain& Swapchain::operator=(Swapchain&&) noexcept = default;
 
-bool Swapchain::present(int width, int height) { return impl_->present(width, height); }
+bool Swapchain::present(int width, int height, Frame* shown) { return impl_->present(width, height, shown); }
 int Swapchain::width() const { return int(impl_->extent.width); }
 int Swapchain::height() const { return int(impl_->extent.height); }
+
+void Swapchain::set_overlay(Overlay overlay) noexcept { impl_->overlay = std::move(overlay); }
+
+Swapchain::Handles Swapchain::handles() const {
+  const Context& context = impl_->context;
+  Handles handles;
+  handles.instance = context.instance();
+  handles.physical_device = context.physical_device();
+  handles.device = context.device();
+  handles.queue_family = context.queue_family();
+  handles.queue = context.queue();
+  handles.overlay_render_pass = impl_->overlay_pass.get();
+  return handles;
+}
 
 }  // namespace displace::render

@@ -23,7 +23,10 @@ constexpr const char* play_keys = R"(Keys:
   N                one frame forward (while paused)
   L / Shift+L      cone maps made over one frame more / fewer (lagged maps, 0 .. 64, with a budget;
                    the title shows their age and how far their apexes were raised)
-  S                screenshot: play_NNNNNN.png (the frame index) in the working directory
+  S                screenshot: play_NNNNNN.png (the frame index) in the working directory (the picture
+                   without the overlay)
+  H                hide / show the overlay: stage times, budget, texels waiting, cone maps' age, and
+                   controls for method, steps, budget, lag, backends, foam and the ocean loop
   R                camera back to the scene's
   Esc / Q          quit
   mouse drag       orbit the camera around its look-at point; wheel: closer / farther)";
@@ -44,14 +47,18 @@ pipeline::Scene play_scene(const PlaySettings& settings) {
 
 Finish add_play_command(CLI::App& command) {
   command.description(
-      "The frame pipeline's scene animated in a window (GLFW, a Vulkan swapchain). The title and the "
-      "terminal show the frame time, its split (sim, bake, upload, render), the bake budget and the "
-      "texels left to refine. Needs a display: without one, run it under 'xvfb-run -a'.");
+      "The frame pipeline's scene animated in a window (GLFW, a Vulkan swapchain). An overlay (Dear ImGui; "
+      "H hides it) graphs the frame time's split (sim, bake, upload, render) against the budget, the "
+      "texels left to refine and the cone maps' age, with controls for the scene; the title and the "
+      "terminal show the same figures (docs/play-overlay.png). Needs a display: without one, run it under "
+      "'xvfb-run -a'.");
   command.footer(play_keys);
   struct Draft {
     cli::SceneFlags scene;
     PlaySettings settings;
     std::string screenshot;
+    std::string window_shot;
+    bool no_overlay = false;
   };
   auto draft = std::make_shared<Draft>();
   cli::add_scene_flags(command, draft->scene, cli::scene_all, "water");
@@ -59,8 +66,13 @@ Finish add_play_command(CLI::App& command) {
   cli::add_value(command, "--frames", draft->settings.frames,
                  "render exactly N fixed-step frames (scene time start + n / fps), then exit", "N",
                  cli::integer_in(1, 1000000000));
-  cli::add_value(command, "--screenshot", draft->screenshot, "with --frames: write the last frame", "F.png",
+  cli::add_value(command, "--screenshot", draft->screenshot,
+                 "with --frames: write the last frame (the scene's picture, without the overlay)", "F.png",
                  cli::output_file({".png"}));
+  cli::add_value(command, "--window-shot", draft->window_shot,
+                 "with --frames: write the last frame as the window shows it (overlay included)", "F.png",
+                 cli::output_file({".png"}));
+  cli::add_switch(command, "--no-overlay", draft->no_overlay, "start with the overlay hidden (H shows it)");
   cli::add_switch(command, "--vsync", draft->settings.vsync,
                   "present at the display's rate (default: as fast as frames come)");
   cli::add_switch(
@@ -79,6 +91,11 @@ Finish add_play_command(CLI::App& command) {
       }
       settings.screenshot = draft->screenshot;
     }
+    if (cli::given(command, "--window-shot")) {
+      if (!cli::given(command, "--frames")) throw usage_error("--window-shot needs --frames N");
+      settings.window_shot = draft->window_shot;
+    }
+    settings.overlay = !draft->no_overlay;
     cli::finish_renderer(settings.renderer);
     return ParsedCommand{"play", settings, [settings](std::ostream& out) { run_play(settings, out); }};
   };

@@ -109,6 +109,8 @@ struct PlaySettings {
   std::filesystem::path screenshot;  // with frames: the last frame
   bool vsync = false;                // present with FIFO (the display's rate)
   bool pin_threads = false;
+  bool overlay = true;                // the overlay shown from the start (H toggles it)
+  std::filesystem::path window_shot;  // with frames: the last frame as the window shows it (overlay included)
   render::RendererOptions renderer;
 };
 // The scene play runs: interactive play without a frame budget or work limit (from the scene or the
