@@ -110,6 +110,7 @@ FramePipeline::FramePipeline(FramePipeline&&) noexcept = default;
 FramePipeline& FramePipeline::operator=(FramePipeline&&) noexcept = default;
 
 const Scene& FramePipeline::scene() const { return state_->scene; }
+double FramePipeline::loop_error() const { return state_->source.loop_error(); }
 
 void FramePipeline::query(std::span<const QueryPoint> points, double time, QueryResult& out) {
   State& s = *state_;

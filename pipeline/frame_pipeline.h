@@ -88,6 +88,8 @@ class FramePipeline {
   void query(std::span<const QueryPoint> points, double time, QueryResult& out);
 
   const Scene& scene() const;
+  // An ocean loop's largest relative change to a wave frequency ([ocean] loop_seconds; 0: none).
+  double loop_error() const;
   const render::HeightField& heights() const;  // [0, 1], the source's fixed mapping applied
   const render::MapSet& maps() const;          // what upload() hands over
 

@@ -218,6 +218,16 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
       settings.shard_count > 1 ? fmt::format(", shard {}/{}", settings.shard_index, settings.shard_count)
                                : std::string(),
       done, skipped, steady_seconds() - start, renderer.device().name);
+  if (const long long loop = pipeline::loop_frames(scene); loop > 0) {
+    const bool whole =
+        settings.first % loop == 0 && settings.last - settings.first + 1 == loop && settings.step == 1;
+    out << fmt::format(
+        "  a seamless loop of {:g} s: frame n + {} is frame n bit for bit (wave frequencies moved by at most "
+        "{:.2f}%){}\n",
+        scene.ocean.loop_seconds, loop, 100.0 * pipeline.loop_error(),
+        whole ? fmt::format(": frames {}..{} are one whole loop", settings.first, settings.last)
+              : std::string());
+  }
   if (done > 0) out << "  per-frame stage times: " << csv_path.string() << '\n';
   require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());
 }
