@@ -105,6 +105,33 @@ TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
 
 // The GNU parallel recipe (demos/farm/parallel.sh) on this machine: three shards as parallel jobs
 // give the files of one run.
+// The main job's loop, small: frames 0..T fps - 1 are one whole loop, the line says so and by how much
+// the frequencies moved, and frame T fps draws frame 0's pixels.
+TEST(Cli, SequenceOfALoopSaysSoAndComesBackToFrameZero) {
+  TempDir dir;
+  const std::string frames = (dir / "loop").string() + "/l_####.png";
+  const RunResult one =
+      run_displace(dir, std::string("sequence ") + small_sequence +
+                            " --fps 4 --loop-seconds 2 --frames 0:7 --output '" + frames + "'");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  EXPECT_NE(
+      one.out.find("a seamless loop of 2 s: frame n + 8 is frame n bit for bit (wave frequencies moved by "
+                   "at most "),
+      std::string::npos)
+      << one.out;
+  EXPECT_NE(one.out.find(": frames 0..7 are one whole loop\n"), std::string::npos) << one.out;
+  const RunResult next =
+      run_displace(dir, std::string("sequence ") + small_sequence +
+                            " --fps 4 --loop-seconds 2 --frames 8:8 --output '" + frames + "'");
+  ASSERT_EQ(next.exit_code, 0) << next.err;
+  EXPECT_EQ(next.out.find("one whole loop"), std::string::npos) << next.out;
+  const Rgba8Image first = read_rgba8_image(dir / "loop" / "l_0000.png");
+  const Rgba8Image again = read_rgba8_image(dir / "loop" / "l_0008.png");
+  const Rgba8Image half = read_rgba8_image(dir / "loop" / "l_0004.png");
+  EXPECT_TRUE(first.pixels == again.pixels);
+  EXPECT_FALSE(first.pixels == half.pixels);
+}
+
 TEST(Cli, GnuParallelShardsGiveTheFilesOfOneRun) {
   if (std::system("command -v parallel >/dev/null 2>&1") != 0) {
     GTEST_SKIP() << "GNU parallel is not installed (cmake/setup.sh installs it)";
