@@ -5,6 +5,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -63,11 +64,43 @@ render::View at_elevation(render::View view, double degrees) {
   return view;
 }
 
+// The grazing part's view at `degrees`: at_elevation's eye, with two changes that keep a low view
+// on the relief. (1) On a wrapped map the plane holds `tile` copies a side, scaled down so the
+// relief keeps its slopes (depth_scale / tile): a ray entering the top plane at the near edge can
+// cross the whole slab, depth / tan(elevation), before it leaves the patch (else, below a few
+// degrees, the rays leave the patch above the crests and the reference hits nothing). (2) The
+// vertical field of view narrows until the top plane's near edge is the image's bottom row, so
+// the patch fills the image instead of a few rows of it (never wider than the scene's).
+render::View grazing_view(render::View view, double degrees) {
+  view = at_elevation(view, degrees);
+  const double radians = degrees * 3.14159265358979323846 / 180.0;
+  if (view.address == bake::Address::wrap) {
+    const int copies = std::clamp(int(std::ceil(view.depth_scale / std::tan(radians))), 1, max_grazing_tile);
+    view.tile = std::min(view.tile * copies, render::max_tile);
+    view.depth_scale /= float(copies);
+  }
+  // the near edge's angle below the view's centre, in the image's vertical plane
+  const glm::dvec3 eye(view.camera.eye), forward = glm::normalize(glm::dvec3(view.camera.look_at) - eye);
+  const glm::dvec3 up = glm::normalize(glm::dvec3(0.0, 0.0, 1.0) - forward.z * forward);
+  const glm::dvec3 to_edge = glm::dvec3(view.camera.look_at.x, 0.0, 0.0) - eye;
+  const double half_fov = std::atan(std::abs(glm::dot(to_edge, up)) / glm::dot(to_edge, forward));
+  view.camera.fov_y_degrees =
+      std::min(view.camera.fov_y_degrees, float(2.0 * half_fov * 180.0 / 3.14159265358979323846));
+  return view;
+}
+
+// Pixels where the reference hits the relief.
+long long hit_count(const render::Frame& frame) {
+  long long hits = 0;
+  for (std::size_t p = 2; p < frame.uv.size(); p += 3) hits += frame.uv[p] > 0.5f;
+  return hits;
+}
+
 }  // namespace
 
 Plan make_plan(bool quick, int image_side) {
   Plan plan;
-  plan.elevations = {2, 5, 10, 20, 45, 80};
+  plan.elevations = {0.5, 1, 2, 3, 5, 10, 20, 45, 80};
   plan.bake_steps = {4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024};
   if (quick) {
     plan.image_side = 128;
@@ -90,6 +123,9 @@ Plan make_plan(bool quick, int image_side) {
     plan.frame_budgets_ms = {33.3, 50, 66.7, 100, 150, unlimited};
   }
   if (image_side > 0) plan.image_side = image_side;
+  plan.horizon_steps = pipeline::builtin_scene("water").steps;
+  assert(std::find(plan.grazing_steps.begin(), plan.grazing_steps.end(), plan.horizon_steps) !=
+         plan.grazing_steps.end());
   return plan;
 }
 
@@ -140,7 +176,8 @@ void grazing_part(render::Renderer& renderer, pipeline::MapMaker& maps,
                   const std::filesystem::path& directory, std::ostream& out) {
   std::ofstream csv =
       open_table(directory / "grazing.csv",
-                 "scene,elevation_deg,method,steps,rmse,fraction_over_10,mean_fetches,median_ms");
+                 "scene,elevation_deg,tile,fov_y_deg,reference_pixels,method,steps,rmse,fraction_over_10,"
+                 "mean_fetches,median_ms");
   render::Frame frame;
   for (const pipeline::Scene& scene_settings : scenes) {
     const pipeline::Scene scene = sized(scene_settings, plan.image_side);
@@ -150,15 +187,17 @@ void grazing_part(render::Renderer& renderer, pipeline::MapMaker& maps,
     }
     load_scene(renderer, maps, scene);
     for (double elevation : plan.elevations) {
-      const render::View view = at_elevation(start_view(scene), elevation);
+      const render::View view = grazing_view(start_view(scene), elevation);
       const render::Frame reference =
           pipeline::render_with_maps(renderer, maps, view, {render::Method::reference, 1, 0});
+      const long long reference_pixels = hit_count(reference);
       for (const render::MethodInfo& info : render::method_table()) {
         if (info.method == render::Method::reference) continue;
         for (int steps : plan.grazing_steps) {
           const MethodRun run =
               measure_method(renderer, maps, view, {info.method, steps, 8}, 1, reference, frame);
-          csv << fmt::format("{},{:g},{},{},{:.4f},{:.6f},{:.3f},{:.4f}\n", scene.name, elevation, info.name,
+          csv << fmt::format("{},{:g},{},{:.5f},{},{},{},{:.4f},{:.6f},{:.3f},{:.4f}\n", scene.name,
+                             elevation, view.tile, view.camera.fov_y_degrees, reference_pixels, info.name,
                              steps, run.error.rmse, run.error.fraction_over_10, run.summary.mean_fetches,
                              run.median_ms);
           if (info.family == render::MethodFamily::surface) break;  // no steps to give: one row

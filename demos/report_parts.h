@@ -2,7 +2,8 @@
 // that measures one thing and writes one table:
 //   cost      every method at every step count per scene: rmse against the reference, fetches
 //             per pixel and device milliseconds                                     cost.csv
-//   grazing   the same on each plane scene seen from 2 to 80 degrees above it       grazing.csv
+//   grazing   the same on each plane scene seen from 0.5 to 80 degrees above it     grazing.csv
+//             (low views see a wrapped map tiled and framed so the patch fills the image)
 //   bake      the budgeted bakers at several budgets and tolerances: bake ms against mean ratio,
 //             and for the bilinear (renderable) maps the acm4 steps and fetches that then reach
 //             rmse <= target                                                        bake.csv
@@ -32,6 +33,8 @@ struct Plan {
   int repeat = 3;                  // cost: renders per row (median device time)
   std::vector<double> elevations;  // grazing: degrees above the plane
   std::vector<int> grazing_steps;
+  int horizon_steps = 32;  // grazing: the horizon band's figure, at the sea scenes' step count (one of
+                           // grazing_steps)
   std::vector<double> bake_budgets_ms;  // at the default tolerance
   std::vector<float> bake_tolerances;   // with an unlimited budget
   std::vector<int> bake_steps;          // acm4 step counts tried, in order, until rmse <= target
@@ -46,6 +49,8 @@ Plan make_plan(bool quick, int image_side);
 
 constexpr float default_tolerance = 0.25f;    // bake::Budget's default
 constexpr double bake_view_elevation = 10.0;  // degrees: the bake part's view of the plane
+constexpr int max_grazing_tile = 8;  // copies a side of a wrapped map in a grazing view (the reference
+                                     // tessellates 8 x 8 maps: 0.6 GB for 256 x 256 texels)
 
 // The scene the single-view parts (bake, heatmaps) use: the ocean when asked for, else the first.
 const pipeline::Scene& main_scene(const std::vector<pipeline::Scene>& scenes);

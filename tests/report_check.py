@@ -101,8 +101,8 @@ def main():
     target = float(info["target_rmse"])
 
     # figures: each promised one is embedded and valid; so are the heatmap data images
-    promised = [f"cost_{scene}.png" for scene in info["scenes"]] + ["grazing.png", "bake.png", "frame.png",
-                                                                     "heatmaps.png"]
+    promised = [f"cost_{scene}.png" for scene in info["scenes"]] + ["grazing.png", "horizon.png", "bake.png",
+                                                                     "frame.png", "heatmaps.png"]
     embedded = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", readme)
     for figure in promised:
         if figure not in embedded:
@@ -188,6 +188,69 @@ def main():
                        for r in at):
                 problem(f"{name}: {elevation_cell} deg, rmse {goal_cell}: {method} at {steps} steps is not a run "
                         "with the fewest fetches")
+
+    # grazing.csv's views: every promised elevation, down to 0.5 degrees, each one seeing the relief
+    side = int(info["image_side"])
+    for scene in {r["scene"] for r in grazing}:
+        rows = [r for r in grazing if r["scene"] == scene]
+        elevations = sorted({float(r["elevation_deg"]) for r in rows})
+        if elevations != sorted(float(e) for e in info["elevations"]):
+            problem(f"grazing.csv: {scene} has elevations {elevations}, report.json promises {info['elevations']}")
+        if not elevations or elevations[0] > 0.5:
+            problem(f"grazing.csv: {scene} does not go down to 0.5 degrees (lowest {elevations[:1]})")
+        for elevation in elevations:
+            hits = {int(r["reference_pixels"]) for r in rows if float(r["elevation_deg"]) == elevation}
+            if len(hits) != 1 or min(hits) < side * side // 10:
+                problem(f"grazing.csv: {scene} at {elevation:g} degrees: the reference hits {sorted(hits)} pixels "
+                        f"of {side * side}, not one count of at least a tenth")
+
+    # horizon:SCENE - per method at horizon_steps (or its only row): means over the elevations <= 2 degrees
+    # against the row at 45 degrees
+    steps = int(info["horizon_steps"])
+    if steps not in info["grazing_steps"]:
+        problem(f"report.json: horizon_steps {steps} is not one of grazing_steps")
+    for scene in info["scenes"]:
+        rows = [r for r in grazing if r["scene"] == scene]
+        if not rows:
+            continue
+        name = f"horizon:{scene}"
+        if name not in tables:
+            problem(f"README.md has no table {name}")
+            continue
+        methods = []
+        for cells in tables[name]:
+            method, base_fetches, fetches, ratio, base_rmse, rmse, base_over, over = cells
+            methods.append(method)
+            mine = [r for r in rows if r["method"] == method]
+            if len({r["steps"] for r in mine}) > 1:
+                mine = [r for r in mine if int(r["steps"]) == steps]
+            band = [r for r in mine if float(r["elevation_deg"]) <= 2.0]
+            base = [r for r in mine if float(r["elevation_deg"]) == 45.0]
+            if len(base) != 1 or len(band) != len({float(e) for e in info["elevations"] if float(e) <= 2.0}):
+                problem(f"{name}: {method} has {len(base)} rows at 45 degrees and {len(band)} in the band")
+                continue
+            mean = lambda column: sum(float(r[column]) for r in band) / len(band)  # noqa: E731
+            expected = [(base_fetches, float(base[0]["mean_fetches"])), (fetches, mean("mean_fetches")),
+                        (base_rmse, float(base[0]["rmse"])), (rmse, mean("rmse")),
+                        (base_over, float(base[0]["fraction_over_10"])), (over, mean("fraction_over_10"))]
+            if float(base[0]["mean_fetches"]) > 0:
+                expected.append((ratio, mean("mean_fetches") / float(base[0]["mean_fetches"])))
+            elif ratio != "-":
+                problem(f"{name}: {method} has no fetches at 45 degrees but a ratio {ratio}")
+            for cell, value in expected:
+                if not close(cell, value, decimals(cell)):
+                    problem(f"{name}: {method} says {cell} where grazing.csv gives {value}")
+            # the paragraph's ratio for the main scene, where it names this method
+            said = re.search(rf"(?<![\w-]){re.escape(method)} x([0-9.]+) \(rmse ([0-9.]+) to ([0-9.]+)\)", readme) if scene == info["main_scene"] else None
+            if scene == info["main_scene"] and float(base[0]["mean_fetches"]) > 0 and (
+                    not said or not close(said.group(1), mean("mean_fetches") / float(base[0]["mean_fetches"]),
+                                          decimals(said.group(1)))
+                    or not close(said.group(2), float(base[0]["rmse"]), decimals(said.group(2)))
+                    or not close(said.group(3), mean("rmse"), decimals(said.group(3)))):
+                problem(f"README.md: the band's text for {method} ({said.group(0) if said else 'missing'}) is not "
+                        f"grazing.csv's x{mean('mean_fetches') / float(base[0]['mean_fetches'])}")
+        if sorted(methods) != sorted({r["method"] for r in rows}):
+            problem(f"{name}: methods {sorted(set(methods) ^ {r['method'] for r in rows})} are missing or extra")
 
     # bake - one row per bake.csv row, in order
     if len(tables.get("bake", [])) != len(bake):

@@ -141,6 +141,8 @@ void run_report(const ReportSettings& settings, std::ostream& out) {
   json["repeat"] = plan.repeat;
   json["elevations"] = plan.elevations;
   json["grazing_steps"] = plan.grazing_steps;
+  json["horizon_steps"] = plan.horizon_steps;
+  json["max_grazing_tile"] = max_grazing_tile;
   json["bake_steps"] = plan.bake_steps;
   json["default_tolerance"] = default_tolerance;
   json["bake_view_elevation"] = bake_view_elevation;

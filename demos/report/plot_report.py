@@ -25,6 +25,9 @@ RMSE_FLOOR = 0.01  # rmse below this is drawn at it (log axes)
 FETCH_FLOOR = 0.5  # bump reads no height: drawn at half a fetch
 GRAZING_FETCH_BUDGET = 64  # fetches per pixel of the grazing figure's left panel
 DECISION_TARGETS = (1.0, 3.0, 10.0)  # rmse targets of the "which method" tables
+HORIZON_BAND_DEG = 2.0  # the horizon band: the grazing elevations at or below this, in degrees
+HORIZON_BASE_DEG = 45.0  # what the band is compared with: the default camera's elevation
+FRACTION_FLOOR = 1e-4  # a fraction of pixels off below this is drawn at it (log axes)
 SURFACE_METHODS = {"bump", "parallax", "parallax-limited", "parallax-slope"}
 
 
@@ -100,6 +103,35 @@ def cheapest(rows, target):
     """The row with the fewest mean fetches reaching rmse <= target (ties: lower rmse), or None."""
     within = [r for r in rows if float(r["rmse"]) <= target]
     return min(within, key=lambda r: (float(r["mean_fetches"]), float(r["rmse"]))) if within else None
+
+
+def horizon_rows(rows, steps):
+    """{(scene, method, elevation): row} at `steps`, or the one row of a method with no steps to give."""
+    chosen = {}
+    for row in rows:
+        key = (row["scene"], row["method"], float(row["elevation_deg"]))
+        if row["method"] in SURFACE_METHODS or int(row["steps"]) == steps:
+            chosen[key] = row
+    return chosen
+
+
+def horizon_band(rows, scene, steps):
+    """Per method of `scene`: the band's mean fetches, rmse and fraction off (means over the elevations
+    <= HORIZON_BAND_DEG) next to the same at HORIZON_BASE_DEG, and the fetch ratio (None if 45 has none)."""
+    chosen = horizon_rows([r for r in rows if r["scene"] == scene], steps)
+    band = {}
+    for method in method_order([r for r in rows if r["scene"] == scene]):
+        low = [r for (s, m, e), r in chosen.items() if m == method and e <= HORIZON_BAND_DEG]
+        base = chosen.get((scene, method, HORIZON_BASE_DEG))
+        if not low or base is None:
+            continue
+        mean = lambda name: statistics.fmean(float(r[name]) for r in low)  # noqa: E731
+        entry = {"fetches": mean("mean_fetches"), "rmse": mean("rmse"), "over": mean("fraction_over_10"),
+                 "base_fetches": float(base["mean_fetches"]), "base_rmse": float(base["rmse"]),
+                 "base_over": float(base["fraction_over_10"])}
+        entry["ratio"] = entry["fetches"] / entry["base_fetches"] if entry["base_fetches"] > 0 else None
+        band[method] = entry
+    return band
 
 
 def frame_summary(rows):
@@ -182,8 +214,10 @@ def grazing_figure(directory, rows, scenes, target, styles):
         axis.axhline(target, color="grey", linewidth=0.8, linestyle=":")
         axis.set_xscale("log")
         axis.set_yscale("log")
-        axis.set_xticks([2, 5, 10, 20, 45, 80])
-        axis.set_xticklabels(["2", "5", "10", "20", "45", "80"])
+        ticks = sorted({float(r["elevation_deg"]) for r in mine})
+        axis.set_xticks(ticks)
+        axis.set_xticklabels([f"{e:g}" for e in ticks], fontsize=7)
+        axis.minorticks_off()
         axis.set_xlabel("view elevation above the plane (degrees)")
         axis.set_title(scene)
         axis.grid(True, alpha=0.3)
@@ -194,6 +228,46 @@ def grazing_figure(directory, rows, scenes, target, styles):
     fig.savefig(os.path.join(directory, "grazing.png"), dpi=90)
     plt.close(fig)
     return "grazing.png"
+
+
+def horizon_figure(directory, rows, scenes, steps, styles):
+    scenes = [s for s in scenes if any(r["scene"] == s for r in rows)]
+    chosen = horizon_rows(rows, steps)
+    panels = (("mean_fetches", "mean fetches per pixel (hit pixels)", FETCH_FLOOR),
+              ("rmse", "rmse against the reference (8-bit units)", RMSE_FLOOR),
+              ("fraction_over_10", "fraction of pixels off by more than 10", FRACTION_FLOOR))
+    fig, axes = plt.subplots(len(panels), len(scenes), figsize=(4.6 * len(scenes) + 1.8, 3.3 * len(panels)),
+                             squeeze=False, sharex=True)
+    elevations = sorted({float(r["elevation_deg"]) for r in rows})
+    for column, scene in enumerate(scenes):
+        methods = method_order([r for r in rows if r["scene"] == scene])
+        for line, (name, label, floor) in enumerate(panels):
+            axis = axes[line][column]
+            for method in methods:
+                points = [(e, chosen[(scene, method, e)]) for e in elevations if (scene, method, e) in chosen]
+                colour, marker = styles[method]
+                axis.plot([e for e, _ in points], [max(float(r[name]), floor) for _, r in points], marker=marker,
+                          color=colour, label=method, linewidth=1.2, markersize=4)
+            axis.axvspan(min(elevations), HORIZON_BAND_DEG, color="grey", alpha=0.12)
+            axis.set_xscale("log")
+            axis.set_yscale("log")
+            axis.set_xticks(elevations)
+            axis.set_xticklabels([f"{e:g}" for e in elevations], fontsize=7)
+            axis.minorticks_off()
+            axis.grid(True, alpha=0.3)
+            if column == 0:
+                axis.set_ylabel(label, fontsize=8)
+            if line == 0:
+                axis.set_title(scene)
+            if line == len(panels) - 1:
+                axis.set_xlabel("view elevation above the plane (degrees)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="center right")
+    fig.suptitle(f"The horizon band (shaded: at or below {HORIZON_BAND_DEG:g} degrees) at {steps} steps")
+    fig.tight_layout(rect=(0, 0, 0.88, 1))
+    fig.savefig(os.path.join(directory, "horizon.png"), dpi=90)
+    plt.close(fig)
+    return "horizon.png"
 
 
 def bake_figure(directory, rows):
@@ -373,7 +447,8 @@ def main():
     name = grazing_figure(directory, grazing, scenes, target, styles)
     out.append(
         f"Each plane scene seen from {', '.join(f'{e:g}' for e in info['elevations'])} degrees above the patch "
-        f"(the eye 1.2 units from the patch centre). The figure gives, per method, the lowest rmse it reaches within "
+        f"(the eye 1.2 patch widths from its centre, the field of view narrowed until the patch fills the image, and "
+        f"in the low views a wrapped map tiled: the horizon band below). The figure gives, per method, the lowest rmse it reaches within "
         f"{GRAZING_FETCH_BUDGET} mean fetches per pixel at each elevation; the tables give the fewest steps "
         f"(of {', '.join(str(s) for s in info['grazing_steps'])}) that reach rmse <= {target:g} (`-`: none does). "
         "Low views are where fixed-step searches skip thin features and cones with loose ratios crawl.\n")
@@ -390,6 +465,42 @@ def main():
             body.append([method] + ["-" if needed[(method, e)] is None else needed[(method, e)] for e in elevations])
         out.append(f"**{scene}**: steps for rmse <= {target:g} at each elevation\n")
         out.append(table(f"grazing:{scene}", ["method"] + [f"{e:g} deg" for e in elevations], body))
+
+    # 2b horizon band
+    steps = int(info["horizon_steps"])
+    name = horizon_figure(directory, grazing, scenes, steps, styles)
+    elevations = sorted({float(r["elevation_deg"]) for r in grazing})
+    band_elevations = ", ".join(f"{e:g}" for e in elevations if e <= HORIZON_BAND_DEG)
+    out.append("### The horizon band\n")
+    out.append(
+        f"Near the horizon the rays are nearly parallel to the plane. The grazing views above go down to "
+        f"{min(elevations):g} degrees: there a wrapped map is tiled (up to {info['max_grazing_tile']} copies a side, "
+        "scaled so its slopes stay) until a ray entering the near edge can cross the relief's slab on the patch, and "
+        "the field of view narrows until the patch fills the image; `tile`, `fov_y_deg` and `reference_pixels` in "
+        f"grazing.csv say what each view saw. The figure gives each method at {steps} steps (the sea scenes' step "
+        "count; bump and the parallax family take none) against elevation: mean fetches per pixel, rmse and the "
+        f"fraction of pixels off by more than 10, with the band at or below {HORIZON_BAND_DEG:g} degrees shaded.\n")
+    out.append(f"![horizon band]({name})\n")
+    main = info.get("main_scene", scenes[0])
+    for scene in [main] + [s for s in scenes if s != main]:
+        band = horizon_band(grazing, scene, steps)
+        if not band:
+            continue
+        if scene == main:
+            costs = [f"{m} x{e['ratio']:.1f} (rmse {e['base_rmse']:.2f} to {e['rmse']:.2f})"
+                     for m, e in sorted(band.items(), key=lambda i: -(i[1]["ratio"] or 0)) if e["ratio"] is not None]
+            out.append(
+                f"Measured here on {scene}, the band ({band_elevations} degrees) against {HORIZON_BASE_DEG:g} degrees "
+                f"at {steps} steps, as the ratio of mean fetches per pixel and the rmse at 45 degrees to the band's: "
+                f"{', '.join(costs)}. The tables give each scene's fetches and error at both (band: the mean over its "
+                "elevations).\n")
+        body = [[m, f"{e['base_fetches']:.1f}", f"{e['fetches']:.1f}", "-" if e["ratio"] is None else f"{e['ratio']:.2f}",
+                 f"{e['base_rmse']:.2f}", f"{e['rmse']:.2f}", f"{e['base_over']:.4f}", f"{e['over']:.4f}"]
+                for m, e in band.items()]
+        out.append(f"**{scene}**: the band against {HORIZON_BASE_DEG:g} degrees at {steps} steps\n")
+        out.append(table(f"horizon:{scene}", ["method", f"fetches {HORIZON_BASE_DEG:g} deg", "fetches band",
+                                              "fetch ratio", f"rmse {HORIZON_BASE_DEG:g} deg", "rmse band",
+                                              f"off>10 {HORIZON_BASE_DEG:g} deg", "off>10 band"], body))
 
     # 3 bake
     out.append("## 3. The bake's accuracy and its price\n")
