@@ -103,6 +103,7 @@ Plan make_plan(bool quick, int image_side) {
   plan.elevations = {0.5, 1, 2, 3, 5, 10, 20, 45, 80};
   plan.bake_steps = {4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024};
   if (quick) {
+    plan.elevations = {0.5, 2, 10, 45};  // the horizon band and the 45 degrees it is compared with
     plan.image_side = 128;
     plan.steps = {4, 16, 64, 256};
     plan.repeat = 1;
