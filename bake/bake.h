@@ -238,6 +238,23 @@ class BilinearBaker {
   std::unique_ptr<State> state_;
 };
 
+// Levels of detail (bake/detail_levels.cpp), for views where a pixel covers many texels. Level 0 is
+// the map; level l + 1 is level l's 2 x 2 box mean, (W >> (l + 1)) x (H >> (l + 1)) texels: texel
+// (i, j) of level l + 1 averages texels (2i + a, 2j + b), a, b in {0, 1}, of level l and is centred
+// where they meet, so every level covers the same uv square (and tiles it with the same period).
+// Each level is a height map under this file's conventions at its own size: its bilinear surface is
+// what a renderer traces on that level, and its cone maps are a baker's for that map (the bilinear
+// cones' contract then holds for that level's surface by their own proof). The mean, not the max:
+// it is the box prefilter of the heights a far pixel averages, and keeps the sea's mean level.
+inline constexpr int max_detail_levels = 8;  // coarser levels at most (level 0 not counted)
+inline constexpr int min_level_side = 8;     // texels a side of the coarsest level at least
+// The coarser levels a W x H map has: halvings while both sides are even and the halves keep
+// min_level_side texels, at most max_detail_levels.
+int detail_level_count(int width, int height);
+// One level down: `coarse` ((W / 2) x (H / 2), W and H even) gets the 2 x 2 box means of `fine`.
+// Throws BakeError for odd sides or a coarse span of the wrong size.
+void downsample_heights(HeightView fine, std::span<float> coarse);
+
 // Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
 // texels, each the maximum of its (up to four) children; the last level is 1 x 1.
 struct MaxPyramid {

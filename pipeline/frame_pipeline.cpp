@@ -90,6 +90,8 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
     }
   }
   s.cpu_needs = s.needs;
+  // the device path traces level 0 only: its heights and cones are the device's, the levels the CPU's
+  if (s.sim_on_device() || s.bake_on_device) s.cpu_needs.levels = false;
   if (s.bake_on_device) {
     s.cpu_needs.cone_sectors = 0;
     s.cpu_needs.relaxed = false;

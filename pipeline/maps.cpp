@@ -83,8 +83,19 @@ struct SlotCones {
   bake::BakeStats stats;
 };
 
+// One slot's levels of detail (render::MapSet::levels): levels 1 .. count of the heights of version
+// `made_for` (0: none), each with its bilinear cone map of `sectors`.
+struct SlotLevels {
+  std::uint64_t made_for = 0;
+  int count = 0, sectors = 0;
+  bake::Address address = bake::Address::wrap;
+  std::array<std::vector<float>, bake::max_detail_levels> heights, ratios, apex;
+  std::uint64_t version = 0;
+};
+
 // The maps of one frame in flight.
 struct Slot {
+  SlotLevels levels;
   std::array<SlotCones, 3> cones;  // by render::cone_slot
   std::uint64_t pyramid_for = 0;
   bake::Address pyramid_address = bake::Address::wrap;
@@ -122,12 +133,32 @@ bool holds(std::uint64_t made_for, bake::Address address, const MapHeights& heig
   return made_for == heights.version && address == wanted;
 }
 
+bool holds_levels(const SlotLevels& levels, const MapHeights& heights, const render::MapNeeds& needs) {
+  return levels.made_for == heights.version && levels.sectors == needs.cone_sectors &&
+         levels.address == needs.cone_address;
+}
+
+// The levels' cone bakers (one per level, for one sector count and size), kept between frames.
+struct LevelBakers {
+  std::array<std::optional<bake::BilinearBaker>, bake::max_detail_levels> bakers;
+  int width = 0, height = 0, sectors = 0;
+  bake::Address address = bake::Address::wrap;
+};
+
+// What the levels' bakes may spend after the level-0 bake spent `spent` of the frame's budget; with
+// nothing left each level gets its baker's first stage, which is always complete and conservative.
+void spend(bake::Budget& budget, const bake::BakeStats& spent) {
+  budget.milliseconds = std::max(0.0, budget.milliseconds - spent.milliseconds);
+  if (budget.max_work >= 0) budget.max_work = std::max(0ll, budget.max_work - spent.work);
+}
+
 }  // namespace
 
 struct MapMaker::State {
   int max_3d_side = distance_max_side;
   std::vector<Slot> slots;
   std::array<ConeBaker, 3> bakers;  // by render::cone_slot
+  LevelBakers level_bakers;
 
   // the one-off heights (slot 0)
   render::HeightField field;
@@ -142,6 +173,7 @@ struct MapMaker::State {
                   const ConeSchedule& schedule, MapStats& stats);
   void make_lagged(int slot, const MapHeights& heights, const render::MapNeeds& needs,
                    const ConeSchedule& schedule, MapStats& stats);
+  void make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs, bake::Budget budget);
   void make_pyramid_and_distance(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs);
   const render::MapSet& assemble(Slot& slot, const MapHeights& heights);
 };
@@ -192,6 +224,9 @@ void MapMaker::State::copy_from_other_slots(int index, const MapHeights& heights
         cones.stats = theirs.stats;
       }
     }
+    if (needs.levels && !holds_levels(slot.levels, heights, needs) &&
+        holds_levels(other.levels, heights, needs))
+      slot.levels = other.levels;
     if (needs.max_pyramid && !holds(slot.pyramid_for, slot.pyramid_address, heights, needs.address) &&
         holds(other.pyramid_for, other.pyramid_address, heights, needs.address)) {
       slot.pyramid = other.pyramid;
@@ -294,6 +329,45 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
   stats.pending = k.baker->pending();
 }
 
+// The levels of detail of new heights: each level the box mean of the one below
+// (bake::downsample_heights), its cones baked by that level's BilinearBaker within what is left of
+// the budget. Made whole when the heights change and kept (not refined) while they stay.
+void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs,
+                                  bake::Budget budget) {
+  SlotLevels& levels = slot.levels;
+  if (holds_levels(levels, heights, needs)) return;
+  const int sectors = needs.cone_sectors;
+  LevelBakers& k = level_bakers;
+  if (k.width != heights.width || k.height != heights.height || k.sectors != sectors ||
+      k.address != needs.cone_address) {
+    for (auto& baker : k.bakers) baker.reset();
+    k.width = heights.width;
+    k.height = heights.height;
+    k.sectors = sectors;
+    k.address = needs.cone_address;
+  }
+  levels.count = bake::detail_level_count(heights.width, heights.height);
+  bake::HeightView below = view_of(heights);
+  for (int level = 1; level <= levels.count; ++level) {
+    const auto index = std::size_t(level - 1);
+    const int width = heights.width >> level, height = heights.height >> level;
+    const std::size_t texels = std::size_t(width) * std::size_t(height);
+    levels.heights[index].resize(texels);
+    bake::downsample_heights(below, levels.heights[index]);
+    below = {levels.heights[index].data(), width, height};
+    levels.ratios[index].resize(texels * std::size_t(sectors));
+    levels.apex[index].resize(texels);
+    if (!k.bakers[index]) k.bakers[index].emplace(width, height, sectors, needs.cone_address);
+    const bake::BakeStats stats = k.bakers[index]->bake(
+        below, budget, {levels.ratios[index].data(), width, height, sectors}, levels.apex[index]);
+    spend(budget, stats);
+  }
+  levels.made_for = heights.version;
+  levels.sectors = sectors;
+  levels.address = needs.cone_address;
+  levels.version = next_map_version();
+}
+
 void MapMaker::State::make_pyramid_and_distance(Slot& slot, const MapHeights& heights,
                                                 const render::MapNeeds& needs) {
   if (needs.max_pyramid && !holds(slot.pyramid_for, slot.pyramid_address, heights, needs.address)) {
@@ -338,6 +412,15 @@ const render::MapSet& MapMaker::State::assemble(Slot& slot, const MapHeights& he
     set.distance = {slot.distance.width,   slot.distance.height, slot.distance.depth,
                     slot.distance_address, slot.distance.values, slot.distance_version};
   }
+  const SlotLevels& levels = slot.levels;
+  if (levels.made_for == heights.version && levels.count > 0) {
+    set.level_count = levels.count;
+    set.level_sectors = levels.sectors;
+    set.level_address = levels.address;
+    for (std::size_t index = 0; index < std::size_t(levels.count); ++index)
+      set.levels[index] = {levels.heights[index], levels.ratios[index], levels.apex[index]};
+    set.levels_version = levels.version;
+  }
   if (!heights.foam.empty()) {
     set.foam = heights.foam;
     set.foam_version = heights.foam_version;
@@ -360,6 +443,17 @@ const render::MapSet& MapMaker::make(int slot, const MapHeights& heights, const 
   s.copy_from_other_slots(slot, heights, needs);
   if (needs.cone_sectors > 0) s.make_cones(slot, heights, needs, schedule, stats);
   Slot& made = s.slots[std::size_t(slot)];
+  if (needs.levels && needs.cone_sectors > 0) {
+    // what the level-0 cones left of the budget (a lagged frame's stage took its share: none)
+    bake::Budget left = schedule.budget;
+    if (schedule.lag_frames > 0) {
+      left.milliseconds = 0.0;
+      left.max_work = 0;
+    } else {
+      spend(left, stats.cones);
+    }
+    s.make_levels(made, heights, needs, left);
+  }
   s.make_pyramid_and_distance(made, heights, needs);
   return s.assemble(made, heights);
 }

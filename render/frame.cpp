@@ -102,6 +102,13 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
           ? VkDescriptorImageInfo{linear, device_foam->view(), VK_IMAGE_LAYOUT_GENERAL}
           : VkDescriptorImageInfo{linear, foam.held ? foam.image.view() : dummy_foam.view(),
                                   foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const bool levels = traced_levels(view, info) > 0;
+  const VkDescriptorImageInfo level_height_info =
+      levels ? VkDescriptorImageInfo{nearest, level_heights.image.view(), level_heights.read_layout()}
+             : VkDescriptorImageInfo{nearest, dummy_foam.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  const VkDescriptorImageInfo level_cone_info =
+      levels ? VkDescriptorImageInfo{nearest, level_cones.image.view(), level_cones.read_layout()}
+             : VkDescriptorImageInfo{nearest, dummy_cones.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -114,14 +121,16 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
     return w;
   };
   constexpr VkDescriptorType sampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  const std::array<VkWriteDescriptorSet, 7> writes = {
+  const std::array<VkWriteDescriptorSet, 9> writes = {
       write(BINDING_FRAME, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &uniform_info),
       write(BINDING_HEIGHT, sampled, &height_info, nullptr),
       write(BINDING_CONES, sampled, &cone_info, nullptr),
       write(BINDING_MAX_PYRAMID, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, nullptr, &pyramid_info),
       write(BINDING_ALBEDO, sampled, &albedo_info, nullptr),
       write(BINDING_DISTANCE, sampled, &distance_info, nullptr),
-      write(BINDING_FOAM, sampled, &foam_info, nullptr)};
+      write(BINDING_FOAM, sampled, &foam_info, nullptr),
+      write(BINDING_HEIGHT_LEVELS, sampled, &level_height_info, nullptr),
+      write(BINDING_CONE_LEVELS, sampled, &level_cone_info, nullptr)};
   vkUpdateDescriptorSets(context.device(), std::uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
@@ -230,6 +239,9 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   uniforms.ray_corner = glm::vec4(glm::vec3(rays.corner), 0.0f);
   uniforms.ray_along_x = glm::vec4(glm::vec3(rays.along_x), 0.0f);
   uniforms.ray_along_y = glm::vec4(glm::vec3(rays.along_y), 0.0f);
+  const int levels = traced_levels(view, info);
+  const int pinned = view.level == View::level_auto ? -1 : std::min(std::max(view.level, 0), levels);
+  uniforms.levels = glm::vec4(float(levels), float(pinned), 0.0f, 0.0f);
   std::memcpy(frame_slot.uniforms.mapped(), &uniforms, sizeof uniforms);
 }
 

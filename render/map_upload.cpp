@@ -104,7 +104,14 @@ MapNeeds map_needs(Method method, const View& view) {
   needs.max_pyramid = info.family == MethodFamily::pyramid;
   needs.distance = info.family == MethodFamily::distance;
   needs.address = view.address;
+  needs.levels = traces_levels(method, view);
   return needs;
+}
+
+bool traces_levels(Method method, const View& view) {
+  const bool cone_method = method == Method::csm || method == Method::acm4 || method == Method::acm8 ||
+                           method == Method::acm4_interval;
+  return cone_method && view.unbounded && view.level != View::level_off;
 }
 
 namespace {
@@ -114,6 +121,7 @@ struct MapCopies {
   Copy heights = Copy::none, foam = Copy::none;
   std::array<Copy, 3> cones{Copy::none, Copy::none, Copy::none};
   Copy pyramid = Copy::none, distance = Copy::none;
+  Copy levels = Copy::none;  // none or whole: the chain changes as a whole
 };
 
 // The rectangles a copy writes: the dirty ones, the whole map, or none.
@@ -147,6 +155,31 @@ void validate_cone_sizes(const MapSet& maps) {
   }
 }
 
+// The levels of detail: a chain the heights' sides halve into, with cone maps of one sector count.
+void validate_levels(const MapSet& maps) {
+  const int count = maps.level_count;
+  if (count == 0) return;
+  if (count < 0 || count > bake::max_detail_levels || maps.heights_on_device ||
+      (maps.width >> count) << count != maps.width || (maps.height >> count) << count != maps.height ||
+      (maps.width >> count) < 1 || (maps.height >> count) < 1 ||
+      !bake::is_valid_sector_count(maps.level_sectors)) {
+    throw RenderError("maps: " + std::to_string(count) + " levels of detail of " +
+                      size_text(maps.width, maps.height) + " heights: at most " +
+                      std::to_string(bake::max_detail_levels) +
+                      " halvings of both sides, with cone maps of 1, 4 or 8 sectors, of heights on the host");
+  }
+  for (int level = 1; level <= count; ++level) {
+    const MapSet::Level& given = maps.levels[std::size_t(level - 1)];
+    const std::size_t texels = std::size_t(maps.width >> level) * std::size_t(maps.height >> level);
+    if (given.heights.size() != texels || given.apex.size() != texels ||
+        given.ratios.size() != texels * std::size_t(maps.level_sectors)) {
+      throw RenderError("maps: level of detail " + std::to_string(level) + " must hold " +
+                        size_text(maps.width >> level, maps.height >> level) +
+                        " heights, apex heights and ratios per sector");
+    }
+  }
+}
+
 // Every map's size against the heights' and the device's limits; returns the max pyramid's bytes
 // (header and values; 0 without one).
 VkDeviceSize validate_map_sizes(const MapSet& maps, const DeviceInfo& device) {
@@ -163,6 +196,7 @@ VkDeviceSize validate_map_sizes(const MapSet& maps, const DeviceInfo& device) {
                       " heights");
   }
   validate_cone_sizes(maps);
+  validate_levels(maps);
   const bake::DualMaxPyramid* pyramid = maps.max_pyramid.pyramid;
   VkDeviceSize pyramid_bytes = 0;
   if (pyramid) {
@@ -308,6 +342,37 @@ void reshape_cones(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   }
 }
 
+// the levels of detail: what changes, and their atlases
+void reshape_levels(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
+  Renderer::Impl& impl = reshaper.impl;
+  DeviceMap& heights = impl.level_heights;
+  DeviceMap& cones = impl.level_cones;
+  if (maps.level_count == 0) {
+    heights.held = false;
+    cones.held = false;
+    impl.level_count = 0;
+    return;
+  }
+  const glm::ivec2 atlas = level_atlas_size(maps.width, maps.height, maps.level_count);
+  const int width = atlas.x, rows = atlas.y;
+  const int layers = cone_layer_count(maps.level_sectors, false);
+  const bool same = heights.width == width && heights.height == rows && cones.layers == layers &&
+                    cones.sectors == maps.level_sectors && cones.address == maps.level_address &&
+                    impl.level_count == maps.level_count;
+  copies.levels = copy_kind(heights, same, maps.levels_version, 0, 0);
+  if (reshaper.reshape(heights, width, rows, 1))
+    reshaper.make_image(heights, VK_FORMAT_R32_SFLOAT, width, rows, 1, VK_IMAGE_VIEW_TYPE_2D);
+  if (reshaper.reshape(cones, width, rows, layers))
+    reshaper.make_image(cones, cone_format, width, rows, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
+  if (copies.levels == Copy::whole) {
+    heights.held = false;
+    cones.held = false;
+  }
+  cones.sectors = maps.level_sectors;
+  cones.address = maps.level_address;
+  impl.level_count = maps.level_count;
+}
+
 // the max pyramid's buffer and the distance map's 3D image: what changes, and their memory
 void reshape_pyramid_and_distance(Reshaper& reshaper, const MapSet& maps, VkDeviceSize pyramid_bytes,
                                   MapCopies& copies) {
@@ -377,6 +442,15 @@ VkDeviceSize staging_bytes(const Renderer::Impl& impl, const MapSet& maps, const
   }
   if (copies.pyramid != Copy::none) bytes += align_up(pyramid_bytes);
   if (copies.distance != Copy::none) bytes += align_up(maps.distance.values.size() * sizeof(float));
+  if (copies.levels != Copy::none) {
+    host_writes |= impl.level_heights.host_written || impl.level_cones.host_written;
+    for (int level = 1; level <= maps.level_count; ++level) {
+      const VkDeviceSize texels = VkDeviceSize(maps.width >> level) * VkDeviceSize(maps.height >> level);
+      if (!impl.level_heights.host_written) bytes += align_up(texels * 4);
+      if (!impl.level_cones.host_written)
+        bytes += align_up(texels * cone_texel_bytes * VkDeviceSize(impl.level_cones.layers));
+    }
+  }
   return bytes;
 }
 
@@ -502,6 +576,80 @@ void upload_cones(Upload& upload, DeviceMap& map, Copy copy, const ConeMapView& 
   map.version = view.version;
 }
 
+// the levels of detail: each level's heights, then each level's cones, packed into its rows of the
+// atlases
+void upload_levels(Upload& upload, DeviceMap& heights, DeviceMap& cones, const MapSet& maps) {
+  const bool fresh_heights = !heights.held, fresh_cones = !cones.held;
+  heights.held = false;
+  cones.held = false;
+  const auto layers = std::uint32_t(cones.layers);
+  auto level_rect = [&](int level) { return bake::Rect{0, 0, maps.width >> level, maps.height >> level}; };
+  auto atlas_rect = [&](int level) {
+    const glm::ivec2 origin = level_atlas_origin(maps.width, maps.height, level);
+    return bake::Rect{origin.x, origin.y, origin.x + (maps.width >> level),
+                      origin.y + (maps.height >> level)};
+  };
+  upload.regions.clear();
+  for (int level = 1; level <= maps.level_count; ++level) {
+    const std::span<const float> values = maps.levels[std::size_t(level - 1)].heights;
+    const bake::Rect rect = level_rect(level);
+    bool valid = true;
+    if (heights.host_written) {
+      valid = detail::pack_heights(values, rect.x1, rect,
+                                   texel_of(heights, atlas_rect(level).x0, atlas_rect(level).y0, 4),
+                                   heights.image.row_pitch() / 4);
+    } else {
+      const VkDeviceSize offset = upload.reserve(rect_texels(rect) * 4);
+      valid = detail::pack_heights(values, rect.x1, rect, reinterpret_cast<float*>(upload.staging + offset),
+                                   std::size_t(rect.x1));
+      upload.regions.push_back(rect_region(offset, atlas_rect(level), 1));
+    }
+    if (!valid) {
+      throw RenderError("maps: the heights of level of detail " + std::to_string(level) +
+                        " must be finite and in [0, 1]");
+    }
+  }
+  if (heights.host_written) {
+    upload.to_general(heights, 1);
+  } else {
+    upload.copy_regions_into(heights, 1, fresh_heights);
+  }
+  upload.regions.clear();
+  for (int level = 1; level <= maps.level_count; ++level) {
+    const MapSet::Level& given = maps.levels[std::size_t(level - 1)];
+    ConeMapView view;
+    view.sector_count = maps.level_sectors;
+    view.address = maps.level_address;
+    view.ratios = given.ratios;
+    view.apex = given.apex;
+    const bake::Rect rect = level_rect(level);
+    bool valid = true;
+    if (cones.host_written) {
+      auto* origin = reinterpret_cast<std::uint16_t*>(
+          texel_of(cones, atlas_rect(level).x0, atlas_rect(level).y0, cone_texel_bytes));
+      valid = detail::pack_cones(view, rect.x1, rect, origin, cones.image.row_pitch() / 2,
+                                 cones.image.layer_pitch() / 2);
+    } else {
+      const VkDeviceSize offset = upload.reserve(rect_texels(rect) * cone_texel_bytes * layers);
+      valid =
+          detail::pack_cones(view, rect.x1, rect, reinterpret_cast<std::uint16_t*>(upload.staging + offset),
+                             std::size_t(rect.x1) * 2, std::size_t(rect_texels(rect)) * 2);
+      upload.regions.push_back(rect_region(offset, atlas_rect(level), layers));
+    }
+    if (!valid) {
+      throw RenderError("maps: the cone map of level of detail " + std::to_string(level) +
+                        " holds a negative or non-finite ratio or an apex height outside [0, 1]");
+    }
+  }
+  if (cones.host_written) {
+    upload.to_general(cones, layers);
+  } else {
+    upload.copy_regions_into(cones, layers, fresh_cones);
+  }
+  heights.held = cones.held = true;
+  heights.version = cones.version = maps.levels_version;
+}
+
 // the max pyramid: header and values, as the shader reads them at BINDING_MAX_PYRAMID
 void upload_pyramid(Upload& upload, DeviceMap& max_pyramid, const MaxPyramidView& view,
                     VkDeviceSize pyramid_bytes) {
@@ -576,6 +724,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   reshape_values(reshaper, maps, copies);
   reshape_cones(reshaper, maps, copies);
   reshape_pyramid_and_distance(reshaper, maps, pyramid_bytes, copies);
+  reshape_levels(reshaper, maps, copies);
 
   // staging bytes, then room in the current slot's part of the ring
   const bake::Rect whole{0, 0, maps.width, maps.height};
@@ -608,6 +757,15 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     upload_cones(upload, cones[index], copies.cones[index], maps.cones[index]);
   if (copies.pyramid != Copy::none) upload_pyramid(upload, max_pyramid, maps.max_pyramid, pyramid_bytes);
   if (copies.distance != Copy::none) upload_distance(upload, distance, maps.distance);
+  if (copies.levels != Copy::none) upload_levels(upload, level_heights, level_cones, maps);
+}
+
+int Renderer::Impl::traced_levels(const View& view, const MethodInfo& info) const {
+  if (!traces_levels(info.method, view) || heights_from_device || level_count == 0 || !level_heights.held ||
+      !level_cones.held || level_cones.sectors != info.cone_sectors ||
+      level_cones.address != bake::Address::wrap)
+    return 0;
+  return level_count;
 }
 
 void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info) const {

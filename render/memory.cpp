@@ -236,6 +236,14 @@ std::vector<Allocation> map_memory(const MapShape& shape) {
     add("the distance map" + map, pixels_of(shape.distance_width, shape.distance_height) *
                                       std::uint64_t(shape.distance_depth) * sizeof(float));
   }
+  if (shape.level_count > 0) {  // the atlases of levels 1 .. L (config.h)
+    const glm::ivec2 size = level_atlas_size(shape.width, shape.height, shape.level_count);
+    const std::uint64_t atlas = pixels_of(size.x, size.y);
+    add("the levels of detail's height atlas" + map, atlas * height_texel_bytes);
+    add("the levels of detail's cone atlas" + map,
+        atlas * std::uint64_t(cone_layer_count(std::max(shape.level_sectors, 1), false)) *
+            cone_layer_texel_bytes);
+  }
   list.push_back({"the staging of the maps" + map, staging, MemoryKind::host_visible, lower_map_size});
   return list;
 }
@@ -326,6 +334,14 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
     shape.distance_depth = maps.distance.depth;
     reshaped |= distance.width != maps.distance.width || distance.height != maps.distance.height ||
                 distance.layers != maps.distance.depth || !distance.image.handle();
+  }
+  if (maps.level_count > 0) {
+    shape.level_count = maps.level_count;
+    shape.level_sectors = maps.level_sectors;
+    reshaped |= level_heights.width != level_atlas_size(maps.width, maps.height, maps.level_count).x ||
+                level_heights.height != maps.height / 2 || level_count != maps.level_count ||
+                level_cones.layers != cone_layer_count(maps.level_sectors, false) ||
+                !level_heights.image.handle();
   }
   if (!reshaped) return;
   std::vector<Allocation> needed = map_memory(shape);

@@ -125,7 +125,7 @@ void Renderer::Impl::save_pipeline_cache() noexcept {
 
 void Renderer::Impl::create_layouts() {
   const VkDevice device = context.device();
-  std::array<VkDescriptorSetLayoutBinding, 7> bindings{};
+  std::array<VkDescriptorSetLayoutBinding, 9> bindings{};
   // FrameUniforms is a storage buffer, not a uniform buffer: see shaders/frame_block.inc.glsl
   bindings[0] = {BINDING_FRAME, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
                  VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
@@ -141,6 +141,10 @@ void Renderer::Impl::create_layouts() {
                  nullptr};
   bindings[5] = {BINDING_DISTANCE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
                  nullptr};
+  bindings[7] = {BINDING_HEIGHT_LEVELS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                 VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+  bindings[8] = {BINDING_CONE_LEVELS, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                 VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = std::uint32_t(bindings.size());
   set_info.pBindings = bindings.data();
@@ -157,7 +161,7 @@ void Renderer::Impl::create_layouts() {
 
   // one descriptor set per frame in flight
   const std::array<VkDescriptorPoolSize, 2> sizes = {
-      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 5 * frames_in_flight},
+      VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 7 * frames_in_flight},
       VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * frames_in_flight}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = frames_in_flight;

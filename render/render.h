@@ -156,6 +156,13 @@ struct View {
   // other than the reference), under a sky with a gradient and the sun, with aerial perspective
   // towards the horizon. Every pixel whose ray points below the horizon hits the relief.
   bool unbounded = false;
+  // Levels of detail (MapSet::levels; unbounded views of the cone methods csm, acm4, acm8 and
+  // acm4-interval only, every other view traces level 0): level_auto picks each pixel's level from
+  // its footprint where its ray enters the relief; a level >= 0 traces that level (at most the
+  // coarsest given) for every pixel; level_off (0) traces level 0 only, as without levels.
+  int level = level_auto;
+  static constexpr int level_auto = -1;
+  static constexpr int level_off = 0;
 };
 
 inline constexpr int max_steps = 4096;  // MethodSettings::steps, from 1
@@ -300,6 +307,20 @@ struct MapSet {
   // on the device (`heights` and `foam` then stay empty; width and height are the ocean's).
   bool heights_on_device = false;
   bool foam_on_device = false;
+  // Levels of detail (bake::downsample_heights; optional: without them every view traces level 0):
+  // levels[l - 1] is level l = 1 .. level_count, (width >> l) x (height >> l) texels, its heights and
+  // the bilinear cone map of `level_sectors` sectors baked for them with `level_address`. The chain
+  // changes as a whole: a new `levels_version` copies every level.
+  int level_count = 0;  // 0 .. bake::max_detail_levels
+  int level_sectors = 0;
+  bake::Address level_address = bake::Address::wrap;
+  struct Level {
+    std::span<const float> heights;  // (W >> l) x (H >> l)
+    std::span<const float> ratios;   // (W >> l) x (H >> l) x level_sectors, interleaved
+    std::span<const float> apex;     // (W >> l) x (H >> l)
+  };
+  std::array<Level, bake::max_detail_levels> levels{};
+  std::uint64_t levels_version = 0;
 };
 int cone_slot(int sector_count);  // 0, 1, 2 for 1, 4, 8 sectors
 
@@ -312,8 +333,13 @@ struct MapNeeds {
   bool max_pyramid = false;
   bool distance = false;
   bake::Address address = bake::Address::wrap;  // of the pyramid and the distance map: the view's
+  // the levels of detail with their cone maps of cone_sectors (MapSet::levels): an unbounded view of
+  // csm, acm4, acm8 or acm4-interval whose View::level is not level_off
+  bool levels = false;
 };
 MapNeeds map_needs(Method method, const View& view);
+// Whether a method traces levels of detail on a view (map_needs' `levels`).
+bool traces_levels(Method method, const View& view);
 
 // Which per-pixel outputs a frame reads back (Frame's vectors; the others stay empty). None: the
 // frame is submitted and not waited for (at most frames_in_flight frames are in flight).
@@ -384,6 +410,8 @@ struct MapShape {
   int width = 0, height = 0;
   int cone_sectors = 0;
   bool relaxed = false;
+  int level_count = 0;  // levels of detail (MapSet::level_count), with cone maps of level_sectors
+  int level_sectors = 0;
   std::uint64_t max_pyramid_values = 0;  // floats of bake::DualMaxPyramid::values; 0: none
   int distance_width = 0, distance_height = 0, distance_depth = 0;
   bool foam = false;

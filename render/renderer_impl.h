@@ -42,6 +42,15 @@ inline int cone_layer_count(int sectors, bool relaxed) {
 constexpr VkFormat cone_format = VK_FORMAT_R16G16_UINT;
 constexpr std::size_t cone_texel_bytes = 4;
 
+// The levels of detail's atlases (shaders/config.h): level 1 from (0, 0), level l >= 2 from
+// (W / 2, H / 2 - (H >> (l - 1))), (W / 2 + W / 4) x (H / 2) texels in all (W / 2 wide with one level).
+inline glm::ivec2 level_atlas_origin(int width, int height, int level) {
+  return level == 1 ? glm::ivec2(0) : glm::ivec2(width / 2, height / 2 - (height >> (level - 1)));
+}
+inline glm::ivec2 level_atlas_size(int width, int height, int level_count) {
+  return {width / 2 + (level_count >= 2 ? width / 4 : 0), height / 2};
+}
+
 // memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
 void add_target_memory(std::vector<Allocation>& list, int width, int height);
 void add_readback_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
@@ -153,6 +162,10 @@ struct Renderer::Impl {
   DeviceMap max_pyramid;
   DeviceMap distance;
   DeviceMap foam;
+  // the levels of detail (MapSet::levels): heights and cones of levels 1 .. level_count in one atlas
+  // each (config.h, BINDING_HEIGHT_LEVELS); `sectors` and `address` on level_cones
+  DeviceMap level_heights, level_cones;
+  int level_count = 0;  // levels held (0: none)
   // device.h: the maps a DeviceSim writes (GENERAL layout), and whether the last MapSet uses them
   const Image* device_heights = nullptr;
   const Image* device_foam = nullptr;
@@ -171,6 +184,9 @@ struct Renderer::Impl {
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
+  // The coarser levels a frame of this view and method traces: the levels held when it traces levels
+  // (traces_levels) with cones of its sector count on the host's heights, else 0 (level 0 only).
+  int traced_levels(const View& view, const MethodInfo& info) const;
 
   // frame.cpp: render targets and the reference geometry
   Targets targets;

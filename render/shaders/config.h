@@ -54,6 +54,12 @@ using mat4 = glm::mat4;
 #define BINDING_ALBEDO 5       // sampler2D, RGBA8 albedo image, linear, the address mode (1x1 when none)
 #define BINDING_FOAM \
   6  // sampler2D, R32F foam coverage in [0, 1] (the water material), linear, the address mode
+// levels of detail 1 .. L (MapSet::levels) in one atlas each, (W / 2 + W / 4) x (H / 2) texels (W / 2
+// wide with one level): level 1's (W / 2) x (H / 2) texels from (0, 0), level l >= 2's (W >> l) x (H >> l)
+// stacked beside it from column W / 2, row H / 2 - (H >> (l - 1)); read with texelFetch, wrapped in the
+// shader
+#define BINDING_HEIGHT_LEVELS 7  // sampler2D, R32F
+#define BINDING_CONE_LEVELS 8    // usampler2DArray, RG16UI, the same atlas, the cone image's layers
 
 // FrameUniforms.flags bits
 #define FLAG_WRAP 1
@@ -63,6 +69,11 @@ using mat4 = glm::mat4;
 #define FLAG_FOAM 16          // the water material reads foam coverage at BINDING_FOAM
 #define FLAG_UNBOUNDED 32     // the plane tiled to the horizon under the sky (View::unbounded)
 #define AERIAL_DISTANCE 40.0  // world units: light from that far keeps 1/e of its colour (unbounded)
+// the level a pixel traces (View::level_auto): log2 of the texels of level 0 its footprint spans where
+// its ray enters the relief, across the ray times (1 / |d.z|)^LEVEL_ANISOTROPY along it (0: the
+// footprint's short side, 1: its long side), plus LEVEL_BIAS (levels), rounded down
+#define LEVEL_ANISOTROPY 0.5
+#define LEVEL_BIAS 0.0
 
 // the water material's sky at the horizon (shading.inc.glsl), also the background of water frames
 #define SKY_HORIZON_R 0.72
@@ -90,6 +101,9 @@ struct FrameUniforms {
   vec4 ray_along_x;
   vec4 ray_along_y;
   vec4 foam;  // the water material's foam: rgb colour, a intensity (View::foam_color, foam_intensity)
+  // levels of detail: x the coarser levels L the view traces (0: level 0 only), y the level every
+  // pixel traces (-1: from its footprint, LEVEL_ANISOTROPY), zw unused
+  vec4 levels;
 };
 
 // The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this

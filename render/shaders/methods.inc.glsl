@@ -23,7 +23,7 @@ const int bracket_max_steps = 32;       // bracketing steps; the last one always
 
 float fetch_height(vec2 uv) {
   g_fetches += 1u;
-  return bilinear_height_of(height_map, uv);
+  return g_level == 0 ? bilinear_height_of(height_map, uv) : level_bilinear_height(uv);
 }
 
 // The sector of an n-sector cone map holding horizontal direction d (azimuth atan(dv, du) in [0, 2 pi)).
@@ -63,7 +63,7 @@ const float fallback_step_texels = 0.25;  // safe steps shorter than this (horiz
 // The cell (between four texel centres) that the ray origin + s * descent is in, as the reference's
 // cell walk numbers them (texel centre (i, j) at cell coordinates (j, i)).
 ivec2 cell_at(vec3 origin, vec3 descent, float s) {
-  return ivec2(floor((origin.xy + s * descent.xy) * frame.map_size.xy - 0.5));
+  return ivec2(floor((origin.xy + s * descent.xy) * traced_map_size().xy - 0.5));
 }
 
 // An exact step through one cell: the crossing in it (exact = true), or the s where the ray leaves
@@ -71,9 +71,10 @@ ivec2 cell_at(vec3 origin, vec3 descent, float s) {
 // the ray's height above the cell's patch there (exit_gap).
 float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool exact, out float exit_gap) {
   g_fetches += 1u;
-  vec2 size = frame.map_size.xy;
+  vec4 map_size = traced_map_size();
+  vec2 size = map_size.xy;
   // the gather at the cell's middle returns its corners: w = (j, i), z = (j+1, i), x = (j, i+1), y = (j+1, i+1)
-  vec4 corners = textureGather(height_map, (vec2(cell) + 1.0) * frame.map_size.zw, 0);
+  vec4 corners = g_level == 0 ? textureGather(height_map, (vec2(cell) + 1.0) * map_size.zw, 0) : level_gather(cell);
   vec2 x0 = origin.xy * size - 0.5, dx = descent.xy * size;
   vec2 exits = vec2(3.0e38);
   for (int axis = 0; axis < 2; ++axis) {
@@ -103,8 +104,9 @@ float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool e
 // The cone map texel whose square holds uv (unwrapped texture coordinates): the nearest centre,
 // wrapped or clamped like the map.
 ivec2 cone_texel(vec2 uv) {
-  ivec2 size = ivec2(frame.map_size.xy);
-  ivec2 texel = ivec2(floor(uv * frame.map_size.xy));
+  vec4 map_size = traced_map_size();
+  ivec2 size = ivec2(map_size.xy);
+  ivec2 texel = ivec2(floor(uv * map_size.xy));
   if ((frame.counts.z & FLAG_WRAP) != 0) return texel - size * ivec2(floor(vec2(texel) / vec2(size)));
   return clamp(texel, ivec2(0), size - 1);
 }
@@ -114,7 +116,7 @@ ivec2 cone_texel(vec2 uv) {
 // travel, below which the march takes an exact cell step instead.
 float plane_safe_cone_step(vec3 origin, vec3 descent, float s, int sectors, out float stall) {
   float travel = length(descent.xy);
-  vec2 texel = frame.map_size.zw;
+  vec2 texel = traced_map_size().zw;
   int sector = cone_sector(descent.xy, sectors);
   stall = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
   vec3 p = origin + s * descent;

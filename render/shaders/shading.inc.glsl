@@ -8,6 +8,8 @@ const float ambient = 0.15;
 const float specular_strength = 0.25;
 const float specular_exponent = 48.0;
 
+// The surface of the level the pixel traced (g_level): the hit lies on it, and it is shaded with its
+// own normal and height. Level 0 (every view without levels) keeps its own functions, untouched.
 float shading_height(vec2 uv) { return bilinear_height_of(height_map, uv); }
 
 // World normal of the displaced surface at texture point uv, from central differences one texel apart.
@@ -15,6 +17,16 @@ vec3 surface_normal(vec2 uv, mat3 tangent_frame) {
   vec2 texel = frame.map_size.zw;
   float dh_du = (shading_height(uv + vec2(texel.x, 0.0)) - shading_height(uv - vec2(texel.x, 0.0))) / (2.0 * texel.x);
   float dh_dv = (shading_height(uv + vec2(0.0, texel.y)) - shading_height(uv - vec2(0.0, texel.y))) / (2.0 * texel.y);
+  vec3 along_u = tangent_frame[0] + dh_du * tangent_frame[2];
+  vec3 along_v = tangent_frame[1] + dh_dv * tangent_frame[2];
+  return normalize(cross(along_u, along_v));
+}
+
+// The same on a coarser level: central differences one of its texels apart.
+vec3 level_surface_normal(vec2 uv, mat3 tangent_frame) {
+  vec2 texel = g_level_size.zw;
+  float dh_du = (level_bilinear_height(uv + vec2(texel.x, 0.0)) - level_bilinear_height(uv - vec2(texel.x, 0.0))) / (2.0 * texel.x);
+  float dh_dv = (level_bilinear_height(uv + vec2(0.0, texel.y)) - level_bilinear_height(uv - vec2(0.0, texel.y))) / (2.0 * texel.y);
   vec3 along_u = tangent_frame[0] + dh_du * tangent_frame[2];
   vec3 along_v = tangent_frame[1] + dh_dv * tangent_frame[2];
   return normalize(cross(along_u, along_v));
@@ -68,7 +80,7 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   vec3 reflected = reflect(view_direction, n);
   vec3 reflection = sky(reflected);
   float glint = lit * sun_glint_strength * pow(max(dot(reflected, l), 0.0), sun_glint_exponent);
-  float h = shading_height(uv);
+  float h = g_level == 0 ? shading_height(uv) : level_bilinear_height(uv);
   vec3 body = mix(water_deep, water_shallow, h) * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
   vec3 colour = mix(body, reflection, fresnel) + glint;
   if ((frame.counts.z & FLAG_FOAM) != 0) {
@@ -81,7 +93,7 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
 
 // lit: 1 where the light reaches the hit, 0 in shadow (then only the ambient term is left)
 vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction, float lit) {
-  vec3 n = surface_normal(uv, tangent_frame);
+  vec3 n = g_level == 0 ? surface_normal(uv, tangent_frame) : level_surface_normal(uv, tangent_frame);
   if ((frame.counts.z & FLAG_WATER) != 0) return shade_water(uv, n, view_direction, normalize(frame.light.xyz), lit);
   vec3 l = normalize(frame.light.xyz);
   vec3 half_vector = normalize(l - view_direction);

@@ -15,6 +15,8 @@ layout(binding = BINDING_CONES) uniform usampler2DArray cone_map;
 layout(binding = BINDING_ALBEDO) uniform sampler2D albedo_map;
 layout(binding = BINDING_DISTANCE) uniform sampler3D distance_map;
 layout(binding = BINDING_FOAM) uniform sampler2D foam_map;
+layout(binding = BINDING_HEIGHT_LEVELS) uniform sampler2D height_levels;
+layout(binding = BINDING_CONE_LEVELS) uniform usampler2DArray cone_levels;
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec2 in_uv;
@@ -31,11 +33,46 @@ layout(location = ATTACHMENT_COUNTERS) out vec4 out_counters;
 uint g_iterations = 0u;
 uint g_fetches = 0u;
 
-// (ratio, apex height) of cone map texel `texel` (x, y, layer). The image is R16G16_UINT: the ratio
-// as a half float rounded down and the apex in units of 1 / 65535 rounded up (render/map_pack.h), so
-// the values read claim no more empty space than the baked ones.
+// The level of detail the pixel traces (choose_level; 0: the map itself, as in every view without
+// levels): its size (W >> l, H >> l and their inverses) and where it starts in the levels' atlases
+// (config.h). Every read of the trace and the shading goes to that level's heights and cones, so the
+// ray meets that level's own bilinear surface, with the cones baked for it.
+int g_level = 0;
+vec4 g_level_size = vec4(0.0);
+ivec2 g_level_origin = ivec2(0);
+
+// The map size the trace works with: level 0's (frame.map_size) or the level's.
+vec4 traced_map_size() { return g_level == 0 ? frame.map_size : g_level_size; }
+
+// Texel t of the level, wrapped (levels serve the unbounded plane, which wraps).
+float level_texel(ivec2 t) {
+  ivec2 size = ivec2(g_level_size.xy);
+  t -= size * ivec2(floor(vec2(t) / vec2(size)));
+  return texelFetch(height_levels, t + g_level_origin, 0).r;
+}
+
+// The four texels of the level's cell whose lower corner is texel `cell`, in textureGather's order
+// (u0 v1, u1 v1, u1 v0, u0 v0): four texel reads, counted as one fetch like a gather.
+vec4 level_gather(ivec2 cell) {
+  return vec4(level_texel(cell + ivec2(0, 1)), level_texel(cell + ivec2(1, 1)), level_texel(cell + ivec2(1, 0)),
+              level_texel(cell));
+}
+
+// The level's bilinear height at uv, as bilinear_height_of on level 0.
+float level_bilinear_height(vec2 uv) {
+  vec2 x = uv * g_level_size.xy - 0.5;
+  vec2 cell = floor(x);
+  vec2 f = x - cell;
+  vec4 c = level_gather(ivec2(cell));
+  return mix(mix(c.w, c.z, f.x), mix(c.x, c.y, f.x), f.y);
+}
+
+// (ratio, apex height) of cone map texel `texel` (x, y, layer) of the traced level. The image is
+// R16G16_UINT: the ratio as a half float rounded down and the apex in units of 1 / 65535 rounded up
+// (render/map_pack.h), so the values read claim no more empty space than the baked ones.
 vec2 cone_value(ivec3 texel) {
-  uvec2 stored = texelFetch(cone_map, texel, 0).rg;
+  uvec2 stored = g_level == 0 ? texelFetch(cone_map, texel, 0).rg
+                              : texelFetch(cone_levels, ivec3(texel.xy + g_level_origin, texel.z), 0).rg;
   return vec2(unpackHalf2x16(stored.x).x, float(stored.y) / 65535.0);
 }
 
@@ -71,7 +108,8 @@ float light_visibility(vec3 hit, mat3 tangent_frame, vec3 normal) {
   float s_hit = 1.0 - hit.z;  // descent from the top plane to the hit along the light ray
   vec3 entry = hit - s_hit * descent;
   float travel = length(descent.xy);
-  float bias = shadow_bias_height + (travel > 0.0 ? 0.5 * min(frame.map_size.z, frame.map_size.w) / travel : 1.0);
+  vec4 map_size = traced_map_size();
+  float bias = shadow_bias_height + (travel > 0.0 ? 0.5 * min(map_size.z, map_size.w) / travel : 1.0);
   if (s_hit <= bias) return 1.0;
   float s = 1.0;
   if (METHOD == METHOD_REFERENCE) {
@@ -126,6 +164,32 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_worl
 #if SEARCH_PLANAR
 #include "mesh.inc.glsl"
 
+// The unbounded plane's level of detail for this pixel's ray d (FrameUniforms::levels): the pinned
+// level, or the one its footprint asks for where the ray enters the relief (the plane z = 0, at
+// distance eye.z / -d.z): the level-0 texels a pixel spans there across the ray, the pixel's angle
+// times the distance, stretched by (1 / |d.z|)^LEVEL_ANISOTROPY towards its long side along the
+// ray, log2, plus LEVEL_BIAS, rounded down and clamped to the levels held. One level per pixel: the
+// ray meets that level's surface and nothing of the others.
+void choose_level(vec3 d) {
+  int levels = int(frame.levels.x);
+  int level = int(frame.levels.y);
+  if (level < 0) {
+    vec3 through = frame.ray_corner.xyz + gl_FragCoord.x * frame.ray_along_x.xyz + gl_FragCoord.y * frame.ray_along_y.xyz;
+    float pixel_angle = length(frame.ray_along_y.xyz) / length(through);  // radians
+    float distance = frame.eye.z / -d.z;
+    float texels = distance * pixel_angle * frame.surface.x * max(frame.map_size.x, frame.map_size.y);
+    float detail = log2(max(texels, 1e-30)) + LEVEL_ANISOTROPY * log2(-1.0 / d.z) + LEVEL_BIAS;
+    level = int(clamp(floor(detail), 0.0, float(levels)));
+  }
+  g_level = clamp(level, 0, levels);
+  if (g_level > 0) {
+    ivec2 size = ivec2(frame.map_size.xy) >> g_level;
+    g_level_size = vec4(vec2(size), 1.0 / vec2(size));
+    ivec2 half_size = ivec2(frame.map_size.xy) >> 1;
+    g_level_origin = g_level == 1 ? ivec2(0) : ivec2(half_size.x, half_size.y - (int(frame.map_size.y) >> (g_level - 1)));
+  }
+}
+
 void main() {
   if (SURFACE == SURFACE_MESH) {
     mesh_fragment();
@@ -144,6 +208,7 @@ void main() {
     return;
   }
   if (frame.eye.z <= 0.0 || d.z >= 0.0) discard;  // the relief is seen from above only
+  if (unbounded && frame.levels.x > 0.0) choose_level(d);
   // Only what is seen through the base polygon: a ray that enters the relief box through one of its
   // sides has no fragment there (nor has a fragment on the polygon's edge whose ray misses it). The
   // reference's fragments lie on the displaced surface (reference.vert.glsl), not on the base plane.
