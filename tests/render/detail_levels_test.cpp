@@ -112,8 +112,9 @@ TEST(DetailLevels, RaysOnALevelEndAtThatLevelsFirstCrossing) {
       EXPECT_EQ(compared, (long long)truth.size());
       EXPECT_EQ(beyond, 0) << "level " << level << " " << render::method_info(method).name;
       EXPECT_GE(on, compared * 99 / 100) << "level " << level << " " << render::method_info(method).name;
-      if (level > 0)
+      if (level > 0) {
         EXPECT_GT(off_level0, compared / 10) << "level " << level << ": the level's surface is not level 0's";
+      }
     }
   }
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
