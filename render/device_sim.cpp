@@ -260,8 +260,11 @@ DeviceSim::DeviceSim(Renderer& renderer, const SinusoidWavesView& waves)
     values[4 * i + 1] = wave[1];
     values[4 * i + 2] = wave[2];
     values[4 * i + 3] = on_lattice ? 1.0f : 0.0f;
-    values[4 * s.items() + 2 * i] = float(m);
-    values[4 * s.items() + 2 * i + 1] = float(n);
+    // m and n modulo 2 size, in [0, 2 size): the shader's % then meets no negative operand (GLSL leaves
+    // that undefined: on an NVIDIA H200 the lattice waves came out wrong, on lavapipe right)
+    const double twice = 2.0 * s.size;
+    values[4 * s.items() + 2 * i] = on_lattice ? float(m - twice * std::floor(m / twice)) : 0.0f;
+    values[4 * s.items() + 2 * i + 1] = on_lattice ? float(n - twice * std::floor(n / twice)) : 0.0f;
   }
   context.submit_and_wait([&](VkCommandBuffer commands) {
     const VkBufferCopy waves_copy{0, 0, s.items() * 16};

@@ -34,8 +34,12 @@ Tap tap_at(ivec2 base, vec2 offset) {
   offset = clamp(offset, vec2(-1e6), vec2(1e6));  // no real ocean moves a texel that far (NaN: -1e6)
   const vec2 floor_offset = floor(offset);
   Tap tap;
-  tap.t00 = (base + ivec2(floor_offset)) % push.size;
+  // wrapped without % of a negative operand (undefined in GLSL): |p| < 2^24, so the float quotient's
+  // floor is exact, and the last two lines only guard it
+  const ivec2 p = base + ivec2(floor_offset);
+  tap.t00 = p - push.size * ivec2(floor(vec2(p) / float(push.size)));
   tap.t00 += ivec2(lessThan(tap.t00, ivec2(0))) * push.size;
+  tap.t00 -= ivec2(greaterThanEqual(tap.t00, ivec2(push.size))) * push.size;
   tap.t11 = (tap.t00 + 1) % push.size;
   tap.f = offset - floor_offset;
   return tap;

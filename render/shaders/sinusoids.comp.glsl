@@ -33,8 +33,9 @@ void main() {
     if (wave.w != 0.0) {
       const int twice = 2 * push.size;
       const ivec2 m = ivec2(lattice[i]);
+      // m, n come in [0, 2 W) (device_sim.cpp): no operand of % is negative (undefined in GLSL)
       const int along_x = (m.x * (2 * texel.x + 1)) % twice, along_y = (m.y * (2 * texel.y + 1)) % twice;
-      turns = float((along_x + along_y + 2 * twice) % twice) / float(twice);
+      turns = float((along_x + along_y) % twice) / float(twice);
     } else {
       const vec2 position = (vec2(texel) + 0.5) * (push.patch_size / float(push.size));
       turns = fract(dot(wave.xy, position) * 0.15915494309189535);

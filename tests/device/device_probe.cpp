@@ -13,15 +13,19 @@
 //    image sizes 256, 512 and 1024, 150 frames after 10 of warm-up, in series and overlapped, each
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
-//    allocations after warm-up. Each on both backends ([backend] sim and bake: cpu, then device), with
+//    allocations after warm-up. Each with the sim and bake on the CPU, the sim on the device, and both
+//    on the device (lag 0: the device bakes every frame's own map), with
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
 // 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
 //    16 threads (TBB arenas, up to the CPUs this process may use) on the water ocean's 512 and 1024
 //    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine.
+// 4. The device's cone maps alone (render::DeviceCones of a device ocean, 512, 1024 and 2048),
+//    unlimited and budget 0: median wall and device milliseconds, texels refined, mean ratio.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
-// =threads part 3 only.
+// =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
+// with the bake on the device alone.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -31,10 +35,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/height_source.h"
 #include "pipeline/maps.h"
 #include "pipeline/scene.h"
 
@@ -77,6 +84,8 @@ struct Plan {
   int warm_up = 10, frames = 150, large_frames = 40;  // large: maps of 2048 and more
   std::vector<int> thread_maps{512, 1024};
   int thread_repeats = 5;
+  std::vector<int> cone_maps{512, 1024, 2048};
+  int cone_repeats = 5;
 };
 
 Plan quick_plan() {
@@ -88,6 +97,8 @@ Plan quick_plan() {
   plan.repeats = 1;
   plan.steps = {8};
   plan.frame_sizes = {64};
+  plan.cone_maps = {64};
+  plan.cone_repeats = 1;
   plan.warm_up = 2;
   plan.frames = 5;
   plan.thread_maps = {64};
@@ -142,13 +153,23 @@ void method_table(render::Renderer& renderer, const Plan& plan, const std::strin
 
 void frame_loop(render::Renderer& renderer, const Plan& plan) {
   for (int size : plan.frame_sizes) {
-    for (pipeline::Backend backend : {pipeline::Backend::cpu, pipeline::Backend::device}) {
+    // sim and bake on the CPU; the sim on the device; both on the device (its cone maps are each
+    // frame's own: no lag)
+    using pipeline::Backend;
+    const std::pair<Backend, Backend> backends[] = {
+        {Backend::cpu, Backend::cpu}, {Backend::device, Backend::cpu}, {Backend::device, Backend::device}};
+    const char* only_device_bake =
+        std::getenv("DISPLACE_PROBE_DEVICE_BAKE");  // 1: those configurations alone
+    for (const auto& [sim_backend, bake_backend] : backends) {
+      if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
+        continue;
       for (int lag : plan.cone_lags) {
+        if (bake_backend == Backend::device && lag != 0) continue;
         for (bool overlapped : {false, true}) {
           const int frame_count = size >= 2048 ? plan.large_frames : plan.frames;
           pipeline::Scene scene = pipeline::builtin_scene("water");
-          scene.sim_backend = backend;
-          scene.bake_backend = pipeline::Backend::cpu;
+          scene.sim_backend = sim_backend;
+          scene.bake_backend = bake_backend;
           scene.map_size = size;
           scene.camera.width = scene.camera.height = size;
           scene.method = render::Method::acm4;
@@ -238,6 +259,44 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
   }
 }
 
+// The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
+// unlimited and budget 0 (the first pass): each bake submitted and waited for (wall) and its GPU
+// timestamps (device), medians; the texels refined and the mean ratio read back.
+void device_cones(render::Renderer& renderer, const Plan& plan) {
+  for (int size : plan.cone_maps) {
+    pipeline::SourceSettings settings;
+    settings.kind = pipeline::SourceKind::ocean;
+    settings.map_size = size;
+    const std::unique_ptr<render::DeviceSim> ocean =
+        pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+    ocean->simulate(3.0);
+    render::DeviceCones cones(renderer, 4, bake::Address::wrap);
+    for (const long long texels : {render::unlimited_texels, 0LL}) {
+      std::vector<double> wall, device;
+      render::DeviceConeStats stats;
+      for (int r = 0; r <= plan.cone_repeats; ++r) {  // the first one warms up
+        const auto start = std::chrono::steady_clock::now();
+        cones.bake({texels});
+        stats = cones.read_back(nullptr, nullptr);
+        if (r == 0) continue;
+        wall.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+        device.push_back(cones.device_milliseconds());
+      }
+      std::vector<float> ratios;
+      cones.read_back(&ratios, nullptr);
+      double sum = 0.0;
+      for (float ratio : ratios) sum += double(ratio);
+      std::printf(
+          "device cones: water %d x %d, 4 sectors, %s: median %.3f ms wall, %.3f ms device; %lld texels "
+          "refined, mean ratio %.4f\n",
+          size, size, texels == 0 ? "first pass (budget 0)" : "unlimited", percentile(wall, 0.5),
+          percentile(device, 0.5), stats.texels_refined, ratios.empty() ? 0.0 : sum / double(ratios.size()));
+      std::fflush(stdout);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -255,6 +314,7 @@ int main(int argc, char** argv) {
     if (only.empty()) method_table(renderer, plan, directory);
     if (only.empty() || only == "frames") frame_loop(renderer, plan);
     if (only.empty() || only == "threads") stage_l_threads(renderer, plan);
+    if (only.empty() || only == "cones") device_cones(renderer, plan);
     return 0;
   } catch (const std::exception& error) {
     std::fprintf(stderr, "displace_device_probe: error: %s\n", error.what());

@@ -179,6 +179,8 @@ TEST(DetailLevels, ViewsWithoutLevelsAreUntouchedAndTheMemoryEstimateCountsThem)
 // A still scene (the time fixed) renders the same frame twice, bit for bit, with its levels.
 TEST(DetailLevels, AStillSceneRendersIdenticalFrames) {
   pipeline::Scene scene = pipeline::builtin_scene("calm");
+  scene.sim_backend = scene.bake_backend =
+      pipeline::Backend::cpu;  // levels are the CPU path's (on a GPU auto is the device)
   scene.map_size = 64;
   scene.camera.width = 80;
   scene.camera.height = 56;
@@ -208,6 +210,8 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
   constexpr std::array<double, 3> band_ends = {0.5, 2.0, 6.0};  // world units (the patch: 200 m)
   const char* band_names[4] = {"near (< 100 m)", "mid (100-400 m)", "far (400 m-1.2 km)", "top (> 1.2 km)"};
   pipeline::Scene scene = pipeline::builtin_scene("calm");
+  scene.sim_backend = scene.bake_backend =
+      pipeline::Backend::cpu;  // levels are the CPU path's (on a GPU auto is the device)
   scene.map_size = 128;
   scene.camera.width = width;
   scene.camera.height = height;
