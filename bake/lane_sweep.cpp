@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "bake/geometry.h"
+#include "bake/work_span.h"
 
 namespace displace::bake::detail {
 
@@ -236,8 +238,8 @@ void make_lane_plan(const float* heights, int width, int height, bool wrap, floa
   struct Extremes {
     std::int32_t low = 0x7fffffff, high = 0;
   };
-  const Extremes extremes = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, count, 1 << 15), Extremes{},
+  const Extremes extremes = parallel_reduce_region(
+      "lane plan", tbb::blocked_range<std::size_t>(0, count, 1 << 13), Extremes{},
       [&](const tbb::blocked_range<std::size_t>& range, Extremes found) {
         for (std::size_t n = range.begin(); n < range.end(); ++n) {
           const float scaled = heights[n] * float(height_scale);
@@ -434,7 +436,7 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    int first_quadrant, int quadrant_count) {
   if (level < 0) level = lane_sweep_best_level();
   long long works[4] = {};
-  tbb::parallel_for(first_quadrant, first_quadrant + quadrant_count, [&](int quadrant) {
+  parallel_for_each_region("sweeps", first_quadrant, first_quadrant + quadrant_count, [&](int quadrant) {
     LaneScratch& kept = cells.scratch[std::size_t(quadrant)];
     LaneSweepJob job;
     job.width = cells.width;
