@@ -15,6 +15,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -44,7 +45,8 @@ constexpr int stage_l_sweeps =
 constexpr int refine_chunk = 64;  // texels searched between two looks at the budget
 constexpr int near_reach = 6;     // half texels of padding the near field reads past the map (even)
 constexpr int near_band = 32;     // texel rows per band of sub-cells (a task's share), at most
-constexpr int near_bands = 16;    // bands a map's rows are cut into at least, where 8-row bands allow
+constexpr int near_bands = 32;    // with many threads, bands a map is cut into at least (8 rows or more)
+constexpr int split_threads = 8;  // stage L: threads from which it runs as for many (many_threads)
 constexpr int apex_parts = 2;     // stage L's steps (run_stage_l_step): the apexes in 2 parts,
 constexpr int near_parts = 4;     // the cells, two sweeps, the near field in 4 parts
 constexpr int stage_l_steps = apex_parts + 3 + near_parts;
@@ -405,10 +407,20 @@ void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* 
   }
 }
 
-// The near field's band of rows: near_band, or fewer rows on a map of fewer than 16 bands of them,
-// so that 16 threads have a band each (each band makes its own sub-cells: 6 rows more than its 2 x
-// rows of them).
-int near_band_rows(int height) { return std::clamp((height + near_bands - 1) / near_bands, 8, near_band); }
+// Whether stage L runs as for many threads: each quadrant's sweep in two strips and the near field
+// in 32 bands or more (the same bits for more work), where the arena has split_threads or
+// more, and while its work and span are recorded (which predicts such a machine).
+bool many_threads() {
+  return tbb::this_task_arena::max_concurrency() >= split_threads ||
+         detail::work_span_active.load(std::memory_order_relaxed);
+}
+
+// The near field's band of rows: near_band, or with many threads fewer rows on a map of fewer than
+// 32 bands of them, so that 16 threads have two bands each (each band makes its own sub-cells: 6
+// rows more than its 2 x rows of them).
+int near_band_rows(int height) {
+  return many_threads() ? std::clamp((height + near_bands - 1) / near_bands, 8, near_band) : near_band;
+}
 
 // Stage L over the whole map (apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios), in
 // steps that BilinearBaker::advance spreads over calls and bake() runs all at once: the apexes, in
@@ -417,9 +429,8 @@ int near_band_rows(int height) { return std::clamp((height + near_bands - 1) / n
 // that joins it all, in near_parts parts of the rows. A step reads only the heights copied at the
 // start and what the steps before it wrote into the state, so any spread gives bit for bit the same map.
 int near_part_first_row(int height, int part) {
-  const int band = near_band_rows(height);
-  const int bands = (height + band - 1) / band;
-  return std::min(height, bands * part / near_parts * band);
+  const int bands = (height + near_band - 1) / near_band;
+  return std::min(height, bands * part / near_parts * near_band);
 }
 
 void emit_rows(State& state, int first_row, int last_row, float* out, float* apex);
@@ -548,9 +559,11 @@ void stage_l_sweep_quadrants(State& state, int step, bool merged) {
     passed[q] = state.passed[0][q].data();
     passed3[q] = state.passed3[0][q].data();
   }
-  state.stage_l_work +=
-      detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus, passed,
-                                       state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
+  // each quadrant in two strips where there are threads for 8 sweeps (a quarter more work)
+  const bool split = many_threads();
+  state.stage_l_work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(),
+                                                         state.bonus, passed, state.bonus3, passed3, -1, true,
+                                                         first_quadrant, quadrant_count, split);
   if (first_quadrant + quadrant_count == 4) {
     std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
     state.upper_ready = false;
