@@ -488,8 +488,10 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     kept.second_lap_rows = job.second_lap_rows;
     return job.work;
   };
-  const int H = cells.height;
-  if (!split || !stop_early || H < split_sweep_rows) {
+  // a strip's second pass stops after depth + 3 equal rows (the kernel's stop test), and with wrap
+  // A's must read B's last depth rows: strips shorter than twice that would rarely meet
+  const int H = cells.height, depth = std::max(2, cells.column_reach);
+  if (!split || !stop_early || H < split_sweep_rows || H / 2 < 2 * (depth + 3)) {
     long long works[4] = {};
     parallel_for_each_region("sweeps", first_quadrant, first_quadrant + quadrant_count,
                              [&](int quadrant) { works[quadrant] = sweep_whole(quadrant); });

@@ -231,8 +231,8 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // quadrant q's counts of passing lanes (per texel) to passed[q] and passed3[q]. bonus, bonus3:
 // lane_count values (see LaneSweepJob). Only quadrants first_quadrant .. + quadrant_count - 1 when
 // asked (stage L in steps). `split`: each quadrant in two strips of rows, twice the tasks and about
-// a quarter more work for the same bits (lane_sweep.cpp; maps of split_sweep_rows cell rows or more,
-// with stop_early): for many threads. Returns the work.
+// a quarter more work for the same bits (lane_sweep.cpp; maps of split_sweep_rows cell rows or more
+// and strips of twice the rows the stop test needs, with stop_early): for many threads. Returns the work.
 constexpr int split_sweep_rows = 32;
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
