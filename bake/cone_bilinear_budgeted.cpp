@@ -15,6 +15,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -32,6 +33,7 @@
 #include "bake/budget_clock.h"
 #include "bake/geometry.h"
 #include "bake/lane_sweep.h"
+#include "bake/work_span.h"
 
 namespace displace::bake {
 namespace {
@@ -42,7 +44,9 @@ constexpr int stage_l_sweeps =
     1;  // stage L: sweeps of detail::lane_count lanes each (2: +33% time, +1% ratio)
 constexpr int refine_chunk = 64;  // texels searched between two looks at the budget
 constexpr int near_reach = 6;     // half texels of padding the near field reads past the map (even)
-constexpr int near_band = 32;     // texel rows per band of sub-cells (a task's share)
+constexpr int near_band = 32;     // texel rows per band of sub-cells (a task's share), at most
+constexpr int near_bands = 32;    // with many threads, bands a map is cut into at least (8 rows or more)
+constexpr int split_threads = 8;  // stage L: threads from which it runs as for many (many_threads)
 constexpr int apex_parts = 2;     // stage L's steps (run_stage_l_step): the apexes in 2 parts,
 constexpr int near_parts = 4;     // the cells, two sweeps, the near field in 4 parts
 constexpr int stage_l_steps = apex_parts + 3 + near_parts;
@@ -155,17 +159,22 @@ int wrap_index(int n, int count) {
 // along any segment s rises at most G = max G_cell per unit of uv length. For p in Q_c, s(p) <= H_c
 // (the apex is s's maximum over Q_c), so s(x) - H_c <= s(x) - s(p) <= G |x - p|: 1 / G holds from
 // every p of Q_c in every direction. Returned rounded down (the float differences and squares
-// within a relative 1e-5), 1 where the map is flat.
-float make_cells(State& state) {
+// within a relative 1e-5), 1 where the map is flat; `lowest` gets the smallest cell maximum.
+float make_cells(State& state, float& lowest) {
   const bool wrap = state.address == Address::wrap;
   const int W = state.width, H = state.height;
   const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
   state.cell_max.resize(std::size_t(cells_u) * cells_v);
   auto texel = [&](int n, int count) { return wrap ? wrap_index(n, count) : std::clamp(n, 0, count - 1); };
   const float per_u = float(W), per_v = float(H);
-  const float steepest_squared = tbb::parallel_reduce(
-      tbb::blocked_range<int>(0, cells_v), 0.0f,
-      [&](const tbb::blocked_range<int>& rows, float steepest) {
+  struct Found {
+    float steepest_squared = 0.0f;
+    float lowest = std::numeric_limits<float>::infinity();
+  };
+  const Found found = detail::parallel_reduce_region(
+      "cells", tbb::blocked_range<int>(0, cells_v), Found{},
+      [&](const tbb::blocked_range<int>& rows, Found partial) {
+        float steepest = partial.steepest_squared, low = partial.lowest;
         for (int nv = rows.begin(); nv < rows.end(); ++nv) {
           const float* row0 = state.heights.data() + std::size_t(texel(nv - 1, H)) * W;
           const float* row1 = state.heights.data() + std::size_t(texel(nv, H)) * W;
@@ -180,10 +189,15 @@ float make_cells(State& state) {
           cell(0, texel(-1, W), texel(0, W));
           for (int nu = 1; nu < std::min(W, cells_u); ++nu) cell(nu, nu - 1, nu);  // both texels in the map
           for (int nu = std::max(1, W); nu < cells_u; ++nu) cell(nu, texel(nu - 1, W), texel(nu, W));
+          for (int nu = 0; nu < cells_u; ++nu) low = std::min(low, out[nu]);
         }
-        return steepest;
+        return Found{steepest, low};
       },
-      [](float a, float b) { return std::max(a, b); });
+      [](Found a, const Found& b) {
+        return Found{std::max(a.steepest_squared, b.steepest_squared), std::min(a.lowest, b.lowest)};
+      });
+  lowest = found.lowest;
+  const float steepest_squared = found.steepest_squared;
   if (!(steepest_squared > 0.0f)) return 1.0f;
   return float(std::min(1.0, (1.0 - 1e-5) / std::sqrt(double(steepest_squared) * (1.0 + 1e-5))));
 }
@@ -393,6 +407,21 @@ void near_row(const SubCells& cells, const NearPlan& plan, const std::uint16_t* 
   }
 }
 
+// Whether stage L runs as for many threads: each quadrant's sweep in two strips and the near field
+// in 32 bands or more (the same bits for more work), where the arena has split_threads or
+// more, and while its work and span are recorded (which predicts such a machine).
+bool many_threads() {
+  return tbb::this_task_arena::max_concurrency() >= split_threads ||
+         detail::work_span_active.load(std::memory_order_relaxed);
+}
+
+// The near field's band of rows: near_band, or with many threads fewer rows on a map of fewer than
+// 32 bands of them, so that 16 threads have two bands each (each band makes its own sub-cells: 6
+// rows more than its 2 x rows of them).
+int near_band_rows(int height) {
+  return many_threads() ? std::clamp((height + near_bands - 1) / near_bands, 8, near_band) : near_band;
+}
+
 // Stage L over the whole map (apexes, lane sweeps, near bounds; stage_l gets the quadrant ratios), in
 // steps that BilinearBaker::advance spreads over calls and bake() runs all at once: the apexes, in
 // apex_parts parts of the rows; the cells, the Lipschitz bound and the lanes; the sweeps of
@@ -430,7 +459,8 @@ void stage_l_apexes(State& state, int step, bool merged) {
   const int block_texels = detail::apex_block_texels(level);
   const int first = int(std::int64_t(H) * step / apex_parts),
             last = merged ? H : int(std::int64_t(H) * (step + 1) / apex_parts);
-  tbb::parallel_for(tbb::blocked_range<int>(first, last), [&](const tbb::blocked_range<int>& rows) {
+  const tbb::blocked_range<int> part_rows(first, last);
+  detail::parallel_for_region("apexes", part_rows, [&](const tbb::blocked_range<int>& rows) {
     for (int i = rows.begin(); i < rows.end(); ++i) {
       const int up = wrap ? wrap_index(i + 1, H) : std::min(i + 1, H - 1),
                 down = wrap ? wrap_index(i - 1, H) : std::max(i - 1, 0);
@@ -478,7 +508,8 @@ void stage_l_lanes(State& state) {
   const bool wrap = state.address == Address::wrap;
   const std::size_t texels = std::size_t(W) * H;
   const double t = 1.0 / double(std::max(W, H));
-  state.lipschitz = make_cells(state);
+  float lowest_cell = 0.0f;
+  state.lipschitz = make_cells(state, lowest_cell);
   const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
   detail::make_lane_plan(state.cell_max.data(), cells_u, cells_v, wrap, lane_lowest_ratio, true, false,
                          state.plan);
@@ -486,8 +517,7 @@ void stage_l_lanes(State& state) {
   // its height range, and never below the Lipschitz bound, which every texel holds anyway) to just
   // above 1, 1.3x apart below lane_knee and evenly geometric above
   double lanes[stage_l_sweeps * detail::lane_count];
-  const double range =
-      double(state.plan.highest) - double(*std::min_element(state.cell_max.begin(), state.cell_max.end()));
+  const double range = double(state.plan.highest) - double(lowest_cell);
   const double smallest = std::clamp(
       std::max(range > 0.0 ? double(state.plan.nearest) / range : lane_knee, double(state.lipschitz)),
       1.0 / 8192.0, 0.5);
@@ -529,9 +559,11 @@ void stage_l_sweep_quadrants(State& state, int step, bool merged) {
     passed[q] = state.passed[0][q].data();
     passed3[q] = state.passed3[0][q].data();
   }
-  state.stage_l_work +=
-      detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(), state.bonus, passed,
-                                       state.bonus3, passed3, -1, true, first_quadrant, quadrant_count);
+  // each quadrant in two strips where there are threads for 8 sweeps (a quarter more work)
+  const bool split = many_threads();
+  state.stage_l_work += detail::sweep_bilinear_quadrants(state.plan, W, H, state.apex_bottom.data(),
+                                                         state.bonus, passed, state.bonus3, passed3, -1, true,
+                                                         first_quadrant, quadrant_count, split);
   if (first_quadrant + quadrant_count == 4) {
     std::copy(std::begin(state.plan.lane_ratio), std::end(state.plan.lane_ratio), state.lane_ratio[0]);
     state.upper_ready = false;
@@ -553,8 +585,9 @@ void stage_l_near(State& state, int part, bool merged) {
   const float rate_scale = near_rate_scale(state.lipschitz, W, H);
   const float rate_unit = detail::float_at_least(1.0 / double(rate_scale));
   // in bands of texel rows, each with its own sub-cells: rows 2 i - near_reach to 2 i + near_reach
-  tbb::parallel_for(
-      tbb::blocked_range<int>(first, last, near_band), [&](const tbb::blocked_range<int>& rows) {
+  const int band = near_band_rows(H);
+  detail::parallel_for_region(
+      "near field", tbb::blocked_range<int>(first, last, band), [&](const tbb::blocked_range<int>& rows) {
         thread_local std::vector<float> near[4], slope3[4];
         thread_local SubCells sub_cells;
         for (int q = 0; q < 4; ++q) {
@@ -1155,7 +1188,13 @@ BakeStats BilinearBaker::bake(HeightView heights, const Budget& budget, ConeView
   check_tolerance(budget);
   Clock clock(budget);
   const std::size_t texels = std::size_t(state.width) * state.height;
-  state.heights.assign(heights.data, heights.data + texels);
+  // the frame's heights, kept (in parallel: one thread's copy was a tenth of a 16-thread stage L)
+  state.heights.resize(texels);
+  detail::parallel_for_region("heights", tbb::blocked_range<std::size_t>(0, texels, std::size_t(1) << 15),
+                              [&](const tbb::blocked_range<std::size_t>& range) {
+                                std::memcpy(state.heights.data() + range.begin(),
+                                            heights.data + range.begin(), sizeof(float) * range.size());
+                              });
   state.has_frame = true;
   state.search_current = false;
   // stage L emits each row as the near field finishes it (the same bits as emit_all)

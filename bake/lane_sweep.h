@@ -73,6 +73,23 @@ struct LaneSweepJob {
   // counts either way, only the work differs); out: second_lap_rows, the rows the second lap swept.
   int skip_tests = 0;
   int second_lap_rows = 0;
+
+  // A part of a split sweep (bilinear mode, sweep_bilinear_quadrants on many threads): only steps
+  // [first_step, last_step) of the sweep (step s sweeps local row H - 1 - s mod H; lap 1 is steps 0 ..
+  // H - 1, lap 2 from H on), from zeros (fresh) or from the row buffers and ring that the part before
+  // step first_step left in `scratch` and `bilinear_scratch`; the box tests of steps before
+  // skip_until are left to another part. record_sums gets the row sums of its first sums_count steps;
+  // with compare_sums instead, the part stops once stop-test many rows in a row equal them (the lap
+  // logic above, against that part's first pass) and it has swept at least compare_skip steps: out
+  // converged, and split_rows, the steps swept.
+  bool split = false;
+  bool fresh = true;
+  int first_step = 0, last_step = 0, skip_until = 0;
+  long long* record_sums = nullptr;
+  const long long* compare_sums = nullptr;
+  int sums_count = 0, compare_skip = 0;
+  bool converged = false;
+  int split_rows = 0;
 };
 
 // Extra scratch of a bilinear sweep: a ring of four rows of dilations, each with one padding cell
@@ -213,12 +230,15 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
 // clamp, cell n between texels n - 1 and n) with texel_bottom the W x H texels' floor(apex * 65535):
 // quadrant q's counts of passing lanes (per texel) to passed[q] and passed3[q]. bonus, bonus3:
 // lane_count values (see LaneSweepJob). Only quadrants first_quadrant .. + quadrant_count - 1 when
-// asked (stage L in steps).
+// asked (stage L in steps). `split`: each quadrant in two strips of rows, twice the tasks and about
+// a quarter more work for the same bits (lane_sweep.cpp; maps of split_sweep_rows cell rows or more
+// and strips of twice the rows the stop test needs, with stop_early): for many threads. Returns the work.
+constexpr int split_sweep_rows = 32;
 long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
                                    const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
                                    std::uint8_t* const passed[4], const std::uint16_t* bonus3,
                                    std::uint8_t* const passed3[4], int level = -1, bool stop_early = true,
-                                   int first_quadrant = 0, int quadrant_count = 4);
+                                   int first_quadrant = 0, int quadrant_count = 4, bool split = false);
 
 // The bilinear baker's near field for one row of texels and one quadrant (cone_bilinear_budgeted.cpp
 // says what it computes). Each sub-cell offset gives, per texel j, the sub-cell's maximum top[j] and

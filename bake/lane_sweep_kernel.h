@@ -41,9 +41,16 @@ void sweep_kernel(LaneSweepJob& job) {
   // Row buffers for local rows a + 1 .. a + depth. Row a is written over row a + depth as the sweep
   // goes (each texel of row a + depth is read once more, one texel later, so it is kept in a
   // register), and the buffers then move down a row. Nothing lies below the first row swept.
+  // (A split sweep's part goes on from the buffers as the part before it left them at first_step:
+  // after s steps buffer k - 1 - s, mod depth, holds row a + k.)
+  const bool split = job.split;
+  const bool fresh = !split || job.fresh;
+  const int first_step = split ? job.first_step : 0;
   std::uint16_t* below[lane_reach_limit + 1];
-  for (int k = 1; k <= depth; ++k) below[k] = job.scratch + std::size_t(k - 1) * row_values;
-  for (std::size_t n = 0; n < std::size_t(depth) * row_values; ++n) job.scratch[n] = 0;
+  for (int k = 1; k <= depth; ++k)
+    below[k] = job.scratch + std::size_t(((k - 1 - first_step) % depth + depth) % depth) * row_values;
+  if (fresh)
+    for (std::size_t n = 0; n < std::size_t(depth) * row_values; ++n) job.scratch[n] = 0;
 
   const V step_row = Ops::load(job.steps + lane_move_carry * lane_count);
   const std::uint16_t* row_steps = job.steps + std::size_t(lane_move_row + job.row_first) * lane_count;
@@ -76,7 +83,8 @@ void sweep_kernel(LaneSweepJob& job) {
   if (bilinear) {
     for (int k = 0; k < 4; ++k)
       ring[k] = job.bilinear_scratch + std::size_t(k) * (std::size_t(W) + 5) * lane_stride;
-    for (std::size_t n = 0; n < 4 * (std::size_t(W) + 5) * lane_stride; ++n) job.bilinear_scratch[n] = 0;
+    if (fresh)
+      for (std::size_t n = 0; n < 4 * (std::size_t(W) + 5) * lane_stride; ++n) job.bilinear_scratch[n] = 0;
   }
 
   const int tracked = wrap ? (H + 1) / 2 + 1 : 0;  // first-lap rows whose sums are kept
@@ -102,7 +110,9 @@ void sweep_kernel(LaneSweepJob& job) {
   // the second lap stops before reaching them (equal to its rows); otherwise the sweep goes on for
   // three rows of a third lap, which re-test those texel rows from the second lap's complete rows.
   const int swept_rows = wrap ? (bilinear ? 2 * H + 3 : 2 * H) : H;
-  for (int step = 0; step < swept_rows; ++step) {
+  const int last_step = split ? job.last_step : swept_rows;
+  job.converged = false;
+  for (int step = first_step; step < last_step; ++step) {
     const bool second_lap = step >= H;
     const int a = H - 1 - (step % H);
     const int physical_row = job.flip_y ? H - 1 - a : a;
@@ -203,7 +213,8 @@ void sweep_kernel(LaneSweepJob& job) {
         return wrap ? ((row % texel_height) + texel_height) % texel_height : row;
       };
       const int tested = texel_row(a - job.cell_offset_y);
-      const bool left_to_second_lap = wrap && step < skip_tests;  // the second lap tests this row
+      // the second lap (or another part) tests this row
+      const bool left_to_second_lap = split ? step < job.skip_until : wrap && step < skip_tests;
       if (tested >= 0 && tested < texel_height && !left_to_second_lap) {
         const int physical_texel_row = job.flip_y ? texel_height - 1 - tested : tested;
         const std::uint16_t* apex_row = job.texel_bottom + std::size_t(physical_texel_row) * texel_width;
@@ -248,7 +259,23 @@ void sweep_kernel(LaneSweepJob& job) {
     }
 
     const int lap_row = step % H;  // rows into the lap
-    if (lap_row < tracked) {
+    if (split) {
+      const int index = step - first_step;
+      if (index < job.sums_count) {
+        const long long row_sum = Ops::sum(written, W);
+        if (job.record_sums) {
+          job.record_sums[index] = row_sum;
+        } else {
+          equal_rows = row_sum == job.compare_sums[index] ? equal_rows + 1 : 0;
+          if (equal_rows >= stop_rows && index + 1 >= job.compare_skip) {
+            job.converged = true;
+            job.split_rows = index + 1;
+            job.work = work;
+            return;
+          }
+        }
+      }
+    } else if (lap_row < tracked) {
       const long long row_sum = Ops::sum(written, W);
       if (!second_lap) {
         row_sums[lap_row] = row_sum;
@@ -264,6 +291,7 @@ void sweep_kernel(LaneSweepJob& job) {
     for (int k = depth; k > 1; --k) below[k] = below[k - 1];  // row a is now the one below
     below[1] = written;
   }
+  if (split) job.split_rows = last_step - first_step;
   job.work = work;
 }
 

@@ -644,6 +644,69 @@ TEST(LaneSweep, BilinearSecondLapStopsOnlyWhereNothingWouldChange) {
   EXPECT_EQ(mismatches, 0) << "of " << maps;
 }
 
+// The split sweeps (each quadrant in two strips, for many threads) give the whole sweeps' counts, bit
+// for bit, with wrap and clamp, on odd and non-square maps, whatever the guesses of the rows the
+// second passes take and however many threads run them - also where a strip's second pass does not
+// meet its first and the quadrant is swept whole again (the near-flat and sparse maps).
+TEST(LaneSweep, BilinearSplitSweepsGiveTheWholeSweepsCounts) {
+  const std::pair<int, int> sizes[] = {{32, 32}, {33, 47},  {64, 35}, {40, 96},
+                                       {97, 64}, {128, 41}, {3, 100}, {5, 90}};
+  int maps = 0;
+  for (std::uint64_t seed = 1; seed <= 64; ++seed) {
+    const auto [W, H] = sizes[seed % 8];
+    const bool wrap = seed % 4 != 0;
+    const int cells_u = wrap ? W : W + 1, cells_v = wrap ? H : H + 1;
+    std::vector<float> cells(std::size_t(cells_u) * cells_v, 0.0f);
+    const int kind = int(seed % 4);
+    for (int i = 0; i < cells_v; ++i)
+      for (int j = 0; j < cells_u; ++j) {
+        const float r = test::hash01(163, seed * 101 + std::uint64_t(i), std::uint64_t(j));
+        cells[std::size_t(i) * cells_u + j] = kind == 0   ? 0.05f * r
+                                              : kind == 1 ? (r > 0.97f ? r : 0.0f)
+                                              : kind == 2 ? 0.5f * r * r
+                                                          : 0.0f;
+      }
+    if (kind == 3)  // one spike on a flat map: its cone reaches across the map, past a strip
+      cells[std::size_t(test::hash01(179, seed, 0) * float(cells_v)) % cells_v * cells_u +
+            std::size_t(test::hash01(181, seed, 0) * float(cells_u)) % cells_u] = 1.0f;
+    detail::LanePlan plan;
+    detail::make_lane_plan(cells.data(), cells_u, cells_v, wrap, 0.02f, true, false, plan);
+    std::vector<std::uint16_t> bottom(std::size_t(W) * H);
+    for (std::size_t t = 0; t < bottom.size(); ++t)
+      bottom[t] = std::uint16_t(65535.0f * (0.1f + 0.9f * test::hash01(167, seed, t)));
+    alignas(64) std::uint16_t bonus[detail::lane_count], bonus3[detail::lane_count];
+    for (int l = 0; l < detail::lane_count; ++l) {
+      bonus[l] = std::uint16_t(300 + 20 * l);
+      bonus3[l] = std::uint16_t(900 + 60 * l);
+    }
+    auto run = [&](bool split) {
+      std::vector<std::uint8_t> counts(std::size_t(W) * H * 8);
+      std::uint8_t* passed[4];
+      std::uint8_t* passed3[4];
+      for (int q = 0; q < 4; ++q) {
+        passed[q] = counts.data() + std::size_t(q) * W * H;
+        passed3[q] = counts.data() + std::size_t(4 + q) * W * H;
+      }
+      detail::sweep_bilinear_quadrants(plan, W, H, bottom.data(), bonus, passed, bonus3, passed3, -1, true, 0,
+                                       4, split);
+      return counts;
+    };
+    const std::vector<std::uint8_t> whole = run(false);
+    for (int threads : {1, 2, 3, 16}) {
+      // guesses of the rows each second pass takes: from none to past the strip
+      for (int slot = 0; slot < 8; ++slot)
+        plan.scratch[std::size_t(slot)].second_lap_rows =
+            int(test::hash01(173, seed * 17 + std::uint64_t(threads), std::uint64_t(slot)) * float(H));
+      std::vector<std::uint8_t> split;
+      tbb::task_arena(threads).execute([&] { split = run(true); });
+      EXPECT_EQ(split, whole) << "seed " << seed << ", " << W << " x " << H << (wrap ? " wrap" : " clamp")
+                              << ", " << threads << " threads";
+    }
+    ++maps;
+  }
+  EXPECT_EQ(maps, 64);
+}
+
 // Non-square maps. The chamfer of stage L (lane_sweep.cpp) for every aspect make_lane_plan sees:
 // the cheapest path of moves to every lattice point of the quadrant within uv distance 1 - each move
 // costing scale times its uv length - is no longer than the straight line; scale stays the square

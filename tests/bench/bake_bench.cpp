@@ -17,6 +17,7 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/work_span.h"
 #include "sim/sim.h"
 #include "tests/test_maps.h"
 
@@ -259,6 +261,30 @@ long long sampled_violations(const std::vector<float>& heights, int size, const 
   return violations;
 }
 
+// Stage L's scaling, from one more bake of each frame with its work and span recorded
+// (bake/work_span.h): ws_work_ms, what one thread takes; ws_bound2_ms and ws_bound16_ms, at least
+// what 2 and 16 threads take (serial + the regions' max(work / T, span)); ws_bound16_vs_time, the
+// 16-thread bound over this run's milliseconds per bake (the predicted ratio when this run has 2
+// cores: taskset -c 0,1).
+void add_work_span_counters(benchmark::State& state, bake::BilinearBaker& baker, const OceanFrames& frames,
+                            double ms_per_bake) {
+  const int size = int(state.range(0));
+  std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
+  bake::detail::WorkSpan record;
+  bake::Budget budget;
+  budget.milliseconds = 0.0;
+  for (const std::vector<float>& heights : frames.heights) {
+    const bake::detail::WorkSpanRecording recording(record);
+    baker.bake({heights.data(), size, size}, budget, {cones.data(), size, size, 4}, apex);
+  }
+  const double bakes = double(frames.heights.size());
+  state.counters["ws_work_ms"] = 1e3 * bake::detail::work_span_total(record) / bakes;
+  state.counters["ws_bound2_ms"] = 1e3 * bake::detail::work_span_bound(record, 2) / bakes;
+  state.counters["ws_bound16_ms"] = 1e3 * bake::detail::work_span_bound(record, 16) / bakes;
+  state.counters["ws_bound16_vs_time"] =
+      1e3 * bake::detail::work_span_bound(record, 16) / bakes / ms_per_bake;
+}
+
 void run_bilinear(benchmark::State& state, bool budgeted,
                   double budget_ms = std::numeric_limits<double>::infinity(), MapKind kind = MapKind::ocean) {
   const int size = int(state.range(0));
@@ -273,6 +299,7 @@ void run_bilinear(benchmark::State& state, bool budgeted,
     baker.bake({frames.heights[0].data(), size, size}, budget, out, apex);
   }
   std::size_t frame = 0, last = 0;
+  const auto start = std::chrono::steady_clock::now();
   for (auto _ : state) {
     last = frame % frames.heights.size();
     const bake::HeightView heights{frames.heights[last].data(), size, size};
@@ -283,6 +310,9 @@ void run_bilinear(benchmark::State& state, bool budgeted,
     benchmark::DoNotOptimize(cones.data());
     ++frame;
   }
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (budgeted && budget_ms == 0.0) add_work_span_counters(state, baker, frames, elapsed_ms / double(frame));
   if (!std::isnan(frames.full_mean[last]))
     state.counters["mean_ratio_vs_full"] = stats.mean_ratio / frames.full_mean[last];
   state.counters["mean_ratio"] = stats.mean_ratio;

@@ -18,8 +18,9 @@
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
 // 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
-//    16 threads (TBB arenas, up to the CPUs this process may use) on the water ocean's 512 and 1024
-//    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine.
+//    16 threads (TBB arenas, up to the CPUs this process may use) on the water ocean's 256, 512 and 1024
+//    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine,
+//    next to the bound that a recorded bake's work and span give (bake/work_span.h).
 // 4. The device's cone maps alone (render::DeviceCones of a device ocean, 512, 1024 and 2048),
 //    unlimited and budget 0: median wall and device milliseconds, texels refined, mean ratio.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
@@ -40,6 +41,7 @@
 #include <utility>
 #include <vector>
 
+#include "bake/work_span.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/height_source.h"
 #include "pipeline/maps.h"
@@ -82,7 +84,7 @@ struct Plan {
   std::vector<int> frame_sizes{256, 512, 1024, 2048};
   std::vector<int> cone_lags{0, 3};
   int warm_up = 10, frames = 150, large_frames = 40;  // large: maps of 2048 and more
-  std::vector<int> thread_maps{512, 1024};
+  std::vector<int> thread_maps{256, 512, 1024};
   int thread_repeats = 5;
   std::vector<int> cone_maps{512, 1024, 2048};
   int cone_repeats = 5;
@@ -250,10 +252,29 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
         }
       });
+      // and the bound that its work and span give for this many threads (bake/work_span.h)
+      bake::detail::WorkSpan work_span;
+      arena.execute([&] {
+        bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);
+        baker.bake(heights, budget, cones, apex);
+        const bake::detail::WorkSpanRecording recording(work_span);
+        baker.bake(heights, budget, cones, apex);
+      });
       const double median = percentile(times, 0.5);
       if (threads == 1) one_thread = median;
-      std::printf("stage L: water %d x %d, 4 sectors, %2d threads: median %.3f ms (%.2fx one thread's)\n",
-                  size, size, threads, median, one_thread / median);
+      std::printf(
+          "stage L: water %d x %d, 4 sectors, %2d threads: median %.3f ms (%.2fx one thread's); work %.3f "
+          "ms, "
+          "at least %.3f ms on %d threads\n",
+          size, size, threads, median, one_thread / median, 1e3 * bake::detail::work_span_total(work_span),
+          1e3 * bake::detail::work_span_bound(work_span, threads), threads);
+      if (threads == 16 || threads == std::max(1, tbb::info::default_concurrency())) {
+        std::printf("  serial %.3f ms", 1e3 * work_span.serial);
+        for (const bake::detail::WorkSpanRegion& region : work_span.regions)
+          std::printf("; %s work %.3f span %.3f ms (%lld tasks)", region.name.c_str(), 1e3 * region.work,
+                      1e3 * region.span, region.tasks);
+        std::printf("\n");
+      }
       std::fflush(stdout);
     }
   }
