@@ -27,6 +27,8 @@ pipeline::Scene foam_scene() {
   pipeline::Scene scene = pipeline::builtin_scene("water");
   scene.map_size = 64;
   scene.camera.width = scene.camera.height = 64;
+  scene.sim_backend = scene.bake_backend =
+      pipeline::Backend::cpu;  // the CPU's foam (auto: the device on a GPU)
   return scene;
 }
 

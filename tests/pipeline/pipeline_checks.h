@@ -44,6 +44,9 @@ inline Scene small_scene(const char* builtin, int map_size, int pixels) {
   scene.camera.eye = {0.5f, -0.3f, 0.6f};
   scene.camera.look_at = {0.5f, 0.5f, -0.05f};
   scene.camera.fov_y_degrees = 30.0f;
+  // the CPU path, which these tests look into (on a GPU `auto` is the device; the device path's own
+  // tests name it)
+  scene.sim_backend = scene.bake_backend = pipeline::Backend::cpu;
   return scene;
 }
 

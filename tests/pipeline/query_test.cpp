@@ -32,6 +32,8 @@ double periodic_bilinear(const std::vector<float>& grid, int width, int height, 
 pipeline::Scene query_scene(const char* name) {
   pipeline::Scene scene = pipeline::builtin_scene(name);
   scene.map_size = 64;
+  scene.sim_backend = scene.bake_backend =
+      pipeline::Backend::cpu;  // the CPU path (auto: the device on a GPU)
   return scene;
 }
 
