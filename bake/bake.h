@@ -246,14 +246,23 @@ class BilinearBaker {
 // what a renderer traces on that level, and its cone maps are a baker's for that map (the bilinear
 // cones' contract then holds for that level's surface by their own proof). The mean, not the max:
 // it is the box prefilter of the heights a far pixel averages, and keeps the sea's mean level.
-inline constexpr int max_detail_levels = 8;  // coarser levels at most (level 0 not counted)
-inline constexpr int min_level_side = 8;     // texels a side of the coarsest level at least
+inline constexpr int max_detail_levels = 13;  // coarser levels at most (level 0 not counted): 8192 to 1
+inline constexpr int min_level_side = 1;      // texels a side of the coarsest level at least
 // The coarser levels a W x H map has: halvings while both sides are even and the halves keep
 // min_level_side texels, at most max_detail_levels.
 int detail_level_count(int width, int height);
 // One level down: `coarse` ((W / 2) x (H / 2), W and H even) gets the 2 x 2 box means of `fine`.
 // Throws BakeError for odd sides or a coarse span of the wrong size.
 void downsample_heights(HeightView fine, std::span<float> coarse);
+// What a level's smoothing leaves out of the shading: the slopes of level 0 under each of its texels.
+// gradient_moments gives level 0's, per texel (g_u, g_v, g_u^2 + g_v^2) for its gradient g by
+// central differences, wrapped, in height units per uv unit (g_u = (h[j + 1] - h[j - 1]) W / 2);
+// downsample_moments makes level l + 1's from level l's as downsample_heights does (2 x 2 means of
+// each of the three), so that level l holds the means of level 0's over its texel's footprint. The
+// slope variance that level l does not resolve is the last minus the square of the first two.
+// Throws BakeError as downsample_heights does (and for a map under 1 x 1).
+void gradient_moments(HeightView level0, std::span<float> moments);
+void downsample_moments(std::span<const float> fine, int width, int height, std::span<float> coarse);
 
 // Max pyramid (maximum mipmaps): level 0 is the map; level L has ceil(W / 2^L) x ceil(H / 2^L)
 // texels, each the maximum of its (up to four) children; the last level is 1 x 1.

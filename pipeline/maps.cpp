@@ -89,7 +89,7 @@ struct SlotLevels {
   std::uint64_t made_for = 0;
   int count = 0, sectors = 0;
   bake::Address address = bake::Address::wrap;
-  std::array<std::vector<float>, bake::max_detail_levels> heights, ratios, apex;
+  std::array<std::vector<float>, bake::max_detail_levels> heights, ratios, apex, slopes;
   std::uint64_t version = 0;
 };
 
@@ -159,6 +159,7 @@ struct MapMaker::State {
   std::vector<Slot> slots;
   std::array<ConeBaker, 3> bakers;  // by render::cone_slot
   LevelBakers level_bakers;
+  std::vector<float> slope_scratch;  // level 0's gradient moments while the levels are made
 
   // the one-off heights (slot 0)
   render::HeightField field;
@@ -348,12 +349,20 @@ void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const r
   }
   levels.count = bake::detail_level_count(heights.width, heights.height);
   bake::HeightView below = view_of(heights);
+  std::vector<float>& level0_slopes = slope_scratch;
+  if (levels.count > 0) {
+    level0_slopes.resize(std::size_t(heights.width) * std::size_t(heights.height) * 3);
+    bake::gradient_moments(below, level0_slopes);
+  }
   for (int level = 1; level <= levels.count; ++level) {
     const auto index = std::size_t(level - 1);
     const int width = heights.width >> level, height = heights.height >> level;
     const std::size_t texels = std::size_t(width) * std::size_t(height);
     levels.heights[index].resize(texels);
     bake::downsample_heights(below, levels.heights[index]);
+    levels.slopes[index].resize(texels * 3);
+    bake::downsample_moments(index == 0 ? std::span<const float>(level0_slopes) : levels.slopes[index - 1],
+                             below.width, below.height, levels.slopes[index]);
     below = {levels.heights[index].data(), width, height};
     levels.ratios[index].resize(texels * std::size_t(sectors));
     levels.apex[index].resize(texels);
@@ -418,7 +427,8 @@ const render::MapSet& MapMaker::State::assemble(Slot& slot, const MapHeights& he
     set.level_sectors = levels.sectors;
     set.level_address = levels.address;
     for (std::size_t index = 0; index < std::size_t(levels.count); ++index)
-      set.levels[index] = {levels.heights[index], levels.ratios[index], levels.apex[index]};
+      set.levels[index] = {levels.heights[index], levels.ratios[index], levels.apex[index],
+                           levels.slopes[index]};
     set.levels_version = levels.version;
   }
   if (!heights.foam.empty()) {

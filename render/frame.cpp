@@ -242,6 +242,8 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   const int levels = traced_levels(view, info);
   const int pinned = view.level == View::level_auto ? -1 : std::min(std::max(view.level, 0), levels);
   uniforms.levels = glm::vec4(float(levels), float(pinned), 0.0f, 0.0f);
+  for (int level = 1; level <= levels; ++level)
+    uniforms.level_tops[(level - 1) / 4][(level - 1) % 4] = level_tops[std::size_t(level - 1)];
   std::memcpy(frame_slot.uniforms.mapped(), &uniforms, sizeof uniforms);
 }
 

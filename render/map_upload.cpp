@@ -63,6 +63,8 @@ VkDeviceSize rect_texels(const bake::Rect& rect) {
 }
 
 // A host-written image's float at texel (x, y) of layer 0.
+constexpr std::size_t level_texel_bytes = 16;  // the levels' height atlas: RGBA32F (pack_level)
+
 float* texel_of(const DeviceMap& map, int x, int y, std::size_t texel_bytes) {
   return reinterpret_cast<float*>(map.image.mapped() + VkDeviceSize(y) * map.image.row_pitch() +
                                   VkDeviceSize(x) * texel_bytes);
@@ -172,10 +174,12 @@ void validate_levels(const MapSet& maps) {
     const MapSet::Level& given = maps.levels[std::size_t(level - 1)];
     const std::size_t texels = std::size_t(maps.width >> level) * std::size_t(maps.height >> level);
     if (given.heights.size() != texels || given.apex.size() != texels ||
-        given.ratios.size() != texels * std::size_t(maps.level_sectors)) {
-      throw RenderError("maps: level of detail " + std::to_string(level) + " must hold " +
-                        size_text(maps.width >> level, maps.height >> level) +
-                        " heights, apex heights and ratios per sector");
+        given.ratios.size() != texels * std::size_t(maps.level_sectors) ||
+        (!given.slopes.empty() && given.slopes.size() != texels * 3)) {
+      throw RenderError(
+          "maps: level of detail " + std::to_string(level) + " must hold " +
+          size_text(maps.width >> level, maps.height >> level) +
+          " heights, apex heights and ratios per sector (and three slope moments a texel, or none)");
     }
   }
 }
@@ -361,7 +365,7 @@ void reshape_levels(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
                     impl.level_count == maps.level_count;
   copies.levels = copy_kind(heights, same, maps.levels_version, 0, 0);
   if (reshaper.reshape(heights, width, rows, 1))
-    reshaper.make_image(heights, VK_FORMAT_R32_SFLOAT, width, rows, 1, VK_IMAGE_VIEW_TYPE_2D);
+    reshaper.make_image(heights, VK_FORMAT_R32G32B32A32_SFLOAT, width, rows, 1, VK_IMAGE_VIEW_TYPE_2D);
   if (reshaper.reshape(cones, width, rows, layers))
     reshaper.make_image(cones, cone_format, width, rows, layers, VK_IMAGE_VIEW_TYPE_2D_ARRAY);
   if (copies.levels == Copy::whole) {
@@ -446,7 +450,7 @@ VkDeviceSize staging_bytes(const Renderer::Impl& impl, const MapSet& maps, const
     host_writes |= impl.level_heights.host_written || impl.level_cones.host_written;
     for (int level = 1; level <= maps.level_count; ++level) {
       const VkDeviceSize texels = VkDeviceSize(maps.width >> level) * VkDeviceSize(maps.height >> level);
-      if (!impl.level_heights.host_written) bytes += align_up(texels * 4);
+      if (!impl.level_heights.host_written) bytes += align_up(texels * level_texel_bytes);
       if (!impl.level_cones.host_written)
         bytes += align_up(texels * cone_texel_bytes * VkDeviceSize(impl.level_cones.layers));
     }
@@ -576,9 +580,32 @@ void upload_cones(Upload& upload, DeviceMap& map, Copy copy, const ConeMapView& 
   map.version = view.version;
 }
 
+// One level's texels as the height atlas holds them (RGBA32F): the height, then its slope moments
+// (MapSet::Level::slopes; zeros without them). False for a height outside [0, 1] or a moment that
+// is not finite.
+bool pack_level(const MapSet::Level& level, int width, int height, float* out, std::size_t row_floats) {
+  bool valid = true;
+  for (int y = 0; y < height; ++y) {
+    float* to = out + std::size_t(y) * row_floats;
+    for (int x = 0; x < width; ++x, to += 4) {
+      const std::size_t texel = std::size_t(y) * std::size_t(width) + std::size_t(x);
+      const float h = level.heights[texel];
+      valid &= h >= 0.0f && h <= 1.0f;  // false for NaN
+      to[0] = h;
+      for (int c = 0; c < 3; ++c) {
+        const float m = level.slopes.empty() ? 0.0f : level.slopes[texel * 3 + std::size_t(c)];
+        valid &= std::isfinite(m);
+        to[1 + c] = m;
+      }
+    }
+  }
+  return valid;
+}
+
 // the levels of detail: each level's heights, then each level's cones, packed into its rows of the
 // atlases
-void upload_levels(Upload& upload, DeviceMap& heights, DeviceMap& cones, const MapSet& maps) {
+void upload_levels(Upload& upload, DeviceMap& heights, DeviceMap& cones, const MapSet& maps,
+                   std::array<float, bake::max_detail_levels>& tops) {
   const bool fresh_heights = !heights.held, fresh_cones = !cones.held;
   heights.held = false;
   cones.held = false;
@@ -591,23 +618,25 @@ void upload_levels(Upload& upload, DeviceMap& heights, DeviceMap& cones, const M
   };
   upload.regions.clear();
   for (int level = 1; level <= maps.level_count; ++level) {
-    const std::span<const float> values = maps.levels[std::size_t(level - 1)].heights;
+    const MapSet::Level& given = maps.levels[std::size_t(level - 1)];
     const bake::Rect rect = level_rect(level);
     bool valid = true;
     if (heights.host_written) {
-      valid = detail::pack_heights(values, rect.x1, rect,
-                                   texel_of(heights, atlas_rect(level).x0, atlas_rect(level).y0, 4),
-                                   heights.image.row_pitch() / 4);
+      valid = pack_level(given, rect.x1, rect.y1,
+                         texel_of(heights, atlas_rect(level).x0, atlas_rect(level).y0, level_texel_bytes),
+                         heights.image.row_pitch() / 4);
     } else {
-      const VkDeviceSize offset = upload.reserve(rect_texels(rect) * 4);
-      valid = detail::pack_heights(values, rect.x1, rect, reinterpret_cast<float*>(upload.staging + offset),
-                                   std::size_t(rect.x1));
+      const VkDeviceSize offset = upload.reserve(rect_texels(rect) * level_texel_bytes);
+      valid = pack_level(given, rect.x1, rect.y1, reinterpret_cast<float*>(upload.staging + offset),
+                         std::size_t(rect.x1) * 4);
       upload.regions.push_back(rect_region(offset, atlas_rect(level), 1));
     }
     if (!valid) {
       throw RenderError("maps: the heights of level of detail " + std::to_string(level) +
-                        " must be finite and in [0, 1]");
+                        " must be finite and in [0, 1], and its slope moments finite");
     }
+    const std::span<const float> values = given.heights;
+    tops[std::size_t(level - 1)] = *std::max_element(values.begin(), values.end());
   }
   if (heights.host_written) {
     upload.to_general(heights, 1);
@@ -757,7 +786,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
     upload_cones(upload, cones[index], copies.cones[index], maps.cones[index]);
   if (copies.pyramid != Copy::none) upload_pyramid(upload, max_pyramid, maps.max_pyramid, pyramid_bytes);
   if (copies.distance != Copy::none) upload_distance(upload, distance, maps.distance);
-  if (copies.levels != Copy::none) upload_levels(upload, level_heights, level_cones, maps);
+  if (copies.levels != Copy::none) upload_levels(upload, level_heights, level_cones, maps, level_tops);
 }
 
 int Renderer::Impl::traced_levels(const View& view, const MethodInfo& info) const {

@@ -239,7 +239,7 @@ std::vector<Allocation> map_memory(const MapShape& shape) {
   if (shape.level_count > 0) {  // the atlases of levels 1 .. L (config.h)
     const glm::ivec2 size = level_atlas_size(shape.width, shape.height, shape.level_count);
     const std::uint64_t atlas = pixels_of(size.x, size.y);
-    add("the levels of detail's height atlas" + map, atlas * height_texel_bytes);
+    add("the levels of detail's height atlas" + map, atlas * 4 * height_texel_bytes);  // RGBA32F
     add("the levels of detail's cone atlas" + map,
         atlas * std::uint64_t(cone_layer_count(std::max(shape.level_sectors, 1), false)) *
             cone_layer_texel_bytes);

@@ -318,6 +318,9 @@ struct MapSet {
     std::span<const float> heights;  // (W >> l) x (H >> l)
     std::span<const float> ratios;   // (W >> l) x (H >> l) x level_sectors, interleaved
     std::span<const float> apex;     // (W >> l) x (H >> l)
+    // (W >> l) x (H >> l) x 3 (optional, water's shading): bake::downsample_moments' means of level
+    // 0's gradient moments over each texel's footprint; empty: the level is shaded as if smooth
+    std::span<const float> slopes;
   };
   std::array<Level, bake::max_detail_levels> levels{};
   std::uint64_t levels_version = 0;

@@ -16,9 +16,10 @@
 
 namespace displace::render {
 
-static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 12, "FrameUniforms must match the std430 layout");
+static_assert(sizeof(gpu::FrameUniforms) == 64 + 16 * 16, "FrameUniforms must match the std430 layout");
 static_assert(offsetof(gpu::FrameUniforms, foam) == 64 + 16 * 10);
 static_assert(offsetof(gpu::FrameUniforms, levels) == 64 + 16 * 11);
+static_assert(offsetof(gpu::FrameUniforms, level_tops) == 64 + 16 * 12);
 static_assert(offsetof(gpu::FrameUniforms, ray_along_y) == 64 + 16 * 9);
 static_assert(offsetof(gpu::FrameUniforms, eye) == 64);
 static_assert(offsetof(gpu::FrameUniforms, counts) == 64 + 16 * 4);

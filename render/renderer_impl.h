@@ -165,7 +165,8 @@ struct Renderer::Impl {
   // the levels of detail (MapSet::levels): heights and cones of levels 1 .. level_count in one atlas
   // each (config.h, BINDING_HEIGHT_LEVELS); `sectors` and `address` on level_cones
   DeviceMap level_heights, level_cones;
-  int level_count = 0;  // levels held (0: none)
+  int level_count = 0;                                      // levels held (0: none)
+  std::array<float, bake::max_detail_levels> level_tops{};  // each level's highest height
   // device.h: the maps a DeviceSim writes (GENERAL layout), and whether the last MapSet uses them
   const Image* device_heights = nullptr;
   const Image* device_foam = nullptr;

@@ -72,7 +72,7 @@ using mat4 = glm::mat4;
 // the level a pixel traces (View::level_auto): log2 of the texels of level 0 its footprint spans where
 // its ray enters the relief, across the ray times (1 / |d.z|)^LEVEL_ANISOTROPY along it (0: the
 // footprint's short side, 1: its long side), plus LEVEL_BIAS (levels), rounded down
-#define LEVEL_ANISOTROPY 0.5
+#define LEVEL_ANISOTROPY 0.75
 #define LEVEL_BIAS 0.0
 
 // the water material's sky at the horizon (shading.inc.glsl), also the background of water frames
@@ -104,6 +104,9 @@ struct FrameUniforms {
   // levels of detail: x the coarser levels L the view traces (0: level 0 only), y the level every
   // pixel traces (-1: from its footprint, LEVEL_ANISOTROPY), zw unused
   vec4 levels;
+  // the highest height of level l = 1 .. L at level_tops[(l - 1) / 4][(l - 1) % 4]: a ray on level l
+  // starts its march there (nothing of that level's surface lies above it)
+  vec4 level_tops[4];
 };
 
 // The dual-grid max pyramid (bake::build_dual_max_pyramid) at BINDING_MAX_PYRAMID, std430: this

@@ -194,7 +194,7 @@ Trace trace(vec3 origin, vec3 direction, float cos_view) {
   } else {
     // pom, relief, interval, csm, acm: the searches shared with the quadrics, over s in [0, 1], where
     // every ray meets the relief
-    root_search(SearchRay(origin, descent, 0.0, 1.0, true), s);
+    root_search(SearchRay(origin, descent, g_level_start, 1.0, true), s);
   }
   result.p = origin + s * descent;
   return result;

@@ -91,8 +91,71 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   return min(colour, vec3(1.0));
 }
 
+// Water on a coarser level: the level's surface is smooth where level 0 was not, and a far pixel
+// averages the slopes it left out. Their spread is the level's slope moments' variance (the mean of
+// |g|^2 less the square of the mean g, split evenly between u and v), and the colour is its mean over
+// those slopes around the level's own normal: a 3 x 3 Gauss-Hermite rule (nodes 0 and +-sqrt(3)
+// sigma, weights 2/3 and 1/6 a side), each facet weighted by the area it shows the eye (n . v over
+// n . z: facets that face the eye fill more of the pixel, and those that face away none). The glint
+// (too narrow for nine nodes) is that of the mean normal the eye sees, its lobe widened by the
+// spread (the reflection turns by twice the facet's tilt: per-axis angular variances 1 / n + 4
+// sigma^2 add) and scaled to keep its energy.
+vec3 shade_water_level(vec2 uv, mat3 tangent_frame, vec3 view_direction, vec3 l, float lit) {
+  vec2 texel = g_level_size.zw;
+  float dh_du = (level_bilinear_height(uv + vec2(texel.x, 0.0)) - level_bilinear_height(uv - vec2(texel.x, 0.0))) / (2.0 * texel.x);
+  float dh_dv = (level_bilinear_height(uv + vec2(0.0, texel.y)) - level_bilinear_height(uv - vec2(0.0, texel.y))) / (2.0 * texel.y);
+  vec3 moments = level_slope_moments(uv);
+  float sigma = sqrt(max(moments.z - dot(moments.xy, moments.xy), 0.0) * 0.5);  // per axis, per uv
+  vec3 up = normalize(tangent_frame[2]);
+  vec3 to_eye = -view_direction;
+  float h = level_bilinear_height(uv);
+  vec3 body_colour = mix(water_deep, water_shallow, h);
+  const float node = 1.7320508;  // sqrt(3)
+  const float weights[3] = float[3](1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0);
+  vec3 colour = vec3(0.0), seen_normal = vec3(0.0);
+  float shown = 0.0;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      vec3 along_u = tangent_frame[0] + (dh_du + float(a - 1) * node * sigma) * tangent_frame[2];
+      vec3 along_v = tangent_frame[1] + (dh_dv + float(b - 1) * node * sigma) * tangent_frame[2];
+      vec3 n = normalize(cross(along_u, along_v));
+      float area = weights[a] * weights[b] * max(dot(n, to_eye), 0.0) / max(dot(n, up), 1e-4);
+      if (area <= 0.0) continue;
+      float cosine = clamp(dot(n, to_eye), 0.0, 1.0);
+      float m = 1.0 - cosine, m2 = m * m;
+      float fresnel = water_f0 + (1.0 - water_f0) * (m2 * m2 * m);
+      vec3 body = body_colour * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
+      colour += area * mix(body, sky(reflect(view_direction, n)), fresnel);
+      seen_normal += area * n;
+      shown += area;
+    }
+  vec3 along_u = tangent_frame[0] + dh_du * tangent_frame[2];
+  vec3 along_v = tangent_frame[1] + dh_dv * tangent_frame[2];
+  vec3 n = normalize(cross(along_u, along_v));
+  if (shown > 0.0) {
+    colour /= shown;
+    n = normalize(seen_normal);  // the glint's: the facets the eye sees lean towards it
+  } else {  // every facet faces away (a ray at the level's silhouette): its own normal
+    float m = 1.0 - clamp(dot(n, to_eye), 0.0, 1.0), m2 = m * m;
+    vec3 body = body_colour * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
+    colour = mix(body, sky(reflect(view_direction, n)), water_f0 + (1.0 - water_f0) * (m2 * m2 * m));
+  }
+  float tilt = sigma * length(tangent_frame[2]) / length(tangent_frame[0]);  // world slope, per axis
+  float exponent = 1.0 / (1.0 / sun_glint_exponent + 4.0 * tilt * tilt);
+  colour += lit * sun_glint_strength * (exponent / sun_glint_exponent) *
+            pow(max(dot(reflect(view_direction, n), l), 0.0), exponent);
+  if ((frame.counts.z & FLAG_FOAM) != 0) {
+    float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
+    colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
+                 foam * frame.foam.a);
+  }
+  return min(colour, vec3(1.0));
+}
+
 // lit: 1 where the light reaches the hit, 0 in shadow (then only the ambient term is left)
 vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction, float lit) {
+  if ((frame.counts.z & FLAG_WATER) != 0 && g_level > 0)
+    return shade_water_level(uv, tangent_frame, view_direction, normalize(frame.light.xyz), lit);
   vec3 n = g_level == 0 ? surface_normal(uv, tangent_frame) : level_surface_normal(uv, tangent_frame);
   if ((frame.counts.z & FLAG_WATER) != 0) return shade_water(uv, n, view_direction, normalize(frame.light.xyz), lit);
   vec3 l = normalize(frame.light.xyz);

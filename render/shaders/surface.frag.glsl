@@ -38,8 +38,10 @@ uint g_fetches = 0u;
 // (config.h). Every read of the trace and the shading goes to that level's heights and cones, so the
 // ray meets that level's own bilinear surface, with the cones baked for it.
 int g_level = 0;
+const float level_top_margin = 1e-6;  // height units: over a bilinear value's float rounding (< 2e-7)
 vec4 g_level_size = vec4(0.0);
 ivec2 g_level_origin = ivec2(0);
+float g_level_start = 0.0;  // the s where a ray on the level starts its march: above the level's top
 
 // The map size the trace works with: level 0's (frame.map_size) or the level's.
 vec4 traced_map_size() { return g_level == 0 ? frame.map_size : g_level_size; }
@@ -49,6 +51,22 @@ float level_texel(ivec2 t) {
   ivec2 size = ivec2(g_level_size.xy);
   t -= size * ivec2(floor(vec2(t) / vec2(size)));
   return texelFetch(height_levels, t + g_level_origin, 0).r;
+}
+
+// The level's slope moments at uv, bilinear like its heights (the atlas's gba: the means of level 0's
+// g_u, g_v and g_u^2 + g_v^2 over each texel's footprint, bake::downsample_moments).
+vec3 level_slope_moments(vec2 uv) {
+  vec2 x = uv * g_level_size.xy - 0.5;
+  ivec2 cell = ivec2(floor(x));
+  vec2 f = x - floor(x);
+  ivec2 size = ivec2(g_level_size.xy);
+  vec3 m[4];
+  for (int k = 0; k < 4; ++k) {
+    ivec2 t = cell + ivec2(k & 1, k >> 1);
+    t -= size * ivec2(floor(vec2(t) / vec2(size)));
+    m[k] = texelFetch(height_levels, t + g_level_origin, 0).gba;
+  }
+  return mix(mix(m[0], m[1], f.x), mix(m[2], m[3], f.x), f.y);
 }
 
 // The four texels of the level's cell whose lower corner is texel `cell`, in textureGather's order
@@ -187,6 +205,10 @@ void choose_level(vec3 d) {
     g_level_size = vec4(vec2(size), 1.0 / vec2(size));
     ivec2 half_size = ivec2(frame.map_size.xy) >> 1;
     g_level_origin = g_level == 1 ? ivec2(0) : ivec2(half_size.x, half_size.y - (int(frame.map_size.y) >> (g_level - 1)));
+    // every height of the level, and so its bilinear surface (within a rounding), is at most its top:
+    // the ray (height 1 - s) meets nothing before it comes down to the top plus a margin
+    float top = frame.level_tops[(g_level - 1) / 4][(g_level - 1) % 4];
+    g_level_start = clamp(1.0 - top - level_top_margin, 0.0, 1.0);
   }
 }
 

@@ -80,10 +80,10 @@ TEST(DetailLevels, RaysOnALevelEndAtThatLevelsFirstCrossing) {
   const HeightField field = field_of(64, 64, [](int i, int j) {
     return 0.5 + 0.25 * std::sin(0.39 * i + 0.2 * j) + 0.2 * std::sin(1.7 * j + 0.3 * i * i);
   });
-  ASSERT_EQ(bake::detail_level_count(64, 64), 3);
+  ASSERT_EQ(bake::detail_level_count(64, 64), 6);
   shared_maps().set_heights(field);
   View view = slanted_unbounded_view();
-  for (int level = 0; level <= 3; ++level) {
+  for (int level = 0; level <= 6; ++level) {
     const HeightField coarse = level_of(field, level);
     std::vector<double> truth, level0;
     for (int py = 0; py < view.camera.height; ++py)
@@ -144,7 +144,7 @@ TEST(DetailLevels, ViewsWithoutLevelsAreUntouchedAndTheMemoryEstimateCountsThem)
     needs.levels = true;
     needs.cone_sectors = std::max(needs.cone_sectors, 4);
     const render::MapSet& with_levels = shared_maps().maps(needs);
-    ASSERT_EQ(with_levels.level_count, 3);
+    ASSERT_EQ(with_levels.level_count, 6);
     renderer.set_maps(with_levels);
     const Frame with = renderer.render(view, {method, 32, 8});
     EXPECT_EQ(with.color, without.color);
@@ -169,10 +169,54 @@ TEST(DetailLevels, ViewsWithoutLevelsAreUntouchedAndTheMemoryEstimateCountsThem)
   shape.level_count = 6;
   shape.level_sectors = 4;
   const std::uint64_t chain_bytes = bytes(render::map_memory(shape)) - level0_bytes;
-  // heights 4 bytes and 5 cone layers of 4 bytes a texel, over the (256 + 128) x 256 texels of the
-  // atlases that hold 256^2 + 128^2 + ... + 8^2 texels: 3/8 of level 0's images (the chain is 1/3)
-  EXPECT_EQ(chain_bytes, std::uint64_t(256 + 128) * 256 * (4 + 5 * 4));
-  EXPECT_DOUBLE_EQ(double(chain_bytes) / double(level0_bytes), 3.0 / 8.0);
+  // heights and slope moments 16 bytes and 5 cone layers of 4 bytes a texel, over the (256 + 128) x
+  // 256 texels of the atlases that hold 256^2 + 128^2 + ... texels: 9/16 of level 0's images (its
+  // heights 4 bytes, its cones 20)
+  EXPECT_EQ(chain_bytes, std::uint64_t(256 + 128) * 256 * (16 + 5 * 4));
+  EXPECT_DOUBLE_EQ(double(chain_bytes) / double(level0_bytes), 9.0 / 16.0);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// A level's slope moments must be finite and three a texel (or absent); its heights in [0, 1]: the
+// renderer refuses anything else with a message naming the level, and takes the chain without slopes.
+TEST(DetailLevels, RefusesLevelsWithBadSlopeMomentsOrHeights) {
+  render::Renderer& renderer = shared_renderer();
+  shared_maps().set_heights(waves_field(64));
+  const View view = slanted_unbounded_view();
+  render::MapNeeds needs = render::map_needs(Method::acm4, view);
+  ASSERT_TRUE(needs.levels);
+  const render::MapSet good = shared_maps().maps(needs);
+  ASSERT_EQ(good.level_count, 6);
+  auto refused = [&](const render::MapSet& maps, const std::string& words) {
+    try {
+      renderer.set_maps(maps);
+      (void)renderer.render(view, {Method::acm4, 32, 8});
+    } catch (const render::RenderError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+      return true;
+    }
+    return false;
+  };
+  std::vector<float> slopes(good.levels[1].slopes.begin(), good.levels[1].slopes.end());
+  slopes[7] = std::numeric_limits<float>::quiet_NaN();
+  render::MapSet bad = good;
+  bad.levels[1].slopes = slopes;
+  bad.levels_version += 1000;
+  EXPECT_TRUE(refused(bad, "level of detail 2"));
+  bad.levels[1].slopes = std::span<const float>(slopes).first(10);
+  bad.levels_version += 1;
+  EXPECT_TRUE(refused(bad, "three slope moments"));
+  std::vector<float> heights(good.levels[0].heights.begin(), good.levels[0].heights.end());
+  heights[3] = 1.5f;
+  bad = good;
+  bad.levels[0].heights = heights;
+  bad.levels_version += 2000;
+  EXPECT_TRUE(refused(bad, "level of detail 1"));
+  bad = good;  // no slopes: accepted (the levels shaded as smooth)
+  for (int level = 0; level < bad.level_count; ++level) bad.levels[std::size_t(level)].slopes = {};
+  bad.levels_version += 3000;
+  EXPECT_FALSE(refused(bad, ""));
+  renderer.set_maps(good);
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
@@ -189,7 +233,7 @@ TEST(DetailLevels, AStillSceneRendersIdenticalFrames) {
   const unsigned outputs = render::output_color | render::output_uv | render::output_fetches;
   Frame first, second, other;
   frames.run(3, first, outputs);
-  EXPECT_EQ(frames.maps().level_count, 3);
+  EXPECT_EQ(frames.maps().level_count, 6);
   frames.run(4, other, outputs);
   frames.run(3, second, outputs);
   EXPECT_EQ(first.color, second.color);
@@ -236,6 +280,10 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
   std::array<double, 4> fetches_levels{}, fetches_off{};
   std::array<long long, 4> pixels{};
   std::array<double, 3> flicker{};  // levels, level 0, supersampled
+  // per band: the mean colour (levels, level 0, supersampled) and the mean absolute difference from
+  // the supersampled colour (levels, level 0); 8-bit units, the mean of the three channels
+  std::array<std::array<double, 3>, 4> mean_colour{};
+  std::array<std::array<double, 2>, 4> colour_error{};
   std::array<std::vector<float>, 3> previous;
   long long flicker_samples = 0;
   Frame levels, off, fine;
@@ -265,6 +313,13 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
             colour[2][p * 3 + k] += float(fine.color[q * 4 + k]) / float(supersampling * supersampling);
         }
       if (band[p] < 0) continue;
+      for (std::size_t v = 0; v < 3; ++v)
+        for (std::size_t k = 0; k < 3; ++k) {
+          mean_colour[std::size_t(band[p])][v] += colour[v][p * 3 + k] / 3.0;
+          if (v < 2)
+            colour_error[std::size_t(band[p])][v] +=
+                std::abs(colour[v][p * 3 + k] - colour[2][p * 3 + k]) / 3.0;
+        }
       fetches_levels[std::size_t(band[p])] += levels.fetches[p];
       fetches_off[std::size_t(band[p])] += off.fetches[p];
       ++pixels[std::size_t(band[p])];
@@ -284,6 +339,14 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
     std::printf("  %-20s %6lld pixels  %6.2f / %6.2f\n", band_names[b], pixels[b] / frames,
                 fetches_levels[b] / double(pixels[b]), fetches_off[b] / double(pixels[b]));
   }
+  std::printf(
+      "mean colour (levels / level 0 only / supersampled) and mean |difference| from the supersampled:\n");
+  for (std::size_t b = 0; b < 4; ++b) {
+    for (double& c : mean_colour[b]) c /= double(pixels[b]);
+    for (double& e : colour_error[b]) e /= double(pixels[b]);
+    std::printf("  %-20s %6.2f / %6.2f / %6.2f   %6.2f / %6.2f\n", band_names[b], mean_colour[b][0],
+                mean_colour[b][1], mean_colour[b][2], colour_error[b][0], colour_error[b][1]);
+  }
   for (double& f : flicker) f /= double(flicker_samples);
   std::printf(
       "flicker of the top band (mean |change| a frame, 8-bit): levels %.3f, level 0 only %.3f, "
@@ -291,6 +354,16 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
       flicker[0], flicker[1], supersampling, supersampling, flicker[2]);
   EXPECT_LT(fetches_levels[2], fetches_off[2]);
   EXPECT_LT(fetches_levels[3], fetches_off[3]);
+  // the far sea costs no more than the near sea (fetches per pixel: a work count)
+  for (std::size_t b = 2; b < 4; ++b)
+    EXPECT_LE(fetches_levels[b] / double(pixels[b]), fetches_levels[0] / double(pixels[0])) << band_names[b];
+  // and looks like the supersampled sea: its mean colour within 12 of 255 (shaded as smooth as the
+  // levels' surfaces are, without their slope moments, it was 29 and 41 too bright), each pixel
+  // closer than level 0's
+  for (std::size_t b = 2; b < 4; ++b) {
+    EXPECT_LT(std::abs(mean_colour[b][0] - mean_colour[b][2]), 12.0) << band_names[b];
+    EXPECT_LT(colour_error[b][0], colour_error[b][1]) << band_names[b];
+  }
   EXPECT_LT(flicker[0], flicker[1]);
   EXPECT_LE(flicker[0], flicker[2]);
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
