@@ -125,6 +125,17 @@ float plane_safe_cone_step(vec3 origin, vec3 descent, float s, int sectors, out 
   return max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
 }
 
+// Whether the plane's safe cone step from a point `gap` above the surface under it would stall for
+// certain: the stored ratios are at most 1 and the apex H_c of the point's texel is at or above the
+// surface there, so the step r (z - H_c) / (r + travel) is at most gap / (1 + travel); a relative
+// 1e-3 keeps a float rounding from calling a step that would not stall a stall.
+bool plane_cone_step_stalls(vec3 descent, float gap) {
+  float travel = length(descent.xy);
+  vec2 texel = traced_map_size().zw;
+  float stall = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
+  return gap < stall * (1.0 + travel) * 0.999;
+}
+
 #include "root_search.inc.glsl"
 #include "relaxed_march.inc.glsl"
 

@@ -50,6 +50,7 @@ struct ConeMarch {
   bool exact;
   bool walking;
   ivec2 cell;
+  float exit_gap;  // planar walks: the ray's height above the surface where its last cell step left
 };
 
 #ifndef SEARCH_PLANAR
@@ -182,7 +183,7 @@ bool fallback_step(SearchRay ray, float stall, inout ConeMarch m) {
 #if SEARCH_PLANAR
   if (!m.walking) m.cell = cell_at(ray.origin, ray.direction, m.t);
   m.walking = true;
-  m.t = cell_step(ray.origin, ray.direction, m.t, m.cell, m.exact);
+  m.t = cell_step(ray.origin, ray.direction, m.t, m.cell, m.exact, m.exit_gap);
   return m.exact;
 #else
   march_to(m, min(m.t + stall, ray.t_end));
@@ -197,7 +198,7 @@ bool fallback_step(SearchRay ray, float stall, inout ConeMarch m) {
 // exact crossing, at t_end, within cone_gap_epsilon of the surface (marches that read the gap), or
 // where the steps run out.
 ConeMarch cone_march(SearchRay ray, int steps, int sectors) {
-  ConeMarch m = ConeMarch(ray.t_in, 0.0, false, ray.t_in, 0.0, false, false, ivec2(0));
+  ConeMarch m = ConeMarch(ray.t_in, 0.0, false, ray.t_in, 0.0, false, false, ivec2(0), 3.0e38);
   for (int i = 0; i < steps; ++i) {
     if (march_reads_gap) {
       m.gap = search_gap(ray, m.t);
@@ -206,6 +207,14 @@ ConeMarch cone_march(SearchRay ray, int steps, int sectors) {
     }
     if (m.t >= ray.t_end) break;  // planar: on the floor h = 0, the ray cannot be above the surface there
     g_iterations += 1u;
+#if SEARCH_PLANAR
+    // On a level of detail (levels.md) a walk goes on without the cone fetch where that fetch would
+    // stall for certain (the same cell step follows either way, so the march is unchanged).
+    if (g_level > 0 && m.walking && plane_cone_step_stalls(ray.direction, m.exit_gap)) {
+      if (fallback_step(ray, 0.0, m)) break;
+      continue;
+    }
+#endif
     float stall;
     float step = safe_cone_step(ray, m.t, sectors, stall);
     if (step >= stall) {
