@@ -49,7 +49,9 @@ float neighbourhood[2 * R + 1][2 * R + 1];  // heights of texels (i + db, j + da
 float square[3][3];          // s at Q_c's corners, edge midpoints and centre
 uint beyond[4];              // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
 bool cut;                    // the search bounded a node it would have opened
-int level_width[CONE_MAX_LEVELS], level_height[CONE_MAX_LEVELS], level_offset[CONE_MAX_LEVELS];
+int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in node_max
+int level_width(int level) { return (push.cells_u + (1 << level) - 1) >> level; }
+int level_height(int level) { return (push.cells_v + (1 << level) - 1) >> level; }
 
 // ---- geometry
 
@@ -94,15 +96,17 @@ uint rect_sectors(int x0, int x1, int y0, int y1) {
 
 bool improves(int k, float bound) { return bound < best[k] && best[k] > floor_ratio; }
 
+// The sector loops run over all 8 with constant indices (unrolled), so that best[] stays in
+// registers; a sector past `sectors` is never in a mask.
 void lower(uint mask, float bound) {
-  for (int k = 0; k < sectors; ++k)
+  [[unroll]] for (int k = 0; k < 8; ++k)
     if ((mask >> k & 1u) != 0u && bound < best[k]) best[k] = bound;
 }
 
 // the sectors of `mask` that `bound` could still lower
 uint useful_sectors(uint mask, float bound) {
   uint useful = 0u;
-  for (int k = 0; k < sectors; ++k)
+  [[unroll]] for (int k = 0; k < 8; ++k)
     if ((mask >> k & 1u) != 0u && improves(k, bound)) useful |= 1u << k;
   return useful;
 }
@@ -259,7 +263,7 @@ struct Node {
 // Whether `node` is to be opened (its bound and useful sectors filled in); a node it need not open it
 // bounds here, or skips when it can lower nothing. floor_level: nodes at or below it are not opened.
 bool examine(inout Node node, int floor_level) {
-  const float top = node_max[level_offset[node.level] + node.bv * level_width[node.level] + node.bu];
+  const float top = node_max[level_offset[node.level] + node.bv * level_width(node.level) + node.bu];
   if (!(top > apex)) return false;
   const int first_u = node.tile_u * push.cells_u + (node.bu << node.level);
   const int last_u = node.tile_u * push.cells_u + min((node.bu + 1) << node.level, push.cells_u) - 1;
@@ -298,7 +302,7 @@ bool examine(inout Node node, int floor_level) {
 Node stack[CONE_STACK];
 
 void push_sorted(inout int count, Node node) {  // the largest bound deepest: the nearest is opened first
-  if (count == CONE_STACK) {  // never reached (25 roots + 3 a level); bounding it whole is valid
+  if (count == CONE_STACK) {  // never reached (16 roots + 3 a level); bounding it whole is valid
     lower(node.mask, node.bound);
     cut = true;
     return;
@@ -309,10 +313,14 @@ void push_sorted(inout int count, Node node) {  // the largest bound deepest: th
 
 void far_cells(int floor_level) {
   int count = 0;
-  const int tiles = wrap ? 2 : 0;  // with wrap, the images within uv distance 1 of Q_c: tiles -2..1
+  // with wrap, the images whose cells come within uv distance 1 of Q_c: tiles -2..1. Tile -2's last
+  // cells reach to 1 - 1/(2W) of texel 0's square; tile 2's first begin 1 + 1/(2W) past texel W - 1's,
+  // so its bounds are at least (1 + 1/(2W)) / (1 - height_margin): ratios that store as 1 for every
+  // side up to 62500 (and a ratio of 1 holds there: s rises at most 1 over a distance of at least 1).
+  const int first_tile = wrap ? -2 : 0, last_tile = wrap ? 1 : 0;
   const int top_level = push.levels - 1;
-  [[dont_unroll]] for (int tv = -tiles; tv <= tiles; ++tv)
-    [[dont_unroll]] for (int tu = -tiles; tu <= tiles; ++tu) {
+  [[dont_unroll]] for (int tv = first_tile; tv <= last_tile; ++tv)
+    [[dont_unroll]] for (int tu = first_tile; tu <= last_tile; ++tu) {
       Node root = Node(top_level, tu, tv, 0, 0, 0.0, 0u);
       if (examine(root, floor_level)) push_sorted(count, root);
     }
@@ -329,8 +337,8 @@ void far_cells(int floor_level) {
     const int level = node.level - 1;
     Node children[4];
     int child_count = 0;
-    for (int dv = 0; dv < 2 && 2 * node.bv + dv < level_height[level]; ++dv)
-      for (int du = 0; du < 2 && 2 * node.bu + du < level_width[level]; ++du) {
+    for (int dv = 0; dv < 2 && 2 * node.bv + dv < level_height(level); ++dv)
+      for (int du = 0; du < 2 && 2 * node.bu + du < level_width(level); ++du) {
         Node child = Node(level, node.tile_u, node.tile_v, 2 * node.bu + du, 2 * node.bv + dv, 0.0, 0u);
         if (examine(child, floor_level)) {
           children[child_count] = child;
@@ -371,10 +379,8 @@ void main() {
   half_u = 0.5 / float(W);
   half_v = 0.5 / float(H);
   for (int level = 0, offset = 0; level < push.levels; ++level) {
-    level_width[level] = (push.cells_u + (1 << level) - 1) >> level;
-    level_height[level] = (push.cells_v + (1 << level) - 1) >> level;
     level_offset[level] = offset;
-    offset += level_width[level] * level_height[level];
+    offset += level_width(level) * level_height(level);
   }
   const int reach = 4 * max(W, H);
   beyond[0] = rect_sectors(1, 1, -reach, reach);

@@ -12,7 +12,7 @@ namespace displace::render::gpu {
 #define CONE_TILE 8          // the kernels' groups: 8 x 8 texels, cells or nodes
 #define CONE_SLOPE_WINDOW 4  // cells: radius around a texel where the slope bound applies (bake.h's default)
 #define CONE_MAX_LEVELS 17   // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
-#define CONE_STACK 80        // search stack entries: 25 roots + 3 per level below the top, rounded up
+#define CONE_STACK 64        // search stack entries: 16 roots + 3 per level below the top (at most 16)
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
 #define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
