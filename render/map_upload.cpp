@@ -62,9 +62,9 @@ VkDeviceSize rect_texels(const bake::Rect& rect) {
   return VkDeviceSize(rect.x1 - rect.x0) * VkDeviceSize(rect.y1 - rect.y0);
 }
 
-// A host-written image's float at texel (x, y) of layer 0.
 constexpr std::size_t level_texel_bytes = 16;  // the levels' height atlas: RGBA32F (pack_level)
 
+// A host-written image's float at texel (x, y) of layer 0.
 float* texel_of(const DeviceMap& map, int x, int y, std::size_t texel_bytes) {
   return reinterpret_cast<float*>(map.image.mapped() + VkDeviceSize(y) * map.image.row_pitch() +
                                   VkDeviceSize(x) * texel_bytes);
