@@ -112,7 +112,9 @@ TEST(DetailLevels, SlopeMomentsAreTheMeansOfLevelZerosGradientOverEachTexel) {
               << map.name << " level " << level;
           EXPECT_NEAR(m[2], mean_square / n, scale * 10) << map.name << " level " << level;
           EXPECT_GE(double(m[2]) - double(m[0]) * m[0] - double(m[1]) * m[1], -scale * 10) << map.name;
-          if (map.name.find("flat") != std::string::npos) EXPECT_EQ(m[2], 0.0f);
+          if (map.name.find("flat") != std::string::npos) {
+            EXPECT_EQ(m[2], 0.0f);
+          }
         }
       below = std::move(coarse);
     }

@@ -580,6 +580,39 @@ TEST(LaneSweep, SecondLapStopsOnlyWhereNothingWouldChange) {
   }
 }
 
+// The bilinear sweeps' inputs besides the plan - texel bottoms hashed from (salt, seed), at least
+// `low` of the range, and fixed lane bonuses - and their counts: the four quadrants' passes, then
+// the four of bonus3.
+struct BilinearSweep {
+  int width, height;
+  std::vector<std::uint16_t> bottom;
+  alignas(64) std::uint16_t bonus[detail::lane_count], bonus3[detail::lane_count];
+
+  BilinearSweep(int W, int H, std::uint64_t salt, std::uint64_t seed, float low)
+      : width(W), height(H), bottom(std::size_t(W) * H) {
+    for (std::size_t t = 0; t < bottom.size(); ++t)
+      bottom[t] = std::uint16_t(65535.0f * (low + (1.0f - low) * test::hash01(salt, seed, t)));
+    for (int l = 0; l < detail::lane_count; ++l) {
+      bonus[l] = std::uint16_t(300 + 20 * l);
+      bonus3[l] = std::uint16_t(900 + 60 * l);
+    }
+  }
+
+  std::vector<std::uint8_t> counts(const detail::LanePlan& plan, bool stop_early, bool split = false) const {
+    const std::size_t texels = std::size_t(width) * std::size_t(height);
+    std::vector<std::uint8_t> counts(texels * 8);
+    std::uint8_t* passed[4];
+    std::uint8_t* passed3[4];
+    for (int q = 0; q < 4; ++q) {
+      passed[q] = counts.data() + std::size_t(q) * texels;
+      passed3[q] = counts.data() + std::size_t(4 + q) * texels;
+    }
+    detail::sweep_bilinear_quadrants(plan, width, height, bottom.data(), bonus, passed, bonus3, passed3, -1,
+                                     stop_early, 0, 4, split);
+    return counts;
+  }
+};
+
 // The same for the bilinear sweeps (their box tests read the three rows swept before the tested
 // one): on maps with tall cells next to the seam rows and on random maps, the counts of passing lanes
 // of both boxes with the second lap stopping early are those of a whole second lap (and a third).
@@ -608,26 +641,8 @@ TEST(LaneSweep, BilinearSecondLapStopsOnlyWhereNothingWouldChange) {
     }
     detail::LanePlan plan;
     detail::make_lane_plan(cells.data(), W, H, true, 0.02f, true, false, plan);
-    std::vector<std::uint16_t> bottom(std::size_t(W) * H);
-    for (std::size_t t = 0; t < bottom.size(); ++t)
-      bottom[t] = std::uint16_t(65535.0f * (0.2f + 0.8f * test::hash01(151, seed, t)));
-    alignas(64) std::uint16_t bonus[detail::lane_count], bonus3[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) {
-      bonus[l] = std::uint16_t(300 + 20 * l);
-      bonus3[l] = std::uint16_t(900 + 60 * l);
-    }
-    auto run = [&](bool stop_early) {
-      std::vector<std::uint8_t> counts(std::size_t(W) * H * 8);
-      std::uint8_t* passed[4];
-      std::uint8_t* passed3[4];
-      for (int q = 0; q < 4; ++q) {
-        passed[q] = counts.data() + std::size_t(q) * W * H;
-        passed3[q] = counts.data() + std::size_t(4 + q) * W * H;
-      }
-      detail::sweep_bilinear_quadrants(plan, W, H, bottom.data(), bonus, passed, bonus3, passed3, -1,
-                                       stop_early);
-      return counts;
-    };
+    const BilinearSweep sweep(W, H, 151, seed, 0.2f);
+    auto run = [&](bool stop_early) { return sweep.counts(plan, stop_early); };
     const std::vector<std::uint8_t> early = run(true);
     // the first lap leaves the box tests of as many rows to the second as it took the last time:
     // any number of rows (a guess too small, too large, past what the second lap can track)
@@ -671,26 +686,8 @@ TEST(LaneSweep, BilinearSplitSweepsGiveTheWholeSweepsCounts) {
             std::size_t(test::hash01(181, seed, 0) * float(cells_u)) % cells_u] = 1.0f;
     detail::LanePlan plan;
     detail::make_lane_plan(cells.data(), cells_u, cells_v, wrap, 0.02f, true, false, plan);
-    std::vector<std::uint16_t> bottom(std::size_t(W) * H);
-    for (std::size_t t = 0; t < bottom.size(); ++t)
-      bottom[t] = std::uint16_t(65535.0f * (0.1f + 0.9f * test::hash01(167, seed, t)));
-    alignas(64) std::uint16_t bonus[detail::lane_count], bonus3[detail::lane_count];
-    for (int l = 0; l < detail::lane_count; ++l) {
-      bonus[l] = std::uint16_t(300 + 20 * l);
-      bonus3[l] = std::uint16_t(900 + 60 * l);
-    }
-    auto run = [&](bool split) {
-      std::vector<std::uint8_t> counts(std::size_t(W) * H * 8);
-      std::uint8_t* passed[4];
-      std::uint8_t* passed3[4];
-      for (int q = 0; q < 4; ++q) {
-        passed[q] = counts.data() + std::size_t(q) * W * H;
-        passed3[q] = counts.data() + std::size_t(4 + q) * W * H;
-      }
-      detail::sweep_bilinear_quadrants(plan, W, H, bottom.data(), bonus, passed, bonus3, passed3, -1, true, 0,
-                                       4, split);
-      return counts;
-    };
+    const BilinearSweep sweep(W, H, 167, seed, 0.1f);
+    auto run = [&](bool split) { return sweep.counts(plan, true, split); };
     const std::vector<std::uint8_t> whole = run(false);
     for (int threads : {1, 2, 3, 16}) {
       // guesses of the rows each second pass takes: from none to past the strip
