@@ -24,8 +24,8 @@ namespace displace::render {
 
 static_assert(sizeof(gpu::ConeCellsPush) == 32);
 static_assert(sizeof(gpu::ConeReducePush) == 32);
-static_assert(sizeof(gpu::ConeTexelPush) == 48);
-static_assert(offsetof(gpu::ConeTexelPush, refine_limit) == 32);
+static_assert(sizeof(gpu::ConeTexelPush) == 36 + 4 * CONE_MAX_LEVELS);  // within 128 bytes, Vulkan's least
+static_assert(offsetof(gpu::ConeTexelPush, level_offset) == 36);
 
 namespace {
 
@@ -256,6 +256,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   texel_push.wrap = wrap;
   texel_push.sectors = s.sectors;
   texel_push.levels = s.levels;
+  for (int level = 0; level < s.levels; ++level) texel_push.level_offset[level] = s.level_offset[std::size_t(level)];
   const bool unlimited = budget.texels < 0;
   texel_push.first_pass_level = unlimited ? -1 : first_pass_level;
   texel_push.refine_limit =

@@ -49,7 +49,6 @@ float neighbourhood[2 * R + 1][2 * R + 1];  // heights of texels (i + db, j + da
 float square[3][3];          // s at Q_c's corners, edge midpoints and centre
 uint beyond[4];              // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
 bool cut;                    // the search bounded a node it would have opened
-int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in node_max
 int level_width(int level) { return (push.cells_u + (1 << level) - 1) >> level; }
 int level_height(int level) { return (push.cells_v + (1 << level) - 1) >> level; }
 
@@ -252,23 +251,15 @@ float cells_gap(int fu, int lu, int fv, int lv) {
                       span_gap(i, cell_begin(fv, wrap), cell_end(lv, H, wrap)));
 }
 
-// A node: its level, tile and index in the tile along each axis; its bound and the sectors it could
-// lower when it was examined.
-struct Node {
-  int level, tile_u, tile_v, bu, bv;
-  float bound;
-  uint mask;
-};
-
-// Whether `node` is to be opened (its bound and useful sectors filled in); a node it need not open it
+// Whether node (level, bu, bv) of tile (tile_u, tile_v) is to be opened; a node it need not open it
 // bounds here, or skips when it can lower nothing. floor_level: nodes at or below it are not opened.
-bool examine(inout Node node, int floor_level) {
-  const float top = node_max[level_offset[node.level] + node.bv * level_width(node.level) + node.bu];
+bool examine(int level, int tile_u, int tile_v, int bu, int bv, int floor_level) {
+  const float top = node_max[push.level_offset[level] + bv * level_width(level) + bu];
   if (!(top > apex)) return false;
-  const int first_u = node.tile_u * push.cells_u + (node.bu << node.level);
-  const int last_u = node.tile_u * push.cells_u + min((node.bu + 1) << node.level, push.cells_u) - 1;
-  const int first_v = node.tile_v * push.cells_v + (node.bv << node.level);
-  const int last_v = node.tile_v * push.cells_v + min((node.bv + 1) << node.level, push.cells_v) - 1;
+  const int first_u = tile_u * push.cells_u + (bu << level);
+  const int last_u = tile_u * push.cells_u + min((bu + 1) << level, push.cells_u) - 1;
+  const int first_v = tile_v * push.cells_v + (bv << level);
+  const int last_v = tile_v * push.cells_v + min((bv + 1) << level, push.cells_v) - 1;
   if (first_u >= wu0 && last_u <= wu1 && first_v >= wv0 && last_v <= wv1) return false;  // the window's
   // its cells outside the window: left and right of it, then below and above it within its columns
   float gap;
@@ -282,76 +273,99 @@ bool examine(inout Node node, int floor_level) {
   } else {
     gap = cells_gap(first_u, last_u, first_v, last_v);
   }
-  const uint mask = rect_sectors(cell_begin(first_u, wrap) - qu1, cell_end(last_u, W, wrap) - qu0,
-                                 cell_begin(first_v, wrap) - qv1, cell_end(last_v, H, wrap) - qv0);
-  node.bound = gap / (top - apex);
-  node.mask = useful_sectors(mask, node.bound);
-  if (node.mask == 0u) return false;
-  if (node.level == 0) {
-    lower(node.mask, node.bound);
+  const uint all = rect_sectors(cell_begin(first_u, wrap) - qu1, cell_end(last_u, W, wrap) - qu0,
+                                cell_begin(first_v, wrap) - qv1, cell_end(last_v, H, wrap) - qv0);
+  const float bound = gap / (top - apex);
+  const uint mask = useful_sectors(all, bound);
+  if (mask == 0u) return false;
+  if (level == 0) {
+    lower(mask, bound);
     return false;
   }
-  if (node.level <= floor_level) {
-    lower(node.mask, node.bound);
+  if (level <= floor_level) {
+    lower(mask, bound);
     cut = true;
     return false;
   }
   return true;
 }
 
-Node stack[CONE_STACK];
+// The texel's centre in unrolled cells (the left edge of the cell whose left centre it is).
+int centre_u, centre_v;
 
-void push_sorted(inout int count, Node node) {  // the largest bound deepest: the nearest is opened first
-  if (count == CONE_STACK) {  // never reached (16 roots + 3 a level); bounding it whole is valid
-    lower(node.mask, node.bound);
-    cut = true;
-    return;
-  }
-  stack[count] = node;
-  ++count;
+// The child of node (level, bu, bv) of a tile on the texel's side of its middle along each axis, as a
+// quadrant (bit 0: the upper half along u, bit 1 along v): its children are examined in the order
+// nearest, across u, across v, diagonal - quadrant k ^ nearest for k = 0..3.
+int nearest_child(int level, int tile_u, int tile_v, int bu, int bv) {
+  const int half_side = 1 << (level - 1);
+  const int middle_u = tile_u * push.cells_u + (bu << level) + half_side;
+  const int middle_v = tile_v * push.cells_v + (bv << level) + half_side;
+  return (centre_u >= middle_u ? 1 : 0) | (centre_v >= middle_v ? 2 : 0);
 }
 
-void far_cells(int floor_level) {
-  int count = 0;
-  // with wrap, the images whose cells come within uv distance 1 of Q_c: tiles -2..1. Tile -2's last
-  // cells reach to 1 - 1/(2W) of texel 0's square; tile 2's first begin 1 + 1/(2W) past texel W - 1's,
-  // so its bounds are at least (1 + 1/(2W)) / (1 - height_margin): ratios that store as 1 for every
-  // side up to 62500 (and a ratio of 1 holds there: s rises at most 1 over a distance of at least 1).
-  const int first_tile = wrap ? -2 : 0, last_tile = wrap ? 1 : 0;
+// One tile's pyramid, depth first without a stack: a node's children are examined one at a time, in
+// nearest_child's order, each against the ratios as they stand when it is reached; after a node that
+// is not opened comes its next sibling that exists, or its parent's. Every node that could lower a
+// ratio is opened (its children's bounds are never below its own), so with no floor the result is
+// the least bound of every cell whatever the order; the order only makes the ratios drop sooner.
+void far_tile(int tile_u, int tile_v, int floor_level) {
   const int top_level = push.levels - 1;
-  [[dont_unroll]] for (int tv = first_tile; tv <= last_tile; ++tv)
-    [[dont_unroll]] for (int tu = first_tile; tu <= last_tile; ++tu) {
-      Node root = Node(top_level, tu, tv, 0, 0, 0.0, 0u);
-      if (examine(root, floor_level)) push_sorted(count, root);
+  int level = top_level, bu = 0, bv = 0;
+  bool open = examine(level, tile_u, tile_v, 0, 0, floor_level);
+  [[dont_unroll]] while (true) {
+    int parent_u, parent_v, k;
+    if (open) {  // its first child
+      parent_u = bu;
+      parent_v = bv;
+      --level;
+      k = 0;
+    } else {  // its next sibling
+      if (level == top_level) return;
+      parent_u = bu >> 1;
+      parent_v = bv >> 1;
+      k = (((bu & 1) | ((bv & 1) << 1)) ^ nearest_child(level + 1, tile_u, tile_v, parent_u, parent_v)) + 1;
     }
-  for (int a = 1; a < count; ++a)
-    for (int b = a; b > 0 && stack[b - 1].bound < stack[b].bound; --b) {
-      const Node swap = stack[b - 1];
-      stack[b - 1] = stack[b];
-      stack[b] = swap;
+    const int nearest = nearest_child(level + 1, tile_u, tile_v, parent_u, parent_v);
+    int child_u = -1, child_v = -1;
+    for (; k < 4; ++k) {
+      const int quadrant = k ^ nearest;
+      const int u = 2 * parent_u + (quadrant & 1), v = 2 * parent_v + (quadrant >> 1);
+      if (u < level_width(level) && v < level_height(level)) {
+        child_u = u;
+        child_v = v;
+        break;
+      }
     }
-  while (count > 0) {
-    --count;
-    const Node node = stack[count];
-    if (useful_sectors(node.mask, node.bound) == 0u) continue;  // the ratios dropped since
-    const int level = node.level - 1;
-    Node children[4];
-    int child_count = 0;
-    for (int dv = 0; dv < 2 && 2 * node.bv + dv < level_height(level); ++dv)
-      for (int du = 0; du < 2 && 2 * node.bu + du < level_width(level); ++du) {
-        Node child = Node(level, node.tile_u, node.tile_v, 2 * node.bu + du, 2 * node.bv + dv, 0.0, 0u);
-        if (examine(child, floor_level)) {
-          children[child_count] = child;
-          ++child_count;
-        }
-      }
-    for (int a = 1; a < child_count; ++a)
-      for (int b = a; b > 0 && children[b - 1].bound < children[b].bound; --b) {
-        const Node swap = children[b - 1];
-        children[b - 1] = children[b];
-        children[b] = swap;
-      }
-    for (int c = 0; c < child_count; ++c) push_sorted(count, children[c]);
+    if (child_u < 0) {  // the parent is done
+      ++level;
+      bu = parent_u;
+      bv = parent_v;
+      open = false;
+      continue;
+    }
+    bu = child_u;
+    bv = child_v;
+    open = examine(level, tile_u, tile_v, bu, bv, floor_level);
+  }
+}
+
+// With wrap, the images whose cells come within uv distance 1 of Q_c: tiles -2..1. Tile -2's last
+// cells reach to 1 - 1/(2W) of texel 0's square; tile 2's first begin 1 + 1/(2W) past texel W - 1's,
+// so its bounds are at least (1 + 1/(2W)) / (1 - height_margin): ratios that store as 1 for every
+// side up to 62500 (and a ratio of 1 holds there: s rises at most 1 over a distance of at least 1).
+// The texel's own tile first, then the nearer neighbour along each axis.
+void far_cells(int floor_level) {
+  if (!wrap) {
+    far_tile(0, 0, floor_level);
+    return;
+  }
+  const int side_u = 2 * j + 1 >= W ? 1 : -1, side_v = 2 * i + 1 >= H ? 1 : -1;
+  [[dont_unroll]] for (int b = 0; b < 4; ++b) {
+    const int tile_v = b == 0 ? 0 : (b == 1 ? side_v : (b == 2 ? -side_v : -2));
+    [[dont_unroll]] for (int a = 0; a < 4; ++a) {
+      const int tile_u = a == 0 ? 0 : (a == 1 ? side_u : (a == 2 ? -side_u : -2));
+      far_tile(tile_u, tile_v, floor_level);
+    }
   }
 }
 
@@ -378,10 +392,6 @@ void main() {
   qv1 = 2 * i + 1;
   half_u = 0.5 / float(W);
   half_v = 0.5 / float(H);
-  for (int level = 0, offset = 0; level < push.levels; ++level) {
-    level_offset[level] = offset;
-    offset += level_width(level) * level_height(level);
-  }
   const int reach = 4 * max(W, H);
   beyond[0] = rect_sectors(1, 1, -reach, reach);
   beyond[1] = rect_sectors(-1, -1, -reach, reach);
@@ -408,6 +418,8 @@ void main() {
   wu1 = cell_of_left_centre(j + R - 1, wrap);
   wv0 = cell_of_left_centre(i - R, wrap);
   wv1 = cell_of_left_centre(i + R - 1, wrap);
+  centre_u = cell_of_left_centre(j, wrap);
+  centre_v = cell_of_left_centre(i, wrap);
 
   // the window, then the pyramid: the first pass, and the texels it cut searched again if they may
   for (int k = 0; k < 8; ++k) best[k] = unclaimed;

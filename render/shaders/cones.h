@@ -12,7 +12,6 @@ namespace displace::render::gpu {
 #define CONE_TILE 8          // the kernels' groups: 8 x 8 texels, cells or nodes
 #define CONE_SLOPE_WINDOW 4  // cells: radius around a texel where the slope bound applies (bake.h's default)
 #define CONE_MAX_LEVELS 17   // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
-#define CONE_STACK 64        // search stack entries: 16 roots + 3 per level below the top (at most 16)
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
 #define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
@@ -39,7 +38,7 @@ struct ConeTexelPush {
   int levels;            // pyramid levels (the last one 1 x 1)
   int first_pass_level;  // nodes at or below it are bounded, not opened, in the first pass; < 0: none
   int refine_limit;      // texels whose cut first pass is searched again to the cells, at most
-  int pad0, pad1, pad2;
+  int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in the pyramid buffer (floats)
 };
 
 #ifdef __cplusplus
