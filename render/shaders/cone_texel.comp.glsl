@@ -45,7 +45,6 @@ float half_u, half_v;        // uv per half texel
 float apex;                  // H_c, raised by height_margin
 float floor_ratio;           // 1 / L
 float best[8];               // per sector: the least bound so far
-float neighbourhood[2 * R + 1][2 * R + 1];  // heights of texels (i + db, j + da) at [db + R][da + R]
 float square[3][3];          // s at Q_c's corners, edge midpoints and centre
 uint beyond[4];              // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
 bool cut;                    // the search bounded a node it would have opened
@@ -112,20 +111,24 @@ uint useful_sectors(uint mask, float bound) {
 
 // ---- the slope window (bake/cone_bilinear.cpp's window_cells)
 
-// s on the cell whose lower-left centre is (j + da, i + db), at cell coordinates (fx, fy) in [0, 1]^2
-float patch_value(int da, int db, float fx, float fy) {
-  const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
-  const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
-  return (h0 * (1.0 - fx) + h1 * fx) * (1.0 - fy) + (h2 * (1.0 - fx) + h3 * fx) * fy;
+// the height of texel (i + db, j + da), read where it is (no private copy: a GPU keeps an array
+// indexed at run time in slow per-invocation memory, while neighbouring invocations share these reads
+// in the cache)
+float height_at(int da, int db) {
+  return imageLoad(heights, ivec2(axis_texel(j + da, W, wrap), axis_texel(i + db, H, wrap))).r;
+}
+
+// s on a cell with corner heights h = (lower left, lower right, upper left, upper right), at cell
+// coordinates (fx, fy) in [0, 1]^2
+float patch_value(vec4 h, float fx, float fy) {
+  return (h.x * (1.0 - fx) + h.y * fx) * (1.0 - fy) + (h.z * (1.0 - fx) + h.w * fx) * fy;
 }
 
 // The largest rates of rise of s (uv units) over the box [fx0, fx1] x [fy0, fy1] of that cell, towards
 // +u, -u, +v, -v, raised by slope_margin: ds/du = W lerp(e0, e1, fy) and ds/dv = H lerp(f0, f1, fx)
 // are linear in one coordinate, so their extremes lie at the box's edges.
-vec4 patch_rise(int da, int db, float fx0, float fx1, float fy0, float fy1) {
-  const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
-  const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
-  const float e0 = h1 - h0, e1 = h3 - h2, f0 = h2 - h0, f1 = h3 - h1;
+vec4 patch_rise(vec4 h, float fx0, float fx1, float fy0, float fy1) {
+  const float e0 = h.y - h.x, e1 = h.w - h.z, f0 = h.z - h.x, f1 = h.w - h.y;
   const float du0 = e0 + (e1 - e0) * fy0, du1 = e0 + (e1 - e0) * fy1;
   const float dv0 = f0 + (f1 - f0) * fx0, dv1 = f0 + (f1 - f0) * fx1;
   return vec4((max(du0, du1) + slope_margin) * float(W), (slope_margin - min(du0, du1)) * float(W),
@@ -159,36 +162,40 @@ float piece_bound(float near, float far, float rise, float drop, float slope) {
 }
 
 void window_cells() {
-  float hull_u[2 * R][2 * R], hull_v[2 * R][2 * R];  // running largest rates outward from Q_c
+  // The running largest rates outward from Q_c: cell (da, db)'s takes in those of the cells between it
+  // and Q_c's row and column, (da -+ 1, db) and (da, db -+ 1). Rows and columns are visited outward
+  // from Q_c (0, 1, ..., R - 1, then -1, ..., -R), so the first is the cell visited just before in
+  // this row, and the second is at the same place in the row visited just before: one running value
+  // and one row of them.
+  float row_u[2 * R], row_v[2 * R];
   [[dont_unroll]] for (int y = 0; y < 2 * R; ++y) {
     const int db = y < R ? y : R - 1 - y;  // 0, 1, ..., R - 1, then -1, ..., -R
     const int nv = cell_of_left_centre(i + db, wrap);
+    float run_u = 0.0, run_v = 0.0;
     [[dont_unroll]] for (int x = 0; x < 2 * R; ++x) {
       const int da = x < R ? x : R - 1 - x;
       const int nu = cell_of_left_centre(j + da, wrap);
       const bool exists = cell_exists(nu, push.cells_u, wrap) && cell_exists(nv, push.cells_v, wrap);
+      vec4 h = vec4(0.0);
       float rise_u = 0.0, rise_v = 0.0;
       if (exists) {
-        const vec4 cell = patch_rise(da, db, 0.0, 1.0, 0.0, 1.0);
+        h = vec4(height_at(da, db), height_at(da + 1, db), height_at(da, db + 1), height_at(da + 1, db + 1));
+        const vec4 cell = patch_rise(h, 0.0, 1.0, 0.0, 1.0);
         rise_u = max(da >= 0 ? cell.x : cell.y, 0.0);
         rise_v = max(db >= 0 ? cell.z : cell.w, 0.0);
       }
       if (da != 0 && da != -1) {
-        const int inner = (da > 0 ? da - 1 : da + 1) + R;
-        rise_u = max(rise_u, hull_u[db + R][inner]);
-        rise_v = max(rise_v, hull_v[db + R][inner]);
+        rise_u = max(rise_u, run_u);
+        rise_v = max(rise_v, run_v);
       }
       if (db != 0 && db != -1) {
-        const int inner = (db > 0 ? db - 1 : db + 1) + R;
-        rise_u = max(rise_u, hull_u[inner][da + R]);
-        rise_v = max(rise_v, hull_v[inner][da + R]);
+        rise_u = max(rise_u, row_u[x]);
+        rise_v = max(rise_v, row_v[x]);
       }
-      hull_u[db + R][da + R] = rise_u;
-      hull_v[db + R][da + R] = rise_v;
+      run_u = row_u[x] = rise_u;
+      run_v = row_v[x] = rise_v;
       if (!exists) continue;
-      const float h0 = neighbourhood[db + R][da + R], h1 = neighbourhood[db + R][da + 1 + R];
-      const float h2 = neighbourhood[db + 1 + R][da + R], h3 = neighbourhood[db + 1 + R][da + 1 + R];
-      const float cell_max = max(max(h0, h1), max(h2, h3));  // exact: a patch peaks at a corner
+      const float cell_max = max(max(h.x, h.y), max(h.z, h.w));  // exact: a patch peaks at a corner
       if (!(cell_max > apex)) continue;
       const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
       const int cu0 = cell_begin(nu, wrap), cu1 = cell_end(nu, W, wrap);
@@ -213,13 +220,13 @@ void window_cells() {
           if (u0 >= u1) continue;
           const float fu0 = float(u0 - origin_u) * 0.5, fu1 = float(u1 - origin_u) * 0.5;
           const float fv0 = float(v0 - origin_v) * 0.5, fv1 = float(v1 - origin_v) * 0.5;
-          const float top = max(max(patch_value(da, db, fu0, fv0), patch_value(da, db, fu1, fv0)),
-                                max(patch_value(da, db, fu0, fv1), patch_value(da, db, fu1, fv1))) +
+          const float top = max(max(patch_value(h, fu0, fv0), patch_value(h, fu1, fv0)),
+                                max(patch_value(h, fu0, fv1), patch_value(h, fu1, fv1))) +
                             height_margin;
           if (!(top > apex)) continue;
           float along_u = rise_u, along_v = rise_v;
           if (centre) {
-            const vec4 own = patch_rise(da, db, fu0, fu1, fv0, fv1);
+            const vec4 own = patch_rise(h, fu0, fu1, fv0, fv1);
             along_u = max(su > 0 ? own.x : own.y, 0.0);
             along_v = max(sv > 0 ? own.z : own.w, 0.0);
           }
@@ -399,16 +406,13 @@ void main() {
   beyond[3] = rect_sectors(-reach, reach, -1, -1);
 
   // the heights around c, and H_c: s is bilinear on each quarter of Q_c, so its nine grid points bound it
-  [[dont_unroll]] for (int db = -R; db <= R; ++db)
-    [[dont_unroll]] for (int da = -R; da <= R; ++da)
-      neighbourhood[db + R][da + R] =
-          imageLoad(heights, ivec2(axis_texel(j + da, W, wrap), axis_texel(i + db, H, wrap))).r;
+  float around[3][3];  // the heights of texels (i + b - 1, j + a - 1)
+  [[unroll]] for (int b = 0; b < 3; ++b)
+    [[unroll]] for (int a = 0; a < 3; ++a) around[b][a] = height_at(a - 1, b - 1);
   float highest = 0.0;
-  for (int b = 0; b < 3; ++b)
-    for (int a = 0; a < 3; ++a) {
-      const int row = b == 1 ? R : R + b - 1, column = a == 1 ? R : R + a - 1;
-      square[b][a] = 0.25 * (neighbourhood[R][R] + neighbourhood[R][column] + neighbourhood[row][R] +
-                             neighbourhood[row][column]);
+  [[unroll]] for (int b = 0; b < 3; ++b)
+    [[unroll]] for (int a = 0; a < 3; ++a) {
+      square[b][a] = 0.25 * (around[1][1] + around[1][a] + around[b][1] + around[b][a]);
       highest = max(highest, square[b][a]);
     }
   apex = highest + height_margin;
