@@ -102,7 +102,6 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
       s.device_cones =
           std::make_unique<render::DeviceCones>(renderer, s.needs.cone_sectors, s.needs.cone_address);
   }
-  if (s.bake_on_device) s.cone_lag_frames = 0;  // the device bakes every frame's own
   if (scene.source != SourceKind::image) s.maker.reserve(s.cpu_needs, scene.map_size, scene.map_size);
   s.heights_to_cpu = s.cpu_needs.cone_sectors > 0 || s.cpu_needs.max_pyramid || s.cpu_needs.distance;
 }
@@ -172,7 +171,8 @@ void bake_on_device(FramePipeline::State& s, const HeightFrame& frame, FrameReco
                                                            s.needs.cone_address);
   }
   if (s.sim_on_device() || s.device_cones_version != frame.version) {
-    s.device_cones->bake(s.device_budget);
+    // lagged: a share of the next map, and the last one served raised (render/device.h)
+    record.cone_lag = s.device_cones->bake_lagged(s.device_budget, s.cone_lag_frames);
     s.device_cones_version = frame.version;
   }
   record.bake_on_device = true;
@@ -248,7 +248,10 @@ void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigne
   record.render_device_ms = outputs != render::output_none ? frame.gpu_milliseconds : 0.0;
   // the device stages of this frame, when it has finished (its outputs read back)
   if (state_->sim_on_device()) record.sim_device_ms = state_->device_source->device_milliseconds();
-  if (state_->device_cones) record.bake_device_ms = state_->device_cones->device_milliseconds();
+  if (state_->device_cones) {
+    record.bake_device_ms = state_->device_cones->device_milliseconds();
+    if (state_->cone_lag_frames > 0) record.cone_lift = state_->device_cones->lift();
+  }
 }
 
 FrameRecord FramePipeline::run(long long index, render::Frame& frame, unsigned outputs) {

@@ -120,6 +120,17 @@ class DeviceCones {
   // Throws RenderError where the heights held a NaN or a value outside [0, 1].
   DeviceConeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
 
+  // Lagged maps (lag_frames = N > 0): one map's bake is spread over N + 1 calls - a snapshot of the
+  // heights and its pyramid when it begins, then an even share of the texel rows a call - and each
+  // call's frame samples the last finished map with every apex raised by the most any texel rose
+  // since that map's heights (rounded up): conservative for the frame's own heights, at most 2N calls
+  // old. The first call, and the first after N changed, makes a whole map. Returns the age in calls
+  // of the map the frame samples; 0 is bake(budget). docs/design/lagged-cone-maps.md.
+  long long bake_lagged(const DeviceConeBudget& budget, int lag_frames);
+  // How far the apexes were raised in the last bake_lagged() frame that has finished (0: none yet,
+  // or it was not lagged).
+  float lift() const;
+
   int width() const;
   int height() const;
   int sector_count() const;

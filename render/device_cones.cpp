@@ -17,6 +17,8 @@
 #include "render/renderer_impl.h"
 #include "render/shaders/cones.h"
 #include "spirv/cone_cells_comp.h"
+#include "spirv/cone_compose_comp.h"
+#include "spirv/cone_lift_comp.h"
 #include "spirv/cone_reduce_comp.h"
 #include "spirv/cone_texel_comp.h"
 
@@ -24,8 +26,10 @@ namespace displace::render {
 
 static_assert(sizeof(gpu::ConeCellsPush) == 32);
 static_assert(sizeof(gpu::ConeReducePush) == 32);
-static_assert(sizeof(gpu::ConeTexelPush) == 36 + 4 * CONE_MAX_LEVELS);  // within 128 bytes, Vulkan's least
-static_assert(offsetof(gpu::ConeTexelPush, level_offset) == 36);
+static_assert(sizeof(gpu::ConeTexelPush) == 40 + 4 * CONE_MAX_LEVELS);  // within 128 bytes, Vulkan's least
+static_assert(offsetof(gpu::ConeTexelPush, level_offset) == 40);
+static_assert(sizeof(gpu::ConeLiftPush) == 16);
+static_assert(sizeof(gpu::ConeComposePush) == 16);
 
 namespace {
 
@@ -38,6 +42,8 @@ constexpr VkDescriptorType storage_image = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
 constexpr VkDescriptorType cells_bindings[] = {storage_image, storage_buffer, storage_buffer};
 constexpr VkDescriptorType reduce_bindings[] = {storage_buffer};
 constexpr VkDescriptorType texel_bindings[] = {storage_image, storage_buffer, storage_buffer, storage_buffer};
+constexpr VkDescriptorType lift_bindings[] = {storage_image, storage_image, storage_buffer};
+constexpr VkDescriptorType compose_bindings[] = {storage_buffer, storage_buffer, storage_buffer};
 
 // Throws RenderError unless the shape is one the kernels take.
 void validate_shape(int width, int height, int sector_count) {
@@ -54,7 +60,7 @@ void validate_shape(int width, int height, int sector_count) {
 // The kernels' pipelines, made once per renderer (lavapipe compiles the search for about 0.15 s); each
 // DeviceCones binds its own siblings.
 struct DeviceConeKernels {
-  ComputeKernel cells, reduce, texel;
+  ComputeKernel cells, reduce, texel, lift, compose;
 };
 
 struct DeviceCones::State {
@@ -73,9 +79,28 @@ struct DeviceCones::State {
   bool baked = false;
   StageTimer timer;
 
+  // lagged maps (bake_lagged), made on its first call: the heights of the map in progress and of the
+  // served one (snapshots[progress], snapshots[progress ^ 1]), the served map's values and the values
+  // the frame samples, and each frame's lift for the host (a float per frame slot)
+  Image snapshots[2];
+  Buffer served, composed, lift_host;
+  ComputeKernel snapshot_cells[2], snapshot_texel[2], lift_kernel[2], compose_kernel;
+  int lag = 0;                   // N of the maps being made
+  int progress = 0;              // the snapshot the map in progress reads
+  int band = -1;                 // the next band of texel rows of the map in progress; -1: none
+  long long calls = 0;           // bake_lagged calls so far
+  long long begun = 0;           // the call the map in progress began on
+  long long served_begun = -1;   // the call the served map began on; -1: none finished yet
+
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
   void make(const Image& heights, int sector_count, bake::Address address_mode);
+  void make_lagged();
+  void check_source() const;
+  void record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells);
+  void record_texels(VkCommandBuffer commands, const ComputeKernel& texel, const DeviceConeBudget& budget,
+                     int first_group_row, int group_rows);
+  void record_to_image(VkCommandBuffer commands, VkBuffer values);
 };
 
 void DeviceCones::State::make(const Image& heights, int sector_count, bake::Address address_mode) {
@@ -124,7 +149,9 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
     impl.cone_kernels = std::make_shared<const DeviceConeKernels>(DeviceConeKernels{
         ComputeKernel(context, spirv_cone_cells_comp, cells_bindings, sizeof(gpu::ConeCellsPush)),
         ComputeKernel(context, spirv_cone_reduce_comp, reduce_bindings, sizeof(gpu::ConeReducePush)),
-        ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush))});
+        ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush)),
+        ComputeKernel(context, spirv_cone_lift_comp, lift_bindings, sizeof(gpu::ConeLiftPush)),
+        ComputeKernel(context, spirv_cone_compose_comp, compose_bindings, sizeof(gpu::ConeComposePush))});
   }
   cells_kernel = impl.cone_kernels->cells.sibling();
   cells_kernel.bind_image(0, heights.view());
@@ -171,7 +198,8 @@ DeviceCones::DeviceCones(Renderer& renderer, bake::HeightView heights, int secto
   // the heights, uploaded once through a staging buffer
   const Context& context = s.impl.context;
   s.own_heights = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(s.width), std::uint32_t(s.height), 1,
-                        VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                        VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT |
+                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                         VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
   {
     Buffer staging(context, s.texels() * 4, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
@@ -204,83 +232,235 @@ DeviceCones::~DeviceCones() {
   }
 }
 
-void DeviceCones::bake(const DeviceConeBudget& budget) {
-  State& s = *state_;
-  if (s.own_heights.handle() == VK_NULL_HANDLE && s.impl.device_heights != s.source)
+void DeviceCones::State::check_source() const {
+  if (own_heights.handle() == VK_NULL_HANDLE && impl.device_heights != source)
     throw RenderError("DeviceCones::bake: the DeviceSim whose heights it reads is gone");
-  const int slot = s.impl.slot;
-  const VkCommandBuffer commands = s.impl.begin_slot().commands;
-  s.timer.begin(commands, slot);
+}
 
-  // the frames before read the cone image and the buffers this one writes
-  rewrite_barrier(commands);
-  vkCmdFillBuffer(commands, s.counters.handle(), 0, VK_WHOLE_SIZE, 0);
+// Clears the counters, then the cells (their maxima, the Lipschitz constant, the heights' check) and
+// the max pyramid above them, a level at a time, of the heights `cells` reads.
+void DeviceCones::State::record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells) {
+  vkCmdFillBuffer(commands, counters.handle(), 0, VK_WHOLE_SIZE, 0);
   VkMemoryBarrier cleared{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   cleared.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
   cleared.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
   vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
                        &cleared, 0, nullptr, 0, nullptr);
-
-  // cells and the Lipschitz constant
-  const int wrap = s.address == bake::Address::wrap ? 1 : 0;
   gpu::ConeCellsPush cells_push{};
-  cells_push.width = s.width;
-  cells_push.height = s.height;
-  cells_push.cells_u = s.cells_u;
-  cells_push.cells_v = s.cells_v;
-  cells_push.wrap = wrap;
-  s.cells_kernel.record(commands, group_count(std::uint32_t(s.cells_u), CONE_TILE),
-                        group_count(std::uint32_t(s.cells_v), CONE_TILE), 1, &cells_push);
+  cells_push.width = width;
+  cells_push.height = height;
+  cells_push.cells_u = cells_u;
+  cells_push.cells_v = cells_v;
+  cells_push.wrap = address == bake::Address::wrap ? 1 : 0;
+  cells.record(commands, group_count(std::uint32_t(cells_u), CONE_TILE),
+               group_count(std::uint32_t(cells_v), CONE_TILE), 1, &cells_push);
   compute_barrier(commands);
-
-  // the max pyramid, a level at a time
-  for (int level = 0; level + 1 < s.levels; ++level) {
+  for (int level = 0; level + 1 < levels; ++level) {
     gpu::ConeReducePush reduce_push{};
-    reduce_push.source_offset = s.level_offset[std::size_t(level)];
-    reduce_push.source_width = s.level_width[std::size_t(level)];
-    reduce_push.source_height = s.level_height[std::size_t(level)];
-    reduce_push.target_offset = s.level_offset[std::size_t(level) + 1];
-    reduce_push.target_width = s.level_width[std::size_t(level) + 1];
-    reduce_push.target_height = s.level_height[std::size_t(level) + 1];
-    s.reduce_kernel.record(commands, group_count(std::uint32_t(reduce_push.target_width), CONE_TILE),
-                           group_count(std::uint32_t(reduce_push.target_height), CONE_TILE), 1, &reduce_push);
+    reduce_push.source_offset = level_offset[std::size_t(level)];
+    reduce_push.source_width = level_width[std::size_t(level)];
+    reduce_push.source_height = level_height[std::size_t(level)];
+    reduce_push.target_offset = level_offset[std::size_t(level) + 1];
+    reduce_push.target_width = level_width[std::size_t(level) + 1];
+    reduce_push.target_height = level_height[std::size_t(level) + 1];
+    reduce_kernel.record(commands, group_count(std::uint32_t(reduce_push.target_width), CONE_TILE),
+                         group_count(std::uint32_t(reduce_push.target_height), CONE_TILE), 1, &reduce_push);
     compute_barrier(commands);
   }
+}
 
-  // the texels' searches, then their layers into the image the renderer samples
+// The texels' searches for the groups of rows [first_group_row, + group_rows), into cone_values.
+void DeviceCones::State::record_texels(VkCommandBuffer commands, const ComputeKernel& texel,
+                                       const DeviceConeBudget& budget, int first_group_row, int group_rows) {
   gpu::ConeTexelPush texel_push{};
-  texel_push.width = s.width;
-  texel_push.height = s.height;
-  texel_push.cells_u = s.cells_u;
-  texel_push.cells_v = s.cells_v;
-  texel_push.wrap = wrap;
-  texel_push.sectors = s.sectors;
-  texel_push.levels = s.levels;
-  for (int level = 0; level < s.levels; ++level) texel_push.level_offset[level] = s.level_offset[std::size_t(level)];
+  texel_push.width = width;
+  texel_push.height = height;
+  texel_push.cells_u = cells_u;
+  texel_push.cells_v = cells_v;
+  texel_push.wrap = address == bake::Address::wrap ? 1 : 0;
+  texel_push.sectors = sectors;
+  texel_push.levels = levels;
+  for (int level = 0; level < levels; ++level) texel_push.level_offset[level] = level_offset[std::size_t(level)];
   const bool unlimited = budget.texels < 0;
   texel_push.first_pass_level = unlimited ? -1 : first_pass_level;
   texel_push.refine_limit =
       unlimited ? 0 : int(std::min<long long>(budget.texels, std::numeric_limits<int>::max()));
-  s.texel_kernel.record(commands, group_count(std::uint32_t(s.width), CONE_TILE),
-                        group_count(std::uint32_t(s.height), CONE_TILE), 1, &texel_push);
-  compute_barrier(commands);
-  // copied in the transfer layout (earlier frames' reads are behind `before`), given back in GENERAL
-  const auto layers = std::uint32_t(s.layers);
-  image_barrier(commands, s.cones.handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
+  texel_push.first_row = first_group_row * CONE_TILE;
+  texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1, &texel_push);
+  refine_limit = unlimited ? unlimited_texels : budget.texels;
+}
+
+// `values` (cone_values' layout) into the cone image, given back in GENERAL for the frame's draw.
+void DeviceCones::State::record_to_image(VkCommandBuffer commands, VkBuffer values) {
+  // copied in the transfer layout (earlier frames' reads are behind the rewrite barrier)
+  const auto image_layers = std::uint32_t(layers);
+  image_barrier(commands, cones.handle(), image_layers, VK_IMAGE_LAYOUT_GENERAL,
                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0, VK_ACCESS_TRANSFER_WRITE_BIT,
                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
   VkBufferImageCopy region{};
-  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, layers};
-  region.imageExtent = {std::uint32_t(s.width), std::uint32_t(s.height), 1};
-  vkCmdCopyBufferToImage(commands, s.cone_values.handle(), s.cones.handle(),
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-  image_barrier(commands, s.cones.handle(), layers, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, image_layers};
+  region.imageExtent = {std::uint32_t(width), std::uint32_t(height), 1};
+  vkCmdCopyBufferToImage(commands, values, cones.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+  image_barrier(commands, cones.handle(), image_layers, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                 VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_TRANSFER_WRITE_BIT,
                 VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                 VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
+}
+
+void DeviceCones::bake(const DeviceConeBudget& budget) {
+  State& s = *state_;
+  s.check_source();
+  const int slot = s.impl.slot;
+  const VkCommandBuffer commands = s.impl.begin_slot().commands;
+  s.timer.begin(commands, slot);
+  // the frames before read the cone image and the buffers this one writes
+  rewrite_barrier(commands);
+  s.record_pyramid(commands, s.cells_kernel);
+  s.record_texels(commands, s.texel_kernel, budget, 0, int(group_count(std::uint32_t(s.height), CONE_TILE)));
+  compute_barrier(commands);
+  s.record_to_image(commands, s.cone_values.handle());
   s.timer.end(commands, slot);
-  s.refine_limit = unlimited ? unlimited_texels : budget.texels;
+  s.band = -1;  // a lagged map in progress used the pyramid and counters that this bake rewrote
+  if (s.lift_host.handle() != VK_NULL_HANDLE) static_cast<float*>(s.lift_host.mapped())[slot] = 0.0f;
   s.baked = true;
+}
+
+void DeviceCones::State::make_lagged() {
+  if (served.handle() != VK_NULL_HANDLE) return;
+  const Context& context = impl.context;
+  const VkDeviceSize value_bytes = texels() * VkDeviceSize(layers) * cone_texel_bytes;
+  served = Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                  VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  composed = Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  lift_host = Buffer(context, frames_in_flight * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+  std::memset(lift_host.mapped(), 0, frames_in_flight * 4);
+  for (int k = 0; k < 2; ++k) {
+    snapshots[k] = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(width), std::uint32_t(height), 1,
+                         VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+                         VK_IMAGE_VIEW_TYPE_2D);
+    snapshot_cells[k] = impl.cone_kernels->cells.sibling();
+    snapshot_cells[k].bind_image(0, snapshots[k].view());
+    snapshot_cells[k].bind_buffer(1, pyramid.handle());
+    snapshot_cells[k].bind_buffer(2, counters.handle());
+    snapshot_texel[k] = impl.cone_kernels->texel.sibling();
+    snapshot_texel[k].bind_image(0, snapshots[k].view());
+    snapshot_texel[k].bind_buffer(1, pyramid.handle());
+    snapshot_texel[k].bind_buffer(2, counters.handle());
+    snapshot_texel[k].bind_buffer(3, cone_values.handle());
+    lift_kernel[k] = impl.cone_kernels->lift.sibling();
+    lift_kernel[k].bind_image(0, source->view());
+    lift_kernel[k].bind_image(1, snapshots[k].view());
+    lift_kernel[k].bind_buffer(2, counters.handle());
+  }
+  compose_kernel = impl.cone_kernels->compose.sibling();
+  compose_kernel.bind_buffer(0, served.handle());
+  compose_kernel.bind_buffer(1, counters.handle());
+  compose_kernel.bind_buffer(2, composed.handle());
+  context.submit_and_wait([&](VkCommandBuffer commands) {
+    for (const Image& snapshot : snapshots) {
+      image_barrier(commands, snapshot.handle(), 1, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, 0,
+                    VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
+                    VK_PIPELINE_STAGE_TRANSFER_BIT);
+    }
+  });
+}
+
+long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frames) {
+  State& s = *state_;
+  if (lag_frames < 0)
+    throw RenderError("DeviceCones::bake_lagged: a lag of " + std::to_string(lag_frames) + " frames");
+  if (lag_frames == 0) {
+    bake(budget);
+    s.served_begun = -1;  // what was served is not this frame's map
+    return 0;
+  }
+  s.check_source();
+  s.make_lagged();
+  const int slot = s.impl.slot;
+  const VkCommandBuffer commands = s.impl.begin_slot().commands;
+  s.timer.begin(commands, slot);
+  rewrite_barrier(commands);
+  // the first map, and the first after the lag changed, is made whole in this frame
+  const bool whole = s.served_begun < 0 || lag_frames != s.lag;
+  if (whole) {
+    s.lag = lag_frames;
+    s.band = -1;
+  }
+  const int bands = s.lag + 1;
+  if (s.band < 0) {  // a map begins: its heights' snapshot, then its pyramid
+    const VkImage source = s.source->handle(), snapshot = s.snapshots[s.progress].handle();
+    const VkPipelineStageFlags transfer = VK_PIPELINE_STAGE_TRANSFER_BIT;
+    const VkPipelineStageFlags readers = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+    image_barrier(commands, source, 1, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                  VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                  transfer);
+    image_barrier(commands, snapshot, 1, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+                  VK_ACCESS_TRANSFER_WRITE_BIT, transfer, transfer);
+    VkImageCopy region{};
+    region.srcSubresource = region.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.extent = {std::uint32_t(s.width), std::uint32_t(s.height), 1};
+    vkCmdCopyImage(commands, source, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, snapshot,
+                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+    image_barrier(commands, source, 1, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL,
+                  VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT, transfer, readers);
+    image_barrier(commands, snapshot, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL,
+                  VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, transfer, readers);
+    s.record_pyramid(commands, s.snapshot_cells[s.progress]);
+    s.band = 0;
+    s.begun = s.calls;
+  }
+  // this frame's bands of texel rows (all of them for a whole map): an even share of the groups' rows
+  const int group_rows = int(group_count(std::uint32_t(s.height), CONE_TILE));
+  const int last_band = whole ? bands - 1 : s.band;
+  for (; s.band <= last_band; ++s.band) {
+    const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
+    if (end > first) s.record_texels(commands, s.snapshot_texel[s.progress], budget, first, end - first);
+  }
+  if (s.band == bands) {  // the map is finished: it is served from this frame on
+    compute_barrier(commands);
+    const VkBufferCopy all{0, 0, s.texels() * VkDeviceSize(s.layers) * cone_texel_bytes};
+    vkCmdCopyBuffer(commands, s.cone_values.handle(), s.served.handle(), 1, &all);
+    s.served_begun = s.begun;
+    s.progress ^= 1;
+    s.band = -1;
+  }
+  // this frame's lift over the served map's heights, and the served map with its apexes raised by it
+  vkCmdFillBuffer(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, 4, 0);
+  VkMemoryBarrier ready{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  ready.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  ready.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
+                       &ready, 0, nullptr, 0, nullptr);
+  const gpu::ConeLiftPush lift_push{s.width, s.height, 0, 0};
+  s.lift_kernel[s.progress ^ 1].record(commands, group_count(std::uint32_t(s.width), CONE_TILE),
+                                       group_count(std::uint32_t(s.height), CONE_TILE), 1, &lift_push);
+  compute_barrier(commands);
+  const gpu::ConeComposePush compose_push{s.width, s.height, s.layers, 0};
+  s.compose_kernel.record(commands, group_count(std::uint32_t(s.width), CONE_TILE),
+                          group_count(std::uint32_t(s.height), CONE_TILE), 1, &compose_push);
+  compute_barrier(commands);
+  const VkBufferCopy lift_copy{CONE_COUNTER_LIFT * 4, VkDeviceSize(slot) * 4, 4};
+  vkCmdCopyBuffer(commands, s.counters.handle(), s.lift_host.handle(), 1, &lift_copy);
+  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
+                       nullptr, 0, nullptr);
+  s.record_to_image(commands, s.composed.handle());
+  s.timer.end(commands, slot);
+  s.baked = true;
+  const long long age = s.calls - s.served_begun;
+  ++s.calls;
+  return age;
+}
+
+float DeviceCones::lift() const {
+  const State& s = *state_;
+  const int slot = s.timer.last_slot();
+  if (slot < 0 || s.lift_host.handle() == VK_NULL_HANDLE || !s.impl.slot_finished(slot)) return 0.0f;
+  return static_cast<const float*>(s.lift_host.mapped())[slot];
 }
 
 double DeviceCones::device_milliseconds() const {

@@ -387,7 +387,7 @@ uint encode_apex(float height) { return uint(min(height * 65535.0 + 2.0, 65535.0
 
 void main() {
   j = int(gl_GlobalInvocationID.x);
-  i = int(gl_GlobalInvocationID.y);
+  i = int(gl_GlobalInvocationID.y) + push.first_row;
   W = push.width;
   H = push.height;
   if (j >= W || i >= H) return;

@@ -15,6 +15,7 @@ namespace displace::render::gpu {
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
 #define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
+#define CONE_COUNTER_LIFT 3       // counters[]: lagged maps: the most a texel rose since the served map's heights
 #define CONE_COUNTERS 4
 
 struct ConeCellsPush {
@@ -38,7 +39,19 @@ struct ConeTexelPush {
   int levels;            // pyramid levels (the last one 1 x 1)
   int first_pass_level;  // nodes at or below it are bounded, not opened, in the first pass; < 0: none
   int refine_limit;      // texels whose cut first pass is searched again to the cells, at most
+  int first_row;         // the dispatch's rows begin at this texel row (lagged maps: a band a frame)
   int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in the pyramid buffer (floats)
+};
+
+struct ConeLiftPush {
+  int width, height;
+  int pad0, pad1;
+};
+
+struct ConeComposePush {
+  int width, height;
+  int layers;  // values per texel
+  int pad0;
 };
 
 #ifdef __cplusplus

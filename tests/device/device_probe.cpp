@@ -14,7 +14,7 @@
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
 //    allocations after warm-up. Each with the sim and bake on the CPU, the sim on the device, and both
-//    on the device (lag 0: the device bakes every frame's own map), with
+//    on the device (lagged by 0, 3 and 7 frames: render::DeviceCones::bake_lagged), with
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
 // 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
@@ -165,8 +165,9 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
     for (const auto& [sim_backend, bake_backend] : backends) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
-      for (int lag : plan.cone_lags) {
-        if (bake_backend == Backend::device && lag != 0) continue;
+      std::vector<int> lags = plan.cone_lags;
+      if (bake_backend == Backend::device && plan.frames > 20) lags.push_back(7);  // device: 0, 3 and 7
+      for (int lag : lags) {
         for (bool overlapped : {false, true}) {
           const int frame_count = size >= 2048 ? plan.large_frames : plan.frames;
           pipeline::Scene scene = pipeline::builtin_scene("water");
@@ -182,9 +183,10 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           render::Frame frame;
           for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
           const long long allocations = renderer.memory_allocations();
-          std::vector<double> sim, bake, upload, draw, total, age, sim_device, bake_device, draw_device;
+          std::vector<double> sim, bake, upload, draw, total, age, lift, sim_device, bake_device, draw_device;
           auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
             age.push_back(double(r.cone_lag));
+            lift.push_back(double(r.cone_lift));
             sim_device.push_back(r.sim_device_ms);
             bake_device.push_back(r.bake_device_ms);
             draw_device.push_back(r.render_device_ms);
@@ -204,13 +206,13 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
               "%.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
               "%.3f "
-              "render %.3f ms, maps %.0f frames old (p50), %lld allocations after warm-up\n",
+              "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after warm-up\n",
               size, size, size, overlapped ? "overlapped" : "in series", lag,
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
               percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5),
               percentile(total, 0.5), percentile(total, 0.95), percentile(sim_device, 0.5),
               percentile(bake_device, 0.5), percentile(draw_device, 0.5), percentile(age, 0.5),
-              renderer.memory_allocations() - allocations);
+              percentile(lift, 0.5), renderer.memory_allocations() - allocations);
           std::fflush(stdout);
         }
       }

@@ -243,6 +243,78 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
+// Lagged maps (bake_lagged): each frame samples the map of the heights of the frame it began on, bit
+// for bit the ratios that a whole bake of those heights gives, with every apex raised by the most a
+// texel rose since (within the two units of rounding up); every frame's map holds for that frame's own
+// heights, and the same maps served unraised do not (the lift is what keeps them conservative). A new
+// map begins every N + 1 frames and is at most 2N frames old; nothing is allocated after the first.
+TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
+  render::Renderer& renderer = cones_renderer();
+  pipeline::SourceSettings settings;
+  settings.kind = pipeline::SourceKind::ocean;
+  settings.map_size = 32;
+  settings.ocean.patch_size = 200.0f;
+  settings.ocean.wind_speed = 12.0f;
+  settings.ocean.seed = 11;
+  const std::unique_ptr<render::DeviceSim> made =
+      pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+  render::DeviceSim& ocean = *made;
+  for (int lag : {1, 3}) {
+    render::DeviceCones cones(renderer, 4, Address::wrap);
+    struct Served {
+      std::vector<float> heights;
+      DeviceBake bake;
+      long long age = 0;
+      float lift = 0.0f;
+    };
+    std::vector<Served> frames;
+    long long allocations = 0;
+    for (int f = 0; f < 3 * lag + 4; ++f) {
+      ocean.simulate(1.0 + 0.4 * f);  // a fast sea: the heights rise by up to a tenth of their range
+      Served served;
+      served.age = cones.bake_lagged({0}, lag);
+      served.bake = read(cones, 32, 32);
+      served.lift = cones.lift();
+      ocean.read_back(&served.heights, nullptr, nullptr);
+      frames.push_back(std::move(served));
+      if (f == 0) allocations = renderer.memory_allocations();
+    }
+    EXPECT_EQ(renderer.memory_allocations(), allocations) << "lag " << lag;
+    int unraised_fail = 0;
+    for (int f = 0; f < int(frames.size()); ++f) {
+      const Served& served = frames[std::size_t(f)];
+      const std::string at = "lag " + std::to_string(lag) + " frame " + std::to_string(f);
+      // frame 0 makes a whole map; then one begins on frame 1, N + 2, 2N + 3, ... and is served from
+      // its N-th frame on
+      const long long begun = f < 1 + lag ? 0 : 1 + (lag + 1) * ((f - 1 - lag) / (lag + 1));
+      ASSERT_EQ(served.age, f - begun) << at;
+      ASSERT_LE(served.age, 2 * lag) << at;
+      const std::vector<float>& then = frames[std::size_t(begun)].heights;
+      float rise = 0.0f;
+      for (std::size_t t = 0; t < then.size(); ++t) rise = std::max(rise, served.heights[t] - then[t]);
+      EXPECT_EQ(served.lift, rise) << at;
+      // the map of the heights it began on, raised
+      const Map old_map{"ocean-then", 32, 32, then};
+      render::DeviceCones whole(renderer, bake::view_of(old_map), 4, Address::wrap);
+      const DeviceBake reference = bake_on_device(whole, 0);
+      ASSERT_EQ(served.bake.cones.ratios, reference.cones.ratios) << at;
+      for (std::size_t t = 0; t < then.size(); ++t) {
+        ASSERT_GE(served.bake.apex[t], std::min(1.0f, reference.apex[t] + rise)) << at;
+        ASSERT_LE(served.bake.apex[t], reference.apex[t] + rise + 2.5f / 65535.0f) << at;
+      }
+      // conservative for this frame's heights; unraised, not always
+      const Map now_map{"ocean-now", 32, 32, served.heights};
+      EXPECT_EQ(bake::check_bilinear(now_map, Address::wrap, served.bake.cones, served.bake.apex, 7).violations, 0)
+          << at;
+      if (unraised_fail == 0 && served.lift > 0.0f &&
+          bake::check_bilinear(now_map, Address::wrap, reference.cones, reference.apex, 7).violations > 0)
+        ++unraised_fail;
+    }
+    EXPECT_GT(unraised_fail, 0) << "lag " << lag;
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 TEST(DeviceCones, RefusesWhatItCannotBake) {
   render::Renderer& renderer = cones_renderer();
   std::vector<float> heights(16, 0.5f);
@@ -276,6 +348,7 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
   {
     render::DeviceCones cones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
     EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
+    EXPECT_THROW(cones.bake_lagged({0}, -1), render::RenderError);
   }
   // a MapSet asking for device cones the renderer does not have (the DeviceCones above is gone)
   render::MapSet maps;

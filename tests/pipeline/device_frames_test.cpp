@@ -96,4 +96,33 @@ TEST(DeviceFrames, AllocateNothingAfterWarmUp) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
+// Lagged cone maps on the device path (real time, `cone_lag_frames`): each frame reports the age of
+// the map it samples (a whole map on frame 0, then one begun every N + 1 frames and served from its
+// N-th) and how far its apexes were raised; nothing is allocated after the first frame. What the maps
+// hold is DeviceCones.LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights.
+TEST(DeviceFrames, LaggedConeMapsReportTheirAgeAndLift) {
+  render::Renderer& renderer = frames_renderer();
+  pipeline::Scene scene = small_scene("water", pipeline::Backend::device, pipeline::Backend::device);
+  scene.frame_ms = 0.0;  // real time, where lagged maps apply
+  scene.cone_lag_frames = 2;
+  pipeline::FramePipeline device(scene, renderer);
+  render::Frame frame;
+  long long allocations = 0;
+  int lifted = 0;
+  for (long long n = 0; n < 9; ++n) {
+    const pipeline::FrameRecord record = device.run(n, frame, render::output_color);
+    if (n == 0) allocations = renderer.memory_allocations();
+    const long long begun = n < 3 ? 0 : 1 + 3 * ((n - 3) / 3);
+    EXPECT_EQ(record.cone_lag, n - begun) << "frame " << n;
+    EXPECT_GE(record.cone_lift, 0.0f) << "frame " << n;
+    if (record.cone_lag == 0) {
+      EXPECT_EQ(record.cone_lift, 0.0f) << "frame " << n;
+    }
+    if (record.cone_lift > 0.0f) ++lifted;
+  }
+  EXPECT_GT(lifted, 0);  // the sea rises somewhere between a map's frame and the frames it serves
+  EXPECT_EQ(renderer.memory_allocations(), allocations);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 }  // namespace
