@@ -117,7 +117,8 @@ class DeviceCones {
   void bake(const DeviceConeBudget& budget = {});
   // Submits what is recorded, waits, and reads back what the renderer samples (either may be null):
   // ratios decoded, W x H x sectors interleaved (bake::ConeView's layout), and apex heights decoded.
-  // Throws RenderError where the heights held a NaN or a value outside [0, 1].
+  // Throws RenderError where the heights held a NaN or a value outside [0, 1]. After bake_lagged()
+  // the stats are those of the map in progress.
   DeviceConeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
 
   // Lagged maps (lag_frames = N > 0): one map's bake is spread over N + 1 calls - a snapshot of the

@@ -85,12 +85,12 @@ struct DeviceCones::State {
   Image snapshots[2];
   Buffer served, composed, lift_host;
   ComputeKernel snapshot_cells[2], snapshot_texel[2], lift_kernel[2], compose_kernel;
-  int lag = 0;                   // N of the maps being made
-  int progress = 0;              // the snapshot the map in progress reads
-  int band = -1;                 // the next band of texel rows of the map in progress; -1: none
-  long long calls = 0;           // bake_lagged calls so far
-  long long begun = 0;           // the call the map in progress began on
-  long long served_begun = -1;   // the call the served map began on; -1: none finished yet
+  int lag = 0;                  // N of the maps being made
+  int progress = 0;             // the snapshot the map in progress reads
+  int band = -1;                // the next band of texel rows of the map in progress; -1: none
+  long long calls = 0;          // bake_lagged calls so far
+  long long begun = 0;          // the call the map in progress began on
+  long long served_begun = -1;  // the call the served map began on; -1: none finished yet
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
@@ -197,10 +197,10 @@ DeviceCones::DeviceCones(Renderer& renderer, bake::HeightView heights, int secto
   }
   // the heights, uploaded once through a staging buffer
   const Context& context = s.impl.context;
-  s.own_heights = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(s.width), std::uint32_t(s.height), 1,
-                        VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT |
-                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
-                        VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+  s.own_heights =
+      Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(s.width), std::uint32_t(s.height), 1,
+            VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+            VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
   {
     Buffer staging(context, s.texels() * 4, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
@@ -280,13 +280,15 @@ void DeviceCones::State::record_texels(VkCommandBuffer commands, const ComputeKe
   texel_push.wrap = address == bake::Address::wrap ? 1 : 0;
   texel_push.sectors = sectors;
   texel_push.levels = levels;
-  for (int level = 0; level < levels; ++level) texel_push.level_offset[level] = level_offset[std::size_t(level)];
+  for (int level = 0; level < levels; ++level)
+    texel_push.level_offset[level] = level_offset[std::size_t(level)];
   const bool unlimited = budget.texels < 0;
   texel_push.first_pass_level = unlimited ? -1 : first_pass_level;
   texel_push.refine_limit =
       unlimited ? 0 : int(std::min<long long>(budget.texels, std::numeric_limits<int>::max()));
   texel_push.first_row = first_group_row * CONE_TILE;
-  texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1, &texel_push);
+  texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1,
+               &texel_push);
   refine_limit = unlimited ? unlimited_texels : budget.texels;
 }
 
@@ -331,15 +333,16 @@ void DeviceCones::State::make_lagged() {
   const VkDeviceSize value_bytes = texels() * VkDeviceSize(layers) * cone_texel_bytes;
   served = Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                   VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  composed = Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  composed =
+      Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+             VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
   lift_host = Buffer(context, frames_in_flight * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                      VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   std::memset(lift_host.mapped(), 0, frames_in_flight * 4);
   for (int k = 0; k < 2; ++k) {
     snapshots[k] = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(width), std::uint32_t(height), 1,
-                         VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
-                         VK_IMAGE_VIEW_TYPE_2D);
+                         VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                         VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
     snapshot_cells[k] = impl.cone_kernels->cells.sibling();
     snapshot_cells[k].bind_image(0, snapshots[k].view());
     snapshot_cells[k].bind_buffer(1, pyramid.handle());
@@ -392,10 +395,11 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   if (s.band < 0) {  // a map begins: its heights' snapshot, then its pyramid
     const VkImage source = s.source->handle(), snapshot = s.snapshots[s.progress].handle();
     const VkPipelineStageFlags transfer = VK_PIPELINE_STAGE_TRANSFER_BIT;
-    const VkPipelineStageFlags readers = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+    const VkPipelineStageFlags readers =
+        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
     image_barrier(commands, source, 1, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                  VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-                  transfer);
+                  VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,
+                  VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, transfer);
     image_barrier(commands, snapshot, 1, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
                   VK_ACCESS_TRANSFER_WRITE_BIT, transfer, transfer);
     VkImageCopy region{};
@@ -446,8 +450,8 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
   to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
-                       nullptr, 0, nullptr);
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
+                       0, nullptr, 0, nullptr);
   s.record_to_image(commands, s.composed.handle());
   s.timer.end(commands, slot);
   s.baked = true;

@@ -15,7 +15,7 @@ namespace displace::render::gpu {
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
 #define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
-#define CONE_COUNTER_LIFT 3       // counters[]: lagged maps: the most a texel rose since the served map's heights
+#define CONE_COUNTER_LIFT 3       // counters[]: lagged maps: the most a texel rose since (float bits)
 #define CONE_COUNTERS 4
 
 struct ConeCellsPush {

@@ -206,7 +206,8 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
               "%.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
               "%.3f "
-              "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after warm-up\n",
+              "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after "
+              "warm-up\n",
               size, size, size, overlapped ? "overlapped" : "in series", lag,
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
               percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5),

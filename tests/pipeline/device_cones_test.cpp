@@ -304,7 +304,8 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       }
       // conservative for this frame's heights; unraised, not always
       const Map now_map{"ocean-now", 32, 32, served.heights};
-      EXPECT_EQ(bake::check_bilinear(now_map, Address::wrap, served.bake.cones, served.bake.apex, 7).violations, 0)
+      EXPECT_EQ(
+          bake::check_bilinear(now_map, Address::wrap, served.bake.cones, served.bake.apex, 7).violations, 0)
           << at;
       if (unraised_fail == 0 && served.lift > 0.0f &&
           bake::check_bilinear(now_map, Address::wrap, reference.cones, reference.apex, 7).violations > 0)
