@@ -45,6 +45,27 @@ constexpr VkDescriptorType texel_bindings[] = {storage_image, storage_buffer, st
 constexpr VkDescriptorType lift_bindings[] = {storage_image, storage_image, storage_buffer};
 constexpr VkDescriptorType compose_bindings[] = {storage_buffer, storage_buffer, storage_buffer};
 
+// Transfer writes (fills, copies) made visible to the compute shaders recorded after them.
+void transfer_to_compute_barrier(VkCommandBuffer commands) {
+  VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
+                       &barrier, 0, nullptr, 0, nullptr);
+}
+
+// Copies `bytes` of `source` into host-visible `target`, readable by the host once the frame is done.
+void copy_to_host(VkCommandBuffer commands, VkBuffer source, VkDeviceSize source_offset, VkBuffer target,
+                  VkDeviceSize target_offset, VkDeviceSize bytes) {
+  const VkBufferCopy region{source_offset, target_offset, bytes};
+  vkCmdCopyBuffer(commands, source, target, 1, &region);
+  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
+                       0, nullptr, 0, nullptr);
+}
+
 // Throws RenderError unless the shape is one the kernels take.
 void validate_shape(int width, int height, int sector_count) {
   if (width < 1 || height < 1 || width > max_map_side || height > max_map_side) {
@@ -241,11 +262,7 @@ void DeviceCones::State::check_source() const {
 // the max pyramid above them, a level at a time, of the heights `cells` reads.
 void DeviceCones::State::record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells) {
   vkCmdFillBuffer(commands, counters.handle(), 0, VK_WHOLE_SIZE, 0);
-  VkMemoryBarrier cleared{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  cleared.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  cleared.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
-                       &cleared, 0, nullptr, 0, nullptr);
+  transfer_to_compute_barrier(commands);
   gpu::ConeCellsPush cells_push{};
   cells_push.width = width;
   cells_push.height = height;
@@ -432,11 +449,7 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   }
   // this frame's lift over the served map's heights, and the served map with its apexes raised by it
   vkCmdFillBuffer(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, 4, 0);
-  VkMemoryBarrier ready{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  ready.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  ready.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
-                       &ready, 0, nullptr, 0, nullptr);
+  transfer_to_compute_barrier(commands);
   const gpu::ConeLiftPush lift_push{s.width, s.height, 0, 0};
   s.lift_kernel[s.progress ^ 1].record(commands, group_count(std::uint32_t(s.width), CONE_TILE),
                                        group_count(std::uint32_t(s.height), CONE_TILE), 1, &lift_push);
@@ -445,13 +458,8 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   s.compose_kernel.record(commands, group_count(std::uint32_t(s.width), CONE_TILE),
                           group_count(std::uint32_t(s.height), CONE_TILE), 1, &compose_push);
   compute_barrier(commands);
-  const VkBufferCopy lift_copy{CONE_COUNTER_LIFT * 4, VkDeviceSize(slot) * 4, 4};
-  vkCmdCopyBuffer(commands, s.counters.handle(), s.lift_host.handle(), 1, &lift_copy);
-  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
-                       0, nullptr, 0, nullptr);
+  copy_to_host(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, s.lift_host.handle(),
+               VkDeviceSize(slot) * 4, 4);
   s.record_to_image(commands, s.composed.handle());
   s.timer.end(commands, slot);
   s.baked = true;
@@ -499,13 +507,7 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
                   VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
   }
-  const VkBufferCopy counters_copy{0, image_bytes, CONE_COUNTERS * 4};
-  vkCmdCopyBuffer(commands, s.counters.handle(), s.readback.handle(), 1, &counters_copy);
-  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
-                       0, nullptr, 0, nullptr);
+  copy_to_host(commands, s.counters.handle(), 0, s.readback.handle(), image_bytes, CONE_COUNTERS * 4);
   s.impl.submit_slot(true);
 
   const auto* bytes = static_cast<const std::byte*>(s.readback.mapped());

@@ -199,18 +199,22 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   EXPECT_NEAR(previous, bake::mean_ratio(unlimited.cones), 1e-6);  // all cut texels refined: the same map
 }
 
-// The cones of a DeviceSim's heights, sampled by the renderer with no upload: the contract on the
-// heights read back, the frame drawn from both device maps, and nothing allocated per frame.
-TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
-  render::Renderer& renderer = cones_renderer();
+// A 32 x 32 device ocean (a 200 m patch, 12 m/s wind), heights only.
+std::unique_ptr<render::DeviceSim> small_ocean(render::Renderer& renderer, std::uint64_t seed) {
   pipeline::SourceSettings settings;
   settings.kind = pipeline::SourceKind::ocean;
   settings.map_size = 32;
   settings.ocean.patch_size = 200.0f;
   settings.ocean.wind_speed = 12.0f;
-  settings.ocean.seed = 7;
-  const std::unique_ptr<render::DeviceSim> made =
-      pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+  settings.ocean.seed = seed;
+  return pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+}
+
+// The cones of a DeviceSim's heights, sampled by the renderer with no upload: the contract on the
+// heights read back, the frame drawn from both device maps, and nothing allocated per frame.
+TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
+  render::Renderer& renderer = cones_renderer();
+  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 7);
   render::DeviceSim& ocean = *made;
   render::DeviceCones cones(renderer, 4, Address::wrap);
   ASSERT_EQ(cones.width(), 32);
@@ -250,14 +254,7 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
 // map begins every N + 1 frames and is at most 2N frames old; nothing is allocated after the first.
 TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
   render::Renderer& renderer = cones_renderer();
-  pipeline::SourceSettings settings;
-  settings.kind = pipeline::SourceKind::ocean;
-  settings.map_size = 32;
-  settings.ocean.patch_size = 200.0f;
-  settings.ocean.wind_speed = 12.0f;
-  settings.ocean.seed = 11;
-  const std::unique_ptr<render::DeviceSim> made =
-      pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
+  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 11);
   render::DeviceSim& ocean = *made;
   for (int lag : {1, 3}) {
     render::DeviceCones cones(renderer, 4, Address::wrap);
