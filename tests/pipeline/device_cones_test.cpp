@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -250,8 +251,9 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
 // Lagged maps (bake_lagged): each frame samples the map of the heights of the frame it began on, bit
 // for bit the ratios that a whole bake of those heights gives, with every apex raised by the most a
 // texel rose since (within the two units of rounding up); every frame's map holds for that frame's own
-// heights, and the same maps served unraised do not (the lift is what keeps them conservative). A new
-// map begins every N + 1 frames and is at most 2N frames old; nothing is allocated after the first.
+// heights (brute force on every 17th texel: the check is most of the test's time under TSan), and the
+// same maps served unraised do not (the lift is what keeps them conservative). A new map begins every
+// N + 1 frames and is at most 2N frames old; nothing is allocated after the first.
 TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
   render::Renderer& renderer = cones_renderer();
   const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 11);
@@ -266,8 +268,8 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
     };
     std::vector<Served> frames;
     long long allocations = 0;
-    for (int f = 0; f < 3 * lag + 4; ++f) {
-      ocean.simulate(1.0 + 0.4 * f);  // a fast sea: the heights rise by up to a tenth of their range
+    for (int f = 0; f < 2 * lag + 3; ++f) {  // two maps after the whole one: ages 0 to 2N
+      ocean.simulate(1.0 + 0.4 * f);         // a fast sea: the heights rise by up to a tenth of their range
       Served served;
       served.age = cones.bake_lagged({0}, lag);
       served.bake = read(cones, 32, 32);
@@ -278,6 +280,7 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
     }
     EXPECT_EQ(renderer.memory_allocations(), allocations) << "lag " << lag;
     int unraised_fail = 0;
+    std::map<long long, DeviceBake> references;  // a whole bake of each map's heights, by its frame
     for (int f = 0; f < int(frames.size()); ++f) {
       const Served& served = frames[std::size_t(f)];
       const std::string at = "lag " + std::to_string(lag) + " frame " + std::to_string(f);
@@ -291,9 +294,12 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       for (std::size_t t = 0; t < then.size(); ++t) rise = std::max(rise, served.heights[t] - then[t]);
       EXPECT_EQ(served.lift, rise) << at;
       // the map of the heights it began on, raised
-      const Map old_map{"ocean-then", 32, 32, then};
-      render::DeviceCones whole(renderer, bake::view_of(old_map), 4, Address::wrap);
-      const DeviceBake reference = bake_on_device(whole, 0);
+      if (references.count(begun) == 0) {
+        const Map old_map{"ocean-then", 32, 32, then};
+        render::DeviceCones whole(renderer, bake::view_of(old_map), 4, Address::wrap);
+        references[begun] = bake_on_device(whole, 0);
+      }
+      const DeviceBake& reference = references[begun];
       ASSERT_EQ(served.bake.cones.ratios, reference.cones.ratios) << at;
       for (std::size_t t = 0; t < then.size(); ++t) {
         ASSERT_GE(served.bake.apex[t], std::min(1.0f, reference.apex[t] + rise)) << at;
@@ -302,10 +308,10 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       // conservative for this frame's heights; unraised, not always
       const Map now_map{"ocean-now", 32, 32, served.heights};
       EXPECT_EQ(
-          bake::check_bilinear(now_map, Address::wrap, served.bake.cones, served.bake.apex, 7).violations, 0)
+          bake::check_bilinear(now_map, Address::wrap, served.bake.cones, served.bake.apex, 17).violations, 0)
           << at;
       if (unraised_fail == 0 && served.lift > 0.0f &&
-          bake::check_bilinear(now_map, Address::wrap, reference.cones, reference.apex, 7).violations > 0)
+          bake::check_bilinear(now_map, Address::wrap, reference.cones, reference.apex, 9).violations > 0)
         ++unraised_fail;
     }
     EXPECT_GT(unraised_fail, 0) << "lag " << lag;
