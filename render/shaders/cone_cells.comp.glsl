@@ -9,6 +9,7 @@
 // finite value in [0, 1] raises CONE_COUNTER_BAD.
 #include "cones.h"
 #include "cone_axis.inc.glsl"
+#include "group_max.inc.glsl"
 
 layout(local_size_x = CONE_TILE, local_size_y = CONE_TILE, local_size_z = 1) in;
 
@@ -18,7 +19,6 @@ layout(std430, binding = 2) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push { ConeCellsPush push; };
 
-shared float group_lipschitz[CONE_TILE * CONE_TILE];
 shared uint group_bad;
 
 float height_at(int a, int b) {
@@ -46,14 +46,9 @@ void main() {
     lipschitz = sqrt(du * du + dv * dv);
   }
   // the group's largest
-  group_lipschitz[local] = lipschitz;
-  barrier();
-  for (uint stride = CONE_TILE * CONE_TILE / 2; stride > 0; stride /= 2) {
-    if (local < stride) group_lipschitz[local] = max(group_lipschitz[local], group_lipschitz[local + stride]);
-    barrier();
-  }
+  const float largest = group_max(lipschitz);
   if (local == 0) {
-    atomicMax(counters[CONE_COUNTER_LIPSCHITZ], floatBitsToUint(group_lipschitz[0]));
+    atomicMax(counters[CONE_COUNTER_LIPSCHITZ], floatBitsToUint(largest));
     if (group_bad != 0) atomicOr(counters[CONE_COUNTER_BAD], 1u);
   }
 }

@@ -7,6 +7,7 @@
 // anywhere (docs/design/lagged-cone-maps.md). A height now that is not a finite value in [0, 1]
 // raises CONE_COUNTER_BAD.
 #include "cones.h"
+#include "group_max.inc.glsl"
 
 layout(local_size_x = CONE_TILE, local_size_y = CONE_TILE, local_size_z = 1) in;
 
@@ -16,7 +17,6 @@ layout(std430, binding = 2) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push { ConeLiftPush push; };
 
-shared float group_rise[CONE_TILE * CONE_TILE];
 shared uint group_bad;
 
 void main() {
@@ -31,14 +31,9 @@ void main() {
     rise = max(now - imageLoad(then_heights, texel).r, 0.0);
     if (!(rise <= 1.0)) rise = 1.0;  // a NaN now: flagged above, and at most 1 is all a lift can be
   }
-  group_rise[local] = rise;
-  barrier();
-  for (uint stride = CONE_TILE * CONE_TILE / 2; stride > 0; stride /= 2) {
-    if (local < stride) group_rise[local] = max(group_rise[local], group_rise[local + stride]);
-    barrier();
-  }
+  const float largest = group_max(rise);
   if (local == 0) {
-    atomicMax(counters[CONE_COUNTER_LIFT], floatBitsToUint(group_rise[0]));
+    atomicMax(counters[CONE_COUNTER_LIFT], floatBitsToUint(largest));
     if (group_bad != 0) atomicOr(counters[CONE_COUNTER_BAD], 1u);
   }
 }
