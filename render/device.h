@@ -87,14 +87,25 @@ class DeviceSim {
   std::unique_ptr<State> state_;
 };
 
-// How much of a DeviceCones bake goes beyond the first pass. The first pass (always) bounds every
-// texel from its slope window, the Lipschitz floor and the max pyramid opened down to blocks of 4 x 4
-// cells; a texel whose search bounded such a block whole is "cut", and up to `texels` cut texels (which
-// ones: the order the device runs them in) are searched again down to the cells. unlimited_texels:
-// no first pass, every texel searched to the cells. Each is conservative on its own.
+// How a DeviceCones first pass bounds a texel: from its slope window (the window_radius cells around
+// it on each side, bounded by the surface's slopes), the Lipschitz floor and the max pyramid. The
+// pyramid either by a search (ring_radius 0) that opens nodes down to blocks of 4 x 4 cells, bounding
+// those whole, or by rings (ring_radius r > 0): at every level, the nodes more than r nodes from the
+// texel's own are bounded whole, the same nodes for every texel (no search: the device runs a group's
+// texels in step). r = 1 examines about 220 nodes a texel, r = 2 about 660 and bounds more tightly.
+struct DeviceFirstPass {
+  int window_radius = 4;  // 1..4 cells
+  int ring_radius = 0;    // 0..8
+};
+
+// How much of a DeviceCones bake goes beyond the first pass. A texel whose first pass bounded a node
+// whole is "cut", and up to `texels` cut texels (which ones: the order the device runs them in) are
+// searched again down to the cells (from the same window). unlimited_texels: no first pass, every
+// texel searched to the cells from the full window. Each is conservative on its own.
 inline constexpr long long unlimited_texels = -1;
 struct DeviceConeBudget {
   long long texels = unlimited_texels;  // cut texels searched again per bake, at most; 0: the first pass only
+  DeviceFirstPass first_pass = {};
 };
 
 struct DeviceConeStats {

@@ -26,8 +26,8 @@ namespace displace::render {
 
 static_assert(sizeof(gpu::ConeCellsPush) == 32);
 static_assert(sizeof(gpu::ConeReducePush) == 32);
-static_assert(sizeof(gpu::ConeTexelPush) == 40 + 4 * CONE_MAX_LEVELS);  // within 128 bytes, Vulkan's least
-static_assert(offsetof(gpu::ConeTexelPush, level_offset) == 40);
+static_assert(sizeof(gpu::ConeTexelPush) == 52 + 4 * CONE_MAX_LEVELS);  // within 128 bytes, Vulkan's least
+static_assert(offsetof(gpu::ConeTexelPush, level_offset) == 52);
 static_assert(sizeof(gpu::ConeLiftPush) == 16);
 static_assert(sizeof(gpu::ConeComposePush) == 16);
 
@@ -36,6 +36,8 @@ namespace {
 // the first pass opens no pyramid node at or below this level: blocks of 2^2 x 2^2 cells are bounded
 // whole (levels, docs/design/device-cones.md#budget for the figures behind it)
 constexpr int first_pass_level = 2;
+// rings: nodes a side examined per level and texel, (4 r + 2)^2, grow fast (r = 8: 1156)
+constexpr int max_ring_radius = 8;
 
 constexpr VkDescriptorType storage_buffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 constexpr VkDescriptorType storage_image = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
@@ -74,6 +76,18 @@ void validate_shape(int width, int height, int sector_count) {
   }
   if (sector_count != 1 && sector_count != 4 && sector_count != 8)
     throw RenderError("DeviceCones: a cone map has 1, 4 or 8 sectors, not " + std::to_string(sector_count));
+}
+
+// Throws RenderError unless the first pass is one the search kernel takes.
+void validate_budget(const DeviceConeBudget& budget) {
+  const DeviceFirstPass& first = budget.first_pass;
+  if (first.window_radius < 1 || first.window_radius > CONE_SLOPE_WINDOW)
+    throw RenderError("DeviceCones: a first pass's window radius is 1 to " +
+                      std::to_string(CONE_SLOPE_WINDOW) + " cells, not " +
+                      std::to_string(first.window_radius));
+  if (first.ring_radius < 0 || first.ring_radius > max_ring_radius)
+    throw RenderError("DeviceCones: a first pass's ring radius is 0 to " + std::to_string(max_ring_radius) +
+                      " nodes, not " + std::to_string(first.ring_radius));
 }
 
 }  // namespace
@@ -304,6 +318,8 @@ void DeviceCones::State::record_texels(VkCommandBuffer commands, const ComputeKe
   texel_push.refine_limit =
       unlimited ? 0 : int(std::min<long long>(budget.texels, std::numeric_limits<int>::max()));
   texel_push.first_row = first_group_row * CONE_TILE;
+  texel_push.window_radius = unlimited ? CONE_SLOPE_WINDOW : budget.first_pass.window_radius;
+  texel_push.ring_radius = unlimited ? 0 : budget.first_pass.ring_radius;
   texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1,
                &texel_push);
   refine_limit = unlimited ? unlimited_texels : budget.texels;
@@ -327,6 +343,7 @@ void DeviceCones::State::record_to_image(VkCommandBuffer commands, VkBuffer valu
 }
 
 void DeviceCones::bake(const DeviceConeBudget& budget) {
+  validate_budget(budget);
   State& s = *state_;
   s.check_source();
   const int slot = s.impl.slot;
@@ -391,6 +408,7 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   State& s = *state_;
   if (lag_frames < 0)
     throw RenderError("DeviceCones::bake_lagged: a lag of " + std::to_string(lag_frames) + " frames");
+  validate_budget(budget);
   if (lag_frames == 0) {
     bake(budget);
     s.served_begun = -1;  // what was served is not this frame's map

@@ -8,12 +8,14 @@
 //
 // The one fact: every ratio is the largest of three lower bounds, each valid alone: the Lipschitz
 // floor 1 / L (s rises at most L per uv from any p, which lies at or below H_c); the slope window
-// (the 8 x 8 cells around c, cut at Q_c's edge lines, bounded by their distance and by how fast s can
-// rise from Q_c's edge towards them: bake/cone_bilinear.cpp's window_cells, ported); and a top-down
+// (the 2w x 2w cells around c, w = window_radius: 4 but in a first pass that asks fewer; cut at Q_c's
+// edge lines, bounded by their distance and by how fast s can rise from Q_c's edge towards them:
+// bake/cone_bilinear.cpp's window_cells, ported); and a top-down
 // search of the max pyramid over cells for the rest, each block bounding its cells outside the window
-// by (distance from Q_c) / (block max - H_c). The first pass opens no node at or below
-// first_pass_level (it bounds them whole, which is valid, and is "cut"); a cut texel that gets one of
-// refine_limit tickets is searched again down to the cells. Proof and margins:
+// by (distance from Q_c) / (block max - H_c). The first pass either opens no node at or below
+// first_pass_level (it bounds them whole, which is valid, and is "cut") or, with ring_radius > 0,
+// bounds fixed rings of nodes around the texel (ring_tile), perhaps with a smaller window; a cut
+// texel that gets one of refine_limit tickets is searched again down to the cells. Proof and margins:
 // docs/design/device-cones.md.
 #include "cones.h"
 #include "cone_axis.inc.glsl"
@@ -35,10 +37,11 @@ const float guard = 4e-6;           // relative: rounds the ill-conditioned far 
 const float ratio_margin = 1e-5;    // relative: shrinks every ratio before it is stored (covers roundings)
 const float unclaimed = 1.0001;     // a ratio no bound has lowered: stores as 1 after the margin
 const float infinite_bound = 3.0e38;
-const int R = CONE_SLOPE_WINDOW;
+const int R = CONE_SLOPE_WINDOW;  // the window's radius at most (its arrays' size)
 
 bool wrap;
 int W, H, sectors;
+int window;                  // the window's radius in cells, 1..R
 int i, j;                    // the texel: row, column
 int qu0, qu1, qv0, qv1;      // Q_c in half texels
 float half_u, half_v;        // uv per half texel
@@ -101,6 +104,14 @@ void lower(uint mask, float bound) {
     if ((mask >> k & 1u) != 0u && bound < best[k]) best[k] = bound;
 }
 
+// the largest ratio a bound could still lower (0: none); a bound at or above it lowers nothing
+float ceiling() {
+  float most = 0.0;
+  [[unroll]] for (int k = 0; k < 8; ++k)
+    if (k < sectors && best[k] > floor_ratio) most = max(most, best[k]);
+  return most;
+}
+
 // the sectors of `mask` that `bound` could still lower
 uint useful_sectors(uint mask, float bound) {
   uint useful = 0u;
@@ -115,7 +126,10 @@ uint useful_sectors(uint mask, float bound) {
 // indexed at run time in slow per-invocation memory, while neighbouring invocations share these reads
 // in the cache)
 float height_at(int da, int db) {
-  return imageLoad(heights, ivec2(axis_texel(j + da, W, wrap), axis_texel(i + db, H, wrap))).r;
+  int a = j + da, b = i + db;
+  if (a < 0 || a >= W) a = axis_texel(a, W, wrap);  // a division only at the map's edges
+  if (b < 0 || b >= H) b = axis_texel(b, H, wrap);
+  return imageLoad(heights, ivec2(a, b)).r;
 }
 
 // s on a cell with corner heights h = (lower left, lower right, upper left, upper right), at cell
@@ -164,16 +178,16 @@ float piece_bound(float near, float far, float rise, float drop, float slope) {
 void window_cells() {
   // The running largest rates outward from Q_c: cell (da, db)'s takes in those of the cells between it
   // and Q_c's row and column, (da -+ 1, db) and (da, db -+ 1). Rows and columns are visited outward
-  // from Q_c (0, 1, ..., R - 1, then -1, ..., -R), so the first is the cell visited just before in
+  // from Q_c (0, 1, ..., window - 1, then -1, ..., -window), so the first is the cell visited just before in
   // this row, and the second is at the same place in the row visited just before: one running value
   // and one row of them.
   float row_u[2 * R], row_v[2 * R];
-  [[dont_unroll]] for (int y = 0; y < 2 * R; ++y) {
-    const int db = y < R ? y : R - 1 - y;  // 0, 1, ..., R - 1, then -1, ..., -R
+  [[dont_unroll]] for (int y = 0; y < 2 * window; ++y) {
+    const int db = y < window ? y : window - 1 - y;  // 0, 1, ..., window - 1, then -1, ..., -window
     const int nv = cell_of_left_centre(i + db, wrap);
     float run_u = 0.0, run_v = 0.0;
-    [[dont_unroll]] for (int x = 0; x < 2 * R; ++x) {
-      const int da = x < R ? x : R - 1 - x;
+    [[dont_unroll]] for (int x = 0; x < 2 * window; ++x) {
+      const int da = x < window ? x : window - 1 - x;
       const int nu = cell_of_left_centre(j + da, wrap);
       const bool exists = cell_exists(nu, push.cells_u, wrap) && cell_exists(nv, push.cells_v, wrap);
       vec4 h = vec4(0.0);
@@ -280,9 +294,9 @@ bool examine(int level, int tile_u, int tile_v, int bu, int bv, int floor_level)
   } else {
     gap = cells_gap(first_u, last_u, first_v, last_v);
   }
+  const float bound = gap / (top - apex);
   const uint all = rect_sectors(cell_begin(first_u, wrap) - qu1, cell_end(last_u, W, wrap) - qu0,
                                 cell_begin(first_v, wrap) - qv1, cell_end(last_v, H, wrap) - qv0);
-  const float bound = gap / (top - apex);
   const uint mask = useful_sectors(all, bound);
   if (mask == 0u) return false;
   if (level == 0) {
@@ -356,14 +370,86 @@ void far_tile(int tile_u, int tile_v, int floor_level) {
   }
 }
 
+// ---- the first pass's rings
+
+// One tile's pyramid from the top down, visiting the same nodes whatever the heights (so the
+// invocations of a group keep in step): at each level, the children of the level above's near box (at
+// the top, every node) are examined; those outside this level's near box - the nodes within
+// ring_radius of the texel's own node along both axes - are bounded whole (examine, opening nothing:
+// a useful one lowers its sectors and marks the texel cut), and the near box's children are the next
+// level's. At level 0 the near box is bounded too (its nodes are cells). So every cell of the tile
+// lies in a node bounded whole or skipped (below H_c, lowering nothing, or in the window), and with
+// ring_radius 1 and the full window the near box of level 1 lies inside the window: the levels stop
+// once the next level's nodes all do. Proof: docs/design/device-cones.md#the-first-pass-rings.
+void ring_tile(int tile_u, int tile_v) {
+  const int tile_first_u = tile_u * push.cells_u, tile_first_v = tile_v * push.cells_v;
+  const int centre_in_u = centre_u - tile_first_u, centre_in_v = centre_v - tile_first_v;
+  const int radius = push.ring_radius;
+  int first_u = 0, first_v = 0;  // the level's nodes examined
+  int last_u = level_width(push.levels - 1) - 1, last_v = level_height(push.levels - 1) - 1;
+  [[dont_unroll]] for (int level = push.levels - 1; level >= 0; --level) {
+    // the near box (>> rounds towards minus infinity: a texel left of or below the tile has a node < 0)
+    const int near_u0 = (centre_in_u >> level) - radius, near_u1 = (centre_in_u >> level) + radius;
+    const int near_v0 = (centre_in_v >> level) - radius, near_v1 = (centre_in_v >> level) + radius;
+    const int side = 1 << level, offset = push.level_offset[level], row_width = level_width(level);
+    // the level's cells (unrolled): where they meet the window, examine() cuts nodes at its edges
+    const int cells_u0 = tile_first_u + first_u * side;
+    const int cells_u1 = tile_first_u + min((last_u + 1) * side, push.cells_u) - 1;
+    const int cells_v0 = tile_first_v + first_v * side;
+    const int cells_v1 = tile_first_v + min((last_v + 1) * side, push.cells_v) - 1;
+    const bool meets_window = cells_u0 <= wu1 && cells_u1 >= wu0 && cells_v0 <= wv1 && cells_v1 >= wv0;
+    const float most = ceiling();  // as it stands before the level: a bound at or above it lowers nothing
+    [[dont_unroll]] for (int bv = first_v; bv <= last_v; ++bv) {
+      const int row_begin = cell_begin(tile_first_v + bv * side, wrap);
+      const int row_end = cell_end(tile_first_v + min((bv + 1) * side, push.cells_v) - 1, H, wrap);
+      const float gap_v = float(span_gap(i, row_begin, row_end)) * half_v;
+      const bool near_row = level > 0 && bv >= near_v0 && bv <= near_v1;
+      [[dont_unroll]] for (int bu = first_u; bu <= last_u; ++bu) {
+        if (near_row && bu >= near_u0 && bu <= near_u1) continue;  // opened: its children come next
+        if (meets_window) {
+          examine(level, tile_u, tile_v, bu, bv, push.levels);
+          continue;
+        }
+        // examine() for a node away from the window, the same bound
+        const float top = node_max[offset + bv * row_width + bu];
+        if (!(top > apex)) continue;
+        const int column_begin = cell_begin(tile_first_u + bu * side, wrap);
+        const int column_end = cell_end(tile_first_u + min((bu + 1) * side, push.cells_u) - 1, W, wrap);
+        const float gap_u = float(span_gap(j, column_begin, column_end)) * half_u;
+        const float bound = sqrt(gap_u * gap_u + gap_v * gap_v) / (top - apex);
+        if (!(bound < most)) continue;
+        const uint all = rect_sectors(column_begin - qu1, column_end - qu0, row_begin - qv1, row_end - qv0);
+        const uint mask = useful_sectors(all, bound);
+        if (mask == 0u) continue;
+        lower(mask, bound);
+        if (level > 0) cut = true;
+      }
+    }
+    if (level == 0) return;
+    // the children that exist of the near box's nodes examined here
+    first_u = 2 * max(near_u0, first_u);
+    last_u = min(2 * min(near_u1, last_u) + 1, level_width(level - 1) - 1);
+    first_v = 2 * max(near_v0, first_v);
+    last_v = min(2 * min(near_v1, last_v) + 1, level_height(level - 1) - 1);
+    if (first_u > last_u || first_v > last_v) return;
+    const int child_side = side >> 1;
+    const bool in_window_u = tile_first_u + first_u * child_side >= wu0 &&
+                             tile_first_u + min((last_u + 1) * child_side, push.cells_u) - 1 <= wu1;
+    const bool in_window_v = tile_first_v + first_v * child_side >= wv0 &&
+                             tile_first_v + min((last_v + 1) * child_side, push.cells_v) - 1 <= wv1;
+    if (in_window_u && in_window_v) return;  // all in the window: nothing left to bound
+  }
+}
+
 // With wrap, the images whose cells come within uv distance 1 of Q_c: tiles -2..1. Tile -2's last
 // cells reach to 1 - 1/(2W) of texel 0's square; tile 2's first begin 1 + 1/(2W) past texel W - 1's,
 // so its bounds are at least (1 + 1/(2W)) / (1 - height_margin): ratios that store as 1 for every
 // side up to 62500 (and a ratio of 1 holds there: s rises at most 1 over a distance of at least 1).
 // The texel's own tile first, then the nearer neighbour along each axis.
-void far_cells(int floor_level) {
+void far_cells(int floor_level, bool rings) {
   if (!wrap) {
-    far_tile(0, 0, floor_level);
+    if (rings) ring_tile(0, 0);
+    else far_tile(0, 0, floor_level);
     return;
   }
   const int side_u = 2 * j + 1 >= W ? 1 : -1, side_v = 2 * i + 1 >= H ? 1 : -1;
@@ -371,7 +457,8 @@ void far_cells(int floor_level) {
     const int tile_v = b == 0 ? 0 : (b == 1 ? side_v : (b == 2 ? -side_v : -2));
     [[dont_unroll]] for (int a = 0; a < 4; ++a) {
       const int tile_u = a == 0 ? 0 : (a == 1 ? side_u : (a == 2 ? -side_u : -2));
-      far_tile(tile_u, tile_v, floor_level);
+      if (rings) ring_tile(tile_u, tile_v);
+      else far_tile(tile_u, tile_v, floor_level);
     }
   }
 }
@@ -393,6 +480,7 @@ void main() {
   if (j >= W || i >= H) return;
   wrap = push.wrap != 0;
   sectors = push.sectors;
+  window = push.window_radius;
   qu0 = 2 * j - 1;
   qu1 = 2 * j + 1;
   qv0 = 2 * i - 1;
@@ -418,10 +506,10 @@ void main() {
   apex = highest + height_margin;
   const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
   floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
-  wu0 = cell_of_left_centre(j - R, wrap);
-  wu1 = cell_of_left_centre(j + R - 1, wrap);
-  wv0 = cell_of_left_centre(i - R, wrap);
-  wv1 = cell_of_left_centre(i + R - 1, wrap);
+  wu0 = cell_of_left_centre(j - window, wrap);
+  wu1 = cell_of_left_centre(j + window - 1, wrap);
+  wv0 = cell_of_left_centre(i - window, wrap);
+  wv1 = cell_of_left_centre(i + window - 1, wrap);
   centre_u = cell_of_left_centre(j, wrap);
   centre_v = cell_of_left_centre(i, wrap);
 
@@ -430,11 +518,11 @@ void main() {
   window_cells();
   float window_best[8] = best;
   cut = false;
-  far_cells(push.first_pass_level);
+  far_cells(push.first_pass_level, push.ring_radius > 0);
   if (cut && atomicAdd(counters[CONE_COUNTER_TICKETS], 1u) < uint(push.refine_limit)) {
     const float first_pass[8] = best;
     best = window_best;
-    far_cells(-1);
+    far_cells(-1, false);
     for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
   }
 

@@ -9,9 +9,10 @@
 namespace displace::render::gpu {
 #endif
 
-#define CONE_TILE 8          // the kernels' groups: 8 x 8 texels, cells or nodes
-#define CONE_SLOPE_WINDOW 4  // cells: radius around a texel where the slope bound applies (bake.h's default)
-#define CONE_MAX_LEVELS 17   // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
+#define CONE_TILE 8  // the kernels' groups: 8 x 8 texels, cells or nodes
+#define CONE_SLOPE_WINDOW \
+  4  // cells: radius around a texel where the slope bound applies (bake.h's default), at most
+#define CONE_MAX_LEVELS 17        // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]
 #define CONE_COUNTER_TICKETS 2    // counters[]: texels whose first pass was cut, asking for refinement
@@ -40,6 +41,9 @@ struct ConeTexelPush {
   int first_pass_level;  // nodes at or below it are bounded, not opened, in the first pass; < 0: none
   int refine_limit;      // texels whose cut first pass is searched again to the cells, at most
   int first_row;         // the dispatch's rows begin at this texel row (lagged maps: a band a frame)
+  int window_radius;     // cells around the texel bounded by the slope window, 1..CONE_SLOPE_WINDOW
+  int ring_radius;       // first pass: 0 searches the pyramid cut at first_pass_level; r > 0 bounds rings
+  int pad0;
   int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in the pyramid buffer (floats)
 };
 

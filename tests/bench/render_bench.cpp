@@ -133,7 +133,7 @@ BENCHMARK(run_memcpy)->Name("BM_UploadMaps/512/memcpy")->Unit(benchmark::kMillis
 constexpr int device_bake_sectors = 4;
 constexpr int full_reference_limit = 1024;  // texels a side: above, no CPU reference bake
 
-void run_device_bake(benchmark::State& state, long long budget) {
+void run_device_bake(benchmark::State& state, render::DeviceConeBudget budget) {
   const int side = int(state.range(0));
   static render::Renderer renderer([] {
     render::RendererOptions options;
@@ -150,7 +150,7 @@ void run_device_bake(benchmark::State& state, long long budget) {
   render::DeviceCones cones(renderer, device_bake_sectors, bake::Address::wrap);
   render::DeviceConeStats stats;
   for (auto _ : state) {
-    cones.bake({budget});
+    cones.bake(budget);
     stats = cones.read_back(nullptr, nullptr);
   }
   std::vector<float> ratios, heights;
@@ -172,7 +172,7 @@ void run_device_bake(benchmark::State& state, long long budget) {
   state.SetLabel(renderer.device().name);
 }
 
-BENCHMARK_CAPTURE(run_device_bake, unlimited, render::unlimited_texels)
+BENCHMARK_CAPTURE(run_device_bake, unlimited, render::DeviceConeBudget{render::unlimited_texels, {}})
     ->Name("BM_DeviceBake/ocean")
     ->Arg(256)
     ->Arg(512)
@@ -180,12 +180,27 @@ BENCHMARK_CAPTURE(run_device_bake, unlimited, render::unlimited_texels)
     ->Arg(2048)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, first_pass, 0)
+BENCHMARK_CAPTURE(run_device_bake, first_pass, render::DeviceConeBudget{0, {}})
     ->Name("BM_DeviceBake/ocean/first-pass")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+// the first pass as rings (render::DeviceFirstPass), radius 1 and 2, the full window
+BENCHMARK_CAPTURE(run_device_bake, rings_1, render::DeviceConeBudget{0, {4, 1}})
+    ->Name("BM_DeviceBake/ocean/first-pass-rings-1")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(run_device_bake, rings_2, render::DeviceConeBudget{0, {4, 2}})
+    ->Name("BM_DeviceBake/ocean/first-pass-rings-2")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

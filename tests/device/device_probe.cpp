@@ -22,11 +22,12 @@
 //    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine,
 //    next to the bound that a recorded bake's work and span give (bake/work_span.h).
 // 4. The device's cone maps alone (render::DeviceCones of a device ocean, 512, 1024 and 2048),
-//    unlimited and budget 0: median wall and device milliseconds, texels refined, mean ratio.
+//    unlimited and budget 0 (each first pass shape): median wall and device milliseconds, texels
+//    refined, mean ratio.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
 // =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
-// with the bake on the device alone.
+// with the bake on the device alone; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's map sides.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -37,6 +38,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -284,9 +286,16 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
 }
 
 // The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
-// unlimited and budget 0 (the first pass): each bake submitted and waited for (wall) and its GPU
-// timestamps (device), medians; the texels refined and the mean ratio read back.
+// unlimited and budget 0 (the first pass, in each of its shapes: the search, and rings of radius 1, 2
+// and 3 with the full window, 2 with a window of 2 cells): each bake submitted and waited for (wall)
+// and its GPU timestamps (device), medians; the texels refined and the mean ratio read back.
 void device_cones(render::Renderer& renderer, const Plan& plan) {
+  struct Shape {
+    long long texels;
+    render::DeviceFirstPass first_pass;
+  };
+  const Shape shapes[] = {
+      {render::unlimited_texels, {}}, {0, {4, 0}}, {0, {4, 1}}, {0, {4, 2}}, {0, {4, 3}}, {0, {2, 2}}};
   for (int size : plan.cone_maps) {
     pipeline::SourceSettings settings;
     settings.kind = pipeline::SourceKind::ocean;
@@ -295,12 +304,13 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
         pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
     ocean->simulate(3.0);
     render::DeviceCones cones(renderer, 4, bake::Address::wrap);
-    for (const long long texels : {render::unlimited_texels, 0LL}) {
+    for (const Shape& shape : shapes) {
+      const long long texels = shape.texels;
       std::vector<double> wall, device;
       render::DeviceConeStats stats;
       for (int r = 0; r <= plan.cone_repeats; ++r) {  // the first one warms up
         const auto start = std::chrono::steady_clock::now();
-        cones.bake({texels});
+        cones.bake({texels, shape.first_pass});
         stats = cones.read_back(nullptr, nullptr);
         if (r == 0) continue;
         wall.push_back(
@@ -311,11 +321,18 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
       cones.read_back(&ratios, nullptr);
       double sum = 0.0;
       for (float ratio : ratios) sum += double(ratio);
+      char first_pass[96];
+      std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, %s %d",
+                    shape.first_pass.window_radius, shape.first_pass.ring_radius > 0 ? "rings" : "search",
+                    shape.first_pass.ring_radius);
+      if (shape.first_pass.ring_radius == 0)
+        std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, search",
+                      shape.first_pass.window_radius);
       std::printf(
           "device cones: water %d x %d, 4 sectors, %s: median %.3f ms wall, %.3f ms device; %lld texels "
           "refined, mean ratio %.4f\n",
-          size, size, texels == 0 ? "first pass (budget 0)" : "unlimited", percentile(wall, 0.5),
-          percentile(device, 0.5), stats.texels_refined, ratios.empty() ? 0.0 : sum / double(ratios.size()));
+          size, size, texels == 0 ? first_pass : "unlimited", percentile(wall, 0.5), percentile(device, 0.5),
+          stats.texels_refined, ratios.empty() ? 0.0 : sum / double(ratios.size()));
       std::fflush(stdout);
     }
   }
@@ -327,7 +344,18 @@ int main(int argc, char** argv) {
   try {
     const std::string directory = argc > 1 ? argv[1] : ".";
     const char* quick = std::getenv("DISPLACE_PROBE_QUICK");
-    const Plan plan = quick && *quick && std::string(quick) != "0" ? quick_plan() : Plan{};
+    Plan plan = quick && *quick && std::string(quick) != "0" ? quick_plan() : Plan{};
+    if (const char* maps = std::getenv("DISPLACE_PROBE_CONE_MAPS"); maps && *maps) {  // e.g. "256,512"
+      plan.cone_maps.clear();
+      for (const char* at = maps; *at;) {
+        char* end = nullptr;
+        const long side = std::strtol(at, &end, 10);
+        if (end == at || side < 1 || side > render::max_map_side)
+          throw std::runtime_error(std::string("DISPLACE_PROBE_CONE_MAPS: not a list of map sides: ") + maps);
+        plan.cone_maps.push_back(int(side));
+        at = *end == ',' ? end + 1 : end;
+      }
+    }
     render::RendererOptions options;
     options.pipeline_cache = "off";
     render::Renderer renderer(options);

@@ -49,13 +49,24 @@ DeviceBake read(render::DeviceCones& device, int width, int height) {
   return b;
 }
 
-DeviceBake bake_on_device(render::DeviceCones& device, long long budget) {
-  device.bake({budget});
+DeviceBake bake_on_device(render::DeviceCones& device, long long budget,
+                          render::DeviceFirstPass first_pass = {}) {
+  device.bake({budget, first_pass});
   return read(device, device.width(), device.height());
 }
 
-// The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited.
-const long long budgets[] = {0, 7, render::unlimited_texels};
+// The first passes tested besides the default search: rings of radius 1 with the full window (whose
+// levels stop at 1), of radius 2 with a window of 2 cells (down to the cells), of 3 with one cell.
+const render::DeviceFirstPass rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
+
+// The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited; each
+// first pass alone, and a few cut texels after the one with the smallest window.
+struct Budget {
+  long long texels;
+  render::DeviceFirstPass first_pass;
+};
+const Budget budgets[] = {{0, {}}, {0, rings_1}, {0, rings_2},
+                          {7, {}}, {7, rings_3}, {render::unlimited_texels, {}}};
 
 // Texels checked: all of a small map, every stride-th of a larger one (the check is O(texels x map)),
 // and an eighth of those for a budget between the first pass and unlimited (its texels hold the first
@@ -66,9 +77,11 @@ int stride_for(const Map& map, long long budget) {
   return budget == 0 || budget == render::unlimited_texels ? stride : 8 * stride + 1;
 }
 
-std::string where(const Map& map, int sectors, Address address, long long budget) {
+std::string where(const Map& map, int sectors, Address address, const Budget& budget) {
   return map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) + " sectors " +
-         std::to_string(sectors) + " " + bake::address_name(address) + " budget " + std::to_string(budget);
+         std::to_string(sectors) + " " + bake::address_name(address) + " budget " +
+         std::to_string(budget.texels) + " window " + std::to_string(budget.first_pass.window_radius) +
+         " rings " + std::to_string(budget.first_pass.ring_radius);
 }
 
 // Every ratio and apex the device stores meets the contract, at every budget; the apex is never below
@@ -80,19 +93,19 @@ void expect_contract(const std::vector<Map>& maps, long long& pairs) {
       for (Address address : {Address::wrap, Address::clamp}) {
         render::DeviceCones device(renderer, bake::view_of(map), sectors, address);
         const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
-        for (long long budget : budgets) {
-          const DeviceBake b = bake_on_device(device, budget);
+        for (const Budget& budget : budgets) {
+          const DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
           const std::string at = where(map, sectors, address, budget);
           for (std::size_t t = 0; t < b.apex.size(); ++t) ASSERT_GE(b.apex[t], full.apex[t]) << at;
           for (float r : b.cones.ratios) ASSERT_TRUE(r >= 0.0f && r <= 1.0f) << at << " " << r;
-          if (budget == 0) {
+          if (budget.texels == 0) {
             EXPECT_EQ(b.stats.texels_refined, 0) << at;
           }
-          if (budget > 0) {
-            EXPECT_LE(b.stats.texels_refined, budget) << at;
+          if (budget.texels > 0) {
+            EXPECT_LE(b.stats.texels_refined, budget.texels) << at;
           }
           const bake::BilinearCheck check =
-              bake::check_bilinear(map, address, b.cones, b.apex, stride_for(map, budget));
+              bake::check_bilinear(map, address, b.cones, b.apex, stride_for(map, budget.texels));
           pairs += check.pairs;
           ASSERT_EQ(check.violations, 0) << at << " worst " << check.worst;
         }
@@ -142,16 +155,21 @@ TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
       const double full_mean = bake::mean_ratio(full.cones);
       const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
       const DeviceBake first = bake_on_device(device, 0);
+      const DeviceBake ring_1 = bake_on_device(device, 0, {4, 1});
+      const DeviceBake ring_2 = bake_on_device(device, 0, {4, 2});
       const double kept = bake::mean_ratio(unlimited.cones) / full_mean;
       std::printf(
           "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, first pass %.4f (%lld of %d "
-          "texels cut)\n",
+          "texels cut), rings 1 %.4f, rings 2 %.4f\n",
           map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean, first.stats.texels_cut,
-          map.width * map.height);
+          map.width * map.height, bake::mean_ratio(ring_1.cones) / full_mean,
+          bake::mean_ratio(ring_2.cones) / full_mean);
       EXPECT_GE(kept, 0.9) << map.name << " sectors " << sectors;
       EXPECT_EQ(unlimited.stats.texels_refined, map.width * map.height);
-      // the first pass never claims more than the full search: each of its blocks bounds its cells
-      EXPECT_LE(bake::mean_ratio(first.cones), bake::mean_ratio(unlimited.cones) + 1e-9) << map.name;
+      // a first pass with the full window never claims more than the full search: each node it bounds
+      // whole bounds its cells, and every ratio is the least bound
+      for (const DeviceBake* pass : {&first, &ring_1, &ring_2})
+        EXPECT_LE(bake::mean_ratio(pass->cones), bake::mean_ratio(unlimited.cones) + 1e-9) << map.name;
     }
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
@@ -163,9 +181,9 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
   for (const Map& map : {bake::make_ramp(8, 6), bake::make_noise(6, 6), test::make_fractal_cliff(10, 8),
                          test::make_bricks(12, 8), bake::make_single_spike(7, 5)})
     for (Address address : {Address::wrap, Address::clamp})
-      for (long long budget : {0ll, render::unlimited_texels}) {
+      for (const Budget& budget : {Budget{0, {}}, Budget{0, rings_1}, Budget{render::unlimited_texels, {}}}) {
         render::DeviceCones device(renderer, bake::view_of(map), 4, address);
-        DeviceBake b = bake_on_device(device, budget);
+        DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
         ASSERT_EQ(bake::check_bilinear(map, address, b.cones, b.apex).violations, 0) << map.name;
         for (float& r : b.cones.ratios) r = std::min(1.0f, r * 1.1f);
         ++tried;
@@ -181,23 +199,27 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   render::Renderer& renderer = cones_renderer();
   const Map map = test::make_fractal_cliff(40, 24);
   render::DeviceCones device(renderer, bake::view_of(map), 4, Address::clamp);
-  const DeviceBake first = bake_on_device(device, 0);
-  ASSERT_GT(first.stats.texels_cut, 10);
-  EXPECT_EQ(first.stats.texels_refined, 0);
-  double previous = bake::mean_ratio(first.cones);
-  for (long long budget : {5ll, 50ll, 1000000ll}) {
-    const DeviceBake b = bake_on_device(device, budget);
-    EXPECT_EQ(b.stats.texels_cut, first.stats.texels_cut);
-    EXPECT_EQ(b.stats.texels_refined, std::min(budget, first.stats.texels_cut));
-    for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
-      ASSERT_GE(b.cones.ratios[v], first.cones.ratios[v]);
-    EXPECT_EQ(b.apex, first.apex);
-    const double mean = bake::mean_ratio(b.cones);
-    EXPECT_GE(mean, previous - 1e-3);  // which texels get the tickets is the device's order
-    previous = mean;
-  }
   const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
-  EXPECT_NEAR(previous, bake::mean_ratio(unlimited.cones), 1e-6);  // all cut texels refined: the same map
+  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, rings_1}) {
+    const std::string at = "rings " + std::to_string(first_pass.ring_radius);
+    const DeviceBake first = bake_on_device(device, 0, first_pass);
+    ASSERT_GT(first.stats.texels_cut, 10) << at;
+    EXPECT_EQ(first.stats.texels_refined, 0) << at;
+    double previous = bake::mean_ratio(first.cones);
+    for (long long budget : {5ll, 50ll, 1000000ll}) {
+      const DeviceBake b = bake_on_device(device, budget, first_pass);
+      EXPECT_EQ(b.stats.texels_cut, first.stats.texels_cut) << at;
+      EXPECT_EQ(b.stats.texels_refined, std::min(budget, first.stats.texels_cut)) << at;
+      for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
+        ASSERT_GE(b.cones.ratios[v], first.cones.ratios[v]) << at;
+      EXPECT_EQ(b.apex, first.apex) << at;
+      const double mean = bake::mean_ratio(b.cones);
+      EXPECT_GE(mean, previous - 1e-3) << at;  // which texels get the tickets is the device's order
+      previous = mean;
+    }
+    // all cut texels refined from the full window: the unlimited map
+    EXPECT_NEAR(previous, bake::mean_ratio(unlimited.cones), 1e-6) << at;
+  }
 }
 
 // A 32 x 32 device ocean (a 200 m patch, 12 m/s wind), heights only.
@@ -353,6 +375,13 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
     render::DeviceCones cones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
     EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
     EXPECT_THROW(cones.bake_lagged({0}, -1), render::RenderError);
+    for (const render::DeviceFirstPass first_pass :
+         {render::DeviceFirstPass{0, 0}, render::DeviceFirstPass{5, 0}, render::DeviceFirstPass{4, -1},
+          render::DeviceFirstPass{4, 9}}) {
+      const std::string message = message_of([&] { cones.bake({0, first_pass}); });
+      EXPECT_NE(message.find("radius"), std::string::npos) << message;
+      EXPECT_THROW(cones.bake_lagged({0, first_pass}, 2), render::RenderError);
+    }
   }
   // a MapSet asking for device cones the renderer does not have (the DeviceCones above is gone)
   render::MapSet maps;
