@@ -155,8 +155,10 @@ float clamp_max(int u0, int u1, int v0, int v1) {
   const int a0 = clamp(u0 - qu0, 0, 2), a1 = clamp(u1 - qu0, 0, 2);
   const int b0 = clamp(v0 - qv0, 0, 2), b1 = clamp(v1 - qv0, 0, 2);
   float m = -infinite_bound;
-  for (int b = b0; b <= b1; ++b)
-    for (int a = a0; a <= a1; ++a) m = max(m, square[b][a]);
+  // all nine with constant indices: an array indexed at run time would leave the registers
+  [[unroll]] for (int b = 0; b < 3; ++b)
+    [[unroll]] for (int a = 0; a < 3; ++a)
+      if (a >= a0 && a <= a1 && b >= b0 && b <= b1) m = max(m, square[b][a]);
   return m;
 }
 
@@ -178,9 +180,9 @@ float piece_bound(float near, float far, float rise, float drop, float slope) {
 void window_cells() {
   // The running largest rates outward from Q_c: cell (da, db)'s takes in those of the cells between it
   // and Q_c's row and column, (da -+ 1, db) and (da, db -+ 1). Rows and columns are visited outward
-  // from Q_c (0, 1, ..., window - 1, then -1, ..., -window), so the first is the cell visited just before in
-  // this row, and the second is at the same place in the row visited just before: one running value
-  // and one row of them.
+  // from Q_c (0, 1, ..., window - 1, then -1, ..., -window), so the first is the cell visited just
+  // before in this row, and the second is at the same place in the row visited just before: one
+  // running value and one row of them.
   float row_u[2 * R], row_v[2 * R];
   [[dont_unroll]] for (int y = 0; y < 2 * window; ++y) {
     const int db = y < window ? y : window - 1 - y;  // 0, 1, ..., window - 1, then -1, ..., -window
@@ -252,8 +254,8 @@ void window_cells() {
           const float bound = piece_bound(gap_distance(span_gap(j, u0, u1), span_gap(i, v0, v1)),
                                           gap_distance(far_u, far_v), top - apex, drop, slope);
           uint mask = rect_sectors(u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0);
-          if (su != 0) mask &= beyond[su > 0 ? 0 : 1];
-          if (sv != 0) mask &= beyond[sv > 0 ? 2 : 3];
+          if (su != 0) mask &= su > 0 ? beyond[0] : beyond[1];
+          if (sv != 0) mask &= sv > 0 ? beyond[2] : beyond[3];
           lower(mask, bound);
         }
       }
@@ -514,7 +516,7 @@ void main() {
   centre_v = cell_of_left_centre(i, wrap);
 
   // the window, then the pyramid: the first pass, and the texels it cut searched again if they may
-  for (int k = 0; k < 8; ++k) best[k] = unclaimed;
+  [[unroll]] for (int k = 0; k < 8; ++k) best[k] = unclaimed;
   window_cells();
   float window_best[8] = best;
   cut = false;
@@ -523,14 +525,15 @@ void main() {
     const float first_pass[8] = best;
     best = window_best;
     far_cells(-1, false);
-    for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
+    [[unroll]] for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
   }
 
   // stored: each ratio raised to the floor, shrunk by the margin, clamped to 1 and rounded down
   const uint apex_bits = encode_apex(apex) << 16;
   const int texels = W * H, texel = i * W + j;
   uint least = 0xffffu;
-  for (int k = 0; k < sectors; ++k) {
+  [[unroll]] for (int k = 0; k < 8; ++k) {  // constant indices: best[] stays in registers
+    if (k >= sectors) break;
     const uint ratio = encode_ratio(max(best[k], floor_ratio) * (1.0 - ratio_margin));
     least = min(least, ratio);
     cone_values[k * texels + texel] = ratio | apex_bits;
