@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace displace::pipeline {
 namespace {
@@ -25,8 +26,7 @@ struct FramePipeline::State {
       : scene(s),
         renderer(r),
         clock(c ? std::move(c) : std::function<double()>(steady_milliseconds)),
-        loader_for_queries(loader),
-        source(source_settings(s), scene_effects(s), std::move(loader)),
+        loader_for_queries(std::move(loader)),
         maker(r.device().max_image_dimension_3d, int(heights.size())) {}
 
   Scene scene;
@@ -39,8 +39,11 @@ struct FramePipeline::State {
   int cone_lag_frames = 0;    // lagged cone maps: the scene's lag where it applies, else 0
 
   // kept for the whole run
-  std::array<HeightFrame, 2> heights;  // frames in flight (run_frames overlaps two; run uses the first)
-  HeightSource source;
+  std::array<HeightFrame, 2> heights;      // frames in flight (run_frames overlaps two; run uses the first)
+  std::optional<HeightSource> source;      // the CPU's sim; none when the sim runs on the device
+  unsigned effects = effect_heights;       // what the sim computes (HeightSource::effects)
+  bool static_source = false;              // the same heights at every time (the device's sims move)
+  double loop_error = 0.0;                 // sim::Ocean::loop_error of the ocean's loop
   MapMaker maker;                          // a slot per frame in flight
   int current = 0;                         // the frame in flight the stage functions work on
   std::atomic<double> last_other_ms{0.0};  // sim + upload + render of the last frame
@@ -73,14 +76,25 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   if (!(scene.fps > 0.0)) throw SceneError("time.fps must be above 0");
   s.needs = render::map_needs(scene.method, scene_view(scene, scene.start));
   s.deterministic = !std::isfinite(scene.frame_ms);
-  const bool lagged = !s.deterministic && !s.source.is_static() && !s.needs.relaxed;
+  // the sim: on the device, or the CPU's (made only then: an ocean's FFT plans and arrays are
+  // hundreds of MB at 2048)
+  if (simulates_on_device(scene.source) && runs_on_device(scene.sim_backend, renderer.device())) {
+    DeviceSimInfo info;
+    s.device_source = make_device_sim(renderer, source_settings(scene), scene_effects(scene), &info);
+    s.effects = source_effects(scene.source, scene_effects(scene));
+    s.loop_error = info.loop_error;
+  } else {
+    s.source.emplace(source_settings(scene), scene_effects(scene), s.loader_for_queries);
+    s.effects = s.source->effects();
+    s.static_source = s.source->is_static();
+    s.loop_error = s.source->loop_error();
+  }
+  const bool lagged = !s.deterministic && !s.static_source && !s.needs.relaxed;
   s.cone_lag_frames = lagged ? scene.cone_lag_frames : 0;
-  if (simulates_on_device(scene.source) && runs_on_device(scene.sim_backend, renderer.device()))
-    s.device_source = make_device_sim(renderer, source_settings(scene), scene_effects(scene));
   // the cone bake on the device: the bilinear cones (a relaxed layer is the CPU's), from heights that
   // are on the device already or never change
   if (s.needs.cone_sectors > 0 && !s.needs.relaxed && runs_on_device(scene.bake_backend, renderer.device())) {
-    if (s.sim_on_device() || s.source.is_static()) {
+    if (s.sim_on_device() || s.static_source) {
       s.bake_on_device = true;
     } else if (scene.bake_backend == Backend::device) {
       throw SceneError(
@@ -111,7 +125,7 @@ FramePipeline::FramePipeline(FramePipeline&&) noexcept = default;
 FramePipeline& FramePipeline::operator=(FramePipeline&&) noexcept = default;
 
 const Scene& FramePipeline::scene() const { return state_->scene; }
-double FramePipeline::loop_error() const { return state_->source.loop_error(); }
+double FramePipeline::loop_error() const { return state_->loop_error; }
 
 void FramePipeline::query(std::span<const QueryPoint> points, double time, QueryResult& out) {
   State& s = *state_;
@@ -130,7 +144,7 @@ namespace {
 void simulate_on_device(FramePipeline::State& s, int slot, double time, FrameRecord& record) {
   HeightFrame& heights = s.heights[std::size_t(slot)];
   record.time = time;
-  record.effects = s.source.effects();
+  record.effects = s.effects;
   record.sim_on_device = true;
   record.sim_device_ms = s.device_source->device_milliseconds();
   const long long ffts = s.device_source->fft_count();
@@ -154,8 +168,8 @@ void simulate_into(FramePipeline::State& s, int slot, double time, FrameRecord& 
   }
   HeightFrame& heights = s.heights[std::size_t(slot)];
   record.time = time;
-  record.effects = s.source.effects();
-  s.source.make(time, record.index, heights);
+  record.effects = s.effects;
+  s.source->make(time, record.index, heights);
   record.ffts = heights.ffts;
   record.choppy_residual = heights.choppy_residual;
 }

@@ -19,6 +19,14 @@ namespace {
 constexpr int choppy_iterations = 8;
 constexpr float choppy_settle = 3e-4f;  // texels
 
+void check_map_size(const SourceSettings& settings) {
+  const int n = settings.map_size;
+  if (settings.kind != SourceKind::image && (n < min_map_size || n > max_map_size)) {
+    throw SceneError("source.map_size must be between " + std::to_string(min_map_size) + " and " +
+                     std::to_string(max_map_size));
+  }
+}
+
 }  // namespace
 
 unsigned scene_effects(const Scene& scene) {
@@ -42,6 +50,10 @@ SourceSettings source_settings(const Scene& scene) {
   return settings;
 }
 
+unsigned source_effects(SourceKind kind, unsigned effects) {
+  return effect_heights | (kind == SourceKind::ocean ? effects : 0u);
+}
+
 struct HeightSource::State {
   SourceSettings settings;
   unsigned effects = effect_heights;
@@ -60,13 +72,10 @@ HeightSource::HeightSource(const SourceSettings& settings, unsigned effects, Hei
     : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.settings = settings;
-  s.effects = effect_heights | (settings.kind == SourceKind::ocean ? effects : 0u);
+  s.effects = source_effects(settings.kind, effects);
   s.loader = std::move(loader);
+  check_map_size(settings);
   const int n = settings.map_size;
-  if (settings.kind != SourceKind::image && (n < min_map_size || n > max_map_size)) {
-    throw SceneError("source.map_size must be between " + std::to_string(min_map_size) + " and " +
-                     std::to_string(max_map_size));
-  }
   try {
     switch (settings.kind) {
       case SourceKind::ocean: {
@@ -153,6 +162,7 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
                                                    unsigned effects, DeviceSimInfo* info) {
   if (!simulates_on_device(settings.kind))
     throw SceneError("the device path simulates the ocean and sinusoids only");
+  check_map_size(settings);
   try {
     if (settings.kind == SourceKind::sinusoids) {
       const std::vector<sim::Wave> waves = sim::make_sinusoid_waves(settings.sinusoids);

@@ -42,6 +42,8 @@ enum Effect : unsigned {
 inline constexpr float foam_width = 0.4f;
 // What a scene consumes: choppy crests for an ocean with choppiness, foam for the water material.
 unsigned scene_effects(const Scene& scene);
+// What a source of `kind` computes of `effects`: the heights, and choppy and foam for an ocean only.
+unsigned source_effects(SourceKind kind, unsigned effects);
 
 // Reads a height image (SourceKind::image) into heights in [0, 1]: the application's reader
 // (demos/ uses OpenImageIO); it throws for a file it cannot read.

@@ -62,9 +62,14 @@ TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
     const pipeline::Scene cpu_scene = small_scene(name, pipeline::Backend::cpu);
     for (long long index : {0LL, 90LL}) {
       SCOPED_TRACE("frame " + std::to_string(index));
+      unsigned cpu_effects = 0;
+      double cpu_loop_error = 0.0;
       {
         pipeline::FramePipeline cpu(cpu_scene, renderer);
-        EXPECT_FALSE(cpu.run(index, cpu_frame, render::output_uv).sim_on_device);
+        const pipeline::FrameRecord record = cpu.run(index, cpu_frame, render::output_uv);
+        EXPECT_FALSE(record.sim_on_device);
+        cpu_effects = record.effects;
+        cpu_loop_error = cpu.loop_error();
       }
       // the sim on the device (the cones baked on the CPU from its heights), then the bake there too
       for (pipeline::Backend bake : {pipeline::Backend::cpu, pipeline::Backend::device}) {
@@ -73,11 +78,30 @@ TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
         const pipeline::FrameRecord record = device.run(index, device_frame, render::output_uv);
         EXPECT_TRUE(record.sim_on_device);
         EXPECT_EQ(record.bake_on_device, bake == pipeline::Backend::device);
+        // what the CPU's sim would report, without one (the device path makes none)
+        EXPECT_EQ(record.effects, cpu_effects);
+        EXPECT_EQ(device.loop_error(), cpu_loop_error);
         EXPECT_GE(agreeing_share(cpu_frame, device_frame, cpu_scene.map_size), 0.999);
       }
     }
   }
   EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// The device path checks the source's size as the CPU's sim does.
+TEST(DeviceFrames, RefuseAMapSizeNoSimTakes) {
+  render::Renderer& renderer = frames_renderer();
+  for (int size : {pipeline::min_map_size / 2, pipeline::max_map_size * 2}) {
+    pipeline::Scene scene = small_scene("water", pipeline::Backend::device, pipeline::Backend::device);
+    scene.map_size = size;
+    try {
+      pipeline::FramePipeline device(scene, renderer);
+      ADD_FAILURE() << "a map of " << size << " was taken";
+    } catch (const pipeline::SceneError& error) {
+      EXPECT_NE(std::string(error.what()).find("map_size must be between"), std::string::npos)
+          << error.what();
+    }
+  }
 }
 
 TEST(DeviceFrames, AllocateNothingAfterWarmUp) {
