@@ -87,7 +87,7 @@ BakedCones bake_bilinear(std::span<const float> heights, int width, int height, 
 
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
-                                   double budget_milliseconds) {
+                                   double budget_milliseconds, const render::DeviceFirstPass& first_pass) {
   if (baker != Baker::budgeted && baker != Baker::full) {
     throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
                       baker_name(baker));
@@ -95,6 +95,7 @@ BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const f
   const auto start = std::chrono::steady_clock::now();
   render::DeviceCones cones(renderer, bake::HeightView{heights.data(), width, height}, sector_count, address);
   render::DeviceConeBudget budget;
+  budget.first_pass = first_pass;
   budget.texels = baker == Baker::budgeted && budget_milliseconds == 0.0 ? 0 : render::unlimited_texels;
   cones.bake(budget);
   BakedCones baked;

@@ -8,6 +8,7 @@
 
 #include "bake/bake.h"
 #include "demos/cone_export.h"
+#include "render/device.h"
 #include "render/render.h"
 
 namespace displace::app {
@@ -24,10 +25,12 @@ BakedCones bake_cones(std::span<const float> heights, int width, int height, int
                       const bake::Progress& progress = {});
 // Bilinear cones on `renderer`'s device (render::DeviceCones, the same contract): Baker::full and a
 // budgeted bake with any budget but 0 search every texel to the cells, a budget of 0 makes the first
-// pass only. Stats: mode bilinear, texels refined, wall milliseconds, mean ratio.
+// pass only, of the shape `first_pass` says. Stats: mode bilinear, texels refined, wall milliseconds,
+// mean ratio.
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
-                                   double budget_milliseconds);
+                                   double budget_milliseconds,
+                                   const render::DeviceFirstPass& first_pass = {});
 // Bilinear cones (bake::bake_bilinear_cones' contract) with their apex heights: Baker::full bakes
 // them whole, Baker::budgeted with bake::BilinearBaker within the budget (0 allowed); `progress`
 // goes to either.

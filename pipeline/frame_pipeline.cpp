@@ -74,6 +74,13 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   state_ = std::make_unique<State>(scene, renderer, std::move(clock), std::move(loader));
   State& s = *state_;
   if (!(scene.fps > 0.0)) throw SceneError("time.fps must be above 0");
+  const render::DeviceFirstPass& first_pass = scene.device_first_pass;
+  if (first_pass.ring_radius < 0 || first_pass.ring_radius > render::max_first_pass_rings ||
+      first_pass.window_radius < 1 || first_pass.window_radius > render::max_first_pass_window) {
+    throw SceneError("backend.device_rings must be in [0, " + std::to_string(render::max_first_pass_rings) +
+                     "] and backend.device_window in [1, " + std::to_string(render::max_first_pass_window) +
+                     "]");
+  }
   s.needs = render::map_needs(scene.method, scene_view(scene, scene.start));
   s.deterministic = !std::isfinite(scene.frame_ms);
   // the sim: on the device, or the CPU's (made only then: an ocean's FFT plans and arrays are
@@ -109,6 +116,7 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   if (s.bake_on_device) {
     s.cpu_needs.cone_sectors = 0;
     s.cpu_needs.relaxed = false;
+    s.device_budget.first_pass = scene.device_first_pass;
     s.device_budget.texels = scene.bake_work >= 0            ? scene.bake_work
                              : std::isfinite(scene.frame_ms) ? 0
                                                              : render::unlimited_texels;

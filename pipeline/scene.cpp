@@ -625,11 +625,16 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
 
 void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* backend = read.section(root, "backend");
-  if (backend) read.known_keys(*backend, "backend", {"sim", "bake"});
+  if (backend) read.known_keys(*backend, "backend", {"sim", "bake", "device_rings", "device_window"});
   scene.sim_backend = backend_of(
       read.word(backend, "backend", "sim", backend_word(scene.sim_backend), {"auto", "cpu", "device"}));
   scene.bake_backend = backend_of(
       read.word(backend, "backend", "bake", backend_word(scene.bake_backend), {"auto", "cpu", "device"}));
+  render::DeviceFirstPass& first_pass = scene.device_first_pass;
+  first_pass.ring_radius = int(read.integer(backend, "backend", "device_rings", first_pass.ring_radius, 0,
+                                            render::max_first_pass_rings));
+  first_pass.window_radius = int(read.integer(backend, "backend", "device_window", first_pass.window_radius,
+                                              1, render::max_first_pass_window));
 }
 
 }  // namespace
@@ -764,7 +769,9 @@ std::string scene_toml(const Scene& scene) {
   if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
   root.insert("budget", budget);
   root.insert("backend", toml::table{{"sim", backend_word(scene.sim_backend)},
-                                     {"bake", backend_word(scene.bake_backend)}});
+                                     {"bake", backend_word(scene.bake_backend)},
+                                     {"device_rings", std::int64_t(scene.device_first_pass.ring_radius)},
+                                     {"device_window", std::int64_t(scene.device_first_pass.window_radius)}});
   std::ostringstream out;
   out << "# displace scene (pipeline/scene.h documents every key)\n" << root << "\n";
   return out.str();

@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "render/device.h"
 #include "render/render.h"
 #include "sim/sim.h"
 
@@ -132,6 +133,10 @@ struct Scene {
   // (ocean, sinusoids); static ones (bricks, cliff, images) are made or read once on the CPU.
   Backend sim_backend = Backend::automatic;
   Backend bake_backend = Backend::automatic;
+  // How the device's cone bake makes its first pass (render::DeviceFirstPass): ring_radius 0
+  // searches the pyramid, r > 0 bounds rings of nodes; window_radius cells around each texel are
+  // bounded by the slope window. [backend] device_rings and device_window.
+  render::DeviceFirstPass device_first_pass{};
 };
 
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.

@@ -93,9 +93,11 @@ class DeviceSim {
 // those whole, or by rings (ring_radius r > 0): at every level, the nodes more than r nodes from the
 // texel's own are bounded whole, the same nodes for every texel (no search: the device runs a group's
 // texels in step). r = 1 examines about 220 nodes a texel, r = 2 about 660 and bounds more tightly.
+inline constexpr int max_first_pass_window = 4;  // cells (the search's window: CONE_SLOPE_WINDOW)
+inline constexpr int max_first_pass_rings = 8;   // nodes: (4 r + 2)^2 examined a level, 1156 at 8
 struct DeviceFirstPass {
-  int window_radius = 4;  // 1..4 cells
-  int ring_radius = 0;    // 0..8
+  int window_radius = max_first_pass_window;  // 1 .. max_first_pass_window
+  int ring_radius = 0;                        // 0 .. max_first_pass_rings
 };
 
 // How much of a DeviceCones bake goes beyond the first pass. A texel whose first pass bounded a node

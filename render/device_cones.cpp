@@ -36,8 +36,7 @@ namespace {
 // the first pass opens no pyramid node at or below this level: blocks of 2^2 x 2^2 cells are bounded
 // whole (levels, docs/design/device-cones.md#budget for the figures behind it)
 constexpr int first_pass_level = 2;
-// rings: nodes a side examined per level and texel, (4 r + 2)^2, grow fast (r = 8: 1156)
-constexpr int max_ring_radius = 8;
+static_assert(max_first_pass_window == CONE_SLOPE_WINDOW);
 
 constexpr VkDescriptorType storage_buffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 constexpr VkDescriptorType storage_image = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
@@ -81,13 +80,14 @@ void validate_shape(int width, int height, int sector_count) {
 // Throws RenderError unless the first pass is one the search kernel takes.
 void validate_budget(const DeviceConeBudget& budget) {
   const DeviceFirstPass& first = budget.first_pass;
-  if (first.window_radius < 1 || first.window_radius > CONE_SLOPE_WINDOW)
+  if (first.window_radius < 1 || first.window_radius > max_first_pass_window)
     throw RenderError("DeviceCones: a first pass's window radius is 1 to " +
-                      std::to_string(CONE_SLOPE_WINDOW) + " cells, not " +
+                      std::to_string(max_first_pass_window) + " cells, not " +
                       std::to_string(first.window_radius));
-  if (first.ring_radius < 0 || first.ring_radius > max_ring_radius)
-    throw RenderError("DeviceCones: a first pass's ring radius is 0 to " + std::to_string(max_ring_radius) +
-                      " nodes, not " + std::to_string(first.ring_radius));
+  if (first.ring_radius < 0 || first.ring_radius > max_first_pass_rings)
+    throw RenderError("DeviceCones: a first pass's ring radius is 0 to " +
+                      std::to_string(max_first_pass_rings) + " nodes, not " +
+                      std::to_string(first.ring_radius));
 }
 
 }  // namespace

@@ -392,6 +392,21 @@ const std::vector<Entry>& entries() {
                       : "must be auto, cpu or device, got " + in_quotes(text);
          });
        }},
+      {"--device-rings",
+       scene_source,
+       {"backend.device_rings"},
+       Kind::integer,
+       "R",
+       "the device cone bake's first pass: 0 searches the pyramid, R > 0 bounds the nodes more than R "
+       "nodes from each texel's, level by level, the same for every texel",
+       [] { return integer_in(0, render::max_first_pass_rings); }},
+      {"--device-window",
+       scene_source,
+       {"backend.device_window"},
+       Kind::integer,
+       "CELLS",
+       "the device cone bake's first pass: cells around each texel bounded by the surface's slopes",
+       [] { return integer_in(1, render::max_first_pass_window); }},
       {"--cone-lag",
        scene_frames,
        {"budget.cone_lag_frames"},

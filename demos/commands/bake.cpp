@@ -153,7 +153,7 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
       on_device
           ? bake_bilinear_on_device(*renderer, input.heights, input.width, input.height,
                                     settings.sector_count, settings.baker, settings.address,
-                                    settings.budget_milliseconds)
+                                    settings.budget_milliseconds, scene.device_first_pass)
           : (bilinear ? bake_bilinear : bake_cones)(
                 input.heights, input.width, input.height, settings.sector_count, settings.baker,
                 settings.address, settings.budget_milliseconds, settings.tolerance, progress.callback());

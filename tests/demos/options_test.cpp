@@ -112,6 +112,21 @@ TEST(Options, RejectsWhatDoesNotApply) {
   }
   EXPECT_TRUE(
       usage({"sequence", "--frames", "0:3", "--output", "f_#.png", "--shard", "1/2", "--preview", "p.gif"}));
+  // the device bake's first pass: rings 0 .. 8, a window of 1 .. 4 cells
+  const auto bake_with = [&](std::string_view flag, std::string_view value) {
+    const std::vector<std::string_view> args{"bake",     "--sectors", "4",  "--mode", "budgeted",
+                                             "--output", "c.exr",     flag, value};
+    return args;
+  };
+  EXPECT_FALSE(usage_of(bake_with("--device-rings", "8")));
+  EXPECT_TRUE(usage_of(bake_with("--device-rings", "9")));
+  EXPECT_TRUE(usage_of(bake_with("--device-window", "0")));
+  const auto first_pass = [&](std::string_view flag, std::string_view value) {
+    return std::any_cast<BakeSettings>(parse_command_line(bake_with(flag, value)).settings)
+        .scene.device_first_pass;
+  };
+  EXPECT_EQ(first_pass("--device-rings", "2").ring_radius, 2);
+  EXPECT_EQ(first_pass("--device-window", "3").window_radius, 3);
   // lagged cone maps are real-time only: they need a frame budget
   EXPECT_TRUE(usage({"bench-frame", "--cone-lag", "2"}));
   EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));

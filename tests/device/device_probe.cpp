@@ -27,7 +27,9 @@
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
 // =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
-// with the bake on the device alone; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's map sides.
+// with the bake on the device alone; DISPLACE_PROBE_DEVICE_RINGS=R gives the device bake's first
+// pass rings of radius R there (render::DeviceFirstPass; 0, the default: the search);
+// DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's map sides.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -163,7 +165,9 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
     const std::pair<Backend, Backend> backends[] = {
         {Backend::cpu, Backend::cpu}, {Backend::device, Backend::cpu}, {Backend::device, Backend::device}};
     const char* only_device_bake =
-        std::getenv("DISPLACE_PROBE_DEVICE_BAKE");  // 1: those configurations alone
+        std::getenv("DISPLACE_PROBE_DEVICE_BAKE");                   // 1: those configurations alone
+    const char* rings = std::getenv("DISPLACE_PROBE_DEVICE_RINGS");  // the device bake's first pass
+    const int ring_radius = rings && *rings ? std::atoi(rings) : 0;
     for (const auto& [sim_backend, bake_backend] : backends) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
@@ -181,6 +185,7 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           scene.steps = 32;
           scene.frame_ms = 0.0;
           scene.cone_lag_frames = lag;
+          scene.device_first_pass.ring_radius = ring_radius;
           pipeline::FramePipeline frames(scene, renderer);
           render::Frame frame;
           for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
@@ -204,18 +209,18 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
             for (int n = 0; n < frame_count; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
           }
           std::printf(
-              "frame: water, map %d, %d x %d pixels, %s, cone lag %d, sim on the %s, bake on the %s: p50 sim "
-              "%.3f "
+              "frame: water, map %d, %d x %d pixels, %s, cone lag %d, sim on the %s, bake on the %s (first "
+              "pass: rings %d): p50 sim %.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
               "%.3f "
               "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after "
               "warm-up\n",
               size, size, size, overlapped ? "overlapped" : "in series", lag,
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
-              percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5), percentile(draw, 0.5),
-              percentile(total, 0.5), percentile(total, 0.95), percentile(sim_device, 0.5),
-              percentile(bake_device, 0.5), percentile(draw_device, 0.5), percentile(age, 0.5),
-              percentile(lift, 0.5), renderer.memory_allocations() - allocations);
+              ring_radius, percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5),
+              percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
+              percentile(sim_device, 0.5), percentile(bake_device, 0.5), percentile(draw_device, 0.5),
+              percentile(age, 0.5), percentile(lift, 0.5), renderer.memory_allocations() - allocations);
           std::fflush(stdout);
         }
       }

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <numeric>
 #include <string>
 
 #include "pipeline/frame_pipeline.h"
@@ -84,6 +86,33 @@ TEST(DeviceFrames, HitWithinATexelOfTheCpuPathsOnTheWaterScenes) {
         EXPECT_GE(agreeing_share(cpu_frame, device_frame, cpu_scene.map_size), 0.999);
       }
     }
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// The scene's first pass reaches the device bake: rings of radius 2 hit where the search does, in
+// fewer fetches (their ratios are larger on the ocean), and a shape the kernels refuse is refused
+// before anything is recorded.
+TEST(DeviceFrames, TheScenesFirstPassReachesTheDeviceBake) {
+  render::Renderer& renderer = frames_renderer();
+  pipeline::Scene scene = small_scene("water", pipeline::Backend::device, pipeline::Backend::device);
+  scene.bake_work = 0;  // the first pass alone
+  render::Frame search_frame, rings_frame;
+  const unsigned outputs = render::output_uv | render::output_fetches;
+  pipeline::FramePipeline(scene, renderer).run(0, search_frame, outputs);
+  scene.device_first_pass = {4, 2};
+  pipeline::FramePipeline(scene, renderer).run(0, rings_frame, outputs);
+  EXPECT_GE(agreeing_share(search_frame, rings_frame, scene.map_size), 0.999);
+  const auto fetches = [](const render::Frame& frame) {
+    return std::accumulate(frame.fetches.begin(), frame.fetches.end(), 0.0);
+  };
+  std::printf("fetches: search's first pass %.0f, rings 2 %.0f\n", fetches(search_frame),
+              fetches(rings_frame));
+  EXPECT_LT(fetches(rings_frame), fetches(search_frame));
+  for (const render::DeviceFirstPass first_pass :
+       {render::DeviceFirstPass{0, 1}, render::DeviceFirstPass{4, 9}}) {
+    scene.device_first_pass = first_pass;
+    EXPECT_THROW(pipeline::FramePipeline(scene, renderer), pipeline::SceneError);
   }
   EXPECT_EQ(renderer.validation_messages(), 0);
 }

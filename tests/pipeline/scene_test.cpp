@@ -43,6 +43,7 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
     scene.frame_ms = 16.0;
     scene.bake_work = 5000;
     scene.cone_lag_frames = 3;
+    scene.device_first_pass = {2, 3};
     const std::string text = pipeline::scene_toml(scene);
     const Scene back = pipeline::parse_scene(text, name);
     EXPECT_EQ(pipeline::scene_toml(back), text) << name;
@@ -126,6 +127,10 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"budget.bake_work", {"-2", "0.5"}},
       {"budget.tolerance", {"2", "\"loose\""}},
       {"budget.cone_lag_frames", {"-1", "65", "1.5"}},
+      {"backend.sim", {"1", "\"gpu\""}},
+      {"backend.bake", {"\"gpu\""}},
+      {"backend.device_rings", {"-1", "9", "\"two\""}},
+      {"backend.device_window", {"0", "5", "1.5"}},
       {"name", {"1"}}};
   for (const auto& [key, values] : keys) {
     const std::string path = key;
