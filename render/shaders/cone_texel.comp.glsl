@@ -382,7 +382,7 @@ void far_tile(int tile_u, int tile_v, int floor_level) {
 // level's. At level 0 the near box is bounded too (its nodes are cells). So every cell of the tile
 // lies in a node bounded whole or skipped (below H_c, lowering nothing, or in the window), and with
 // ring_radius 1 and the full window the near box of level 1 lies inside the window: the levels stop
-// once the next level's nodes all do. Proof: docs/design/device-cones.md#the-first-pass-rings.
+// once the next level's nodes all do. Proof: docs/design/device-cones.md, "The first pass's rings".
 void ring_tile(int tile_u, int tile_v) {
   const int tile_first_u = tile_u * push.cells_u, tile_first_v = tile_v * push.cells_v;
   const int centre_in_u = centre_u - tile_first_u, centre_in_v = centre_v - tile_first_v;
