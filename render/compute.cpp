@@ -6,7 +6,8 @@
 namespace displace::render {
 
 ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32_t> spirv,
-                             std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes)
+                             std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes,
+                             std::span<const std::int32_t> constants)
     : device_(context.device()),
       bindings_(bindings.begin(), bindings.end()),
       push_bytes_(push_constant_bytes) {
@@ -43,6 +44,12 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
   pipeline_info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   pipeline_info.stage.module = module;
   pipeline_info.stage.pName = "main";
+  std::vector<VkSpecializationMapEntry> entries;
+  for (std::uint32_t id = 0; id < constants.size(); ++id)
+    entries.push_back({id, id * std::uint32_t(sizeof(std::int32_t)), sizeof(std::int32_t)});
+  const VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(),
+                                            constants.size_bytes(), constants.data()};
+  if (!constants.empty()) pipeline_info.stage.pSpecializationInfo = &specialization;
   pipeline_info.layout = layout;
   VkPipeline pipeline = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &pipeline_info, nullptr, &pipeline));

@@ -1,7 +1,8 @@
 // render/compute.h - one compute shader as a pipeline with its own descriptor set and push constants:
 // the device path's kernels (the ocean, the cone maps). Internal to render/.
 //
-// A kernel is made once from its SPIR-V and the descriptor types of its bindings 0..n-1 (set 0);
+// A kernel is made once from its SPIR-V, the descriptor types of its bindings 0..n-1 (set 0) and the
+// values of its 32-bit specialization constants 0..m-1 (ints, or bools as 0 and 1), if any;
 // bind_*() write its one descriptor set (only while no submitted work uses it), record() binds the
 // pipeline and set, pushes the constants and dispatches. compute_barrier() orders one kernel's writes
 // before the next one's reads.
@@ -20,12 +21,14 @@ class ComputeKernel {
  public:
   ComputeKernel() = default;
   ComputeKernel(const Context& context, std::span<const std::uint32_t> spirv,
-                std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes);
+                std::span<const VkDescriptorType> bindings, std::uint32_t push_constant_bytes,
+                std::span<const std::int32_t> constants = {});
   ComputeKernel(ComputeKernel&&) noexcept = default;
   ComputeKernel& operator=(ComputeKernel&&) noexcept = default;
   // A kernel with this one's pipeline (made once: a driver may take long to compile one) and a
   // descriptor set of its own, for other resources.
   ComputeKernel sibling() const;
+  bool made() const { return shared_ != nullptr; }
 
   void bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset = 0,
                    VkDeviceSize range = VK_WHOLE_SIZE);

@@ -6,6 +6,7 @@
 // samples. The one fact: every stored ratio is valid from every point of the texel's square for the
 // apex stored beside it, at every budget - docs/design/device-cones.md has the proof and the margins.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -92,10 +93,29 @@ void validate_budget(const DeviceConeBudget& budget) {
 
 }  // namespace
 
-// The kernels' pipelines, made once per renderer (lavapipe compiles the search for about 0.15 s); each
-// DeviceCones binds its own siblings.
+// The texel kernel's forms: its specialization constants FIRST_PASS_RINGS (bit 0) and REFINES (bit 1),
+// so that a form's pipeline holds only the code it runs (llvmpipe compiles the whole kernel into one
+// function, and a GPU gives every invocation the registers of the kernel's largest path).
+constexpr int texel_forms = 4;
+int texel_form(const DeviceConeBudget& budget) {
+  if (budget.texels < 0) return 0;  // every texel searched to the cells: the search, nothing refined
+  return (budget.first_pass.ring_radius > 0 ? 1 : 0) | (budget.texels > 0 ? 2 : 0);
+}
+
+// The kernels' pipelines, made once per renderer (lavapipe compiles the search for about 0.15 s), the
+// texel kernel's forms when a bake first asks for them; each DeviceCones binds its own siblings.
 struct DeviceConeKernels {
-  ComputeKernel cells, reduce, texel, lift, compose;
+  ComputeKernel cells, reduce, lift, compose;
+  std::array<ComputeKernel, texel_forms> texel;
+  const ComputeKernel& texel_form(const Context& context, int form) {
+    ComputeKernel& kernel = texel[std::size_t(form)];
+    if (!kernel.made()) {
+      const std::int32_t constants[] = {form & 1, (form >> 1) & 1};
+      kernel = ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush),
+                             constants);
+    }
+    return kernel;
+  }
 };
 
 struct DeviceCones::State {
@@ -108,7 +128,9 @@ struct DeviceCones::State {
   Image own_heights;
   Buffer pyramid, counters, cone_values, readback;
   Image cones;
-  ComputeKernel cells_kernel, reduce_kernel, texel_kernel;
+  ComputeKernel cells_kernel, reduce_kernel;
+  // the texel kernel's forms (texel_form) bound to the heights read: [0] the source, [1 + k] snapshot k
+  std::array<std::array<ComputeKernel, texel_forms>, 3> texel_kernels;
   Renderer::Impl::DeviceConeImage registration;
   long long refine_limit = 0;  // of the last bake(); unlimited_texels: every texel searched to the cells
   bool baked = false;
@@ -119,7 +141,7 @@ struct DeviceCones::State {
   // the frame samples, and each frame's lift for the host (a float per frame slot)
   Image snapshots[2];
   Buffer served, composed, lift_host;
-  ComputeKernel snapshot_cells[2], snapshot_texel[2], lift_kernel[2], compose_kernel;
+  ComputeKernel snapshot_cells[2], lift_kernel[2], compose_kernel;
   int lag = 0;                  // N of the maps being made
   int progress = 0;             // the snapshot the map in progress reads
   int band = -1;                // the next band of texel rows of the map in progress; -1: none
@@ -133,7 +155,8 @@ struct DeviceCones::State {
   void make_lagged();
   void check_source() const;
   void record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells);
-  void record_texels(VkCommandBuffer commands, const ComputeKernel& texel, const DeviceConeBudget& budget,
+  const ComputeKernel& texel_kernel(int heights, int form);
+  void record_texels(VkCommandBuffer commands, int heights, const DeviceConeBudget& budget,
                      int first_group_row, int group_rows);
   void record_to_image(VkCommandBuffer commands, VkBuffer values);
 };
@@ -181,12 +204,12 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
 
   // kernels
   if (!impl.cone_kernels) {
-    impl.cone_kernels = std::make_shared<const DeviceConeKernels>(DeviceConeKernels{
+    impl.cone_kernels = std::make_shared<DeviceConeKernels>(DeviceConeKernels{
         ComputeKernel(context, spirv_cone_cells_comp, cells_bindings, sizeof(gpu::ConeCellsPush)),
         ComputeKernel(context, spirv_cone_reduce_comp, reduce_bindings, sizeof(gpu::ConeReducePush)),
-        ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush)),
         ComputeKernel(context, spirv_cone_lift_comp, lift_bindings, sizeof(gpu::ConeLiftPush)),
-        ComputeKernel(context, spirv_cone_compose_comp, compose_bindings, sizeof(gpu::ConeComposePush))});
+        ComputeKernel(context, spirv_cone_compose_comp, compose_bindings, sizeof(gpu::ConeComposePush)),
+        {}});
   }
   cells_kernel = impl.cone_kernels->cells.sibling();
   cells_kernel.bind_image(0, heights.view());
@@ -194,11 +217,6 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   cells_kernel.bind_buffer(2, counters.handle());
   reduce_kernel = impl.cone_kernels->reduce.sibling();
   reduce_kernel.bind_buffer(0, pyramid.handle());
-  texel_kernel = impl.cone_kernels->texel.sibling();
-  texel_kernel.bind_image(0, heights.view());
-  texel_kernel.bind_buffer(1, pyramid.handle());
-  texel_kernel.bind_buffer(2, counters.handle());
-  texel_kernel.bind_buffer(3, cone_values.handle());
 
   registration = {&cones, width, height, sectors, address};
   impl.device_cones[std::size_t(cone_slot(sectors))] = &registration;
@@ -300,9 +318,25 @@ void DeviceCones::State::record_pyramid(VkCommandBuffer commands, const ComputeK
   }
 }
 
-// The texels' searches for the groups of rows [first_group_row, + group_rows), into cone_values.
-void DeviceCones::State::record_texels(VkCommandBuffer commands, const ComputeKernel& texel,
-                                       const DeviceConeBudget& budget, int first_group_row, int group_rows) {
+// The texel kernel's `form` reading `heights` (0: the source, 1 + k: snapshot k), made and bound when a
+// bake first asks for it: a pipeline and a descriptor set, no device memory.
+const ComputeKernel& DeviceCones::State::texel_kernel(int heights, int form) {
+  ComputeKernel& kernel = texel_kernels[std::size_t(heights)][std::size_t(form)];
+  if (!kernel.made()) {
+    kernel = impl.cone_kernels->texel_form(impl.context, form).sibling();
+    kernel.bind_image(0, heights == 0 ? source->view() : snapshots[heights - 1].view());
+    kernel.bind_buffer(1, pyramid.handle());
+    kernel.bind_buffer(2, counters.handle());
+    kernel.bind_buffer(3, cone_values.handle());
+  }
+  return kernel;
+}
+
+// The texels' searches for the groups of rows [first_group_row, + group_rows) of `heights` (0: the
+// source, 1 + k: snapshot k), into cone_values.
+void DeviceCones::State::record_texels(VkCommandBuffer commands, int heights, const DeviceConeBudget& budget,
+                                       int first_group_row, int group_rows) {
+  const ComputeKernel& texel = texel_kernel(heights, texel_form(budget));
   gpu::ConeTexelPush texel_push{};
   texel_push.width = width;
   texel_push.height = height;
@@ -352,7 +386,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   // the frames before read the cone image and the buffers this one writes
   rewrite_barrier(commands);
   s.record_pyramid(commands, s.cells_kernel);
-  s.record_texels(commands, s.texel_kernel, budget, 0, int(group_count(std::uint32_t(s.height), CONE_TILE)));
+  s.record_texels(commands, 0, budget, 0, int(group_count(std::uint32_t(s.height), CONE_TILE)));
   compute_barrier(commands);
   s.record_to_image(commands, s.cone_values.handle());
   s.timer.end(commands, slot);
@@ -381,11 +415,6 @@ void DeviceCones::State::make_lagged() {
     snapshot_cells[k].bind_image(0, snapshots[k].view());
     snapshot_cells[k].bind_buffer(1, pyramid.handle());
     snapshot_cells[k].bind_buffer(2, counters.handle());
-    snapshot_texel[k] = impl.cone_kernels->texel.sibling();
-    snapshot_texel[k].bind_image(0, snapshots[k].view());
-    snapshot_texel[k].bind_buffer(1, pyramid.handle());
-    snapshot_texel[k].bind_buffer(2, counters.handle());
-    snapshot_texel[k].bind_buffer(3, cone_values.handle());
     lift_kernel[k] = impl.cone_kernels->lift.sibling();
     lift_kernel[k].bind_image(0, source->view());
     lift_kernel[k].bind_image(1, snapshots[k].view());
@@ -455,7 +484,7 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   const int last_band = whole ? bands - 1 : s.band;
   for (; s.band <= last_band; ++s.band) {
     const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
-    if (end > first) s.record_texels(commands, s.snapshot_texel[s.progress], budget, first, end - first);
+    if (end > first) s.record_texels(commands, 1 + s.progress, budget, first, end - first);
   }
   if (s.band == bands) {  // the map is finished: it is served from this frame on
     compute_barrier(commands);

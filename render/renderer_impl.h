@@ -180,8 +180,8 @@ struct Renderer::Impl {
   };
   std::array<const DeviceConeImage*, 3> device_cones{};
   std::array<bool, 3> cones_from_device{};
-  std::shared_ptr<const struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
-  std::vector<VkBufferImageCopy> copy_regions;                   // reused: cleared, never shrunk
+  std::shared_ptr<struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
+  std::vector<VkBufferImageCopy> copy_regions;             // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;

@@ -30,6 +30,11 @@ layout(std430, binding = 3) writeonly buffer Cones { uint cone_values[]; };
 
 layout(push_constant) uniform Push { ConeTexelPush push; };
 
+// The kernel's form (render/device_cones.cpp's texel_form), so that a pipeline holds only what it runs:
+// the first pass bounds rings (ring_tile) rather than searching the pyramid; cut texels may be refined.
+layout(constant_id = 0) const bool FIRST_PASS_RINGS = false;
+layout(constant_id = 1) const bool REFINES = true;
+
 // margins (docs/design/device-cones.md#rounding): float surface values are within 5e-7 of s
 const float height_margin = 2e-6;   // height units: raises every computed maximum of s, and H_c
 const float slope_margin = 2e-6;    // height units per cell: raises every rate of rise (before x W, H)
@@ -484,12 +489,15 @@ void main() {
   window_cells();
   float window_best[8] = best;
   cut = false;
-  far_cells(push.first_pass_level, push.ring_radius > 0);
-  if (cut && atomicAdd(counters[CONE_COUNTER_TICKETS], 1u) < uint(push.refine_limit)) {
-    const float first_pass[8] = best;
-    best = window_best;
-    far_cells(-1, false);
-    [[unroll]] for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
+  far_cells(push.first_pass_level, FIRST_PASS_RINGS);
+  if (cut) {  // every cut texel takes a ticket (read_back counts them), refined or not
+    const bool ticket = atomicAdd(counters[CONE_COUNTER_TICKETS], 1u) < uint(push.refine_limit);
+    if (REFINES && ticket) {
+      const float first_pass[8] = best;
+      best = window_best;
+      far_cells(-1, false);
+      [[unroll]] for (int k = 0; k < 8; ++k) best[k] = max(best[k], first_pass[k]);
+    }
   }
 
   // stored: each ratio raised to the floor, shrunk by the margin, clamped to 1 and rounded down

@@ -43,6 +43,7 @@ struct ConeTexelPush {
   int first_row;         // the dispatch's rows begin at this texel row (lagged maps: a band a frame)
   int window_radius;     // cells around the texel bounded by the slope window, 1..CONE_SLOPE_WINDOW
   int ring_radius;       // first pass: 0 searches the pyramid cut at first_pass_level; r > 0 bounds rings
+                         // (the texel kernel's FIRST_PASS_RINGS form)
   int pad0;
   int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in the pyramid buffer (floats)
 };
