@@ -81,6 +81,9 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
                      "] and backend.device_window in [1, " + std::to_string(render::max_first_pass_window) +
                      "]");
   }
+  if (first_pass.group && first_pass.ring_radius > 0)
+    throw SceneError(
+        "backend.device_group takes backend.device_rings = 0 (a first pass by groups or by rings)");
   s.needs = render::map_needs(scene.method, scene_view(scene, scene.start));
   s.deterministic = !std::isfinite(scene.frame_ms);
   // the sim: on the device, or the CPU's (made only then: an ocean's FFT plans and arrays are

@@ -625,7 +625,8 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
 
 void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* backend = read.section(root, "backend");
-  if (backend) read.known_keys(*backend, "backend", {"sim", "bake", "device_rings", "device_window"});
+  if (backend)
+    read.known_keys(*backend, "backend", {"sim", "bake", "device_rings", "device_window", "device_group"});
   scene.sim_backend = backend_of(
       read.word(backend, "backend", "sim", backend_word(scene.sim_backend), {"auto", "cpu", "device"}));
   scene.bake_backend = backend_of(
@@ -635,6 +636,7 @@ void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
                                             render::max_first_pass_rings));
   first_pass.window_radius = int(read.integer(backend, "backend", "device_window", first_pass.window_radius,
                                               1, render::max_first_pass_window));
+  first_pass.group = read.boolean(backend, "backend", "device_group", first_pass.group);
 }
 
 }  // namespace
@@ -771,7 +773,8 @@ std::string scene_toml(const Scene& scene) {
   root.insert("backend", toml::table{{"sim", backend_word(scene.sim_backend)},
                                      {"bake", backend_word(scene.bake_backend)},
                                      {"device_rings", std::int64_t(scene.device_first_pass.ring_radius)},
-                                     {"device_window", std::int64_t(scene.device_first_pass.window_radius)}});
+                                     {"device_window", std::int64_t(scene.device_first_pass.window_radius)},
+                                     {"device_group", scene.device_first_pass.group}});
   std::ostringstream out;
   out << "# displace scene (pipeline/scene.h documents every key)\n" << root << "\n";
   return out.str();

@@ -43,7 +43,8 @@ constexpr VkDescriptorType storage_buffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
 constexpr VkDescriptorType storage_image = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
 constexpr VkDescriptorType cells_bindings[] = {storage_image, storage_buffer, storage_buffer};
 constexpr VkDescriptorType reduce_bindings[] = {storage_buffer};
-constexpr VkDescriptorType texel_bindings[] = {storage_image, storage_buffer, storage_buffer, storage_buffer};
+constexpr VkDescriptorType texel_bindings[] = {storage_image, storage_buffer, storage_buffer, storage_buffer,
+                                               storage_buffer};
 constexpr VkDescriptorType lift_bindings[] = {storage_image, storage_image, storage_buffer};
 constexpr VkDescriptorType compose_bindings[] = {storage_buffer, storage_buffer, storage_buffer};
 
@@ -89,17 +90,23 @@ void validate_budget(const DeviceConeBudget& budget) {
     throw RenderError("DeviceCones: a first pass's ring radius is 0 to " +
                       std::to_string(max_first_pass_rings) + " nodes, not " +
                       std::to_string(first.ring_radius));
+  if (first.group && first.ring_radius > 0)
+    throw RenderError("DeviceCones: a first pass is by rings or by its group, not both (ring radius " +
+                      std::to_string(first.ring_radius) + " with group)");
 }
 
 }  // namespace
 
-// The texel kernel's forms: its specialization constants FIRST_PASS_RINGS (bit 0) and REFINES (bit 1),
-// so that a form's pipeline holds only the code it runs (llvmpipe compiles the whole kernel into one
-// function, and a GPU gives every invocation the registers of the kernel's largest path).
-constexpr int texel_forms = 4;
+// The texel kernel's forms: its specialization constants FIRST_PASS_RINGS (bit 0), REFINES (bit 1),
+// FIRST_PASS_GROUP (bit 2) and GROUP_FAR (bit 3, the groups' far ratios), so that a form's pipeline
+// holds only the code it runs (llvmpipe compiles the whole kernel into one function, and a GPU gives
+// every invocation the registers of the kernel's largest path).
+constexpr int texel_forms = 16;
+constexpr int group_far_form = 8;
 int texel_form(const DeviceConeBudget& budget) {
   if (budget.texels < 0) return 0;  // every texel searched to the cells: the search, nothing refined
-  return (budget.first_pass.ring_radius > 0 ? 1 : 0) | (budget.texels > 0 ? 2 : 0);
+  return (budget.first_pass.ring_radius > 0 ? 1 : 0) | (budget.texels > 0 ? 2 : 0) |
+         (budget.first_pass.group ? 4 : 0);
 }
 
 // The kernels' pipelines, made once per renderer (lavapipe compiles the search for about 0.15 s), the
@@ -110,7 +117,7 @@ struct DeviceConeKernels {
   const ComputeKernel& texel_form(const Context& context, int form) {
     ComputeKernel& kernel = texel[std::size_t(form)];
     if (!kernel.made()) {
-      const std::int32_t constants[] = {form & 1, (form >> 1) & 1};
+      const std::int32_t constants[] = {form & 1, (form >> 1) & 1, (form >> 2) & 1, (form >> 3) & 1};
       kernel = ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush),
                              constants);
     }
@@ -127,6 +134,8 @@ struct DeviceCones::State {
   const Image* source = nullptr;                             // the heights read (own_heights or the ocean's)
   Image own_heights;
   Buffer pyramid, counters, cone_values, readback;
+  Buffer group_far;  // a group first pass's far ratios (cone_texel.comp.glsl's GroupFar)
+  int groups_u = 0, groups_v = 0;
   Image cones;
   ComputeKernel cells_kernel, reduce_kernel;
   // the texel kernel's forms (texel_form) bound to the heights read: [0] the source, [1 + k] snapshot k
@@ -192,6 +201,11 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
                     device_local);
   cone_values = Buffer(context, texels() * VkDeviceSize(layers) * cone_texel_bytes,
                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, device_local);
+  groups_u = int(group_count(std::uint32_t(width), CONE_TILE));
+  groups_v = int(group_count(std::uint32_t(height), CONE_TILE));
+  group_far =
+      Buffer(context, VkDeviceSize(groups_u) * VkDeviceSize(groups_v) * CONE_GROUP_LEVELS * (1 + sectors) * 4,
+             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local);
   cones =
       Image(context, cone_format, std::uint32_t(width), std::uint32_t(height), std::uint32_t(layers),
             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -328,6 +342,7 @@ const ComputeKernel& DeviceCones::State::texel_kernel(int heights, int form) {
     kernel.bind_buffer(1, pyramid.handle());
     kernel.bind_buffer(2, counters.handle());
     kernel.bind_buffer(3, cone_values.handle());
+    kernel.bind_buffer(4, group_far.handle());
   }
   return kernel;
 }
@@ -354,6 +369,14 @@ void DeviceCones::State::record_texels(VkCommandBuffer commands, int heights, co
   texel_push.first_row = first_group_row * CONE_TILE;
   texel_push.window_radius = unlimited ? CONE_SLOPE_WINDOW : budget.first_pass.window_radius;
   texel_push.ring_radius = unlimited ? 0 : budget.first_pass.ring_radius;
+  if (!unlimited && budget.first_pass.group) {  // the groups' far ratios first, searched to the cells
+    gpu::ConeTexelPush far_push = texel_push;
+    far_push.first_pass_level = -1;
+    const auto row = std::uint32_t(groups_u * CONE_GROUP_LEVELS);  // invocations, a group row's
+    texel_kernel(heights, group_far_form)
+        .record(commands, group_count(row, CONE_TILE * CONE_TILE), std::uint32_t(group_rows), 1, &far_push);
+    compute_barrier(commands);
+  }
   texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1,
                &texel_push);
   refine_limit = unlimited ? unlimited_texels : budget.texels;

@@ -400,6 +400,14 @@ const std::vector<Entry>& entries() {
        "the device cone bake's first pass: 0 searches the pyramid, R > 0 bounds the nodes more than R "
        "nodes from each texel's, level by level, the same for every texel",
        [] { return integer_in(0, render::max_first_pass_rings); }},
+      {"--device-group",
+       scene_source,
+       {"backend.device_group"},
+       Kind::on,
+       "",
+       "the device cone bake's first pass by 8 x 8 texel groups: each group bounds the cells far from it "
+       "once, its texels the cells near it by rings of blocks (with --device-rings 0)",
+       {}},
       {"--device-window",
        scene_source,
        {"backend.device_window"},

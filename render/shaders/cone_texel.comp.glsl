@@ -27,13 +27,20 @@ layout(std430, binding = 1) readonly buffer Pyramid { float node_max[]; };
 layout(std430, binding = 2) buffer Counters { uint counters[]; };
 // layer l, texel (i, j) at l * W * H + i * W + j: (ratio as a half rounded down) | (apex q) << 16
 layout(std430, binding = 3) writeonly buffer Cones { uint cone_values[]; };
+// a group first pass: per 8 x 8 texel group and level q < CONE_GROUP_LEVELS, at (group * levels + q) *
+// (1 + sectors): the apex h_q, then the group's far ratio per sector from h_q
+layout(std430, binding = 4) buffer GroupFar { float group_far[]; };
 
 layout(push_constant) uniform Push { ConeTexelPush push; };
 
 // The kernel's form (render/device_cones.cpp's texel_form), so that a pipeline holds only what it runs:
-// the first pass bounds rings (ring_tile) rather than searching the pyramid; cut texels may be refined.
+// the first pass bounds rings (ring_tile) rather than searching the pyramid, or takes its group's far
+// ratios and bounds only the cells near the group (GROUP); cut texels may be refined; or the dispatch
+// makes the groups' far ratios (GROUP_FAR) instead of texels.
 layout(constant_id = 0) const bool FIRST_PASS_RINGS = false;
 layout(constant_id = 1) const bool REFINES = true;
+layout(constant_id = 2) const bool FIRST_PASS_GROUP = false;
+layout(constant_id = 3) const bool GROUP_FAR = false;
 
 // margins (docs/design/device-cones.md#rounding): float surface values are within 5e-7 of s
 const float height_margin = 2e-6;   // height units: raises every computed maximum of s, and H_c
@@ -63,6 +70,8 @@ int level_height(int level) { return (push.cells_v + (1 << level) - 1) >> level;
 
 // Gap between Q_c's span [2t - 1, 2t + 1] and [first, last] (half texels).
 int span_gap(int t, int first, int last) { return max(0, max(first - (2 * t + 1), (2 * t - 1) - last)); }
+// ... and between the span [q0, q1] (Q's along one axis: Q_c's, or a group's) and [first, last]
+int box_gap(int q0, int q1, int first, int last) { return max(0, max(first - q1, q0 - last)); }
 
 float gap_distance(int gap_u, int gap_v) {
   const float u = float(gap_u) * half_u, v = float(gap_v) * half_v;
@@ -265,10 +274,10 @@ void window_cells() {
 // The window in unrolled cells.
 int wu0, wu1, wv0, wv1;
 
-// uv distance from Q_c to the cells [fu, lu] x [fv, lv] (unrolled)
+// uv distance from Q (Q_c; a group's square for GROUP_FAR) to the cells [fu, lu] x [fv, lv] (unrolled)
 float cells_gap(int fu, int lu, int fv, int lv) {
-  return gap_distance(span_gap(j, cell_begin(fu, wrap), cell_end(lu, W, wrap)),
-                      span_gap(i, cell_begin(fv, wrap), cell_end(lv, H, wrap)));
+  return gap_distance(box_gap(qu0, qu1, cell_begin(fu, wrap), cell_end(lu, W, wrap)),
+                      box_gap(qv0, qv1, cell_begin(fv, wrap), cell_end(lv, H, wrap)));
 }
 
 // Whether node (level, bu, bv) of tile (tile_u, tile_v) is to be opened; a node it need not open it
@@ -380,13 +389,12 @@ void far_tile(int tile_u, int tile_v, int floor_level) {
 // lies in a node bounded whole or skipped (below H_c, lowering nothing, or in the window), and with
 // ring_radius 1 and the full window the near box of level 1 lies inside the window: the levels stop
 // once the next level's nodes all do. Proof: docs/design/device-cones.md, "The first pass's rings".
-void ring_tile(int tile_u, int tile_v) {
+// ring_descent: the same from level `top`'s nodes [first_u, last_u] x [first_v, last_v] of the tile
+// (the cells they hold are the ones covered).
+void ring_descent(int tile_u, int tile_v, int top, int first_u, int last_u, int first_v, int last_v, int radius) {
   const int tile_first_u = tile_u * push.cells_u, tile_first_v = tile_v * push.cells_v;
   const int centre_in_u = centre_u - tile_first_u, centre_in_v = centre_v - tile_first_v;
-  const int radius = push.ring_radius;
-  int first_u = 0, first_v = 0;  // the level's nodes examined
-  int last_u = level_width(push.levels - 1) - 1, last_v = level_height(push.levels - 1) - 1;
-  [[dont_unroll]] for (int level = push.levels - 1; level >= 0; --level) {
+  [[dont_unroll]] for (int level = top; level >= 0; --level) {
     // the near box (>> rounds towards minus infinity: a texel left of or below the tile has a node < 0)
     const int near_u0 = (centre_in_u >> level) - radius, near_u1 = (centre_in_u >> level) + radius;
     const int near_v0 = (centre_in_v >> level) - radius, near_v1 = (centre_in_v >> level) + radius;
@@ -412,6 +420,11 @@ void ring_tile(int tile_u, int tile_v) {
   }
 }
 
+void ring_tile(int tile_u, int tile_v) {
+  const int top = push.levels - 1;
+  ring_descent(tile_u, tile_v, top, 0, level_width(top) - 1, 0, level_height(top) - 1, push.ring_radius);
+}
+
 // With wrap, the images whose cells come within uv distance 1 of Q_c: tiles -2..1. Tile -2's last
 // cells reach to 1 - 1/(2W) of texel 0's square; tile 2's first begin 1 + 1/(2W) past texel W - 1's,
 // so its bounds are at least (1 + 1/(2W)) / (1 - height_margin): ratios that store as 1 for every
@@ -423,13 +436,104 @@ void far_cells(int floor_level, bool rings) {
     else far_tile(0, 0, floor_level);
     return;
   }
-  const int side_u = 2 * j + 1 >= W ? 1 : -1, side_v = 2 * i + 1 >= H ? 1 : -1;
+  // the side of Q's middle (half texels; for Q_c, 2j + 1 >= W): the order only
+  const int side_u = qu0 + qu1 + 2 >= 2 * W ? 1 : -1, side_v = qv0 + qv1 + 2 >= 2 * H ? 1 : -1;
   [[dont_unroll]] for (int b = 0; b < 4; ++b) {
     const int tile_v = b == 0 ? 0 : (b == 1 ? side_v : (b == 2 ? -side_v : -2));
     [[dont_unroll]] for (int a = 0; a < 4; ++a) {
       const int tile_u = a == 0 ? 0 : (a == 1 ? side_u : (a == 2 ? -side_u : -2));
       if (rings) ring_tile(tile_u, tile_v);
       else far_tile(tile_u, tile_v, floor_level);
+    }
+  }
+}
+
+// ---- a group first pass (docs/design/device-cones.md, "The group's first pass")
+
+// The cells that the texels of group (gu, gv) bound themselves, in unrolled cells: their centre cells
+// widened by CONE_GROUP_NEAR (so every texel's window lies inside). The group's far ratios bound the
+// rest.
+void group_near(int gu, int gv, out int u0, out int u1, out int v0, out int v1) {
+  u0 = cell_of_left_centre(gu * CONE_TILE, wrap) - CONE_GROUP_NEAR;
+  u1 = cell_of_left_centre(min(gu * CONE_TILE + CONE_TILE, W) - 1, wrap) + CONE_GROUP_NEAR;
+  v0 = cell_of_left_centre(gv * CONE_TILE, wrap) - CONE_GROUP_NEAR;
+  v1 = cell_of_left_centre(min(gv * CONE_TILE + CONE_TILE, H) - 1, wrap) + CONE_GROUP_NEAR;
+}
+
+int group_stride() { return 1 + sectors; }
+
+// GROUP_FAR, one invocation per group and level q: Q is the group's square (the union of its texels'),
+// the apex h_q = lo + (hi - lo) q / levels (lo, hi: the least and largest height of its texels; every
+// texel's apex is at least its own height, so at least h_0), the window is the group's near cells, and
+// the pyramid is searched to the cells (first_pass_level -1) or cut (>= 0) as a texel's is. For texel c
+// of the group with apex H_c >= h_q and a cell x outside the near cells, |x - p| >= gap(Q, x) for p in
+// Q_c and s(x) - H_c <= max - h_q, so each ratio holds for c; Q's boxes of directions hold c's.
+void group_far_main() {
+  const int groups_u = (W + CONE_TILE - 1) / CONE_TILE;
+  // a dispatch row per group row, each group's levels side by side along it
+  const int id = int(gl_WorkGroupID.x * gl_WorkGroupSize.x * gl_WorkGroupSize.y + gl_LocalInvocationIndex);
+  const int q = id % CONE_GROUP_LEVELS;
+  const int gu = id / CONE_GROUP_LEVELS;
+  if (gu >= groups_u) return;
+  const int gv = int(gl_WorkGroupID.y) + push.first_row / CONE_TILE;
+  const int j0 = gu * CONE_TILE, j1 = min(j0 + CONE_TILE, W) - 1;
+  const int i0 = gv * CONE_TILE, i1 = min(i0 + CONE_TILE, H) - 1;
+  float lo = 1.0, hi = 0.0;
+  [[dont_unroll]] for (int b = i0; b <= i1; ++b)
+    [[dont_unroll]] for (int a = j0; a <= j1; ++a) {
+      const float h = imageLoad(heights, ivec2(a, b)).r;
+      lo = min(lo, h);
+      hi = max(hi, h);
+    }
+  apex = lo + (hi - lo) * (float(q) / float(CONE_GROUP_LEVELS));
+  qu0 = 2 * j0 - 1;
+  qu1 = 2 * j1 + 1;
+  qv0 = 2 * i0 - 1;
+  qv1 = 2 * i1 + 1;
+  half_u = 0.5 / float(W);
+  half_v = 0.5 / float(H);
+  const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
+  floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
+  group_near(gu, gv, wu0, wu1, wv0, wv1);
+  centre_u = cell_of_left_centre((j0 + j1) / 2, wrap);
+  centre_v = cell_of_left_centre((i0 + i1) / 2, wrap);
+  [[unroll]] for (int k = 0; k < 8; ++k) best[k] = unclaimed;
+  far_cells(push.first_pass_level, false);
+  const int at = ((gv * groups_u + gu) * CONE_GROUP_LEVELS + q) * group_stride();
+  group_far[at] = apex;
+  [[unroll]] for (int k = 0; k < 8; ++k) {  // constant indices: best[] stays in registers
+    if (k >= sectors) break;
+    group_far[at + 1 + k] = best[k];
+  }
+}
+
+// A group first pass's texel: rings of radius 1 (ring_descent) from the level-L nodes (L = 2, or the
+// top for a small map) that hold its group's near cells, in each tile they reach, then the group's
+// far ratios of the highest apex h_q at or below the texel's. Either lowering a ratio cuts the texel.
+void group_first_pass() {
+  int nu0, nu1, nv0, nv1;
+  group_near(j / CONE_TILE, i / CONE_TILE, nu0, nu1, nv0, nv1);
+  const int level = min(2, push.levels - 1);
+  const int tu0 = wrap ? floor_div(nu0, push.cells_u) : 0, tu1 = wrap ? floor_div(nu1, push.cells_u) : 0;
+  const int tv0 = wrap ? floor_div(nv0, push.cells_v) : 0, tv1 = wrap ? floor_div(nv1, push.cells_v) : 0;
+  [[dont_unroll]] for (int tv = tv0; tv <= tv1; ++tv) {
+    const int v0 = max(nv0 - tv * push.cells_v, 0), v1 = min(nv1 - tv * push.cells_v, push.cells_v - 1);
+    [[dont_unroll]] for (int tu = tu0; tu <= tu1; ++tu) {
+      const int u0 = max(nu0 - tu * push.cells_u, 0), u1 = min(nu1 - tu * push.cells_u, push.cells_u - 1);
+      ring_descent(tu, tv, level, u0 >> level, u1 >> level, v0 >> level, v1 >> level, 1);
+    }
+  }
+  const int groups_u = (W + CONE_TILE - 1) / CONE_TILE;
+  const int first = ((i / CONE_TILE) * groups_u + j / CONE_TILE) * CONE_GROUP_LEVELS * group_stride();
+  int at = first;
+  [[dont_unroll]] for (int q = 1; q < CONE_GROUP_LEVELS; ++q)
+    if (group_far[first + q * group_stride()] <= apex) at = first + q * group_stride();
+  [[unroll]] for (int k = 0; k < 8; ++k) {
+    if (k >= sectors) break;
+    const float far = group_far[at + 1 + k];
+    if (far < best[k]) {
+      best[k] = far;
+      cut = true;
     }
   }
 }
@@ -444,6 +548,14 @@ uint encode_ratio(float ratio) {
 uint encode_apex(float height) { return uint(min(height * 65535.0 + 2.0, 65535.0)); }
 
 void main() {
+  if (GROUP_FAR) {
+    W = push.width;
+    H = push.height;
+    wrap = push.wrap != 0;
+    sectors = push.sectors;
+    group_far_main();
+    return;
+  }
   j = int(gl_GlobalInvocationID.x);
   i = int(gl_GlobalInvocationID.y) + push.first_row;
   W = push.width;
@@ -489,7 +601,8 @@ void main() {
   window_cells();
   float window_best[8] = best;
   cut = false;
-  far_cells(push.first_pass_level, FIRST_PASS_RINGS);
+  if (FIRST_PASS_GROUP) group_first_pass();
+  else far_cells(push.first_pass_level, FIRST_PASS_RINGS);
   if (cut) {  // every cut texel takes a ticket (read_back counts them), refined or not
     const bool ticket = atomicAdd(counters[CONE_COUNTER_TICKETS], 1u) < uint(push.refine_limit);
     if (REFINES && ticket) {

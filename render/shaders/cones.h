@@ -12,6 +12,9 @@ namespace displace::render::gpu {
 #define CONE_TILE 8  // the kernels' groups: 8 x 8 texels, cells or nodes
 #define CONE_SLOPE_WINDOW \
   4  // cells: radius around a texel where the slope bound applies (bake.h's default), at most
+#define CONE_GROUP_LEVELS 4  // a group first pass: the far values of an 8 x 8 texel group at this many apexes
+#define CONE_GROUP_NEAR \
+  8  // ... and the cells its texels bound themselves: their centre cells widened by this
 #define CONE_MAX_LEVELS 17        // pyramid levels at most: 32769 cells a side (a clamped 32768 map)
 #define CONE_COUNTER_LIPSCHITZ 0  // counters[]: the surface's Lipschitz constant (float bits), uv units
 #define CONE_COUNTER_BAD 1        // counters[]: 1 when a height is not a finite value in [0, 1]

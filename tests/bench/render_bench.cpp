@@ -203,5 +203,20 @@ BENCHMARK_CAPTURE(run_device_bake, rings_2, render::DeviceConeBudget{0, {4, 2}})
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+// the group's first pass (render::DeviceFirstPass::group), the full window and a window of 2 cells
+BENCHMARK_CAPTURE(run_device_bake, group_4, render::DeviceConeBudget{0, {4, 0, true}})
+    ->Name("BM_DeviceBake/ocean/first-pass-group")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(run_device_bake, group_2, render::DeviceConeBudget{0, {2, 0, true}})
+    ->Name("BM_DeviceBake/ocean/first-pass-group-window-2")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace

@@ -127,6 +127,10 @@ TEST(Options, RejectsWhatDoesNotApply) {
   };
   EXPECT_EQ(first_pass("--device-rings", "2").ring_radius, 2);
   EXPECT_EQ(first_pass("--device-window", "3").window_radius, 3);
+  EXPECT_FALSE(first_pass("--device-window", "3").group);
+  const std::vector<std::string_view> group{"bake",     "--sectors", "4",     "--mode",
+                                            "budgeted", "--output",  "c.exr", "--device-group"};
+  EXPECT_TRUE(std::any_cast<BakeSettings>(parse_command_line(group).settings).scene.device_first_pass.group);
   // lagged cone maps are real-time only: they need a frame budget
   EXPECT_TRUE(usage({"bench-frame", "--cone-lag", "2"}));
   EXPECT_TRUE(usage({"bench-frame", "--budget-ms", "10", "--cone-lag", "65"}));

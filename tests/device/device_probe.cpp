@@ -28,8 +28,9 @@
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
 // =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
 // with the bake on the device alone; DISPLACE_PROBE_DEVICE_RINGS=R gives the device bake's first
-// pass rings of radius R there (render::DeviceFirstPass; 0, the default: the search);
-// DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's map sides.
+// pass rings of radius R there (render::DeviceFirstPass; 0, the default: the search), and
+// DISPLACE_PROBE_DEVICE_GROUP=1 the group's first pass; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's
+// map sides.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -168,6 +169,8 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
         std::getenv("DISPLACE_PROBE_DEVICE_BAKE");                   // 1: those configurations alone
     const char* rings = std::getenv("DISPLACE_PROBE_DEVICE_RINGS");  // the device bake's first pass
     const int ring_radius = rings && *rings ? std::atoi(rings) : 0;
+    const char* group = std::getenv("DISPLACE_PROBE_DEVICE_GROUP");  // 1: the group's first pass
+    const bool group_first_pass = group && std::string(group) == "1";
     for (const auto& [sim_backend, bake_backend] : backends) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
@@ -186,6 +189,7 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           scene.frame_ms = 0.0;
           scene.cone_lag_frames = lag;
           scene.device_first_pass.ring_radius = ring_radius;
+          scene.device_first_pass.group = group_first_pass;
           pipeline::FramePipeline frames(scene, renderer);
           render::Frame frame;
           for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
@@ -210,15 +214,15 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           }
           std::printf(
               "frame: water, map %d, %d x %d pixels, %s, cone lag %d, sim on the %s, bake on the %s (first "
-              "pass: rings %d): p50 sim %.3f "
+              "pass: rings %d%s): p50 sim %.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
               "%.3f "
               "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after "
               "warm-up\n",
               size, size, size, overlapped ? "overlapped" : "in series", lag,
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
-              ring_radius, percentile(sim, 0.5), percentile(bake, 0.5), percentile(upload, 0.5),
-              percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
+              ring_radius, group_first_pass ? ", group" : "", percentile(sim, 0.5), percentile(bake, 0.5),
+              percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
               percentile(sim_device, 0.5), percentile(bake_device, 0.5), percentile(draw_device, 0.5),
               percentile(age, 0.5), percentile(lift, 0.5), renderer.memory_allocations() - allocations);
           std::fflush(stdout);
@@ -299,8 +303,14 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
     long long texels;
     render::DeviceFirstPass first_pass;
   };
-  const Shape shapes[] = {
-      {render::unlimited_texels, {}}, {0, {4, 0}}, {0, {4, 1}}, {0, {4, 2}}, {0, {4, 3}}, {0, {2, 2}}};
+  const Shape shapes[] = {{render::unlimited_texels, {}},
+                          {0, {4, 0}},
+                          {0, {4, 1}},
+                          {0, {4, 2}},
+                          {0, {4, 3}},
+                          {0, {2, 2}},
+                          {0, {4, 0, true}},
+                          {0, {2, 0, true}}};
   for (int size : plan.cone_maps) {
     pipeline::SourceSettings settings;
     settings.kind = pipeline::SourceKind::ocean;
@@ -331,8 +341,8 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
                     shape.first_pass.window_radius, shape.first_pass.ring_radius > 0 ? "rings" : "search",
                     shape.first_pass.ring_radius);
       if (shape.first_pass.ring_radius == 0)
-        std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, search",
-                      shape.first_pass.window_radius);
+        std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, %s",
+                      shape.first_pass.window_radius, shape.first_pass.group ? "group" : "search");
       std::printf(
           "device cones: water %d x %d, 4 sectors, %s: median %.3f ms wall, %.3f ms device; %lld texels "
           "refined, mean ratio %.4f\n",

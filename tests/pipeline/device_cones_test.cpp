@@ -56,8 +56,10 @@ DeviceBake bake_on_device(render::DeviceCones& device, long long budget,
 }
 
 // The first passes tested besides the default search: rings of radius 1 with the full window (whose
-// levels stop at 1), of radius 2 with a window of 2 cells (down to the cells), of 3 with one cell.
+// levels stop at 1), of radius 2 with a window of 2 cells (down to the cells), of 3 with one cell; the
+// group's first pass with the full window and with a window of 2.
 const render::DeviceFirstPass rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
+const render::DeviceFirstPass group_4{4, 0, true}, group_2{2, 0, true};
 
 // The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited; each
 // first pass alone, and a few cut texels after the one with the smallest window.
@@ -65,8 +67,8 @@ struct Budget {
   long long texels;
   render::DeviceFirstPass first_pass;
 };
-const Budget budgets[] = {{0, {}}, {0, rings_1}, {0, rings_2},
-                          {7, {}}, {7, rings_3}, {render::unlimited_texels, {}}};
+const Budget budgets[] = {{0, {}}, {0, rings_1}, {0, rings_2}, {0, group_4},
+                          {7, {}}, {7, rings_3}, {7, group_2}, {render::unlimited_texels, {}}};
 
 // Texels checked: all of a small map, every stride-th of a larger one (the check is O(texels x map)),
 // a third of those for the rings' first passes, and an eighth for a budget between the first pass and
@@ -76,14 +78,15 @@ int stride_for(const Map& map, const Budget& budget) {
   const int texels = map.width * map.height;
   const int stride = texels <= 100 ? 1 : (texels <= 250 ? 3 : 11);
   if (budget.texels != 0 && budget.texels != render::unlimited_texels) return 8 * stride + 1;
-  return budget.first_pass.ring_radius > 0 ? 3 * stride + 1 : stride;
+  return budget.first_pass.ring_radius > 0 || budget.first_pass.group ? 3 * stride + 1 : stride;
 }
 
 std::string where(const Map& map, int sectors, Address address, const Budget& budget) {
   return map.name + " " + std::to_string(map.width) + "x" + std::to_string(map.height) + " sectors " +
          std::to_string(sectors) + " " + bake::address_name(address) + " budget " +
          std::to_string(budget.texels) + " window " + std::to_string(budget.first_pass.window_radius) +
-         " rings " + std::to_string(budget.first_pass.ring_radius);
+         " rings " + std::to_string(budget.first_pass.ring_radius) +
+         (budget.first_pass.group ? " group" : "");
 }
 
 // Every ratio and apex the device stores meets the contract, at every budget; the apex is never below
@@ -144,6 +147,38 @@ TEST(DeviceCones, RandomSpikeAndNonSquareMapsMeetTheContract) {
   EXPECT_EQ(cones_renderer().validation_messages(), 0);
 }
 
+// The group's first pass on maps larger than a group's near cells (24 a side), where the group's far
+// ratios - from the group's square at a few apexes - bound most cells: the contract at budget 0 (the
+// full window and 2 cells) and 7, every 41st texel checked (each group at a place or two in it).
+TEST(DeviceCones, GroupFirstPassMeetsTheContractWhereItsFarRatiosCount) {
+  render::Renderer& renderer = cones_renderer();
+  struct Case {
+    Map map;
+    std::vector<int> sectors;
+  };
+  const Case cases[] = {{test::make_ocean(48, 48), {4, 8}},
+                        {test::make_fractal_cliff(40, 32), {1, 4}},
+                        {test::make_spikes(36, 28), {4}},
+                        {test::make_terraces(34, 30), {8}},
+                        {bake::make_single_spike(40, 36), {4}}};
+  long long pairs = 0;
+  for (const Case& c : cases)
+    for (int sectors : c.sectors)
+      for (Address address : {Address::wrap, Address::clamp}) {
+        render::DeviceCones device(renderer, bake::view_of(c.map), sectors, address);
+        for (const Budget& budget : {Budget{0, group_4}, Budget{0, group_2}, Budget{7, group_2}}) {
+          const DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
+          const std::string at = where(c.map, sectors, address, budget);
+          const bake::BilinearCheck check = bake::check_bilinear(c.map, address, b.cones, b.apex, 41);
+          pairs += check.pairs;
+          ASSERT_EQ(check.violations, 0) << at << " worst " << check.worst;
+        }
+      }
+  std::printf("device cones, the group's first pass: %lld (p, x) pairs checked\n", pairs);
+  EXPECT_GT(pairs, 1000000);
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 // Unlimited keeps at least 0.9 of the full CPU bake's mean ratio (both lower bounds of the same
 // contract; the device's are rounded down to 11 bits and its apexes raised to 16, as stored).
 TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
@@ -159,24 +194,28 @@ TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
       const DeviceBake first = bake_on_device(device, 0);
       const DeviceBake ring_1 = bake_on_device(device, 0, {4, 1});
       const DeviceBake ring_2 = bake_on_device(device, 0, {4, 2});
+      const DeviceBake group = bake_on_device(device, 0, group_4);
       const double kept = bake::mean_ratio(unlimited.cones) / full_mean;
       std::printf(
           "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, first pass %.4f (%lld of %d "
-          "texels cut), rings 1 %.4f, rings 2 %.4f\n",
+          "texels cut), rings 1 %.4f, rings 2 %.4f, group %.4f\n",
           map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean, first.stats.texels_cut,
           map.width * map.height, bake::mean_ratio(ring_1.cones) / full_mean,
-          bake::mean_ratio(ring_2.cones) / full_mean);
+          bake::mean_ratio(ring_2.cones) / full_mean, bake::mean_ratio(group.cones) / full_mean);
       EXPECT_GE(kept, 0.9) << map.name << " sectors " << sectors;
       EXPECT_EQ(unlimited.stats.texels_refined, map.width * map.height);
       // a first pass with the full window never claims more than the full search: each node it bounds
       // whole bounds its cells, and every ratio is the least bound
-      for (const DeviceBake* pass : {&first, &ring_1, &ring_2})
+      for (const DeviceBake* pass : {&first, &ring_1, &ring_2, &group})
         EXPECT_LE(bake::mean_ratio(pass->cones), bake::mean_ratio(unlimited.cones) + 1e-9) << map.name;
       // each shape runs its own form of the kernel (a pipeline per form): on the ocean, where the
-      // first pass cuts most texels, the rings' maps are not the search's, nor each other's
+      // first pass cuts most texels, the rings' and the group's maps are not the search's, nor each
+      // other's
       if (map.name == "ocean") {
         EXPECT_NE(ring_1.cones.ratios, first.cones.ratios) << "sectors " << sectors;
         EXPECT_NE(ring_2.cones.ratios, ring_1.cones.ratios) << "sectors " << sectors;
+        EXPECT_NE(group.cones.ratios, first.cones.ratios) << "sectors " << sectors;
+        EXPECT_NE(group.cones.ratios, ring_1.cones.ratios) << "sectors " << sectors;
       }
     }
   EXPECT_EQ(renderer.validation_messages(), 0);
@@ -189,7 +228,8 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
   for (const Map& map : {bake::make_ramp(8, 6), bake::make_noise(6, 6), test::make_fractal_cliff(10, 8),
                          test::make_bricks(12, 8), bake::make_single_spike(7, 5)})
     for (Address address : {Address::wrap, Address::clamp})
-      for (const Budget& budget : {Budget{0, {}}, Budget{0, rings_1}, Budget{render::unlimited_texels, {}}}) {
+      for (const Budget& budget :
+           {Budget{0, {}}, Budget{0, rings_1}, Budget{0, group_4}, Budget{render::unlimited_texels, {}}}) {
         render::DeviceCones device(renderer, bake::view_of(map), 4, address);
         DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
         ASSERT_EQ(bake::check_bilinear(map, address, b.cones, b.apex).violations, 0) << map.name;
@@ -208,8 +248,9 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   const Map map = test::make_fractal_cliff(40, 24);
   render::DeviceCones device(renderer, bake::view_of(map), 4, Address::clamp);
   const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
-  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, rings_1}) {
-    const std::string at = "rings " + std::to_string(first_pass.ring_radius);
+  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, rings_1, group_4}) {
+    const std::string at =
+        "rings " + std::to_string(first_pass.ring_radius) + (first_pass.group ? " group" : "");
     const DeviceBake first = bake_on_device(device, 0, first_pass);
     ASSERT_GT(first.stats.texels_cut, 10) << at;
     EXPECT_EQ(first.stats.texels_refined, 0) << at;
@@ -349,6 +390,30 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
+// The group's first pass in lagged maps: each band of group rows makes its groups' far ratios before
+// its texels, so every frame's map is bit for bit the whole first pass of the heights it began on
+// (the brute-force checks of those whole bakes are GroupFirstPassMeetsTheContract's).
+TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
+  render::Renderer& renderer = cones_renderer();
+  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 12);
+  render::DeviceSim& ocean = *made;
+  const int lag = 3;
+  render::DeviceCones cones(renderer, 4, Address::wrap);
+  std::vector<std::vector<float>> heights;
+  for (int f = 0; f < 2 * lag + 3; ++f) {
+    ocean.simulate(1.0 + 0.4 * f);
+    heights.emplace_back();
+    ocean.read_back(&heights.back(), nullptr, nullptr);
+    const long long age = cones.bake_lagged({0, group_4}, lag);
+    const DeviceBake served = read(cones, 32, 32);
+    const Map then{"ocean-then", 32, 32, heights[std::size_t(f - age)]};
+    render::DeviceCones whole(renderer, bake::view_of(then), 4, Address::wrap);
+    const DeviceBake reference = bake_on_device(whole, 0, group_4);
+    ASSERT_EQ(served.cones.ratios, reference.cones.ratios) << "frame " << f << " age " << age;
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 TEST(DeviceCones, RefusesWhatItCannotBake) {
   render::Renderer& renderer = cones_renderer();
   std::vector<float> heights(16, 0.5f);
@@ -390,6 +455,8 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
       EXPECT_NE(message.find("radius"), std::string::npos) << message;
       EXPECT_THROW(cones.bake_lagged({0, first_pass}, 2), render::RenderError);
     }
+    const std::string both = message_of([&] { cones.bake({0, render::DeviceFirstPass{4, 1, true}}); });
+    EXPECT_NE(both.find("by rings or by its group"), std::string::npos) << both;
   }
   // a MapSet asking for device cones the renderer does not have (the DeviceCones above is gone)
   render::MapSet maps;

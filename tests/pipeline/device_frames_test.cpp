@@ -97,7 +97,7 @@ TEST(DeviceFrames, TheScenesFirstPassReachesTheDeviceBake) {
   render::Renderer& renderer = frames_renderer();
   pipeline::Scene scene = small_scene("water", pipeline::Backend::device, pipeline::Backend::device);
   scene.bake_work = 0;  // the first pass alone
-  render::Frame search_frame, rings_frame;
+  render::Frame search_frame, rings_frame, group_frame;
   const unsigned outputs = render::output_uv | render::output_fetches;
   pipeline::FramePipeline(scene, renderer).run(0, search_frame, outputs);
   scene.device_first_pass = {4, 2};
@@ -109,8 +109,14 @@ TEST(DeviceFrames, TheScenesFirstPassReachesTheDeviceBake) {
   std::printf("fetches: search's first pass %.0f, rings 2 %.0f\n", fetches(search_frame),
               fetches(rings_frame));
   EXPECT_LT(fetches(rings_frame), fetches(search_frame));
+  // the group's first pass: its own maps (other fetches), the same hits
+  scene.device_first_pass = {4, 0, true};
+  pipeline::FramePipeline(scene, renderer).run(0, group_frame, outputs);
+  EXPECT_GE(agreeing_share(search_frame, group_frame, scene.map_size), 0.999);
+  std::printf("fetches: the group's first pass %.0f\n", fetches(group_frame));
+  EXPECT_NE(fetches(group_frame), fetches(search_frame));
   for (const render::DeviceFirstPass first_pass :
-       {render::DeviceFirstPass{0, 1}, render::DeviceFirstPass{4, 9}}) {
+       {render::DeviceFirstPass{0, 1}, render::DeviceFirstPass{4, 9}, render::DeviceFirstPass{4, 1, true}}) {
     scene.device_first_pass = first_pass;
     EXPECT_THROW(pipeline::FramePipeline(scene, renderer), pipeline::SceneError);
   }

@@ -43,10 +43,11 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
     scene.frame_ms = 16.0;
     scene.bake_work = 5000;
     scene.cone_lag_frames = 3;
-    scene.device_first_pass = {2, 3};
+    scene.device_first_pass = {2, 3, true};
     const std::string text = pipeline::scene_toml(scene);
     const Scene back = pipeline::parse_scene(text, name);
     EXPECT_EQ(pipeline::scene_toml(back), text) << name;
+    EXPECT_TRUE(back.device_first_pass.group) << name;
   }
 }
 
@@ -130,6 +131,7 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"backend.sim", {"1", "\"gpu\""}},
       {"backend.bake", {"\"gpu\""}},
       {"backend.device_rings", {"-1", "9", "\"two\""}},
+      {"backend.device_group", {"1", "\"yes\""}},
       {"backend.device_window", {"0", "5", "1.5"}},
       {"name", {"1"}}};
   for (const auto& [key, values] : keys) {
