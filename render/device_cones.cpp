@@ -114,7 +114,7 @@ int texel_form(const DeviceConeBudget& budget) {
 struct DeviceConeKernels {
   ComputeKernel cells, reduce, lift, compose;
   std::array<ComputeKernel, texel_forms> texel;
-  const ComputeKernel& texel_form(const Context& context, int form) {
+  const ComputeKernel& texel_pipeline(const Context& context, int form) {
     ComputeKernel& kernel = texel[std::size_t(form)];
     if (!kernel.made()) {
       const std::int32_t constants[] = {form & 1, (form >> 1) & 1, (form >> 2) & 1, (form >> 3) & 1};
@@ -135,7 +135,7 @@ struct DeviceCones::State {
   Image own_heights;
   Buffer pyramid, counters, cone_values, readback;
   Buffer group_far;  // a group first pass's far ratios (cone_texel.comp.glsl's GroupFar)
-  int groups_u = 0, groups_v = 0;
+  int groups_u = 0;  // 8 x 8 texel groups along u
   Image cones;
   ComputeKernel cells_kernel, reduce_kernel;
   // the texel kernel's forms (texel_form) bound to the heights read: [0] the source, [1 + k] snapshot k
@@ -202,10 +202,9 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   cone_values = Buffer(context, texels() * VkDeviceSize(layers) * cone_texel_bytes,
                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, device_local);
   groups_u = int(group_count(std::uint32_t(width), CONE_TILE));
-  groups_v = int(group_count(std::uint32_t(height), CONE_TILE));
-  group_far =
-      Buffer(context, VkDeviceSize(groups_u) * VkDeviceSize(groups_v) * CONE_GROUP_LEVELS * (1 + sectors) * 4,
-             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local);
+  const VkDeviceSize groups = VkDeviceSize(groups_u) * group_count(std::uint32_t(height), CONE_TILE);
+  group_far = Buffer(context, groups * CONE_GROUP_LEVELS * (1 + sectors) * 4,
+                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local);
   cones =
       Image(context, cone_format, std::uint32_t(width), std::uint32_t(height), std::uint32_t(layers),
             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -337,7 +336,7 @@ void DeviceCones::State::record_pyramid(VkCommandBuffer commands, const ComputeK
 const ComputeKernel& DeviceCones::State::texel_kernel(int heights, int form) {
   ComputeKernel& kernel = texel_kernels[std::size_t(heights)][std::size_t(form)];
   if (!kernel.made()) {
-    kernel = impl.cone_kernels->texel_form(impl.context, form).sibling();
+    kernel = impl.cone_kernels->texel_pipeline(impl.context, form).sibling();
     kernel.bind_image(0, heights == 0 ? source->view() : snapshots[heights - 1].view());
     kernel.bind_buffer(1, pyramid.handle());
     kernel.bind_buffer(2, counters.handle());

@@ -68,10 +68,10 @@ int level_height(int level) { return (push.cells_v + (1 << level) - 1) >> level;
 
 // ---- geometry
 
-// Gap between Q_c's span [2t - 1, 2t + 1] and [first, last] (half texels).
-int span_gap(int t, int first, int last) { return max(0, max(first - (2 * t + 1), (2 * t - 1) - last)); }
-// ... and between the span [q0, q1] (Q's along one axis: Q_c's, or a group's) and [first, last]
+// Gap between the span [q0, q1] (Q's along one axis: Q_c's, or a group's) and [first, last] (half
+// texels); span_gap for Q_c's span [2t - 1, 2t + 1].
 int box_gap(int q0, int q1, int first, int last) { return max(0, max(first - q1, q0 - last)); }
+int span_gap(int t, int first, int last) { return box_gap(2 * t - 1, 2 * t + 1, first, last); }
 
 float gap_distance(int gap_u, int gap_v) {
   const float u = float(gap_u) * half_u, v = float(gap_v) * half_v;
@@ -448,6 +448,28 @@ void far_cells(int floor_level, bool rings) {
   }
 }
 
+// ---- what both kinds of invocation set up
+
+// The map's shape from the push constants, and the Lipschitz floor.
+void read_map() {
+  W = push.width;
+  H = push.height;
+  wrap = push.wrap != 0;
+  sectors = push.sectors;
+  half_u = 0.5 / float(W);
+  half_v = 0.5 / float(H);
+  const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
+  floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
+}
+
+// Q: the squares of texels [j0, j1] x [i0, i1] (half texels).
+void set_square(int j0, int j1, int i0, int i1) {
+  qu0 = 2 * j0 - 1;
+  qu1 = 2 * j1 + 1;
+  qv0 = 2 * i0 - 1;
+  qv1 = 2 * i1 + 1;
+}
+
 // ---- a group first pass (docs/design/device-cones.md, "The group's first pass")
 
 // The cells that the texels of group (gu, gv) bound themselves, in unrolled cells: their centre cells
@@ -461,6 +483,10 @@ void group_near(int gu, int gv, out int u0, out int u1, out int v0, out int v1) 
 }
 
 int group_stride() { return 1 + sectors; }
+// where group (gu, gv)'s records begin in group_far (level 0's)
+int group_record(int gu, int gv) {
+  return (gv * ((W + CONE_TILE - 1) / CONE_TILE) + gu) * CONE_GROUP_LEVELS * group_stride();
+}
 
 // GROUP_FAR, one invocation per group and level q: Q is the group's square (the union of its texels'),
 // the apex h_q = lo + (hi - lo) q / levels (lo, hi: the least and largest height of its texels; every
@@ -469,6 +495,7 @@ int group_stride() { return 1 + sectors; }
 // of the group with apex H_c >= h_q and a cell x outside the near cells, |x - p| >= gap(Q, x) for p in
 // Q_c and s(x) - H_c <= max - h_q, so each ratio holds for c; Q's boxes of directions hold c's.
 void group_far_main() {
+  read_map();
   const int groups_u = (W + CONE_TILE - 1) / CONE_TILE;
   // a dispatch row per group row, each group's levels side by side along it
   const int id = int(gl_WorkGroupID.x * gl_WorkGroupSize.x * gl_WorkGroupSize.y + gl_LocalInvocationIndex);
@@ -486,20 +513,13 @@ void group_far_main() {
       hi = max(hi, h);
     }
   apex = lo + (hi - lo) * (float(q) / float(CONE_GROUP_LEVELS));
-  qu0 = 2 * j0 - 1;
-  qu1 = 2 * j1 + 1;
-  qv0 = 2 * i0 - 1;
-  qv1 = 2 * i1 + 1;
-  half_u = 0.5 / float(W);
-  half_v = 0.5 / float(H);
-  const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
-  floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
+  set_square(j0, j1, i0, i1);
   group_near(gu, gv, wu0, wu1, wv0, wv1);
   centre_u = cell_of_left_centre((j0 + j1) / 2, wrap);
   centre_v = cell_of_left_centre((i0 + i1) / 2, wrap);
   [[unroll]] for (int k = 0; k < 8; ++k) best[k] = unclaimed;
   far_cells(push.first_pass_level, false);
-  const int at = ((gv * groups_u + gu) * CONE_GROUP_LEVELS + q) * group_stride();
+  const int at = group_record(gu, gv) + q * group_stride();
   group_far[at] = apex;
   [[unroll]] for (int k = 0; k < 8; ++k) {  // constant indices: best[] stays in registers
     if (k >= sectors) break;
@@ -523,8 +543,7 @@ void group_first_pass() {
       ring_descent(tu, tv, level, u0 >> level, u1 >> level, v0 >> level, v1 >> level, 1);
     }
   }
-  const int groups_u = (W + CONE_TILE - 1) / CONE_TILE;
-  const int first = ((i / CONE_TILE) * groups_u + j / CONE_TILE) * CONE_GROUP_LEVELS * group_stride();
+  const int first = group_record(j / CONE_TILE, i / CONE_TILE);
   int at = first;
   [[dont_unroll]] for (int q = 1; q < CONE_GROUP_LEVELS; ++q)
     if (group_far[first + q * group_stride()] <= apex) at = first + q * group_stride();
@@ -549,27 +568,15 @@ uint encode_apex(float height) { return uint(min(height * 65535.0 + 2.0, 65535.0
 
 void main() {
   if (GROUP_FAR) {
-    W = push.width;
-    H = push.height;
-    wrap = push.wrap != 0;
-    sectors = push.sectors;
     group_far_main();
     return;
   }
   j = int(gl_GlobalInvocationID.x);
   i = int(gl_GlobalInvocationID.y) + push.first_row;
-  W = push.width;
-  H = push.height;
-  if (j >= W || i >= H) return;
-  wrap = push.wrap != 0;
-  sectors = push.sectors;
+  if (j >= push.width || i >= push.height) return;
+  read_map();
   window = push.window_radius;
-  qu0 = 2 * j - 1;
-  qu1 = 2 * j + 1;
-  qv0 = 2 * i - 1;
-  qv1 = 2 * i + 1;
-  half_u = 0.5 / float(W);
-  half_v = 0.5 / float(H);
+  set_square(j, j, i, i);
   const int reach = 4 * max(W, H);
   beyond[0] = rect_sectors(1, 1, -reach, reach);
   beyond[1] = rect_sectors(-1, -1, -reach, reach);
@@ -587,8 +594,6 @@ void main() {
       highest = max(highest, square[b][a]);
     }
   apex = highest + height_margin;
-  const float lipschitz = uintBitsToFloat(counters[CONE_COUNTER_LIPSCHITZ]);
-  floor_ratio = lipschitz > 0.0 ? 1.0 / lipschitz : infinite_bound;
   wu0 = cell_of_left_centre(j - window, wrap);
   wu1 = cell_of_left_centre(j + window - 1, wrap);
   wv0 = cell_of_left_centre(i - window, wrap);

@@ -336,13 +336,12 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
       cones.read_back(&ratios, nullptr);
       double sum = 0.0;
       for (float ratio : ratios) sum += double(ratio);
+      const render::DeviceFirstPass& pass = shape.first_pass;
+      const std::string form = pass.ring_radius > 0 ? "rings " + std::to_string(pass.ring_radius)
+                                                    : (pass.group ? "group" : "search");
       char first_pass[96];
-      std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, %s %d",
-                    shape.first_pass.window_radius, shape.first_pass.ring_radius > 0 ? "rings" : "search",
-                    shape.first_pass.ring_radius);
-      if (shape.first_pass.ring_radius == 0)
-        std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, %s",
-                      shape.first_pass.window_radius, shape.first_pass.group ? "group" : "search");
+      std::snprintf(first_pass, sizeof first_pass, "first pass (budget 0), window %d, %s", pass.window_radius,
+                    form.c_str());
       std::printf(
           "device cones: water %d x %d, 4 sectors, %s: median %.3f ms wall, %.3f ms device; %lld texels "
           "refined, mean ratio %.4f\n",
