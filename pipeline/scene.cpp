@@ -637,6 +637,9 @@ void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
   first_pass.window_radius = int(read.integer(backend, "backend", "device_window", first_pass.window_radius,
                                               1, render::max_first_pass_window));
   first_pass.group = read.boolean(backend, "backend", "device_group", first_pass.group);
+  // the group's first pass replaces the rings': turned on without a ring radius, it takes none
+  if (backend && first_pass.group && backend->contains("device_group") && !backend->contains("device_rings"))
+    first_pass.ring_radius = 0;
 }
 
 }  // namespace

@@ -398,7 +398,7 @@ const std::vector<Entry>& entries() {
        Kind::integer,
        "R",
        "the device cone bake's first pass: 0 searches the pyramid, R > 0 bounds the nodes more than R "
-       "nodes from each texel's, level by level, the same for every texel",
+       "nodes from each texel's, level by level, the same for every texel (default 2)",
        [] { return integer_in(0, render::max_first_pass_rings); }},
       {"--device-group",
        scene_source,
@@ -406,7 +406,7 @@ const std::vector<Entry>& entries() {
        Kind::on,
        "",
        "the device cone bake's first pass by 8 x 8 texel groups: each group bounds the cells far from it "
-       "once, its texels the cells near it by rings of blocks (with --device-rings 0)",
+       "once, its texels the cells near it by rings of blocks (no --device-rings)",
        {}},
       {"--device-window",
        scene_source,

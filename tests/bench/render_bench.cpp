@@ -180,6 +180,7 @@ BENCHMARK_CAPTURE(run_device_bake, unlimited, render::DeviceConeBudget{render::u
     ->Arg(2048)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+// the default first pass (rings of radius 2, the full window)
 BENCHMARK_CAPTURE(run_device_bake, first_pass, render::DeviceConeBudget{0, {}})
     ->Name("BM_DeviceBake/ocean/first-pass")
     ->Arg(256)
@@ -188,7 +189,17 @@ BENCHMARK_CAPTURE(run_device_bake, first_pass, render::DeviceConeBudget{0, {}})
     ->Arg(2048)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-// the first pass as rings (render::DeviceFirstPass), radius 1 and 2, the full window
+// the first pass as a search of the pyramid (ring_radius 0)
+BENCHMARK_CAPTURE(run_device_bake, search, render::DeviceConeBudget{0, {4, 0}})
+    ->Name("BM_DeviceBake/ocean/first-pass-search")
+    ->Arg(256)
+    ->Arg(512)
+    ->Arg(1024)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+// the first pass as rings (render::DeviceFirstPass) of radius 1 with the full window, of radius 2 with
+// a window of 2 cells
 BENCHMARK_CAPTURE(run_device_bake, rings_1, render::DeviceConeBudget{0, {4, 1}})
     ->Name("BM_DeviceBake/ocean/first-pass-rings-1")
     ->Arg(256)
@@ -196,8 +207,8 @@ BENCHMARK_CAPTURE(run_device_bake, rings_1, render::DeviceConeBudget{0, {4, 1}})
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, rings_2, render::DeviceConeBudget{0, {4, 2}})
-    ->Name("BM_DeviceBake/ocean/first-pass-rings-2")
+BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, render::DeviceConeBudget{0, {2, 2}})
+    ->Name("BM_DeviceBake/ocean/first-pass-rings-2-window-2")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)

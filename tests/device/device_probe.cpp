@@ -28,9 +28,9 @@
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
 // =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
 // with the bake on the device alone; DISPLACE_PROBE_DEVICE_RINGS=R gives the device bake's first
-// pass rings of radius R there (render::DeviceFirstPass; 0, the default: the search), and
+// pass rings of radius R there (render::DeviceFirstPass; 0: the search; default 2), and
 // DISPLACE_PROBE_DEVICE_GROUP=1 the group's first pass; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's
-// map sides.
+// map sides, DISPLACE_PROBE_FRAME_MAPS part 2's.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -168,9 +168,10 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
     const char* only_device_bake =
         std::getenv("DISPLACE_PROBE_DEVICE_BAKE");                   // 1: those configurations alone
     const char* rings = std::getenv("DISPLACE_PROBE_DEVICE_RINGS");  // the device bake's first pass
-    const int ring_radius = rings && *rings ? std::atoi(rings) : 0;
     const char* group = std::getenv("DISPLACE_PROBE_DEVICE_GROUP");  // 1: the group's first pass
     const bool group_first_pass = group && std::string(group) == "1";
+    const int ring_radius =
+        rings && *rings ? std::atoi(rings) : (group_first_pass ? 0 : render::default_first_pass_rings);
     for (const auto& [sim_backend, bake_backend] : backends) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
@@ -296,7 +297,8 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
 
 // The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
 // unlimited and budget 0 (the first pass, in each of its shapes: the search, and rings of radius 1, 2
-// and 3 with the full window, 2 with a window of 2 cells): each bake submitted and waited for (wall)
+// and 3 with the full window, 2 with a window of 2 cells, the group's with windows of 4 and 2): each
+// bake submitted and waited for (wall)
 // and its GPU timestamps (device), medians; the texels refined and the mean ratio read back.
 void device_cones(render::Renderer& renderer, const Plan& plan) {
   struct Shape {
@@ -352,6 +354,21 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
   }
 }
 
+// The map sides that the variable NAME lists ("256,512"), when it is set, in place of SIDES.
+void map_sides(const char* name, std::vector<int>& sides) {
+  const char* list = std::getenv(name);
+  if (!list || !*list) return;
+  sides.clear();
+  for (const char* at = list; *at;) {
+    char* end = nullptr;
+    const long side = std::strtol(at, &end, 10);
+    if (end == at || side < 1 || side > render::max_map_side)
+      throw std::runtime_error(std::string(name) + ": not a list of map sides: " + list);
+    sides.push_back(int(side));
+    at = *end == ',' ? end + 1 : end;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -359,17 +376,8 @@ int main(int argc, char** argv) {
     const std::string directory = argc > 1 ? argv[1] : ".";
     const char* quick = std::getenv("DISPLACE_PROBE_QUICK");
     Plan plan = quick && *quick && std::string(quick) != "0" ? quick_plan() : Plan{};
-    if (const char* maps = std::getenv("DISPLACE_PROBE_CONE_MAPS"); maps && *maps) {  // e.g. "256,512"
-      plan.cone_maps.clear();
-      for (const char* at = maps; *at;) {
-        char* end = nullptr;
-        const long side = std::strtol(at, &end, 10);
-        if (end == at || side < 1 || side > render::max_map_side)
-          throw std::runtime_error(std::string("DISPLACE_PROBE_CONE_MAPS: not a list of map sides: ") + maps);
-        plan.cone_maps.push_back(int(side));
-        at = *end == ',' ? end + 1 : end;
-      }
-    }
+    map_sides("DISPLACE_PROBE_CONE_MAPS", plan.cone_maps);
+    map_sides("DISPLACE_PROBE_FRAME_MAPS", plan.frame_sizes);
     render::RendererOptions options;
     options.pipeline_cache = "off";
     render::Renderer renderer(options);

@@ -55,10 +55,10 @@ DeviceBake bake_on_device(render::DeviceCones& device, long long budget,
   return read(device, device.width(), device.height());
 }
 
-// The first passes tested besides the default search: rings of radius 1 with the full window (whose
-// levels stop at 1), of radius 2 with a window of 2 cells (down to the cells), of 3 with one cell; the
-// group's first pass with the full window and with a window of 2.
-const render::DeviceFirstPass rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
+// The first passes tested: the default (rings of radius 2, the full window), the search, rings of
+// radius 1 with the full window (whose levels stop at 1), of radius 2 with a window of 2 cells (down to
+// the cells), of 3 with one cell; the group's first pass with the full window and with a window of 2.
+const render::DeviceFirstPass search{4, 0}, rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
 const render::DeviceFirstPass group_4{4, 0, true}, group_2{2, 0, true};
 
 // The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited; each
@@ -67,8 +67,9 @@ struct Budget {
   long long texels;
   render::DeviceFirstPass first_pass;
 };
-const Budget budgets[] = {{0, {}}, {0, rings_1}, {0, rings_2}, {0, group_4},
-                          {7, {}}, {7, rings_3}, {7, group_2}, {render::unlimited_texels, {}}};
+const Budget budgets[] = {{0, {}},      {0, search},  {0, rings_1},
+                          {0, rings_2}, {0, group_4}, {7, search},
+                          {7, rings_3}, {7, group_2}, {render::unlimited_texels, {}}};
 
 // Texels checked: all of a small map, every stride-th of a larger one (the check is O(texels x map)),
 // a third of those for the rings' first passes, and an eighth for a budget between the first pass and
@@ -191,14 +192,14 @@ TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
       const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
       const double full_mean = bake::mean_ratio(full.cones);
       const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
-      const DeviceBake first = bake_on_device(device, 0);
+      const DeviceBake first = bake_on_device(device, 0, search);
       const DeviceBake ring_1 = bake_on_device(device, 0, {4, 1});
       const DeviceBake ring_2 = bake_on_device(device, 0, {4, 2});
       const DeviceBake group = bake_on_device(device, 0, group_4);
       const double kept = bake::mean_ratio(unlimited.cones) / full_mean;
       std::printf(
-          "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, first pass %.4f (%lld of %d "
-          "texels cut), rings 1 %.4f, rings 2 %.4f, group %.4f\n",
+          "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, search %.4f (%lld of %d "
+          "texels cut), rings 1 %.4f, rings 2 (the default) %.4f, group %.4f\n",
           map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean, first.stats.texels_cut,
           map.width * map.height, bake::mean_ratio(ring_1.cones) / full_mean,
           bake::mean_ratio(ring_2.cones) / full_mean, bake::mean_ratio(group.cones) / full_mean);
@@ -228,8 +229,8 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
   for (const Map& map : {bake::make_ramp(8, 6), bake::make_noise(6, 6), test::make_fractal_cliff(10, 8),
                          test::make_bricks(12, 8), bake::make_single_spike(7, 5)})
     for (Address address : {Address::wrap, Address::clamp})
-      for (const Budget& budget :
-           {Budget{0, {}}, Budget{0, rings_1}, Budget{0, group_4}, Budget{render::unlimited_texels, {}}}) {
+      for (const Budget& budget : {Budget{0, {}}, Budget{0, search}, Budget{0, rings_1}, Budget{0, group_4},
+                                   Budget{render::unlimited_texels, {}}}) {
         render::DeviceCones device(renderer, bake::view_of(map), 4, address);
         DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
         ASSERT_EQ(bake::check_bilinear(map, address, b.cones, b.apex).violations, 0) << map.name;
@@ -248,7 +249,7 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   const Map map = test::make_fractal_cliff(40, 24);
   render::DeviceCones device(renderer, bake::view_of(map), 4, Address::clamp);
   const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
-  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, rings_1, group_4}) {
+  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, search, rings_1, group_4}) {
     const std::string at =
         "rings " + std::to_string(first_pass.ring_radius) + (first_pass.group ? " group" : "");
     const DeviceBake first = bake_on_device(device, 0, first_pass);

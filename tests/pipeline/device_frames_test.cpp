@@ -99,6 +99,7 @@ TEST(DeviceFrames, TheScenesFirstPassReachesTheDeviceBake) {
   scene.bake_work = 0;  // the first pass alone
   render::Frame search_frame, rings_frame, group_frame;
   const unsigned outputs = render::output_uv | render::output_fetches;
+  scene.device_first_pass = {4, 0};
   pipeline::FramePipeline(scene, renderer).run(0, search_frame, outputs);
   scene.device_first_pass = {4, 2};
   pipeline::FramePipeline(scene, renderer).run(0, rings_frame, outputs);

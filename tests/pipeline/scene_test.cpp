@@ -51,6 +51,21 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
   }
 }
 
+// The group's first pass has no rings: turned on without a ring radius, it takes none (the default
+// first pass's rings would make the bake refuse it); with one, both stay for the bake to refuse.
+TEST(Scene, TheGroupsFirstPassTakesNoRingsUnlessGiven) {
+  const Scene base = pipeline::builtin_scene("water");
+  EXPECT_EQ(base.device_first_pass.ring_radius, render::default_first_pass_rings);
+  const Scene group = pipeline::apply_scene(base, "[backend]\ndevice_group = true\n", "group.toml");
+  EXPECT_TRUE(group.device_first_pass.group);
+  EXPECT_EQ(group.device_first_pass.ring_radius, 0);
+  const Scene both =
+      pipeline::apply_scene(base, "[backend]\ndevice_group = true\ndevice_rings = 1\n", "both.toml");
+  EXPECT_EQ(both.device_first_pass.ring_radius, 1);
+  const Scene after = pipeline::apply_scene(group, "[backend]\ndevice_window = 2\n", "window.toml");
+  EXPECT_EQ(after.device_first_pass.ring_radius, 0);  // a later file that leaves the group on
+}
+
 TEST(Scene, BadFilesGetOneErrorNamingFileLineAndKey) {
   EXPECT_EQ(error_of("[render]\nsteps = 0\n"), "scene.toml:2: render.steps: must be in [1, 4096]");
   EXPECT_EQ(
