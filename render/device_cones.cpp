@@ -19,6 +19,7 @@
 #include "render/shaders/cones.h"
 #include "spirv/cone_cells_comp.h"
 #include "spirv/cone_compose_comp.h"
+#include "spirv/cone_group_far_comp.h"
 #include "spirv/cone_lift_comp.h"
 #include "spirv/cone_reduce_comp.h"
 #include "spirv/cone_texel_comp.h"
@@ -97,11 +98,11 @@ void validate_budget(const DeviceConeBudget& budget) {
 
 }  // namespace
 
-// The texel kernel's forms: its specialization constants FIRST_PASS_RINGS (bit 0), REFINES (bit 1),
-// FIRST_PASS_GROUP (bit 2) and GROUP_FAR (bit 3, the groups' far ratios), so that a form's pipeline
-// holds only the code it runs (llvmpipe compiles the whole kernel into one function, and a GPU gives
-// every invocation the registers of the kernel's largest path).
-constexpr int texel_forms = 16;
+// The texel kernel's forms: its specialization constants FIRST_PASS_RINGS (bit 0), REFINES (bit 1) and
+// FIRST_PASS_GROUP (bit 2), so that a form's pipeline holds only the code it runs (llvmpipe compiles
+// the whole kernel into one function, and a GPU gives every invocation the registers of the kernel's
+// largest path); and form 8, the groups' far ratios, the module built apart (cone_group_far_comp).
+constexpr int texel_forms = 9;
 constexpr int group_far_form = 8;
 int texel_form(const DeviceConeBudget& budget) {
   if (budget.texels < 0) return 0;  // every texel searched to the cells: the search, nothing refined
@@ -117,9 +118,11 @@ struct DeviceConeKernels {
   const ComputeKernel& texel_pipeline(const Context& context, int form) {
     ComputeKernel& kernel = texel[std::size_t(form)];
     if (!kernel.made()) {
-      const std::int32_t constants[] = {form & 1, (form >> 1) & 1, (form >> 2) & 1, (form >> 3) & 1};
-      kernel = ComputeKernel(context, spirv_cone_texel_comp, texel_bindings, sizeof(gpu::ConeTexelPush),
-                             constants);
+      const std::int32_t constants[] = {form & 1, (form >> 1) & 1, (form >> 2) & 1};
+      const std::span<const std::uint32_t> module =
+          form == group_far_form ? std::span<const std::uint32_t>(spirv_cone_group_far_comp)
+                                 : std::span<const std::uint32_t>(spirv_cone_texel_comp);
+      kernel = ComputeKernel(context, module, texel_bindings, sizeof(gpu::ConeTexelPush), constants);
     }
     return kernel;
   }

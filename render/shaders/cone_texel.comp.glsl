@@ -28,19 +28,25 @@ layout(std430, binding = 2) buffer Counters { uint counters[]; };
 // layer l, texel (i, j) at l * W * H + i * W + j: (ratio as a half rounded down) | (apex q) << 16
 layout(std430, binding = 3) writeonly buffer Cones { uint cone_values[]; };
 // a group first pass: per 8 x 8 texel group and level q < CONE_GROUP_LEVELS, at (group * levels + q) *
-// (1 + sectors): the apex h_q, then the group's far ratio per sector from h_q
-layout(std430, binding = 4) buffer GroupFar { float group_far[]; };
+// (1 + sectors): the apex h_q, then the group's far ratio per sector from h_q. Written by the module
+// built with CONE_GROUP_FAR_MODULE = 1 (the groups' far ratios), read by the texel module's group form.
+#if CONE_GROUP_FAR_MODULE
+layout(std430, binding = 4) writeonly buffer GroupFar { float group_far[]; };
+#else
+layout(std430, binding = 4) readonly buffer GroupFar { float group_far[]; };
+#endif
 
 layout(push_constant) uniform Push { ConeTexelPush push; };
 
 // The kernel's form (render/device_cones.cpp's texel_form), so that a pipeline holds only what it runs:
 // the first pass bounds rings (ring_tile) rather than searching the pyramid, or takes its group's far
-// ratios and bounds only the cells near the group (GROUP); cut texels may be refined; or the dispatch
-// makes the groups' far ratios (GROUP_FAR) instead of texels.
+// ratios and bounds only the cells near the group (GROUP); cut texels may be refined. The groups' far
+// ratios are a module of their own (CONE_GROUP_FAR_MODULE): as a fourth form of this one, with a third
+// call of the search and a written buffer in the module, the search ran 2.1 times slower on an H200
+// (512, first pass: 3.40 ms against 1.68; unlimited at 2048: 226 against 97), though no form ran it.
 layout(constant_id = 0) const bool FIRST_PASS_RINGS = false;
 layout(constant_id = 1) const bool REFINES = true;
 layout(constant_id = 2) const bool FIRST_PASS_GROUP = false;
-layout(constant_id = 3) const bool GROUP_FAR = false;
 
 // margins (docs/design/device-cones.md#rounding): float surface values are within 5e-7 of s
 const float height_margin = 2e-6;   // height units: raises every computed maximum of s, and H_c
@@ -488,7 +494,8 @@ int group_record(int gu, int gv) {
   return (gv * ((W + CONE_TILE - 1) / CONE_TILE) + gu) * CONE_GROUP_LEVELS * group_stride();
 }
 
-// GROUP_FAR, one invocation per group and level q: Q is the group's square (the union of its texels'),
+#if CONE_GROUP_FAR_MODULE
+// The module's invocations, one per group and level q: Q is the group's square (the union of its texels'),
 // the apex h_q = lo + (hi - lo) q / levels (lo, hi: the least and largest height of its texels; every
 // texel's apex is at least its own height, so at least h_0), the window is the group's near cells, and
 // the pyramid is searched to the cells (first_pass_level -1) or cut (>= 0) as a texel's is. For texel c
@@ -526,6 +533,7 @@ void group_far_main() {
     group_far[at + 1 + k] = best[k];
   }
 }
+#else
 
 // A group first pass's texel: rings of radius 1 (ring_descent) from the level-L nodes (L = 2, or the
 // top for a small map) that hold its group's near cells, in each tile they reach, then the group's
@@ -557,6 +565,8 @@ void group_first_pass() {
   }
 }
 
+#endif
+
 // ---- the stored values (render/map_pack.h's encode_ratio and encode_apex)
 
 uint encode_ratio(float ratio) {
@@ -566,11 +576,10 @@ uint encode_ratio(float ratio) {
 }
 uint encode_apex(float height) { return uint(min(height * 65535.0 + 2.0, 65535.0)); }
 
+#if CONE_GROUP_FAR_MODULE
+void main() { group_far_main(); }
+#else
 void main() {
-  if (GROUP_FAR) {
-    group_far_main();
-    return;
-  }
   j = int(gl_GlobalInvocationID.x);
   i = int(gl_GlobalInvocationID.y) + push.first_row;
   if (j >= push.width || i >= push.height) return;
@@ -630,3 +639,4 @@ void main() {
   }
   if (sectors > 1) cone_values[sectors * texels + texel] = least | apex_bits;
 }
+#endif
