@@ -97,9 +97,10 @@ class DeviceSim {
 // the cells more than 8 cells from its texels, from the group's square at a few apex heights, and each
 // texel bounds the cells nearer than that itself, by rings of radius 1 from blocks of 4 x 4 cells down
 // (54 nodes a texel with the full window, 90 with a window of 2; the same nodes for a group's texels).
-// The default, rings of radius 2 with the full window, measured fastest on a GPU at a mean ratio above
-// the search's (H200, 512: 1.47 ms at 0.2345 against 3.47 at 0.2198; the group 13.7 at 0.2171); on
-// lavapipe, which runs a group's texels as lanes of a CPU, the search and the group are faster.
+// The default, rings of radius 2 with the full window, is the fastest on a GPU of the shapes at or
+// above the search's mean ratio (H200, ocean 512: 1.47 ms at 0.2345; the search 1.64 at 0.2198, the
+// group 7.46 at 0.2171; 2048: 21.7, 33.2 and 18.4 ms at 0.1946, 0.1878 and 0.1874). On lavapipe, which
+// runs a group's texels as lanes of a CPU, the search and the group are faster.
 inline constexpr int max_first_pass_window = 4;  // cells (the search's window: CONE_SLOPE_WINDOW)
 inline constexpr int max_first_pass_rings = 8;   // nodes: (4 r + 2)^2 examined a level, 1156 at 8
 inline constexpr int default_first_pass_rings = 2;

@@ -43,7 +43,8 @@ layout(push_constant) uniform Push { ConeTexelPush push; };
 // ratios and bounds only the cells near the group (GROUP); cut texels may be refined. The groups' far
 // ratios are a module of their own (CONE_GROUP_FAR_MODULE): as a fourth form of this one, with a third
 // call of the search and a written buffer in the module, the search ran 2.1 times slower on an H200
-// (512, first pass: 3.40 ms against 1.68; unlimited at 2048: 226 against 97), though no form ran it.
+// (512, first pass: 3.40 ms against 1.64 apart; unlimited at 2048: 226 against 95), though no form of
+// it ran the groups' code.
 layout(constant_id = 0) const bool FIRST_PASS_RINGS = false;
 layout(constant_id = 1) const bool REFINES = true;
 layout(constant_id = 2) const bool FIRST_PASS_GROUP = false;
