@@ -135,9 +135,8 @@ struct Scene {
   Backend bake_backend = Backend::automatic;
   // How the device's cone bake makes its first pass (render::DeviceFirstPass): ring_radius 0
   // searches the pyramid, r > 0 bounds rings of nodes (2 by default), group by 8 x 8 texel groups
-  // (with ring_radius 0); window_radius
-  // cells around each texel are bounded by the slope window. [backend] device_rings, device_window and
-  // device_group.
+  // (with ring_radius 0); window_radius cells around each texel are bounded by the slope window.
+  // [backend] device_rings, device_window and device_group.
   render::DeviceFirstPass device_first_pass{};
 };
 
