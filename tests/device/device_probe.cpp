@@ -298,8 +298,8 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
 // The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
 // unlimited and budget 0 (the first pass, in each of its shapes: the search, and rings of radius 1, 2
 // and 3 with the full window, 2 with a window of 2 cells, the group's with windows of 4 and 2): each
-// bake submitted and waited for (wall)
-// and its GPU timestamps (device), medians; the texels refined and the mean ratio read back.
+// bake submitted and waited for (wall) and its GPU timestamps (device), medians; the texels refined
+// and the mean ratio read back.
 void device_cones(render::Renderer& renderer, const Plan& plan) {
   struct Shape {
     long long texels;
