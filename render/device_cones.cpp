@@ -160,6 +160,12 @@ struct DeviceCones::State {
   long long calls = 0;          // bake_lagged calls so far
   long long begun = 0;          // the call the map in progress began on
   long long served_begun = -1;  // the call the served map began on; -1: none finished yet
+  // the bands go to the async queue (Context::async_queue), beside the frame's draw: a command buffer
+  // per frame slot, the async value of its last submission, and the bands' own timer
+  std::array<VkCommandBuffer, frames_in_flight> band_commands{};
+  std::array<std::uint64_t, frames_in_flight> band_value{};
+  std::uint64_t last_band = 0;  // the async value of the last band submitted (0: none)
+  StageTimer band_timer;
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
@@ -197,17 +203,21 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   // buffers and the cone image, made once
   const Context& context = impl.context;
   const VkMemoryPropertyFlags device_local = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
-  pyramid = Buffer(context, VkDeviceSize(offset) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local);
+  // what a lagged map's bands use on the async queue is shared with it (Context::async_queue)
+  const bool shared = true;
+  pyramid =
+      Buffer(context, VkDeviceSize(offset) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local, shared);
   counters = Buffer(context, CONE_COUNTERS * 4,
                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                    device_local);
-  cone_values = Buffer(context, texels() * VkDeviceSize(layers) * cone_texel_bytes,
-                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, device_local);
+                    device_local, shared);
+  cone_values =
+      Buffer(context, texels() * VkDeviceSize(layers) * cone_texel_bytes,
+             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, device_local, shared);
   groups_u = int(group_count(std::uint32_t(width), CONE_TILE));
   const VkDeviceSize groups = VkDeviceSize(groups_u) * group_count(std::uint32_t(height), CONE_TILE);
   group_far = Buffer(context, groups * CONE_GROUP_LEVELS * (1 + sectors) * 4,
-                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local);
+                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local, shared);
   cones =
       Image(context, cone_format, std::uint32_t(width), std::uint32_t(height), std::uint32_t(layers),
             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
@@ -293,7 +303,9 @@ DeviceCones::DeviceCones(Renderer& renderer, bake::HeightView heights, int secto
 
 DeviceCones::~DeviceCones() {
   State& s = *state_;
-  s.impl.wait_submitted();
+  s.impl.wait_submitted();  // the async bands too
+  for (VkCommandBuffer commands : s.band_commands)
+    if (commands != VK_NULL_HANDLE) s.impl.context.free_async_command_buffer(commands);
   const std::size_t slot = std::size_t(cone_slot(s.sectors));
   if (s.impl.device_cones[slot] == &s.registration) {
     s.impl.device_cones[slot] = nullptr;
@@ -408,7 +420,9 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   const int slot = s.impl.slot;
   const VkCommandBuffer commands = s.impl.begin_slot().commands;
   s.timer.begin(commands, slot);
-  // the frames before read the cone image and the buffers this one writes
+  // the frames before read the cone image and the buffers this one writes, and so may a lagged
+  // map's band on the async queue
+  s.impl.frame_waits_for_async(s.last_band);
   rewrite_barrier(commands);
   s.record_pyramid(commands, s.cells_kernel);
   s.record_texels(commands, 0, budget, 0, int(group_count(std::uint32_t(s.height), CONE_TILE)));
@@ -435,7 +449,7 @@ void DeviceCones::State::make_lagged() {
   for (int k = 0; k < 2; ++k) {
     snapshots[k] = Image(context, VK_FORMAT_R32_SFLOAT, std::uint32_t(width), std::uint32_t(height), 1,
                          VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
-                         VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D);
+                         VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_VIEW_TYPE_2D, true);  // the bands read it
     snapshot_cells[k] = impl.cone_kernels->cells.sibling();
     snapshot_cells[k].bind_image(0, snapshots[k].view());
     snapshot_cells[k].bind_buffer(1, pyramid.handle());
@@ -445,6 +459,8 @@ void DeviceCones::State::make_lagged() {
     lift_kernel[k].bind_image(1, snapshots[k].view());
     lift_kernel[k].bind_buffer(2, counters.handle());
   }
+  for (VkCommandBuffer& commands : band_commands) commands = context.allocate_async_command_buffer();
+  band_timer = StageTimer(context);
   compose_kernel = impl.cone_kernels->compose.sibling();
   compose_kernel.bind_buffer(0, served.handle());
   compose_kernel.bind_buffer(1, counters.handle());
@@ -471,17 +487,20 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   s.check_source();
   s.make_lagged();
   const int slot = s.impl.slot;
-  const VkCommandBuffer commands = s.impl.begin_slot().commands;
+  VkCommandBuffer commands = s.impl.begin_slot().commands;
   s.timer.begin(commands, slot);
-  rewrite_barrier(commands);
-  // the first map, and the first after the lag changed, is made whole in this frame
+  // the first map, and the first after the lag changed, is made whole in this frame (on the frame's
+  // queue, after any band of the map before)
   const bool whole = s.served_begun < 0 || lag_frames != s.lag;
   if (whole) {
     s.lag = lag_frames;
     s.band = -1;
+    s.impl.frame_waits_for_async(s.last_band);
   }
+  rewrite_barrier(commands);
   const int bands = s.lag + 1;
-  if (s.band < 0) {  // a map begins: its heights' snapshot, then its pyramid
+  std::uint64_t map_begun = 0;  // the frame timeline's value once this frame's snapshot and pyramid are made
+  if (s.band < 0) {             // a map begins: its heights' snapshot, then its pyramid
     const VkImage source = s.source->handle(), snapshot = s.snapshots[s.progress].handle();
     const VkPipelineStageFlags transfer = VK_PIPELINE_STAGE_TRANSFER_BIT;
     const VkPipelineStageFlags readers =
@@ -503,16 +522,47 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.record_pyramid(commands, s.snapshot_cells[s.progress]);
     s.band = 0;
     s.begun = s.calls;
+    if (!whole) {  // submitted now, so that this frame's band can follow it on the async queue
+      map_begun = s.impl.flush_slot();
+      commands = s.impl.begin_slot().commands;
+    }
   }
   // this frame's bands of texel rows (all of them for a whole map): an even share of the groups' rows
   const int group_rows = int(group_count(std::uint32_t(s.height), CONE_TILE));
-  const int last_band = whole ? bands - 1 : s.band;
-  for (; s.band <= last_band; ++s.band) {
-    const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
-    if (end > first) s.record_texels(commands, 1 + s.progress, budget, first, end - first);
+  auto record_bands = [&](VkCommandBuffer band_commands, int last_band) {
+    for (; s.band <= last_band; ++s.band) {
+      const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
+      if (end == first) continue;
+      // a band's reads of group_far come before the next band's writes (other rows, one buffer)
+      compute_barrier(band_commands);
+      s.record_texels(band_commands, 1 + s.progress, budget, first, end - first);
+    }
+  };
+  if (whole) {
+    record_bands(commands, bands - 1);
+  } else {
+    // the band on the async queue, after the frame that began the map: nothing in this frame waits
+    // for it but the copy into `served` when it is the map's last (the frame before it, in slot
+    // `slot`, read its command buffer; wait for that on the host: long done in a frame loop)
+    const auto index = std::size_t(slot);
+    s.impl.wait_async(s.band_value[index]);
+    const VkCommandBuffer band = s.band_commands[index];
+    DISPLACE_VK_CHECK(vkResetCommandBuffer(band, 0));
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    DISPLACE_VK_CHECK(vkBeginCommandBuffer(band, &begin));
+    s.band_timer.begin(band, slot);
+    record_bands(band, s.band);
+    s.band_timer.end(band, slot);
+    DISPLACE_VK_CHECK(vkEndCommandBuffer(band));
+    s.band_value[index] = s.last_band = s.impl.submit_async(band, map_begun);
   }
   if (s.band == bands) {  // the map is finished: it is served from this frame on
-    compute_barrier(commands);
+    if (whole) {
+      compute_barrier(commands);
+    } else {
+      s.impl.frame_waits_for_async(s.last_band);  // its values, written on the async queue
+    }
     const VkBufferCopy all{0, 0, s.texels() * VkDeviceSize(s.layers) * cone_texel_bytes};
     vkCmdCopyBuffer(commands, s.cone_values.handle(), s.served.handle(), 1, &all);
     s.served_begun = s.begun;
@@ -551,7 +601,10 @@ double DeviceCones::device_milliseconds() const {
   State& s = *state_;
   if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
     s.timer.read(s.timer.last_slot());
-  return s.timer.milliseconds();
+  const int band_slot = s.band_timer.last_slot();
+  if (band_slot >= 0 && s.impl.async_finished(s.band_value[std::size_t(band_slot)]))
+    s.band_timer.read(band_slot);
+  return s.timer.milliseconds() + s.band_timer.milliseconds();
 }
 
 DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<float>* apex) {
@@ -564,7 +617,8 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
   }
   const bool image_wanted = ratios != nullptr || apex != nullptr;
   const VkCommandBuffer commands = s.impl.begin_slot().commands;
-  if (image_wanted) {  // the image itself: what the renderer samples
+  s.impl.frame_waits_for_async(s.last_band);  // its tickets
+  if (image_wanted) {                         // the image itself: what the renderer samples
     const auto layers = std::uint32_t(s.layers);
     image_barrier(commands, s.cones.handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
                   VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,

@@ -196,6 +196,9 @@ struct DeviceInfo {
   // Vulkan asks for 4 at least, NVIDIA has 8): where a filtered read may be off (the distance map's
   // trilinear reads), the shaders allow for it.
   int sub_texel_precision_bits = 4;
+  // The device path's lagged cone bands run on a queue of a compute-only family, beside the frame's
+  // draw (RendererOptions::async_compute, and the device has such a family with timestamps)
+  bool compute_queue_apart = false;
 };
 
 struct RendererOptions {
@@ -224,6 +227,10 @@ struct RendererOptions {
   // waits for frames in flight before it writes a map). Off: every map goes through the staging ring
   // and a device copy, as on a discrete GPU (the tests compare the two).
   bool host_written_maps = true;
+  // The device path's lagged cone bands (DeviceCones::bake_lagged) on a queue of a compute-only
+  // family where the device has one, so that a GPU runs them beside the frame's draw; off, or where
+  // there is none (lavapipe), they go to the frame's own queue. The same submissions and waits either way.
+  bool async_compute = true;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,

@@ -53,8 +53,12 @@ void Renderer::Impl::create_frame_slots() {
     timestamps = OwnedQueryPool(device, query_pool);
   }
   const VkDescriptorSetLayout layout = set_layout.get();
+  frame_timeline = OwnedSemaphore(device, context.create_timeline());
+  deferred_async.reserve(4 * frames_in_flight);
+  async_timeline = OwnedSemaphore(device, context.create_timeline());
   for (FrameSlot& frame_slot : slots) {
     frame_slot.commands = context.allocate_command_buffer();
+    frame_slot.spare = context.allocate_command_buffer();
     frame_slot.fence = OwnedFence(device, context.create_fence(true));
     VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     allocate.descriptorPool = descriptor_pool.get();
@@ -89,12 +93,51 @@ FrameSlot& Renderer::Impl::begin_slot() {
   DISPLACE_VK_CHECK(
       vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.commands, 0));
+  DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.spare, 0));
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   DISPLACE_VK_CHECK(vkBeginCommandBuffer(frame_slot.commands, &begin));
   frame_slot.recording = true;
+  frame_slot.flushed = 0;
   frame_slot.staging_used = 0;
   return frame_slot;
+}
+
+namespace {
+// Submits `commands` to `queue`, signalling `signal` at `value`, after `wait` reaches `wait_value`
+// (none where `wait` is null), with `fence` (may be null).
+void submit_timeline(VkQueue queue, VkCommandBuffer commands, VkSemaphore signal, std::uint64_t value,
+                     VkSemaphore wait, std::uint64_t wait_value, VkFence fence) {
+  VkTimelineSemaphoreSubmitInfo timeline{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  timeline.signalSemaphoreValueCount = 1;
+  timeline.pSignalSemaphoreValues = &value;
+  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.pNext = &timeline;
+  if (wait != VK_NULL_HANDLE) {
+    timeline.waitSemaphoreValueCount = 1;
+    timeline.pWaitSemaphoreValues = &wait_value;
+    submit.waitSemaphoreCount = 1;
+    submit.pWaitSemaphores = &wait;
+    submit.pWaitDstStageMask = &wait_stage;
+  }
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &commands;
+  submit.signalSemaphoreCount = 1;
+  submit.pSignalSemaphores = &signal;
+  DISPLACE_VK_CHECK(vkQueueSubmit(queue, 1, &submit, fence));
+}
+}  // namespace
+
+// The frame queue's submission of `commands`: after the async work it must wait for, signalling
+// the frame timeline's next value.
+static std::uint64_t submit_frame(Renderer::Impl& impl, VkCommandBuffer commands, VkFence fence) {
+  const bool waits = impl.frame_waits_for > impl.frame_waited;
+  if (waits) impl.release_async(impl.frame_waits_for);
+  submit_timeline(impl.context.queue(), commands, impl.frame_timeline.get(), impl.frame_signalled + 1,
+                  waits ? impl.async_timeline.get() : VK_NULL_HANDLE, impl.frame_waits_for, fence);
+  if (waits) impl.frame_waited = impl.frame_waits_for;
+  return ++impl.frame_signalled;
 }
 
 void Renderer::Impl::submit_slot(bool wait) {
@@ -104,15 +147,66 @@ void Renderer::Impl::submit_slot(bool wait) {
   frame_slot.recording = false;
   const VkFence fence = frame_slot.fence.get();
   DISPLACE_VK_CHECK(vkResetFences(context.device(), 1, &fence));
-  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  submit.commandBufferCount = 1;
-  submit.pCommandBuffers = &frame_slot.commands;
-  DISPLACE_VK_CHECK(vkQueueSubmit(context.queue(), 1, &submit, fence));
+  submit_frame(*this, frame_slot.commands, fence);
+  release_async(async_signalled);  // behind this frame
   if (wait) {
     DISPLACE_VK_CHECK(
         vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   }
   slot = (slot + 1) % frames_in_flight;
+}
+
+std::uint64_t Renderer::Impl::flush_slot() {
+  FrameSlot& frame_slot = begin_slot();
+  DISPLACE_VK_CHECK(vkEndCommandBuffer(frame_slot.commands));
+  if (frame_slot.flushed > 0) {  // a second flush of this recording: the spare holds the first
+    wait_timeline(frame_timeline.get(), frame_slot.flushed);
+    DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.spare, 0));
+  }
+  const std::uint64_t value = submit_frame(*this, frame_slot.commands, VK_NULL_HANDLE);
+  frame_slot.flushed = value;
+  std::swap(frame_slot.commands, frame_slot.spare);  // reset by begin_slot (or just above)
+  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  DISPLACE_VK_CHECK(vkBeginCommandBuffer(frame_slot.commands, &begin));
+  return value;
+}
+
+std::uint64_t Renderer::Impl::submit_async(VkCommandBuffer commands, std::uint64_t after_frame) {
+  const std::uint64_t value = ++async_signalled;
+  if (context.async_apart()) {
+    submit_timeline(context.async_queue(), commands, async_timeline.get(), value,
+                    after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, after_frame, VK_NULL_HANDLE);
+  } else {
+    deferred_async.push_back({commands, after_frame, value});
+  }
+  return value;
+}
+
+void Renderer::Impl::release_async(std::uint64_t value) {
+  std::size_t released = 0;
+  for (; released < deferred_async.size() && deferred_async[released].value <= value; ++released) {
+    const DeferredAsync& work = deferred_async[released];
+    submit_timeline(context.async_queue(), work.commands, async_timeline.get(), work.value,
+                    work.after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, work.after_frame,
+                    VK_NULL_HANDLE);
+  }
+  deferred_async.erase(deferred_async.begin(), deferred_async.begin() + std::ptrdiff_t(released));
+}
+
+bool Renderer::Impl::async_finished(std::uint64_t value) const {
+  std::uint64_t reached = 0;
+  DISPLACE_VK_CHECK(vkGetSemaphoreCounterValue(context.device(), async_timeline.get(), &reached));
+  return reached >= value;
+}
+
+void Renderer::Impl::wait_timeline(VkSemaphore semaphore, std::uint64_t value) const {
+  if (value == 0) return;
+  VkSemaphoreWaitInfo info{VK_STRUCTURE_TYPE_SEMAPHORE_WAIT_INFO};
+  info.semaphoreCount = 1;
+  info.pSemaphores = &semaphore;
+  info.pValues = &value;
+  DISPLACE_VK_CHECK(vkWaitSemaphores(context.device(), &info, std::numeric_limits<std::uint64_t>::max()));
 }
 
 void Renderer::Impl::wait_submitted() {
@@ -122,10 +216,12 @@ void Renderer::Impl::wait_submitted() {
     DISPLACE_VK_CHECK(
         vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
   }
+  wait_async(async_signalled);
 }
 
 void Renderer::Impl::drain() {
   submit_slot(false);
+  release_async(async_signalled);
   DISPLACE_VK_CHECK(vkDeviceWaitIdle(context.device()));
 }
 

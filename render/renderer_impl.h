@@ -81,9 +81,11 @@ struct DeviceMap {
 // Per frame in flight: its command buffer, fence, descriptor set, uniforms, staging part of the
 // ring, and readback buffers. A slot is reused once its fence says the frame finished.
 struct FrameSlot {
-  VkCommandBuffer commands = VK_NULL_HANDLE;
-  OwnedFence fence;        // signalled: nothing of this slot is in flight
-  bool recording = false;  // commands begun (map copies or a frame), not yet submitted
+  VkCommandBuffer commands = VK_NULL_HANDLE;  // the one recording (flush_slot swaps in `spare`)
+  VkCommandBuffer spare = VK_NULL_HANDLE;
+  std::uint64_t flushed = 0;  // the frame_timeline value of this recording's flush_slot (0: none)
+  OwnedFence fence;           // signalled: nothing of this slot is in flight
+  bool recording = false;     // commands begun (map copies or a frame), not yet submitted
   VkDescriptorSet descriptor_set = VK_NULL_HANDLE;
   Buffer uniforms;
   Buffer staging;
@@ -149,7 +151,38 @@ struct Renderer::Impl {
     const FrameSlot& frame_slot = slots[std::size_t(index)];
     return !frame_slot.recording && vkGetFenceStatus(context.device(), frame_slot.fence.get()) == VK_SUCCESS;
   }
-  void wait_submitted();  // waits for every frame submitted (what is recorded stays so)
+  void wait_submitted();  // waits for every frame submitted and every async submission
+  // Work beside the frame's (Context::async_queue): a timeline semaphore per queue; every submission
+  // of the frame's queue signals the next value of `frame_timeline`, every async one of `async_timeline`.
+  OwnedSemaphore frame_timeline, async_timeline;
+  std::uint64_t frame_signalled = 0, async_signalled = 0;
+  std::uint64_t frame_waits_for = 0;  // the async value the frame queue's next submission waits for
+  std::uint64_t frame_waited = 0;     // the largest one a submission waited for already
+  // Ends and submits what the current slot recorded so far (no fence: the slot's frame submission
+  // still follows) and goes on recording in the slot's other command buffer; returns the
+  // frame_timeline value that submission signals.
+  std::uint64_t flush_slot();
+  // Submits `commands` to the async queue, after the frame queue's value `after_frame` (0: nothing);
+  // returns the async_timeline value it signals.
+  std::uint64_t submit_async(VkCommandBuffer commands, std::uint64_t after_frame);
+  // The frame queue's next submission (and every later one) waits for async `value`.
+  void frame_waits_for_async(std::uint64_t value) { frame_waits_for = std::max(frame_waits_for, value); }
+  // Where the async queue is the frame's own (no compute-only family), an async submission waits on
+  // the host until a frame submission or a host wait needs it, or until the next frame submission
+  // has gone in ahead of it: it then runs after that frame's draw, as work on a GPU's other queue
+  // may, so that a wait left out changes what lavapipe computes and the tests see it.
+  struct DeferredAsync {
+    VkCommandBuffer commands;
+    std::uint64_t after_frame, value;
+  };
+  std::vector<DeferredAsync> deferred_async;  // in submission order
+  void release_async(std::uint64_t value);    // submits the deferred ones up to `value`
+  bool async_finished(std::uint64_t value) const;
+  void wait_async(std::uint64_t value) {  // on the host
+    release_async(value);
+    wait_timeline(async_timeline.get(), value);
+  }
+  void wait_timeline(VkSemaphore timeline, std::uint64_t value) const;
   Image upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
                          const void* data, std::size_t bytes);
   template <typename T>

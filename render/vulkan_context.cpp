@@ -141,6 +141,22 @@ int graphics_queue_family(VkPhysicalDevice device) {
   return -1;
 }
 
+// A family with compute and without graphics, with timestamps where `timestamps` (the frame's family
+// has them, so the async stages are timed too); -1: none.
+int compute_only_family(VkPhysicalDevice device, bool timestamps) {
+  std::uint32_t count = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(device, &count, nullptr);
+  std::vector<VkQueueFamilyProperties> families(count);
+  vkGetPhysicalDeviceQueueFamilyProperties(device, &count, families.data());
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const VkQueueFlags flags = families[i].queueFlags;
+    if ((flags & VK_QUEUE_COMPUTE_BIT) && !(flags & VK_QUEUE_GRAPHICS_BIT) && families[i].queueCount > 0 &&
+        (!timestamps || families[i].timestampValidBits > 0))
+      return int(i);
+  }
+  return -1;
+}
+
 std::string lower(std::string text) {
   for (char& c : text) c = char(std::tolower(static_cast<unsigned char>(c)));
   return text;
@@ -283,14 +299,33 @@ Context::Context(const RendererOptions& options) {
     vkGetPhysicalDeviceProperties2(physical_device_, &properties2);
     max_allocation_ = maintenance3.maxMemoryAllocationSize;
 
+    // the async queue: a compute-only family's where asked and there is one, else the frame's queue
+    const int compute_family =
+        options.async_compute ? compute_only_family(physical_device_, has_timestamps_) : -1;
+    async_family_ = compute_family >= 0 ? std::uint32_t(compute_family) : queue_family_;
+    info_.compute_queue_apart = async_apart();
+
     const float priority = 1.0f;
-    VkDeviceQueueCreateInfo queue_info{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    queue_info.queueFamilyIndex = queue_family_;
-    queue_info.queueCount = 1;
-    queue_info.pQueuePriorities = &priority;
+    VkDeviceQueueCreateInfo queue_infos[2] = {{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO},
+                                              {VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO}};
+    for (int q = 0; q < 2; ++q) {
+      queue_infos[q].queueFamilyIndex = q == 0 ? queue_family_ : async_family_;
+      queue_infos[q].queueCount = 1;
+      queue_infos[q].pQueuePriorities = &priority;
+    }
+    // timeline semaphores order the async queue's work against the frame's (required by Vulkan 1.2)
+    VkPhysicalDeviceVulkan12Features features12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    supported.pNext = &features12;
+    vkGetPhysicalDeviceFeatures2(physical_device_, &supported);
+    if (!features12.timelineSemaphore)
+      throw RenderError("device '" + info_.name + "' lacks timeline semaphores, which Vulkan 1.2 requires");
+    VkPhysicalDeviceVulkan12Features enabled12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    enabled12.timelineSemaphore = VK_TRUE;
     VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    device_info.queueCreateInfoCount = 1;
-    device_info.pQueueCreateInfos = &queue_info;
+    device_info.pNext = &enabled12;
+    device_info.queueCreateInfoCount = async_apart() ? 2 : 1;
+    device_info.pQueueCreateInfos = queue_infos;
     const char* swapchain_extension = VK_KHR_SWAPCHAIN_EXTENSION_NAME;
     if (present) {
       device_info.enabledExtensionCount = 1;
@@ -298,11 +333,17 @@ Context::Context(const RendererOptions& options) {
     }
     DISPLACE_VK_CHECK(vkCreateDevice(physical_device_, &device_info, nullptr, &device_));
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+    async_queue_ = queue_;
+    if (async_apart()) vkGetDeviceQueue(device_, async_family_, 0, &async_queue_);
 
     VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     pool_info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT | VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
     pool_info.queueFamilyIndex = queue_family_;
     DISPLACE_VK_CHECK(vkCreateCommandPool(device_, &pool_info, nullptr, &command_pool_));
+    if (async_apart()) {
+      pool_info.queueFamilyIndex = async_family_;
+      DISPLACE_VK_CHECK(vkCreateCommandPool(device_, &pool_info, nullptr, &async_pool_));
+    }
     fence_ = create_fence(false);
     one_time_commands_ = allocate_command_buffer();
   } catch (...) {
@@ -318,6 +359,7 @@ void Context::destroy() noexcept {
     vkDeviceWaitIdle(device_);
     if (fence_) vkDestroyFence(device_, fence_, nullptr);
     if (command_pool_) vkDestroyCommandPool(device_, command_pool_, nullptr);
+    if (async_pool_) vkDestroyCommandPool(device_, async_pool_, nullptr);
     vkDestroyDevice(device_, nullptr);
     device_ = VK_NULL_HANDLE;
   }
@@ -428,6 +470,45 @@ VkCommandBuffer Context::allocate_command_buffer() const {
   return commands;
 }
 
+VkCommandBuffer Context::allocate_async_command_buffer() const {
+  VkCommandBufferAllocateInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  info.commandPool = async_apart() ? async_pool_ : command_pool_;
+  info.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  info.commandBufferCount = 1;
+  VkCommandBuffer commands = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkAllocateCommandBuffers(device_, &info, &commands));
+  return commands;
+}
+
+void Context::free_async_command_buffer(VkCommandBuffer commands) const {
+  vkFreeCommandBuffers(device_, async_apart() ? async_pool_ : command_pool_, 1, &commands);
+}
+
+VkSemaphore Context::create_timeline() const {
+  VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+  type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+  type.initialValue = 0;
+  VkSemaphoreCreateInfo info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+  info.pNext = &type;
+  VkSemaphore semaphore = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateSemaphore(device_, &info, nullptr, &semaphore));
+  return semaphore;
+}
+
+namespace {
+// Concurrent sharing between the frame's family and the async one where they differ and `shared`.
+void set_sharing(const Context& context, bool shared, VkSharingMode& mode, std::uint32_t& count,
+                 const std::uint32_t*& families, std::uint32_t (&storage)[2]) {
+  mode = VK_SHARING_MODE_EXCLUSIVE;
+  if (!shared || !context.async_apart()) return;
+  storage[0] = context.queue_family();
+  storage[1] = context.async_family();
+  mode = VK_SHARING_MODE_CONCURRENT;
+  count = 2;
+  families = storage;
+}
+}  // namespace
+
 VkCommandBuffer Context::begin_commands() const {
   VkCommandBuffer commands = one_time_commands_;
   DISPLACE_VK_CHECK(vkResetCommandBuffer(commands, 0));
@@ -448,12 +529,14 @@ void Context::end_submit_wait(VkCommandBuffer commands) const {
 }
 
 Buffer::Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage,
-               VkMemoryPropertyFlags properties)
+               VkMemoryPropertyFlags properties, bool shared)
     : device_(context.device()), size_(size) {
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = size;
   info.usage = usage;
-  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  std::uint32_t families[2];
+  set_sharing(context, shared, info.sharingMode, info.queueFamilyIndexCount, info.pQueueFamilyIndices,
+              families);
   DISPLACE_VK_CHECK(vkCreateBuffer(device_, &info, nullptr, &buffer_));
   VkMemoryRequirements requirements;
   vkGetBufferMemoryRequirements(device_, buffer_, &requirements);
@@ -472,9 +555,9 @@ Buffer::~Buffer() {
 
 Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
              std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
-             VkImageViewType view_type) {
+             VkImageViewType view_type, bool shared) {
   if (!make(context, format, width, height, layers, usage, aspect, view_type, VK_IMAGE_TILING_OPTIMAL,
-            VK_IMAGE_LAYOUT_UNDEFINED, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)) {
+            VK_IMAGE_LAYOUT_UNDEFINED, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, shared)) {
     vkDestroyImage(device_, image_, nullptr);  // a constructor that throws runs no destructor
     throw RenderError("the Vulkan device has no memory type with the properties a buffer or image needs");
   }
@@ -483,7 +566,7 @@ Image::Image(const Context& context, VkFormat format, std::uint32_t width, std::
 bool Image::make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
                  std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
                  VkImageViewType view_type, VkImageTiling tiling, VkImageLayout initial_layout,
-                 VkMemoryPropertyFlags memory) {
+                 VkMemoryPropertyFlags memory, bool shared) {
   device_ = context.device();
   format_ = format;
   width_ = width;
@@ -499,7 +582,9 @@ bool Image::make(const Context& context, VkFormat format, std::uint32_t width, s
   info.samples = VK_SAMPLE_COUNT_1_BIT;
   info.tiling = tiling;
   info.usage = usage;
-  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  std::uint32_t families[2];
+  set_sharing(context, shared, info.sharingMode, info.queueFamilyIndexCount, info.pQueueFamilyIndices,
+              families);
   info.initialLayout = initial_layout;
   DISPLACE_VK_CHECK(vkCreateImage(device_, &info, nullptr, &image_));
   VkMemoryRequirements requirements;

@@ -34,6 +34,16 @@ class Context {
   VkQueue queue() const { return queue_; }
   std::uint32_t queue_family() const { return queue_family_; }
   VkCommandPool command_pool() const { return command_pool_; }
+  // The queue that takes work meant to run beside the frame's (DeviceCones' lagged bands): a
+  // compute-only family's (RendererOptions::async_compute) or, where there is none, queue() itself.
+  VkQueue async_queue() const { return async_queue_; }
+  std::uint32_t async_family() const { return async_family_; }
+  bool async_apart() const { return async_family_ != queue_family_; }
+  // A primary command buffer of the async family's pool (resettable), owned by the caller.
+  VkCommandBuffer allocate_async_command_buffer() const;
+  void free_async_command_buffer(VkCommandBuffer commands) const;
+  // A timeline semaphore at value 0; the caller destroys it (OwnedSemaphore).
+  VkSemaphore create_timeline() const;
   const DeviceInfo& info() const { return info_; }
   float timestamp_period_ns() const { return timestamp_period_ns_; }
   bool has_timestamps() const { return has_timestamps_; }
@@ -76,6 +86,9 @@ class Context {
   VkQueue queue_ = VK_NULL_HANDLE;
   std::uint32_t queue_family_ = 0;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
+  VkQueue async_queue_ = VK_NULL_HANDLE;
+  std::uint32_t async_family_ = 0;
+  VkCommandPool async_pool_ = VK_NULL_HANDLE;  // only where async_apart()
   VkFence fence_ = VK_NULL_HANDLE;
   VkCommandBuffer one_time_commands_ = VK_NULL_HANDLE;
   DeviceInfo info_;
@@ -91,8 +104,9 @@ class Context {
 class Buffer {
  public:
   Buffer() = default;
+  // shared: used by the frame's queue and the async one (concurrent sharing where they differ)
   Buffer(const Context& context, VkDeviceSize size, VkBufferUsageFlags usage,
-         VkMemoryPropertyFlags properties);
+         VkMemoryPropertyFlags properties, bool shared = false);
   ~Buffer();
   Buffer(Buffer&& other) noexcept { swap(other); }
   Buffer& operator=(Buffer&& other) noexcept {
@@ -126,7 +140,8 @@ class Image {
  public:
   Image() = default;
   Image(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
-        std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type);
+        std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect, VkImageViewType view_type,
+        bool shared = false);  // shared: as Buffer's
   // A sampled 2D (array) colour image in linear tiling, in host-visible coherent device-local memory
   // mapped for as long as it lives: the host writes its texels (at row_pitch() and layer_pitch()
   // bytes) and shaders sample it in VK_IMAGE_LAYOUT_GENERAL. Made in VK_IMAGE_LAYOUT_PREINITIALIZED.
@@ -159,7 +174,7 @@ class Image {
   bool make(const Context& context, VkFormat format, std::uint32_t width, std::uint32_t height,
             std::uint32_t layers, VkImageUsageFlags usage, VkImageAspectFlags aspect,
             VkImageViewType view_type, VkImageTiling tiling, VkImageLayout initial_layout,
-            VkMemoryPropertyFlags memory);
+            VkMemoryPropertyFlags memory, bool shared = false);
   void swap(Image& other) noexcept {
     std::swap(mapped_, other.mapped_);
     std::swap(row_pitch_, other.row_pitch_);

@@ -30,7 +30,10 @@
 // with the bake on the device alone; DISPLACE_PROBE_DEVICE_RINGS=R gives the device bake's first
 // pass rings of radius R there (render::DeviceFirstPass; 0: the search; default 2), and
 // DISPLACE_PROBE_DEVICE_GROUP=1 the group's first pass; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's
-// map sides, DISPLACE_PROBE_FRAME_MAPS part 2's.
+// map sides, DISPLACE_PROBE_FRAME_MAPS part 2's; DISPLACE_PROBE_ASYNC=0 keeps lagged maps' bands on
+// the frame's queue (RendererOptions::async_compute) where the device has a compute queue apart.
+// Part 2 with the bake on the device also runs the frames in flight: nothing read back, the mean
+// period.
 #include <sched.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
@@ -178,7 +181,11 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
       std::vector<int> lags = plan.cone_lags;
       if (bake_backend == Backend::device && plan.frames > 20) lags.push_back(7);  // device: 0, 3 and 7
       for (int lag : lags) {
-        for (bool overlapped : {false, true}) {
+        // in series, overlapped and, with the bake on the device, in flight: nothing read back (as a
+        // window shows its frames), two frames in flight, the mean period over the frames
+        const int modes = bake_backend == Backend::device ? 3 : 2;
+        for (int mode = 0; mode < modes; ++mode) {
+          const bool overlapped = mode == 1;
           const int frame_count = size >= 2048 ? plan.large_frames : plan.frames;
           pipeline::Scene scene = pipeline::builtin_scene("water");
           scene.sim_backend = sim_backend;
@@ -195,6 +202,30 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           render::Frame frame;
           for (int n = 0; n < plan.warm_up; ++n) frames.run(n, frame);
           const long long allocations = renderer.memory_allocations();
+          if (mode == 2) {
+            std::vector<double> sim_device, bake_device;
+            const auto start = std::chrono::steady_clock::now();
+            for (int n = 0; n < frame_count; ++n) {
+              const pipeline::FrameRecord r = frames.run(plan.warm_up + n, frame, render::output_none);
+              sim_device.push_back(r.sim_device_ms);  // an earlier frame's: the last one finished
+              bake_device.push_back(r.bake_device_ms);
+            }
+            renderer.wait_idle();
+            const double period =
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
+                frame_count;
+            std::printf(
+                "frame in flight: water, map %d, %d x %d pixels, cone lag %d, sim on the %s, bake on the %s "
+                "(first pass: rings %d%s), bands on %s: mean period %.3f ms over %d frames (nothing read "
+                "back), device p50 sim %.3f bake %.3f ms, %lld allocations after warm-up\n",
+                size, size, size, lag, pipeline::backend_word(scene.sim_backend),
+                pipeline::backend_word(scene.bake_backend), ring_radius, group_first_pass ? ", group" : "",
+                renderer.device().compute_queue_apart ? "a compute queue apart" : "the frame's queue", period,
+                frame_count, percentile(sim_device, 0.5), percentile(bake_device, 0.5),
+                renderer.memory_allocations() - allocations);
+            std::fflush(stdout);
+            continue;
+          }
           std::vector<double> sim, bake, upload, draw, total, age, lift, sim_device, bake_device, draw_device;
           auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
             age.push_back(double(r.cone_lag));
@@ -297,7 +328,8 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
 
 // The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
 // unlimited and budget 0 (the first pass, in each of its shapes: the search, and rings of radius 1, 2
-// and 3 with the full window, 2 with a window of 2 cells, the group's with windows of 4 and 2): each
+// and 3 with the full window, 2 with a window of 2 cells, 1 with windows of 2 and 1, 2 with a window
+// of 1, the group's with windows of 4 and 2): each
 // bake submitted and waited for (wall) and its GPU timestamps (device), medians; the texels refined
 // and the mean ratio read back.
 void device_cones(render::Renderer& renderer, const Plan& plan) {
@@ -311,6 +343,9 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
                           {0, {4, 2}},
                           {0, {4, 3}},
                           {0, {2, 2}},
+                          {0, {2, 1}},
+                          {0, {1, 1}},
+                          {0, {1, 2}},
                           {0, {4, 0, true}},
                           {0, {2, 0, true}}};
   for (int size : plan.cone_maps) {
@@ -380,9 +415,12 @@ int main(int argc, char** argv) {
     map_sides("DISPLACE_PROBE_FRAME_MAPS", plan.frame_sizes);
     render::RendererOptions options;
     options.pipeline_cache = "off";
+    const char* async = std::getenv("DISPLACE_PROBE_ASYNC");  // 0: lagged bands on the frame's queue
+    options.async_compute = !(async && std::string(async) == "0");
     render::Renderer renderer(options);
-    std::printf("device: %s (%s), %d sub-texel bits\n", renderer.device().name.c_str(),
-                renderer.device().type.c_str(), renderer.device().sub_texel_precision_bits);
+    std::printf("device: %s (%s), %d sub-texel bits, lagged bands on %s\n", renderer.device().name.c_str(),
+                renderer.device().type.c_str(), renderer.device().sub_texel_precision_bits,
+                renderer.device().compute_queue_apart ? "a compute queue apart" : "the frame's queue");
     const char* part = std::getenv("DISPLACE_PROBE_PART");
     const std::string only = part ? part : "";
     if (only.empty()) method_table(renderer, plan, directory);
