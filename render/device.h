@@ -141,15 +141,17 @@ class DeviceCones {
   // Submits what is recorded, waits, and reads back what the renderer samples (either may be null):
   // ratios decoded, W x H x sectors interleaved (bake::ConeView's layout), and apex heights decoded.
   // Throws RenderError where the heights held a NaN or a value outside [0, 1]. After bake_lagged()
-  // the stats are those of the map in progress.
+  // the stats and the heights' check are those of the served map (nothing waits for a band in flight).
   DeviceConeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
 
-  // Lagged maps (lag_frames = N > 0): one map's bake is spread over N + 1 calls - a snapshot of the
-  // heights and its pyramid when it begins, then an even share of the texel rows a call - and each
-  // call's frame samples the last finished map with every apex raised by the most any texel rose
-  // since that map's heights (rounded up): conservative for the frame's own heights, at most 2N calls
-  // old. The first call, and the first after N changed, makes a whole map. Returns the age in calls
-  // of the map the frame samples; 0 is bake(budget). docs/design/lagged-cone-maps.md.
+  // Lagged maps (lag_frames = N > 0): one map's bake is spread over N calls - a snapshot of the
+  // heights and its pyramid when it begins, then an even share of the texel rows a call, on the
+  // renderer's async queue (RendererOptions::async_compute: beside the frame's draw on a GPU) - and
+  // served from the N-th call after it began, when the next one begins. Each call's frame samples the
+  // served map with every apex raised by the most any texel rose since that map's heights (rounded
+  // up): conservative for the frame's own heights, N to 2N - 1 calls old. The first call, and the
+  // first after N changed, makes a whole map. Returns the age in calls of the map the frame samples;
+  // 0 is bake(budget). docs/design/lagged-cone-maps.md.
   long long bake_lagged(const DeviceConeBudget& budget, int lag_frames);
   // How far the apexes were raised in the last bake_lagged() frame that has finished (0: none yet,
   // or it was not lagged).

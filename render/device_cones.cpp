@@ -153,6 +153,8 @@ struct DeviceCones::State {
   // the frame samples, and each frame's lift for the host (a float per frame slot)
   Image snapshots[2];
   Buffer served, composed, lift_host;
+  Buffer served_counters;    // the counters of the served map, copied when it is served
+  bool read_served = false;  // read_back reads served_counters: the last bake was bake_lagged
   ComputeKernel snapshot_cells[2], lift_kernel[2], compose_kernel;
   int lag = 0;                  // N of the maps being made
   int progress = 0;             // the snapshot the map in progress reads
@@ -430,6 +432,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   s.record_to_image(commands, s.cone_values.handle());
   s.timer.end(commands, slot);
   s.band = -1;  // a lagged map in progress used the pyramid and counters that this bake rewrote
+  s.read_served = false;
   if (s.lift_host.handle() != VK_NULL_HANDLE) static_cast<float*>(s.lift_host.mapped())[slot] = 0.0f;
   s.baked = true;
 }
@@ -442,6 +445,9 @@ void DeviceCones::State::make_lagged() {
                   VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
   composed =
       Buffer(context, value_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+             VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  served_counters =
+      Buffer(context, CONE_COUNTERS * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
              VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
   lift_host = Buffer(context, frames_in_flight * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                      VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
@@ -498,8 +504,53 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.impl.frame_waits_for_async(s.last_band);
   }
   rewrite_barrier(commands);
-  const int bands = s.lag + 1;
-  std::uint64_t map_begun = 0;  // the frame timeline's value once this frame's snapshot and pyramid are made
+  const int bands = s.lag;  // a map's texel rows in N bands, one a frame
+  const int group_rows = int(group_count(std::uint32_t(s.height), CONE_TILE));
+  // Serves the map in progress from this frame on (its values are complete once `last_band` is).
+  auto serve = [&] {
+    const VkBufferCopy all{0, 0, s.texels() * VkDeviceSize(s.layers) * cone_texel_bytes};
+    vkCmdCopyBuffer(commands, s.cone_values.handle(), s.served.handle(), 1, &all);
+    const VkBufferCopy counters{0, 0, CONE_COUNTERS * 4};  // its stats and heights' check, for read_back
+    vkCmdCopyBuffer(commands, s.counters.handle(), s.served_counters.handle(), 1, &counters);
+    // before this frame writes the counters and values again (the lift, a next map's pyramid)
+    VkMemoryBarrier copied{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    copied.srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+    copied.dstAccessMask =
+        VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &copied,
+                         0, nullptr, 0, nullptr);
+    s.served_begun = s.begun;
+    s.progress ^= 1;
+    s.band = -1;
+  };
+  // this frame's band of the map in progress on the async queue, after the frame queue's value
+  // `after` (0: nothing): nothing in this frame waits for it (the slot's band command buffer was last
+  // submitted two frames ago: waited for on the host, long done in a frame loop)
+  auto submit_band = [&](std::uint64_t after) {
+    const auto index = std::size_t(slot);
+    s.impl.wait_async(s.band_value[index]);
+    const VkCommandBuffer band = s.band_commands[index];
+    DISPLACE_VK_CHECK(vkResetCommandBuffer(band, 0));
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    DISPLACE_VK_CHECK(vkBeginCommandBuffer(band, &begin));
+    s.band_timer.begin(band, slot);
+    const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
+    if (end > first) {
+      compute_barrier(band);  // the band before read group_far, whose other rows this one writes
+      s.record_texels(band, 1 + s.progress, budget, first, end - first);
+    }
+    s.band_timer.end(band, slot);
+    DISPLACE_VK_CHECK(vkEndCommandBuffer(band));
+    s.band_value[index] = s.last_band = s.impl.submit_async(band, after);
+    ++s.band;
+  };
+  if (s.band == bands) {  // every band of the map in progress went in a frame before: serve it
+    s.impl.frame_waits_for_async(s.last_band);
+    serve();
+  }
+  std::uint64_t map_begun = 0;  // the frame queue's value once a map begun here has its snapshot and pyramid
   if (s.band < 0) {             // a map begins: its heights' snapshot, then its pyramid
     const VkImage source = s.source->handle(), snapshot = s.snapshots[s.progress].handle();
     const VkPipelineStageFlags transfer = VK_PIPELINE_STAGE_TRANSFER_BIT;
@@ -522,53 +573,16 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.record_pyramid(commands, s.snapshot_cells[s.progress]);
     s.band = 0;
     s.begun = s.calls;
-    if (!whole) {  // submitted now, so that this frame's band can follow it on the async queue
+    if (whole) {  // every row now, served from this frame on
+      s.record_texels(commands, 1 + s.progress, budget, 0, group_rows);
+      compute_barrier(commands);
+      serve();
+    } else {  // submitted now, so that this frame's band can follow it on the async queue
       map_begun = s.impl.flush_slot();
       commands = s.impl.begin_slot().commands;
     }
   }
-  // this frame's bands of texel rows (all of them for a whole map): an even share of the groups' rows
-  const int group_rows = int(group_count(std::uint32_t(s.height), CONE_TILE));
-  auto record_bands = [&](VkCommandBuffer band_commands, int last_band) {
-    for (; s.band <= last_band; ++s.band) {
-      const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
-      if (end == first) continue;
-      // a band's reads of group_far come before the next band's writes (other rows, one buffer)
-      compute_barrier(band_commands);
-      s.record_texels(band_commands, 1 + s.progress, budget, first, end - first);
-    }
-  };
-  if (whole) {
-    record_bands(commands, bands - 1);
-  } else {
-    // the band on the async queue, after the frame that began the map: nothing in this frame waits
-    // for it but the copy into `served` when it is the map's last (the frame before it, in slot
-    // `slot`, read its command buffer; wait for that on the host: long done in a frame loop)
-    const auto index = std::size_t(slot);
-    s.impl.wait_async(s.band_value[index]);
-    const VkCommandBuffer band = s.band_commands[index];
-    DISPLACE_VK_CHECK(vkResetCommandBuffer(band, 0));
-    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    DISPLACE_VK_CHECK(vkBeginCommandBuffer(band, &begin));
-    s.band_timer.begin(band, slot);
-    record_bands(band, s.band);
-    s.band_timer.end(band, slot);
-    DISPLACE_VK_CHECK(vkEndCommandBuffer(band));
-    s.band_value[index] = s.last_band = s.impl.submit_async(band, map_begun);
-  }
-  if (s.band == bands) {  // the map is finished: it is served from this frame on
-    if (whole) {
-      compute_barrier(commands);
-    } else {
-      s.impl.frame_waits_for_async(s.last_band);  // its values, written on the async queue
-    }
-    const VkBufferCopy all{0, 0, s.texels() * VkDeviceSize(s.layers) * cone_texel_bytes};
-    vkCmdCopyBuffer(commands, s.cone_values.handle(), s.served.handle(), 1, &all);
-    s.served_begun = s.begun;
-    s.progress ^= 1;
-    s.band = -1;
-  }
+  if (!whole) submit_band(map_begun);
   // this frame's lift over the served map's heights, and the served map with its apexes raised by it
   vkCmdFillBuffer(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, 4, 0);
   transfer_to_compute_barrier(commands);
@@ -585,6 +599,7 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   s.record_to_image(commands, s.composed.handle());
   s.timer.end(commands, slot);
   s.baked = true;
+  s.read_served = true;
   const long long age = s.calls - s.served_begun;
   ++s.calls;
   return age;
@@ -616,9 +631,8 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
                         VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   }
   const bool image_wanted = ratios != nullptr || apex != nullptr;
-  const VkCommandBuffer commands = s.impl.begin_slot().commands;
-  s.impl.frame_waits_for_async(s.last_band);  // its tickets
-  if (image_wanted) {                         // the image itself: what the renderer samples
+  const VkCommandBuffer commands = s.impl.begin_slot().commands;  // bake() waited for any band
+  if (image_wanted) {  // the image itself: what the renderer samples
     const auto layers = std::uint32_t(s.layers);
     image_barrier(commands, s.cones.handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
                   VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -633,7 +647,8 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
                   VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
   }
-  copy_to_host(commands, s.counters.handle(), 0, s.readback.handle(), image_bytes, CONE_COUNTERS * 4);
+  copy_to_host(commands, (s.read_served ? s.served_counters : s.counters).handle(), 0, s.readback.handle(),
+               image_bytes, CONE_COUNTERS * 4);
   s.impl.submit_slot(true);
 
   const auto* bytes = static_cast<const std::byte*>(s.readback.mapped());

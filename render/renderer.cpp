@@ -148,7 +148,6 @@ void Renderer::Impl::submit_slot(bool wait) {
   const VkFence fence = frame_slot.fence.get();
   DISPLACE_VK_CHECK(vkResetFences(context.device(), 1, &fence));
   submit_frame(*this, frame_slot.commands, fence);
-  release_async(async_signalled);  // behind this frame
   if (wait) {
     DISPLACE_VK_CHECK(
         vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));

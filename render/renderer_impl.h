@@ -167,10 +167,10 @@ struct Renderer::Impl {
   std::uint64_t submit_async(VkCommandBuffer commands, std::uint64_t after_frame);
   // The frame queue's next submission (and every later one) waits for async `value`.
   void frame_waits_for_async(std::uint64_t value) { frame_waits_for = std::max(frame_waits_for, value); }
-  // Where the async queue is the frame's own (no compute-only family), an async submission waits on
-  // the host until a frame submission or a host wait needs it, or until the next frame submission
-  // has gone in ahead of it: it then runs after that frame's draw, as work on a GPU's other queue
-  // may, so that a wait left out changes what lavapipe computes and the tests see it.
+  // Where the async queue is the frame's own (no compute-only family), an async submission is held
+  // on the host until a frame submission or a host wait needs it (then it and those before it go
+  // in): it runs as late as work on a GPU's other queue may, after the frames submitted meanwhile,
+  // so that a wait left out changes what lavapipe computes and the tests see it.
   struct DeferredAsync {
     VkCommandBuffer commands;
     std::uint64_t after_frame, value;
