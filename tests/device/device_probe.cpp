@@ -14,7 +14,7 @@
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
 //    allocations after warm-up. Each with the sim and bake on the CPU, the sim on the device, and both
-//    on the device (lagged by 0, 3 and 7 frames: render::DeviceCones::bake_lagged), with
+//    on the device (lagged by 0, 1, 3 and 7 frames: render::DeviceCones::bake_lagged), with
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
 // 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
@@ -179,7 +179,8 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
       std::vector<int> lags = plan.cone_lags;
-      if (bake_backend == Backend::device && plan.frames > 20) lags.push_back(7);  // device: 0, 3 and 7
+      if (bake_backend == Backend::device && plan.frames > 20)
+        lags = {0, 1, 3, 7};  // 1: a whole map a frame late
       for (int lag : lags) {
         // in series, overlapped and, with the bake on the device, in flight: nothing read back (as a
         // window shows its frames), two frames in flight, the mean period over the frames
