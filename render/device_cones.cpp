@@ -162,12 +162,15 @@ struct DeviceCones::State {
   long long calls = 0;          // bake_lagged calls so far
   long long begun = 0;          // the call the map in progress began on
   long long served_begun = -1;  // the call the served map began on; -1: none finished yet
-  // the bands go to the async queue (Context::async_queue), beside the frame's draw: a command buffer
-  // per frame slot, the async value of its last submission, and the bands' own timer
-  std::array<VkCommandBuffer, frames_in_flight> band_commands{};
-  std::array<std::uint64_t, frames_in_flight> band_value{};
+  // the bands go to the async queue (Context::async_queue), beside the frame's draw: command buffers
+  // taken in turn (one more than the frames in flight, so that the one taken was submitted three
+  // frames before), the async value of each one's last submission, and the bands' own timer
+  static constexpr int band_buffers = frames_in_flight + 1;
+  std::array<VkCommandBuffer, band_buffers> band_commands{};
+  std::array<std::uint64_t, band_buffers> band_value{};
+  long long bands_made = 0;     // bands submitted so far
   std::uint64_t last_band = 0;  // the async value of the last band submitted (0: none)
-  StageTimer band_timer;
+  StageTimer band_timer;        // by band command buffer
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
@@ -525,23 +528,23 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.band = -1;
   };
   // this frame's band of the map in progress on the async queue, after the frame queue's value
-  // `after` (0: nothing): nothing in this frame waits for it (the slot's band command buffer was last
-  // submitted two frames ago: waited for on the host, long done in a frame loop)
+  // `after` (0: nothing): nothing in this frame waits for it (its command buffer was last submitted
+  // three frames ago: waited for on the host, long done in a frame loop)
   auto submit_band = [&](std::uint64_t after) {
-    const auto index = std::size_t(slot);
+    const auto index = std::size_t(s.bands_made++ % State::band_buffers);
     s.impl.wait_async(s.band_value[index]);
     const VkCommandBuffer band = s.band_commands[index];
     DISPLACE_VK_CHECK(vkResetCommandBuffer(band, 0));
     VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     DISPLACE_VK_CHECK(vkBeginCommandBuffer(band, &begin));
-    s.band_timer.begin(band, slot);
+    s.band_timer.begin(band, int(index));
     const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
     if (end > first) {
       compute_barrier(band);  // the band before read group_far, whose other rows this one writes
       s.record_texels(band, 1 + s.progress, budget, first, end - first);
     }
-    s.band_timer.end(band, slot);
+    s.band_timer.end(band, int(index));
     DISPLACE_VK_CHECK(vkEndCommandBuffer(band));
     s.band_value[index] = s.last_band = s.impl.submit_async(band, after);
     ++s.band;

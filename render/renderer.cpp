@@ -173,7 +173,7 @@ std::uint64_t Renderer::Impl::flush_slot() {
 
 std::uint64_t Renderer::Impl::submit_async(VkCommandBuffer commands, std::uint64_t after_frame) {
   const std::uint64_t value = ++async_signalled;
-  if (context.async_apart()) {
+  if (!hold_async_work || context.async_apart()) {
     submit_timeline(context.async_queue(), commands, async_timeline.get(), value,
                     after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, after_frame, VK_NULL_HANDLE);
   } else {

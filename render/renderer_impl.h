@@ -105,12 +105,14 @@ struct Renderer::Impl {
       : context(options),
         memory_limit(options.memory_limit),
         memory_limit_source(options.memory_limit_source),
-        host_written_maps(options.host_written_maps) {}
+        host_written_maps(options.host_written_maps),
+        hold_async_work(options.hold_async_work) {}
 
   Context context;
   std::uint64_t memory_limit = 0;  // RendererOptions::memory_limit
   std::string memory_limit_source;
   bool host_written_maps = true;  // RendererOptions::host_written_maps
+  bool hold_async_work = false;   // RendererOptions::hold_async_work
   MemoryLimits memory_limits() const { return context.memory_limits(memory_limit, memory_limit_source); }
 
   // pipelines.cpp
@@ -167,10 +169,9 @@ struct Renderer::Impl {
   std::uint64_t submit_async(VkCommandBuffer commands, std::uint64_t after_frame);
   // The frame queue's next submission (and every later one) waits for async `value`.
   void frame_waits_for_async(std::uint64_t value) { frame_waits_for = std::max(frame_waits_for, value); }
-  // Where the async queue is the frame's own (no compute-only family), an async submission is held
-  // on the host until a frame submission or a host wait needs it (then it and those before it go
-  // in): it runs as late as work on a GPU's other queue may, after the frames submitted meanwhile,
-  // so that a wait left out changes what lavapipe computes and the tests see it.
+  // RendererOptions::hold_async_work where the async queue is the frame's own: an async submission
+  // is held on the host until a frame submission or a host wait needs it (then it and those before
+  // it go in), so that it runs as late as a GPU's other queue may run it.
   struct DeferredAsync {
     VkCommandBuffer commands;
     std::uint64_t after_frame, value;

@@ -31,6 +31,7 @@ render::Renderer& cones_renderer() {
   static render::Renderer renderer([] {
     render::RendererOptions options;
     options.validate = true;
+    options.hold_async_work = true;  // lagged bands run as late as a GPU's other queue may run them
     return options;
   }());
   return renderer;
@@ -346,8 +347,8 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       Served served;
       served.age = cones.bake_lagged({0}, lag);
       // the frame submitted first, as a frame loop submits it. Nothing here waits for a band in
-      // flight (read_back neither), and lavapipe holds the bands back until something waits for them
-      // (render::Renderer::Impl::deferred_async): a wait that the serving frame lacks shows in its map.
+      // flight (read_back neither), and the renderer holds the bands back until something waits for
+      // them (RendererOptions::hold_async_work): a wait that the serving frame lacks shows in its map.
       ocean.finish();
       served.bake = read(cones, 32, 32);
       served.lift = cones.lift();

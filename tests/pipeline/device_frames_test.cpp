@@ -20,6 +20,7 @@ render::Renderer& frames_renderer() {
   static render::Renderer renderer([] {
     render::RendererOptions options;
     options.validate = true;
+    options.hold_async_work = true;  // lagged bands run as late as a GPU's other queue may run them
     return options;
   }());
   return renderer;
