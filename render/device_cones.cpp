@@ -58,6 +58,17 @@ void transfer_to_compute_barrier(VkCommandBuffer commands) {
                        &barrier, 0, nullptr, 0, nullptr);
 }
 
+// Compute work recorded so far before the compute work recorded after it (its shader writes visible,
+// its reads done): the only barrier the bands' command buffers take, since a compute-only queue
+// family's barriers name no graphics stage.
+void compute_to_compute_barrier(VkCommandBuffer commands) {
+  VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  barrier.srcAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                       0, 1, &barrier, 0, nullptr, 0, nullptr);
+}
+
 // Copies `bytes` of `source` into host-visible `target`, readable by the host once the frame is done.
 void copy_to_host(VkCommandBuffer commands, VkBuffer source, VkDeviceSize source_offset, VkBuffer target,
                   VkDeviceSize target_offset, VkDeviceSize bytes) {
@@ -394,7 +405,7 @@ void DeviceCones::State::record_texels(VkCommandBuffer commands, int heights, co
     const auto row = std::uint32_t(groups_u * CONE_GROUP_LEVELS);  // invocations, a group row's
     texel_kernel(heights, group_far_form)
         .record(commands, group_count(row, CONE_TILE * CONE_TILE), std::uint32_t(group_rows), 1, &far_push);
-    compute_barrier(commands);
+    compute_to_compute_barrier(commands);  // (a band's command buffer may be a compute-only queue's)
   }
   texel.record(commands, group_count(std::uint32_t(width), CONE_TILE), std::uint32_t(group_rows), 1,
                &texel_push);
@@ -541,7 +552,7 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.band_timer.begin(band, int(index));
     const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
     if (end > first) {
-      compute_barrier(band);  // the band before read group_far, whose other rows this one writes
+      compute_to_compute_barrier(band);  // the band before read group_far, whose other rows this one writes
       s.record_texels(band, 1 + s.progress, budget, first, end - first);
     }
     s.band_timer.end(band, int(index));
