@@ -37,6 +37,7 @@ struct FramePipeline::State {
   render::MapNeeds needs;
   bool deterministic = true;  // a work budget or none: a frame depends on its index only
   int cone_lag_frames = 0;    // lagged cone maps: the scene's lag where it applies, else 0
+  bool cone_ahead = false;    // Scene::cone_ahead where it applies (a lag of 1 on the device path)
 
   // kept for the whole run
   std::array<HeightFrame, 2> heights;      // frames in flight (run_frames overlaps two; run uses the first)
@@ -129,6 +130,13 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
   }
   if (scene.source != SourceKind::image) s.maker.reserve(s.cpu_needs, scene.map_size, scene.map_size);
   s.heights_to_cpu = s.cpu_needs.cone_sectors > 0 || s.cpu_needs.max_pyramid || s.cpu_needs.distance;
+  if (scene.cone_ahead &&
+      (scene.cone_lag_frames != 1 || !s.sim_on_device() || !s.bake_on_device || s.heights_to_cpu))
+    throw SceneError(
+        "budget.cone_ahead needs budget.cone_lag_frames = 1 with the sim and the cone bake on the device "
+        "(a moving source, a cone method that reads no map the CPU makes, backend.sim and backend.bake "
+        "device or auto on a GPU)");
+  s.cone_ahead = scene.cone_ahead && s.cone_lag_frames == 1;  // where lagged maps apply (real time)
 }
 
 FramePipeline::~FramePipeline() = default;
@@ -159,7 +167,9 @@ void simulate_on_device(FramePipeline::State& s, int slot, double time, FrameRec
   record.sim_on_device = true;
   record.sim_device_ms = s.device_source->device_milliseconds();
   const long long ffts = s.device_source->fft_count();
-  s.device_source->simulate(source_time(source_settings(s.scene), time));
+  // ahead: the next frame's heights first, for the map begun in the bake (which simulates this frame's after)
+  const double sim_time = s.cone_ahead ? time + 1.0 / s.scene.fps : time;
+  s.device_source->simulate(source_time(source_settings(s.scene), sim_time));
   record.ffts = s.device_source->fft_count() - ffts;
   record.choppy_residual = 0.0;
   heights.field.width = heights.field.height = s.device_source->size();
@@ -197,7 +207,15 @@ void bake_on_device(FramePipeline::State& s, const HeightFrame& frame, FrameReco
   }
   if (s.sim_on_device() || s.device_cones_version != frame.version) {
     // lagged: a share of the next map, and the last one served raised (render/device.h)
-    record.cone_lag = s.device_cones->bake_lagged(s.device_budget, s.cone_lag_frames);
+    if (s.cone_ahead) {  // the next frame's map from the next frame's heights, then this frame's heights
+      s.device_cones->advance_lagged(s.device_budget, 1);
+      const long long ffts = s.device_source->fft_count();
+      s.device_source->simulate(source_time(source_settings(s.scene), record.time));
+      record.ffts += s.device_source->fft_count() - ffts;
+      record.cone_lag = s.device_cones->compose_lagged();
+    } else {
+      record.cone_lag = s.device_cones->bake_lagged(s.device_budget, s.cone_lag_frames);
+    }
     s.device_cones_version = frame.version;
   }
   record.bake_on_device = true;

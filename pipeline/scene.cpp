@@ -612,7 +612,9 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
   scene.start = read.number(time, "time", "start", scene.start, -max_abs_time, max_abs_time);
   scene.fps = read.number(time, "time", "fps", scene.fps, 1e-3, max_fps);
   const toml::table* budget = read.section(root, "budget");
-  if (budget) read.known_keys(*budget, "budget", {"frame_ms", "bake_work", "tolerance", "cone_lag_frames"});
+  if (budget)
+    read.known_keys(*budget, "budget",
+                    {"frame_ms", "bake_work", "tolerance", "cone_lag_frames", "cone_ahead"});
   scene.frame_ms = read.number(budget, "budget", "frame_ms", scene.frame_ms, 0.0, max_frame_ms);
   scene.bake_work = read.integer(budget, "budget", "bake_work", scene.bake_work, -1, max_bake_work);
   scene.tolerance =
@@ -621,6 +623,7 @@ void read_time_and_budget(const Reader& read, const toml::table& root, Scene& sc
     read.fail(key_node(budget, "tolerance"), "budget.tolerance", "must be below 1");
   scene.cone_lag_frames =
       int(read.integer(budget, "budget", "cone_lag_frames", scene.cone_lag_frames, 0, max_cone_lag_frames));
+  scene.cone_ahead = read.boolean(budget, "budget", "cone_ahead", scene.cone_ahead);
 }
 
 void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
@@ -770,7 +773,8 @@ std::string scene_toml(const Scene& scene) {
   root.insert("time", toml::table{{"start", scene.start}, {"fps", scene.fps}});
   toml::table budget{{"bake_work", std::int64_t(scene.bake_work)},
                      {"tolerance", tidy(scene.tolerance)},
-                     {"cone_lag_frames", std::int64_t(scene.cone_lag_frames)}};
+                     {"cone_lag_frames", std::int64_t(scene.cone_lag_frames)},
+                     {"cone_ahead", scene.cone_ahead}};
   if (std::isfinite(scene.frame_ms)) budget.insert("frame_ms", scene.frame_ms);
   root.insert("budget", budget);
   root.insert("backend", toml::table{{"sim", backend_word(scene.sim_backend)},

@@ -128,6 +128,10 @@ struct Scene {
   // spread over after the one it begins on, while the last map is served with raised apexes
   // (FramePipeline's lagged maps); 0: every frame makes its own.
   int cone_lag_frames = 0;  // 0 .. max_cone_lag_frames
+  // With cone_lag_frames = 1 and the sim and the bake on the device: each frame begins the next
+  // frame's map from heights simulated at the next frame's time (start + 1 / fps on), baked beside
+  // its draw, so that every frame samples a map of its own heights, raised by a lift of about 0.
+  bool cone_ahead = false;
 
   // [backend]: where the sim and the cone bake run. The sim's backend applies to the moving sources
   // (ocean, sinusoids); static ones (bricks, cliff, images) are made or read once on the CPU.

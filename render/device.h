@@ -153,6 +153,14 @@ class DeviceCones {
   // first after N changed, makes a whole map. Returns the age in calls of the map the frame samples;
   // 0 is bake(budget). docs/design/lagged-cone-maps.md.
   long long bake_lagged(const DeviceConeBudget& budget, int lag_frames);
+  // bake_lagged(budget, N >= 1) in its two halves, so that the heights may change between them:
+  // advance_lagged serves the map whose bands are done and begins the next from the heights as they
+  // are (and records this frame's band); compose_lagged raises the served map by the lift over the
+  // heights as they are then, for this frame's draw, and returns its age. A map made from heights
+  // simulated at the next frame's time (the sim run again at this frame's own before compose) is
+  // served the next frame with a lift of about 0: the frame's own map, baked beside the frame before.
+  void advance_lagged(const DeviceConeBudget& budget, int lag_frames);
+  long long compose_lagged();
   // How far the apexes were raised in the last bake_lagged() frame that has finished (0: none yet,
   // or it was not lagged).
   float lift() const;

@@ -173,6 +173,7 @@ struct DeviceCones::State {
   long long calls = 0;          // bake_lagged calls so far
   long long begun = 0;          // the call the map in progress began on
   long long served_begun = -1;  // the call the served map began on; -1: none finished yet
+  int advanced_slot = -1;       // the frame slot of an advance_lagged() not yet composed
   // the bands go to the async queue (Context::async_queue), beside the frame's draw: command buffers
   // taken in turn (one more than the frames in flight, so that the one taken was submitted three
   // frames before), the async value of each one's last submission, and the bands' own timer
@@ -182,6 +183,10 @@ struct DeviceCones::State {
   long long bands_made = 0;     // bands submitted so far
   std::uint64_t last_band = 0;  // the async value of the last band submitted (0: none)
   StageTimer band_timer;        // by band command buffer
+  // a lagged frame's own device time: `timer` around advance_lagged's commands up to a flush (so that
+  // a band on the same queue falls outside it), this one around compose_lagged's
+  StageTimer compose_timer;
+  bool lagged_times = false;  // the last bake was lagged: its time is the three timers'
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
@@ -447,6 +452,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   s.timer.end(commands, slot);
   s.band = -1;  // a lagged map in progress used the pyramid and counters that this bake rewrote
   s.read_served = false;
+  s.lagged_times = false;
   if (s.lift_host.handle() != VK_NULL_HANDLE) static_cast<float*>(s.lift_host.mapped())[slot] = 0.0f;
   s.baked = true;
 }
@@ -481,6 +487,7 @@ void DeviceCones::State::make_lagged() {
   }
   for (VkCommandBuffer& commands : band_commands) commands = context.allocate_async_command_buffer();
   band_timer = StageTimer(context);
+  compose_timer = StageTimer(context);
   compose_kernel = impl.cone_kernels->compose.sibling();
   compose_kernel.bind_buffer(0, served.handle());
   compose_kernel.bind_buffer(1, counters.handle());
@@ -504,9 +511,19 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
     s.served_begun = -1;  // what was served is not this frame's map
     return 0;
   }
+  advance_lagged(budget, lag_frames);
+  return compose_lagged();
+}
+
+void DeviceCones::advance_lagged(const DeviceConeBudget& budget, int lag_frames) {
+  State& s = *state_;
+  if (lag_frames < 1)
+    throw RenderError("DeviceCones::advance_lagged: a lag of " + std::to_string(lag_frames) + " frames");
+  validate_budget(budget);
   s.check_source();
   s.make_lagged();
   const int slot = s.impl.slot;
+  s.advanced_slot = slot;
   VkCommandBuffer commands = s.impl.begin_slot().commands;
   s.timer.begin(commands, slot);
   // the first map, and the first after the lag changed, is made whole in this frame (on the frame's
@@ -592,11 +609,23 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
       compute_barrier(commands);
       serve();
     } else {  // submitted now, so that this frame's band can follow it on the async queue
+      s.timer.end(commands, slot);
       map_begun = s.impl.flush_slot();
       commands = s.impl.begin_slot().commands;
     }
   }
+  if (map_begun == 0) s.timer.end(commands, slot);
   if (!whole) submit_band(map_begun);
+}
+
+long long DeviceCones::compose_lagged() {
+  State& s = *state_;
+  const int slot = s.advanced_slot;
+  if (slot < 0 || slot != s.impl.slot)
+    throw RenderError("DeviceCones::compose_lagged: no advance_lagged() in this frame before it");
+  s.advanced_slot = -1;
+  const VkCommandBuffer commands = s.impl.begin_slot().commands;
+  s.compose_timer.begin(commands, slot);
   // this frame's lift over the served map's heights, and the served map with its apexes raised by it
   vkCmdFillBuffer(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, 4, 0);
   transfer_to_compute_barrier(commands);
@@ -611,9 +640,10 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
   copy_to_host(commands, s.counters.handle(), CONE_COUNTER_LIFT * 4, s.lift_host.handle(),
                VkDeviceSize(slot) * 4, 4);
   s.record_to_image(commands, s.composed.handle());
-  s.timer.end(commands, slot);
+  s.compose_timer.end(commands, slot);
   s.baked = true;
   s.read_served = true;
+  s.lagged_times = true;
   const long long age = s.calls - s.served_begun;
   ++s.calls;
   return age;
@@ -630,10 +660,13 @@ double DeviceCones::device_milliseconds() const {
   State& s = *state_;
   if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
     s.timer.read(s.timer.last_slot());
+  if (!s.lagged_times) return s.timer.milliseconds();
+  if (s.compose_timer.last_slot() >= 0 && s.impl.slot_finished(s.compose_timer.last_slot()))
+    s.compose_timer.read(s.compose_timer.last_slot());
   const int band_slot = s.band_timer.last_slot();
   if (band_slot >= 0 && s.impl.async_finished(s.band_value[std::size_t(band_slot)]))
     s.band_timer.read(band_slot);
-  return s.timer.milliseconds() + s.band_timer.milliseconds();
+  return s.timer.milliseconds() + s.compose_timer.milliseconds() + s.band_timer.milliseconds();
 }
 
 DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<float>* apex) {

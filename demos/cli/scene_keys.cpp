@@ -423,6 +423,14 @@ const std::vector<Entry>& entries() {
        "with a frame budget and moving heights: frames a cone map may take to make while the last one is "
        "served with raised apexes (0: every frame makes its own)",
        [] { return integer_in(0, pipeline::max_cone_lag_frames); }},
+      {"--cone-ahead",
+       scene_frames,
+       {"budget.cone_ahead"},
+       Kind::on,
+       "",
+       "with --cone-lag 1 and the sim and bake on the device: each frame bakes the next frame's cone map "
+       "from the next frame's heights beside its draw",
+       {}},
   };
   return table;
 }

@@ -14,7 +14,8 @@
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
 //    allocations after warm-up. Each with the sim and bake on the CPU, the sim on the device, and both
-//    on the device (lagged by 0, 1, 3 and 7 frames: render::DeviceCones::bake_lagged), with
+//    on the device (lagged by 0, 1, 3 and 7 frames: render::DeviceCones::bake_lagged; 1 also with the
+//    maps made ahead, Scene::cone_ahead), with
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
 // 3. Stage L of the renderer's cone maps (bake::BilinearBaker, budget 0) on the CPU with 1, 2, 4, 8 and
@@ -180,8 +181,14 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
         continue;
       std::vector<int> lags = plan.cone_lags;
       if (bake_backend == Backend::device && plan.frames > 20)
-        lags = {0, 1, 3, 7};  // 1: a whole map a frame late
+        lags = {0, 1, 3, 7};                       // 1: a whole map a frame late
+      std::vector<std::pair<int, bool>> lag_rows;  // (lag, maps made ahead)
       for (int lag : lags) {
+        lag_rows.emplace_back(lag, false);
+        if (lag == 1 && sim_backend == Backend::device && bake_backend == Backend::device)
+          lag_rows.emplace_back(1, true);  // Scene::cone_ahead
+      }
+      for (const auto& [lag, ahead] : lag_rows) {
         // in series, overlapped and, with the bake on the device, in flight: nothing read back (as a
         // window shows its frames), two frames in flight, the mean period over the frames
         const int modes = bake_backend == Backend::device ? 3 : 2;
@@ -197,6 +204,7 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
           scene.steps = 32;
           scene.frame_ms = 0.0;
           scene.cone_lag_frames = lag;
+          scene.cone_ahead = ahead;
           scene.device_first_pass.ring_radius = ring_radius;
           scene.device_first_pass.group = group_first_pass;
           pipeline::FramePipeline frames(scene, renderer);
@@ -216,10 +224,11 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
                 frame_count;
             std::printf(
-                "frame in flight: water, map %d, %d x %d pixels, cone lag %d, sim on the %s, bake on the %s "
+                "frame in flight: water, map %d, %d x %d pixels, cone lag %d%s, sim on the %s, bake on the "
+                "%s "
                 "(first pass: rings %d%s), bands on %s: mean period %.3f ms over %d frames (nothing read "
                 "back), device p50 sim %.3f bake %.3f ms, %lld allocations after warm-up\n",
-                size, size, size, lag, pipeline::backend_word(scene.sim_backend),
+                size, size, size, lag, ahead ? " ahead" : "", pipeline::backend_word(scene.sim_backend),
                 pipeline::backend_word(scene.bake_backend), ring_radius, group_first_pass ? ", group" : "",
                 renderer.device().compute_queue_apart ? "a compute queue apart" : "the frame's queue", period,
                 frame_count, percentile(sim_device, 0.5), percentile(bake_device, 0.5),
@@ -246,13 +255,13 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
             for (int n = 0; n < frame_count; ++n) keep(frames.run(plan.warm_up + n, frame), frame);
           }
           std::printf(
-              "frame: water, map %d, %d x %d pixels, %s, cone lag %d, sim on the %s, bake on the %s (first "
+              "frame: water, map %d, %d x %d pixels, %s, cone lag %d%s, sim on the %s, bake on the %s (first "
               "pass: rings %d%s): p50 sim %.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
               "%.3f "
               "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after "
               "warm-up\n",
-              size, size, size, overlapped ? "overlapped" : "in series", lag,
+              size, size, size, overlapped ? "overlapped" : "in series", lag, ahead ? " ahead" : "",
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
               ring_radius, group_first_pass ? ", group" : "", percentile(sim, 0.5), percentile(bake, 0.5),
               percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),

@@ -187,4 +187,52 @@ TEST(DeviceFrames, LaggedConeMapsReportTheirAgeAndLift) {
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
+// Maps made ahead (Scene::cone_ahead, a lag of 1): each frame bakes the next frame's map beside its
+// draw from heights simulated at the next frame's time and simulates its own after that, so every
+// frame from the second on samples a map of its own heights, one frame old, raised by a lift of
+// about 0 (the same sim at the same time; plain lag 1 raises by the sea's rise over a frame), and
+// hits where the frames with their own maps (no lag) hit. Two sims a frame; refused where it cannot apply.
+TEST(DeviceFrames, MapsMadeAheadAreEachFramesOwnHeights) {
+  render::Renderer& renderer = frames_renderer();
+  pipeline::Scene scene = small_scene("water", pipeline::Backend::device, pipeline::Backend::device);
+  scene.frame_ms = 0.0;  // real time, where lagged maps apply
+  pipeline::Scene lagged_scene = scene, ahead_scene = scene;
+  lagged_scene.cone_lag_frames = ahead_scene.cone_lag_frames = 1;
+  ahead_scene.cone_ahead = true;
+  // one pipeline at a time: a renderer samples one DeviceSim's heights
+  std::vector<render::Frame> own_frames(6);
+  {
+    pipeline::FramePipeline own(scene, renderer);
+    for (long long n = 0; n < 6; ++n) own.run(n, own_frames[std::size_t(n)], render::output_uv);
+  }
+  float lagged_lift = 0.0f;
+  {
+    pipeline::FramePipeline lagged(lagged_scene, renderer);
+    render::Frame frame;
+    for (long long n = 0; n < 6; ++n)
+      lagged_lift = std::max(lagged_lift, lagged.run(n, frame, render::output_uv).cone_lift);
+  }
+  pipeline::FramePipeline ahead(ahead_scene, renderer);
+  render::Frame ahead_frame;
+  for (long long n = 0; n < 6; ++n) {
+    SCOPED_TRACE("frame " + std::to_string(n));
+    const pipeline::FrameRecord record = ahead.run(n, ahead_frame, render::output_uv);
+    EXPECT_EQ(record.ffts, 12);  // the next frame's heights and this one's, 6 FFTs each
+    if (n > 0) {
+      EXPECT_EQ(record.cone_lag, 1);
+      EXPECT_LE(record.cone_lift, 1e-5f);
+    }
+    EXPECT_GE(agreeing_share(own_frames[std::size_t(n)], ahead_frame, scene.map_size), 0.999);
+  }
+  EXPECT_GT(lagged_lift, 1e-3f);
+  for (const auto& [lag, sim] :
+       {std::pair{2, pipeline::Backend::device}, std::pair{1, pipeline::Backend::cpu}}) {
+    pipeline::Scene refused = ahead_scene;
+    refused.cone_lag_frames = lag;
+    refused.sim_backend = sim;
+    EXPECT_THROW(pipeline::FramePipeline(refused, renderer), pipeline::SceneError);
+  }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
 }  // namespace
