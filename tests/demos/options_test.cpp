@@ -144,6 +144,9 @@ TEST(Options, RejectsWhatDoesNotApply) {
             2);
   EXPECT_TRUE(usage({"play", "--frames", "3", "--cone-lag", "2"}));  // --frames is deterministic
   EXPECT_EQ(settings_of<PlaySettings>(parse({"play", "--cone-lag", "2"})).scene.cone_lag_frames, 2);
+  EXPECT_TRUE(settings_of<BenchFrameSettings>(
+                  parse({"bench-frame", "--budget-ms", "10", "--cone-lag", "1", "--cone-ahead"}))
+                  .scene.cone_ahead);
   EXPECT_TRUE(usage({"bake", "--input", "h.exr", "--sectors", "4", "--cones", "bilinear", "--mode", "full",
                      "--budget-ms", "0", "--output", "c.exr"}));
 }

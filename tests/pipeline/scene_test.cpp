@@ -43,11 +43,13 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
     scene.frame_ms = 16.0;
     scene.bake_work = 5000;
     scene.cone_lag_frames = 3;
+    scene.cone_ahead = true;
     scene.device_first_pass = {2, 3, true};
     const std::string text = pipeline::scene_toml(scene);
     const Scene back = pipeline::parse_scene(text, name);
     EXPECT_EQ(pipeline::scene_toml(back), text) << name;
     EXPECT_TRUE(back.device_first_pass.group) << name;
+    EXPECT_TRUE(back.cone_ahead) << name;
   }
 }
 
@@ -143,6 +145,7 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"budget.bake_work", {"-2", "0.5"}},
       {"budget.tolerance", {"2", "\"loose\""}},
       {"budget.cone_lag_frames", {"-1", "65", "1.5"}},
+      {"budget.cone_ahead", {"1", "\"yes\""}},
       {"backend.sim", {"1", "\"gpu\""}},
       {"backend.bake", {"\"gpu\""}},
       {"backend.device_rings", {"-1", "9", "\"two\""}},
