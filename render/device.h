@@ -149,7 +149,7 @@ class DeviceCones {
   // renderer's async queue (RendererOptions::async_compute: beside the frame's draw on a GPU) - and
   // served from the N-th call after it began, when the next one begins. Each call's frame samples the
   // served map with every apex raised by the most any texel rose since that map's heights (rounded
-  // up): conservative for the frame's own heights, N to 2N - 1 calls old. The first call, and the
+  // up): conservative for the frame's own heights, at most 2N - 1 calls old. The first call, and the
   // first after N changed, makes a whole map. Returns the age in calls of the map the frame samples;
   // 0 is bake(budget). docs/design/lagged-cone-maps.md.
   long long bake_lagged(const DeviceConeBudget& budget, int lag_frames);

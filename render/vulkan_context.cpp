@@ -141,20 +141,12 @@ int graphics_queue_family(VkPhysicalDevice device) {
   return -1;
 }
 
-// A family with compute and without graphics, with timestamps where `timestamps` (the frame's family
-// has them, so the async stages are timed too); -1: none.
 int compute_only_family(VkPhysicalDevice device, bool timestamps) {
   std::uint32_t count = 0;
   vkGetPhysicalDeviceQueueFamilyProperties(device, &count, nullptr);
   std::vector<VkQueueFamilyProperties> families(count);
   vkGetPhysicalDeviceQueueFamilyProperties(device, &count, families.data());
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const VkQueueFlags flags = families[i].queueFlags;
-    if ((flags & VK_QUEUE_COMPUTE_BIT) && !(flags & VK_QUEUE_GRAPHICS_BIT) && families[i].queueCount > 0 &&
-        (!timestamps || families[i].timestampValidBits > 0))
-      return int(i);
-  }
-  return -1;
+  return pick_async_family(families, timestamps);
 }
 
 std::string lower(std::string text) {
@@ -234,6 +226,16 @@ Candidate choose_device(VkInstance instance, const RendererOptions& options) {
 }
 
 }  // namespace
+
+int pick_async_family(std::span<const VkQueueFamilyProperties> families, bool timestamps) {
+  for (std::size_t i = 0; i < families.size(); ++i) {
+    const VkQueueFlags flags = families[i].queueFlags;
+    if ((flags & VK_QUEUE_COMPUTE_BIT) && !(flags & VK_QUEUE_GRAPHICS_BIT) && families[i].queueCount > 0 &&
+        (!timestamps || families[i].timestampValidBits > 0))
+      return int(i);
+  }
+  return -1;
+}
 
 void check_vk(VkResult result, const char* call, const char* file, int line) {
   if (result == VK_SUCCESS) return;

@@ -10,12 +10,18 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <utility>
 
 #include "render/render.h"
 
 namespace displace::render {
+
+// The queue family for work beside the frame's (Context::async_queue): the first with compute and
+// without graphics, with timestamps where `timestamps` (the frame's family has them, so that the
+// async stages are timed too); -1: none.
+int pick_async_family(std::span<const VkQueueFamilyProperties> families, bool timestamps);
 
 // Throws RenderError naming the call, file and line when a Vulkan call fails.
 void check_vk(VkResult result, const char* call, const char* file, int line);
