@@ -164,8 +164,9 @@ struct DeviceCones::State {
   // the frame samples, and each frame's lift for the host (a float per frame slot)
   Image snapshots[2];
   Buffer served, composed, lift_host;
-  Buffer served_counters;    // the counters of the served map, copied when it is served
-  bool read_served = false;  // read_back reads served_counters: the last bake was bake_lagged
+  Buffer served_counters;  // the counters of the served map, copied when it is served
+  // the last bake was lagged: read_back reads served_counters, and its device time is three timers'
+  bool lagged = false;
   ComputeKernel snapshot_cells[2], lift_kernel[2], compose_kernel;
   int lag = 0;                  // N of the maps being made
   int progress = 0;             // the snapshot the map in progress reads
@@ -186,7 +187,6 @@ struct DeviceCones::State {
   // a lagged frame's own device time: `timer` around advance_lagged's commands up to a flush (so that
   // a band on the same queue falls outside it), this one around compose_lagged's
   StageTimer compose_timer;
-  bool lagged_times = false;  // the last bake was lagged: its time is the three timers'
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
@@ -451,8 +451,7 @@ void DeviceCones::bake(const DeviceConeBudget& budget) {
   s.record_to_image(commands, s.cone_values.handle());
   s.timer.end(commands, slot);
   s.band = -1;  // a lagged map in progress used the pyramid and counters that this bake rewrote
-  s.read_served = false;
-  s.lagged_times = false;
+  s.lagged = false;
   if (s.lift_host.handle() != VK_NULL_HANDLE) static_cast<float*>(s.lift_host.mapped())[slot] = 0.0f;
   s.baked = true;
 }
@@ -503,9 +502,6 @@ void DeviceCones::State::make_lagged() {
 
 long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frames) {
   State& s = *state_;
-  if (lag_frames < 0)
-    throw RenderError("DeviceCones::bake_lagged: a lag of " + std::to_string(lag_frames) + " frames");
-  validate_budget(budget);
   if (lag_frames == 0) {
     bake(budget);
     s.served_begun = -1;  // what was served is not this frame's map
@@ -518,7 +514,8 @@ long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frame
 void DeviceCones::advance_lagged(const DeviceConeBudget& budget, int lag_frames) {
   State& s = *state_;
   if (lag_frames < 1)
-    throw RenderError("DeviceCones::advance_lagged: a lag of " + std::to_string(lag_frames) + " frames");
+    throw RenderError("DeviceCones: a lagged map's lag of " + std::to_string(lag_frames) +
+                      " frames; it is 1 or more (bake_lagged: 0 or more)");
   validate_budget(budget);
   s.check_source();
   s.make_lagged();
@@ -642,8 +639,7 @@ long long DeviceCones::compose_lagged() {
   s.record_to_image(commands, s.composed.handle());
   s.compose_timer.end(commands, slot);
   s.baked = true;
-  s.read_served = true;
-  s.lagged_times = true;
+  s.lagged = true;
   const long long age = s.calls - s.served_begun;
   ++s.calls;
   return age;
@@ -660,7 +656,7 @@ double DeviceCones::device_milliseconds() const {
   State& s = *state_;
   if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
     s.timer.read(s.timer.last_slot());
-  if (!s.lagged_times) return s.timer.milliseconds();
+  if (!s.lagged) return s.timer.milliseconds();
   if (s.compose_timer.last_slot() >= 0 && s.impl.slot_finished(s.compose_timer.last_slot()))
     s.compose_timer.read(s.compose_timer.last_slot());
   const int band_slot = s.band_timer.last_slot();
@@ -694,7 +690,7 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
                   VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_TRANSFER_READ_BIT, VK_ACCESS_SHADER_READ_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
   }
-  copy_to_host(commands, (s.read_served ? s.served_counters : s.counters).handle(), 0, s.readback.handle(),
+  copy_to_host(commands, (s.lagged ? s.served_counters : s.counters).handle(), 0, s.readback.handle(),
                image_bytes, CONE_COUNTERS * 4);
   s.impl.submit_slot(true);
 
