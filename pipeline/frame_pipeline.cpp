@@ -59,7 +59,9 @@ struct FramePipeline::State {
   bool bake_on_device = false;
   std::unique_ptr<render::DeviceCones> device_cones;
   std::uint64_t device_cones_version = 0;  // the heights the device cones were last baked from
-  render::MapNeeds cpu_needs;              // what the map maker makes
+  // the levels of detail of a device sim's heights, made on the device (whichever bakes level 0)
+  std::unique_ptr<render::DeviceLevels> device_levels;
+  render::MapNeeds cpu_needs;  // what the map maker makes
   render::DeviceConeBudget device_budget;
 };
 
@@ -115,19 +117,23 @@ FramePipeline::FramePipeline(const Scene& scene, render::Renderer& renderer, std
     }
   }
   s.cpu_needs = s.needs;
-  // the device path traces level 0 only: its heights and cones are the device's, the levels the CPU's
+  // the levels follow the heights: a device sim's are made on the device (whichever bakes level 0);
+  // a static map's with its cones on the device get none (the CPU's chain would need the CPU's cones)
   if (s.sim_on_device() || s.bake_on_device) s.cpu_needs.levels = false;
+  s.device_budget.first_pass = scene.device_first_pass;
+  s.device_budget.texels = scene.bake_work >= 0            ? scene.bake_work
+                           : std::isfinite(scene.frame_ms) ? 0
+                                                           : render::unlimited_texels;
   if (s.bake_on_device) {
     s.cpu_needs.cone_sectors = 0;
     s.cpu_needs.relaxed = false;
-    s.device_budget.first_pass = scene.device_first_pass;
-    s.device_budget.texels = scene.bake_work >= 0            ? scene.bake_work
-                             : std::isfinite(scene.frame_ms) ? 0
-                                                             : render::unlimited_texels;
     if (s.sim_on_device())
       s.device_cones =
           std::make_unique<render::DeviceCones>(renderer, s.needs.cone_sectors, s.needs.cone_address);
   }
+  if (s.sim_on_device() && s.needs.levels && s.needs.cone_sectors > 0)
+    s.device_levels =
+        std::make_unique<render::DeviceLevels>(renderer, s.needs.cone_sectors, s.needs.cone_address);
   if (scene.source != SourceKind::image) s.maker.reserve(s.cpu_needs, scene.map_size, scene.map_size);
   s.heights_to_cpu = s.cpu_needs.cone_sectors > 0 || s.cpu_needs.max_pyramid || s.cpu_needs.distance;
   if (scene.cone_ahead &&
@@ -227,6 +233,7 @@ void bake_into(FramePipeline::State& s, int slot, double budget_ms, FrameRecord&
   record.bake_budget_ms = budget_ms;
   const HeightFrame& frame = s.heights[std::size_t(slot)];
   if (s.bake_on_device) bake_on_device(s, frame, record);
+  if (s.device_levels) s.device_levels->make(s.device_budget);  // of the frame's own heights (after ahead's)
   MapHeights heights;
   heights.heights = frame.field.heights;
   heights.width = frame.field.width;
@@ -263,6 +270,13 @@ void upload_from(FramePipeline::State& s, int slot) {
     maps.heights = {};
     maps.heights_on_device = true;
     maps.foam_on_device = (s.device_source->effects() & render::device_foam) != 0;
+    if (s.device_levels) {
+      maps.levels_on_device = true;
+      maps.level_count = s.device_levels->level_count();
+      maps.level_sectors = s.device_levels->sector_count();
+      maps.level_address = s.device_levels->address();
+      maps.levels = {};
+    }
   }
   if (s.bake_on_device) {
     render::ConeMapView& cones = maps.cones[std::size_t(render::cone_slot(s.needs.cone_sectors))];
@@ -294,6 +308,10 @@ void FramePipeline::draw(const render::View& view, render::Frame& frame, unsigne
   if (state_->device_cones) {
     record.bake_device_ms = state_->device_cones->device_milliseconds();
     if (state_->cone_lag_frames > 0) record.cone_lift = state_->device_cones->lift();
+  }
+  if (state_->device_levels) {
+    record.levels_device_ms = state_->device_levels->device_milliseconds();
+    record.bake_device_ms = (state_->device_cones ? record.bake_device_ms : 0.0) + record.levels_device_ms;
   }
 }
 

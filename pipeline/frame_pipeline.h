@@ -44,9 +44,11 @@ struct FrameRecord {
   double choppy_residual = 0.0;  // metres: the resampling's largest |p + D(p) - x|
   // The device path: where the sim and the bake ran, and the device's own milliseconds from GPU
   // timestamps (0 where none): this frame's when its outputs were read back (the frame finished),
-  // else the last finished frame's (with output_none, an earlier frame's; the draw's then 0)
+  // else the last finished frame's (with output_none, an earlier frame's; the draw's then 0). The
+  // bake's counts the levels of detail made on the device (a device sim's on the unbounded sea), and
+  // levels_device_ms is their share of it.
   bool sim_on_device = false, bake_on_device = false;
-  double sim_device_ms = 0.0, bake_device_ms = 0.0, render_device_ms = 0.0;
+  double sim_device_ms = 0.0, bake_device_ms = 0.0, render_device_ms = 0.0, levels_device_ms = 0.0;
 };
 
 // Reads an albedo image (Scene::albedo) as RGBA8: the application's reader.

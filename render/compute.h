@@ -86,6 +86,10 @@ class StageTimer {
   double milliseconds_ = 0.0;
 };
 
+// Transfer writes recorded so far (copies into host-visible buffers) made visible to the host once
+// the submission has finished.
+void host_read_barrier(VkCommandBuffer commands);
+
 // Before a device stage writes again what earlier frames' shaders and copies read or wrote (its maps
 // and buffers): their vertex, fragment, compute and transfer work ends first.
 void rewrite_barrier(VkCommandBuffer commands);

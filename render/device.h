@@ -14,6 +14,10 @@
 // bilinear surface over the texel's square, r_k valid from every point of it) made in compute from
 // heights on the device - a DeviceSim's, or a static map uploaded once - into the cone image the
 // renderer samples (ConeMapView::on_device). Proof and figures: docs/design/device-cones.md.
+//
+// DeviceLevels: the levels of detail of a DeviceSim's heights (bake.h's chain and its slope moments)
+// with each level's cones, made in compute into the atlases the renderer samples
+// (MapSet::levels_on_device): the far sea of the device path. docs/design/levels.md.
 #pragma once
 
 #include <memory>
@@ -23,6 +27,8 @@
 #include "render/render.h"
 
 namespace displace::render {
+
+class Image;  // render/vulkan_context.h
 
 // What the device ocean needs, made once on the CPU (pipeline/ fills it from sim::Ocean::half_spectrum).
 struct OceanSpectrumView {
@@ -171,6 +177,50 @@ class DeviceCones {
   bake::Address address() const;
   // The device's milliseconds for the last bake() whose frame has finished (GPU timestamps); 0 where
   // none has, or the device has no timestamps.
+  double device_milliseconds() const;
+
+  struct State;
+
+ private:
+  friend class DeviceLevels;
+  // A level's cones (DeviceLevels): of `heights`, an image DeviceLevels writes, into a cone image of its
+  // own (not the one the renderer samples for level 0).
+  DeviceCones(Renderer& renderer, const Image& heights, int sector_count, bake::Address address);
+  std::unique_ptr<State> state_;
+};
+
+// DeviceLevels: the levels of detail of the heights this renderer's DeviceSim writes, made on the
+// device for frames whose MapSet has levels_on_device. The chain is bake.h's (levels 1 ..
+// bake::detail_level_count(W, H), each the 2 x 2 box means of the one below, with the slope moments of
+// bake::gradient_moments and downsample_moments): the same heights as the CPU's chain of the same
+// level-0 heights, bit for bit, and the same moments within a float rounding. Each level's cones are
+// a DeviceCones' of that level's heights (bake.h's bilinear contract for the level's surface), and
+// each level's highest height (where a ray on it starts) is the top of that bake's max pyramid,
+// copied into the frame's uniforms on the device: nothing is read back or uploaded per frame.
+class DeviceLevels {
+ public:
+  // A chain of the renderer's DeviceSim's heights (made before, alive while this is used), with
+  // cones of `sector_count` sectors and `address`; its images and bakes are made here, once.
+  DeviceLevels(Renderer& renderer, int sector_count, bake::Address address);
+  ~DeviceLevels();
+  DeviceLevels(const DeviceLevels&) = delete;
+  DeviceLevels& operator=(const DeviceLevels&) = delete;
+
+  // Records the chain of the heights as they are and every level's cone bake (each within `budget`)
+  // into the renderer's next frame, after the ocean's simulate() there and ahead of the draw.
+  void make(const DeviceConeBudget& budget = {});
+  // Submits what is recorded, waits, and reads back level `level` (1 .. level_count()) as the renderer
+  // samples it (any may be null): heights, slope moments (3 a texel), ratios (W x H x sectors,
+  // decoded), apex heights and the level's highest height (where its rays start); returns that
+  // level's bake stats. Throws RenderError as DeviceCones::read_back does, and for a level out of range.
+  DeviceConeStats read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
+                            std::vector<float>* ratios, std::vector<float>* apex, float* top = nullptr);
+
+  int level_count() const;  // 0 for a map with an odd side
+  int sector_count() const;
+  bake::Address address() const;
+  // The device's milliseconds for the last make() whose frame has finished (the chain and every
+  // level's bake); 0 where none has, or the device has no timestamps.
   double device_milliseconds() const;
 
   struct State;

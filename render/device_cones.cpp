@@ -74,11 +74,7 @@ void copy_to_host(VkCommandBuffer commands, VkBuffer source, VkDeviceSize source
                   VkDeviceSize target_offset, VkDeviceSize bytes) {
   const VkBufferCopy region{source_offset, target_offset, bytes};
   vkCmdCopyBuffer(commands, source, target, 1, &region);
-  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
-                       0, nullptr, 0, nullptr);
+  host_read_barrier(commands);
 }
 
 // Throws RenderError unless the shape is one the kernels take.
@@ -155,6 +151,7 @@ struct DeviceCones::State {
   // the texel kernel's forms (texel_form) bound to the heights read: [0] the source, [1 + k] snapshot k
   std::array<std::array<ComputeKernel, texel_forms>, 3> texel_kernels;
   Renderer::Impl::DeviceConeImage registration;
+  bool borrowed = false;       // the heights are another stage's (a level's), checked by it
   long long refine_limit = 0;  // of the last bake(); unlimited_texels: every texel searched to the cells
   bool baked = false;
   StageTimer timer;
@@ -190,7 +187,7 @@ struct DeviceCones::State {
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
-  void make(const Image& heights, int sector_count, bake::Address address_mode);
+  void make(const Image& heights, int sector_count, bake::Address address_mode, bool registered = true);
   void make_lagged();
   void check_source() const;
   void record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells);
@@ -200,7 +197,8 @@ struct DeviceCones::State {
   void record_to_image(VkCommandBuffer commands, VkBuffer values);
 };
 
-void DeviceCones::State::make(const Image& heights, int sector_count, bake::Address address_mode) {
+void DeviceCones::State::make(const Image& heights, int sector_count, bake::Address address_mode,
+                              bool registered) {
   timer = StageTimer(impl.context);
   sectors = sector_count;
   address = address_mode;
@@ -227,7 +225,8 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   // what a lagged map's bands use on the async queue is shared with it (Context::async_queue)
   const bool shared = true;
   pyramid =
-      Buffer(context, VkDeviceSize(offset) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, device_local, shared);
+      Buffer(context, VkDeviceSize(offset) * 4,
+             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, device_local, shared);
   counters = Buffer(context, CONE_COUNTERS * 4,
                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
@@ -266,7 +265,21 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   reduce_kernel.bind_buffer(0, pyramid.handle());
 
   registration = {&cones, width, height, sectors, address};
-  impl.device_cones[std::size_t(cone_slot(sectors))] = &registration;
+  if (registered) impl.device_cones[std::size_t(cone_slot(sectors))] = &registration;
+}
+
+DeviceCones::DeviceCones(Renderer& renderer, const Image& heights, int sector_count, bake::Address address)
+    : state_(std::make_unique<State>(*renderer.impl_)) {
+  State& s = *state_;
+  s.width = int(heights.width());
+  s.height = int(heights.height());
+  validate_shape(s.width, s.height, sector_count);
+  s.borrowed = true;
+  s.make(heights, sector_count, address, false);
+}
+
+LevelConeParts level_cone_parts(const DeviceCones::State& state) {
+  return {&state.cones, state.pyramid.handle(), VkDeviceSize(state.level_offset.back()) * 4};
 }
 
 DeviceCones::DeviceCones(Renderer& renderer, int sector_count, bake::Address address)
@@ -335,6 +348,7 @@ DeviceCones::~DeviceCones() {
 }
 
 void DeviceCones::State::check_source() const {
+  if (borrowed) return;
   if (own_heights.handle() == VK_NULL_HANDLE && impl.device_heights != source)
     throw RenderError("DeviceCones::bake: the DeviceSim whose heights it reads is gone");
 }
@@ -654,15 +668,13 @@ float DeviceCones::lift() const {
 
 double DeviceCones::device_milliseconds() const {
   State& s = *state_;
-  if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
-    s.timer.read(s.timer.last_slot());
-  if (!s.lagged) return s.timer.milliseconds();
-  if (s.compose_timer.last_slot() >= 0 && s.impl.slot_finished(s.compose_timer.last_slot()))
-    s.compose_timer.read(s.compose_timer.last_slot());
+  const double frame_part = finished_milliseconds(s.timer, s.impl);
+  if (!s.lagged) return frame_part;
+  const double compose_part = finished_milliseconds(s.compose_timer, s.impl);
   const int band_slot = s.band_timer.last_slot();
   if (band_slot >= 0 && s.impl.async_finished(s.band_value[std::size_t(band_slot)]))
     s.band_timer.read(band_slot);
-  return s.timer.milliseconds() + s.compose_timer.milliseconds() + s.band_timer.milliseconds();
+  return frame_part + compose_part + s.band_timer.milliseconds();
 }
 
 DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<float>* apex) {

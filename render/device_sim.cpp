@@ -396,11 +396,7 @@ void DeviceSim::read_back(std::vector<float>* heights, std::vector<float>* metre
   const VkBufferCopy metres_copy{0, map_bytes, map_bytes};
   vkCmdCopyBuffer(commands, s.metres.handle(), s.readback.handle(), 1, &metres_copy);
   if (with_foam) copy_image(s.foam, 2 * map_bytes);
-  VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host,
-                       0, nullptr, 0, nullptr);
+  host_read_barrier(commands);
   s.impl.submit_slot(true);
   const auto* values = static_cast<const float*>(s.readback.mapped());
   if (heights) heights->assign(values, values + s.texels());
@@ -419,11 +415,6 @@ void DeviceSim::finish() { state_->impl.submit_slot(true); }
 int DeviceSim::size() const { return state_->size; }
 unsigned DeviceSim::effects() const { return state_->effects; }
 long long DeviceSim::fft_count() const { return state_->fft_count; }
-double DeviceSim::device_milliseconds() const {
-  State& s = *state_;
-  if (s.timer.last_slot() >= 0 && s.impl.slot_finished(s.timer.last_slot()))
-    s.timer.read(s.timer.last_slot());
-  return s.timer.milliseconds();
-}
+double DeviceSim::device_milliseconds() const { return finished_milliseconds(state_->timer, state_->impl); }
 
 }  // namespace displace::render

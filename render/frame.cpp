@@ -103,12 +103,17 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
           : VkDescriptorImageInfo{linear, foam.held ? foam.image.view() : dummy_foam.view(),
                                   foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const bool levels = traced_levels(view, info) > 0;
-  const VkDescriptorImageInfo level_height_info =
-      levels ? VkDescriptorImageInfo{nearest, level_heights.image.view(), level_heights.read_layout()}
-             : VkDescriptorImageInfo{nearest, dummy_foam.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  const VkDescriptorImageInfo level_cone_info =
-      levels ? VkDescriptorImageInfo{nearest, level_cones.image.view(), level_cones.read_layout()}
-             : VkDescriptorImageInfo{nearest, dummy_cones.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  VkDescriptorImageInfo level_height_info{nearest, dummy_foam.view(),
+                                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  VkDescriptorImageInfo level_cone_info{nearest, dummy_cones.view(),
+                                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  if (levels && levels_from_device) {  // a DeviceLevels' atlases (device.h)
+    level_height_info = {nearest, device_levels->heights->view(), VK_IMAGE_LAYOUT_GENERAL};
+    level_cone_info = {nearest, device_levels->cones->view(), VK_IMAGE_LAYOUT_GENERAL};
+  } else if (levels) {
+    level_height_info = {nearest, level_heights.image.view(), level_heights.read_layout()};
+    level_cone_info = {nearest, level_cones.image.view(), level_cones.read_layout()};
+  }
   auto write = [&](std::uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo* image,
                    const VkDescriptorBufferInfo* buffer) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -289,6 +294,18 @@ void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const V
   begin.clearValueCount = std::uint32_t(clears.size());
   begin.pClearValues = clears.data();
   if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, first_query);
+  if (levels_from_device && traced_levels(view, info) > 0) {
+    // the levels' highest heights, made on the device: over the host's values in the uniforms
+    const VkBufferCopy tops{0, offsetof(gpu::FrameUniforms, level_tops),
+                            sizeof(gpu::FrameUniforms::level_tops)};
+    vkCmdCopyBuffer(commands, device_levels->tops, frame_slot.uniforms.handle(), 1, &tops);
+    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+    vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1,
+                         &barrier, 0, nullptr, 0, nullptr);
+  }
   vkCmdBeginRenderPass(commands, &begin, VK_SUBPASS_CONTENTS_INLINE);
   vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_handle);
   const VkViewport viewport{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};

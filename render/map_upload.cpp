@@ -160,7 +160,7 @@ void validate_cone_sizes(const MapSet& maps) {
 // The levels of detail: a chain the heights' sides halve into, with cone maps of one sector count.
 void validate_levels(const MapSet& maps) {
   const int count = maps.level_count;
-  if (count == 0) return;
+  if (count == 0 || maps.levels_on_device) return;  // a DeviceLevels': checked against it (reshape_levels)
   if (count < 0 || count > bake::max_detail_levels || maps.heights_on_device ||
       (maps.width >> count) << count != maps.width || (maps.height >> count) << count != maps.height ||
       (maps.width >> count) < 1 || (maps.height >> count) < 1 ||
@@ -351,10 +351,27 @@ void reshape_levels(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   Renderer::Impl& impl = reshaper.impl;
   DeviceMap& heights = impl.level_heights;
   DeviceMap& cones = impl.level_cones;
+  impl.levels_from_device = false;
   if (maps.level_count == 0) {
     heights.held = false;
     cones.held = false;
     impl.level_count = 0;
+    return;
+  }
+  if (maps.levels_on_device) {  // the DeviceLevels' atlases: nothing to upload, the host's are stale
+    const Renderer::Impl::DeviceLevelImages* device = impl.device_levels;
+    if (!maps.heights_on_device || device == nullptr || device->width != maps.width ||
+        device->height != maps.height || device->count != maps.level_count ||
+        device->sectors != maps.level_sectors || device->address != maps.level_address) {
+      throw RenderError(
+          "maps: levels_on_device needs heights_on_device and this renderer's DeviceLevels of " +
+          size_text(maps.width, maps.height) + " heights, with its level count, sector count and address");
+    }
+    heights.held = false;
+    cones.held = false;
+    copies.levels = Copy::none;
+    impl.level_count = maps.level_count;
+    impl.levels_from_device = true;
     return;
   }
   const glm::ivec2 atlas = level_atlas_size(maps.width, maps.height, maps.level_count);
@@ -790,9 +807,15 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
 }
 
 int Renderer::Impl::traced_levels(const View& view, const MethodInfo& info) const {
-  if (!traces_levels(info.method, view) || heights_from_device || level_count == 0 || !level_heights.held ||
-      !level_cones.held || level_cones.sectors != info.cone_sectors ||
-      level_cones.address != bake::Address::wrap)
+  if (!traces_levels(info.method, view) || level_count == 0) return 0;
+  if (levels_from_device) {
+    return device_levels != nullptr && device_levels->sectors == info.cone_sectors &&
+                   device_levels->address == bake::Address::wrap
+               ? level_count
+               : 0;
+  }
+  if (heights_from_device || !level_heights.held || !level_cones.held ||
+      level_cones.sectors != info.cone_sectors || level_cones.address != bake::Address::wrap)
     return 0;
   return level_count;
 }

@@ -325,6 +325,9 @@ struct MapSet {
   int level_count = 0;  // 0 .. bake::max_detail_levels
   int level_sectors = 0;
   bake::Address level_address = bake::Address::wrap;
+  // The levels a DeviceLevels of this renderer makes (render/device.h; with heights_on_device): the
+  // count, sectors and address must be its own, and `levels` stays empty.
+  bool levels_on_device = false;
   struct Level {
     std::span<const float> heights;  // (W >> l) x (H >> l)
     std::span<const float> ratios;   // (W >> l) x (H >> l) x level_sectors, interleaved
@@ -501,6 +504,7 @@ class Renderer {
   friend class Swapchain;
   friend class DeviceSim;
   friend class DeviceCones;
+  friend class DeviceLevels;
   std::unique_ptr<Impl> impl_;
 };
 

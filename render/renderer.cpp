@@ -65,7 +65,9 @@ void Renderer::Impl::create_frame_slots() {
     allocate.descriptorSetCount = 1;
     allocate.pSetLayouts = &layout;
     DISPLACE_VK_CHECK(vkAllocateDescriptorSets(device, &allocate, &frame_slot.descriptor_set));
-    frame_slot.uniforms = Buffer(context, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+    // a DeviceLevels' tops are copied in on the device (frame.cpp)
+    frame_slot.uniforms = Buffer(context, sizeof(gpu::FrameUniforms),
+                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                  VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
   }
 

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "render/compute.h"
+#include "render/device.h"
 #include "render/mesh.h"
 #include "render/render.h"
 #include "render/vulkan_context.h"
@@ -50,6 +52,15 @@ inline glm::ivec2 level_atlas_origin(int width, int height, int level) {
 inline glm::ivec2 level_atlas_size(int width, int height, int level_count) {
   return {width / 2 + (level_count >= 2 ? width / 4 : 0), height / 2};
 }
+
+// device_cones.cpp, for DeviceLevels: what it copies from a level's DeviceCones after a bake - the
+// cone image (GENERAL layout) and where the max pyramid's top node lies (the largest height, a float).
+struct LevelConeParts {
+  const Image* cones = nullptr;
+  VkBuffer pyramid = VK_NULL_HANDLE;
+  VkDeviceSize top_offset = 0;  // bytes
+};
+LevelConeParts level_cone_parts(const DeviceCones::State& state);
 
 // memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
 void add_target_memory(std::vector<Allocation>& list, int width, int height);
@@ -214,6 +225,20 @@ struct Renderer::Impl {
   };
   std::array<const DeviceConeImage*, 3> device_cones{};
   std::array<bool, 3> cones_from_device{};
+  // device.h: the levels of detail a DeviceLevels makes - atlases laid out as level_heights' and
+  // level_cones' (GENERAL layout), and each level's highest height at level_tops' place in
+  // FrameUniforms (`tops`, 16 floats, copied into a frame's uniforms on the device) - and whether the
+  // last MapSet uses them
+  struct DeviceLevelImages {
+    const Image* heights = nullptr;
+    const Image* cones = nullptr;
+    VkBuffer tops = VK_NULL_HANDLE;
+    int width = 0, height = 0;  // level 0's
+    int count = 0, sectors = 0;
+    bake::Address address = bake::Address::wrap;
+  };
+  const DeviceLevelImages* device_levels = nullptr;
+  bool levels_from_device = false;
   std::shared_ptr<struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
   std::vector<VkBufferImageCopy> copy_regions;             // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
@@ -261,6 +286,13 @@ Buffer Renderer::Impl::host_buffer(const std::vector<T>& data, VkBufferUsageFlag
   Buffer buffer(context, std::max<std::size_t>(data.size() * sizeof(T), 4), usage, host);
   std::memcpy(buffer.mapped(), data.data(), data.size() * sizeof(T));
   return buffer;
+}
+
+// A device stage's milliseconds (StageTimer), the timestamps of its last frame read first when that
+// frame has finished.
+inline double finished_milliseconds(StageTimer& timer, const Renderer::Impl& impl) {
+  if (timer.last_slot() >= 0 && impl.slot_finished(timer.last_slot())) timer.read(timer.last_slot());
+  return timer.milliseconds();
 }
 
 }  // namespace displace::render

@@ -42,11 +42,15 @@ Metadata render_metadata(const pipeline::Scene& scene) {
 void print_cone_line(const pipeline::Scene& scene, const pipeline::FrameRecord& record, std::ostream& out) {
   const bake::BakeStats& stats = record.cones;
   if (record.bake_on_device) {
-    out << fmt::format("  cone maps baked on the device ({} sectors{}; {})\n", stats.sector_count,
-                       record.sim_on_device ? ", from the device's heights" : "",
-                       record.bake_device_ms > 0.0
-                           ? fmt::format("{:.2f} ms of device time", record.bake_device_ms)
-                           : std::string("its time not measured yet"));
+    out << fmt::format(
+        "  cone maps baked on the device ({} sectors{}; {})\n", stats.sector_count,
+        record.sim_on_device ? ", from the device's heights" : "",
+        record.bake_device_ms > 0.0
+            ? fmt::format("{:.2f} ms of device time{}", record.bake_device_ms,
+                          record.levels_device_ms > 0.0
+                              ? fmt::format(", {:.2f} of it the levels of detail", record.levels_device_ms)
+                              : std::string())
+            : std::string("its time not measured yet"));
     return;
   }
   out << "  cone maps baked by the budgeted bilinear baker " << baked_within(scene.frame_ms)

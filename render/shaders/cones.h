@@ -51,6 +51,14 @@ struct ConeTexelPush {
   int level_offset[CONE_MAX_LEVELS];  // where level l's nodes begin in the pyramid buffer (floats)
 };
 
+struct LevelDownPush {
+  int fine_width, fine_height;       // level l - 1's texels (level l has half as many a side)
+  int origin_x, origin_y;            // level l's texels in the heights atlas
+  int fine_origin_x, fine_origin_y;  // level l - 1's (l >= 2; level 1 makes level 0's moments itself)
+  int from_level0;                   // 1: l = 1
+  int pad0;
+};
+
 struct ConeLiftPush {
   int width, height;
   int pad0, pad1;

@@ -237,7 +237,9 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
             continue;
           }
           std::vector<double> sim, bake, upload, draw, total, age, lift, sim_device, bake_device, draw_device;
+          std::vector<double> levels_device;
           auto keep = [&](const pipeline::FrameRecord& r, const render::Frame&) {
+            levels_device.push_back(r.levels_device_ms);
             age.push_back(double(r.cone_lag));
             lift.push_back(double(r.cone_lift));
             sim_device.push_back(r.sim_device_ms);
@@ -258,15 +260,16 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
               "frame: water, map %d, %d x %d pixels, %s, cone lag %d%s, sim on the %s, bake on the %s (first "
               "pass: rings %d%s): p50 sim %.3f "
               "bake %.3f upload %.3f render %.3f frame %.3f ms, frame p95 %.3f ms, device p50 sim %.3f bake "
-              "%.3f "
+              "%.3f (of it the levels of detail %.3f) "
               "render %.3f ms, maps %.0f frames old (p50) raised by %.4f (p50), %lld allocations after "
               "warm-up\n",
               size, size, size, overlapped ? "overlapped" : "in series", lag, ahead ? " ahead" : "",
               pipeline::backend_word(scene.sim_backend), pipeline::backend_word(scene.bake_backend),
               ring_radius, group_first_pass ? ", group" : "", percentile(sim, 0.5), percentile(bake, 0.5),
               percentile(upload, 0.5), percentile(draw, 0.5), percentile(total, 0.5), percentile(total, 0.95),
-              percentile(sim_device, 0.5), percentile(bake_device, 0.5), percentile(draw_device, 0.5),
-              percentile(age, 0.5), percentile(lift, 0.5), renderer.memory_allocations() - allocations);
+              percentile(sim_device, 0.5), percentile(bake_device, 0.5), percentile(levels_device, 0.5),
+              percentile(draw_device, 0.5), percentile(age, 0.5), percentile(lift, 0.5),
+              renderer.memory_allocations() - allocations);
           std::fflush(stdout);
         }
       }
