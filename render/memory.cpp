@@ -335,7 +335,7 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
     reshaped |= distance.width != maps.distance.width || distance.height != maps.distance.height ||
                 distance.layers != maps.distance.depth || !distance.image.handle();
   }
-  if (maps.level_count > 0) {
+  if (maps.level_count > 0 && !maps.levels_on_device) {  // a DeviceLevels' atlases are made with it
     shape.level_count = maps.level_count;
     shape.level_sectors = maps.level_sectors;
     reshaped |= level_heights.width != level_atlas_size(maps.width, maps.height, maps.level_count).x ||

@@ -207,14 +207,14 @@ TEST(DetailLevels, AStillSceneRendersIdenticalFrames) {
 // colour (8-bit units, RGB averaged) between consecutive frames (60 fps), over the top band of water
 // - with levels (View::level_auto), level 0 only, and a supersampled reference (level 0 only at 4 x 4
 // the pixels, box-averaged). With levels the far sea must cost fewer fetches than level 0's and
-// flicker no more than the reference.
-TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
+// flicker no more than the reference. `backend`: where the sim and the bake run, and so where the
+// levels are made (the CPU's map maker, or render::DeviceLevels).
+void far_sea_against_supersampled(pipeline::Backend backend) {
   constexpr int width = 128, height = 80, supersampling = 4, frames = 8;
   constexpr std::array<double, 3> band_ends = {0.5, 2.0, 6.0};  // world units (the patch: 200 m)
   const char* band_names[4] = {"near (< 100 m)", "mid (100-400 m)", "far (400 m-1.2 km)", "top (> 1.2 km)"};
   pipeline::Scene scene = pipeline::builtin_scene("calm");
-  scene.sim_backend = scene.bake_backend =
-      pipeline::Backend::cpu;  // levels are the CPU path's (on a GPU auto is the device)
+  scene.sim_backend = scene.bake_backend = backend;
   scene.map_size = 128;
   scene.camera.width = width;
   scene.camera.height = height;
@@ -291,8 +291,9 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
     }
     previous = colour;
   }
-  std::printf("calm, %dx%d, map %d, %d frames at %g fps; fetches per pixel (levels / level 0 only):\n", width,
-              height, scene.map_size, frames, scene.fps);
+  std::printf(
+      "calm on the %s, %dx%d, map %d, %d frames at %g fps; fetches per pixel (levels / level 0 only):\n",
+      pipeline::backend_word(backend), width, height, scene.map_size, frames, scene.fps);
   for (std::size_t b = 0; b < 4; ++b) {
     ASSERT_GT(pixels[b], 0) << band_names[b];
     std::printf("  %-20s %6lld pixels  %6.2f / %6.2f\n", band_names[b], pixels[b] / frames,
@@ -326,6 +327,16 @@ TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
   EXPECT_LT(flicker[0], flicker[1]);
   EXPECT_LE(flicker[0], flicker[2]);
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
+}
+
+TEST(DetailLevels, FarSeaFetchesAndFlickerAgainstASupersampledReference) {
+  far_sea_against_supersampled(pipeline::Backend::cpu);
+}
+
+// The same on the device path (the sim, the cones and the levels made on the device, as `auto` does
+// on a GPU): the far sea as the CPU path's.
+TEST(DetailLevels, FarSeaOnTheDevicePathAgainstASupersampledReference) {
+  far_sea_against_supersampled(pipeline::Backend::device);
 }
 
 }  // namespace
