@@ -5,7 +5,6 @@
 // bilinear contract for its surface, docs/design/device-cones.md), copied into the cone atlas, and the
 // top of its max pyramid - the level's highest height - into a small buffer that each frame copies
 // into its uniforms (render/frame.cpp). docs/design/levels.md, "On the device".
-#include <cstdio>
 #include <cstring>
 #include <string>
 #include <utility>
