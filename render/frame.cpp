@@ -201,6 +201,13 @@ void Renderer::Impl::validate_frame(const View& view, const MethodSettings& meth
   if (is_quadric(view.surface)) quadric::validate(view);
 }
 
+int Renderer::Impl::frame_flags(const View& view) const {
+  const bool water = view.material == Material::water;
+  return (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
+         (has_albedo ? FLAG_ALBEDO : 0) | (water ? FLAG_WATER : 0) |
+         (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0) | (view.unbounded ? FLAG_UNBOUNDED : 0);
+}
+
 // near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
 void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, const MethodSettings& method,
                                     const MethodInfo& info) const {
@@ -230,12 +237,7 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
                                std::ldexp(1.0f, -sub_texel_bits));
   uniforms.map_size =
       glm::vec4(float(map_width), float(map_height), 1.0f / float(map_width), 1.0f / float(map_height));
-  const bool water = view.material == Material::water;
-  const int flags = (view.address == bake::Address::wrap ? FLAG_WRAP : 0) |
-                    (view.shadows ? FLAG_SHADOWS : 0) | (has_albedo ? FLAG_ALBEDO : 0) |
-                    (water ? FLAG_WATER : 0) | (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0) |
-                    (view.unbounded ? FLAG_UNBOUNDED : 0);
-  uniforms.counts = glm::ivec4(method.steps, method.refine, flags, info.cone_sectors);
+  uniforms.counts = glm::ivec4(method.steps, method.refine, frame_flags(view), info.cone_sectors);
   const std::array<float, 4> clear = clear_colour(view);
   uniforms.background = glm::vec4(clear[0], clear[1], clear[2], clear[3]);
   uniforms.quadric = glm::vec4(quadric ? view.radius : 0.0f, 0.0f, 0.0f, 0.0f);
@@ -275,7 +277,8 @@ void Renderer::Impl::ensure_readbacks(FrameSlot& frame_slot, int width, int heig
 
 // the draw between two timestamps, then the copies of the outputs asked for
 void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const View& view,
-                                  const MethodInfo& info, VkPipeline pipeline_handle, unsigned outputs) {
+                                  const MethodInfo& info, VkPipeline pipeline_handle,
+                                  VkPipeline levels_pipeline, unsigned outputs) {
   const auto width = std::uint32_t(view.camera.width), height = std::uint32_t(view.camera.height);
   const bool mesh = view.surface == Surface::mesh;
   const bool reference = info.family == MethodFamily::reference;
@@ -329,6 +332,10 @@ void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const V
   } else {
     // the proxy box, or the plane's two triangles
     vkCmdDraw(commands, is_quadric(view.surface) ? 36 : 6, 1, 0, 0);
+    if (levels_pipeline) {  // and the plane again for the pixels of the coarser levels
+      vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, levels_pipeline);
+      vkCmdDraw(commands, 6, 1, 0, 0);
+    }
   }
   vkCmdEndRenderPass(commands);
   if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, first_query + 1);
@@ -414,7 +421,12 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   check_frame_memory(view, info, frame, outputs);
 
   // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
-  const VkPipeline pipeline_handle = pipeline(info, view.surface);
+  const int features = frame_flags(view) & FEATURE_FLAGS;
+  const VkPipeline pipeline_handle = pipeline(info, view.surface, features);
+  // a view that traces levels of detail draws the pixels of the coarser levels with a pipeline of their
+  // own (config.h, FLAG_LEVELS)
+  const VkPipeline levels_handle =
+      traced_levels(view, info) > 0 ? pipeline(info, view.surface, features | FLAG_LEVELS) : VK_NULL_HANDLE;
   if (info.family == MethodFamily::reference) {
     if (view.surface == Surface::mesh) {
       ensure_mesh_reference(view.tile);
@@ -429,7 +441,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   write_uniforms(frame_slot, view, method, info);
   write_descriptors(frame_slot, view, info);
   ensure_readbacks(frame_slot, view.camera.width, view.camera.height, outputs);
-  record_frame(frame_slot, slot_index, view, info, pipeline_handle, outputs);
+  record_frame(frame_slot, slot_index, view, info, pipeline_handle, levels_handle, outputs);
   submit_slot(outputs != output_none);  // waits only for a frame that is read back
   frame.width = view.camera.width;
   frame.height = view.camera.height;

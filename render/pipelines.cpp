@@ -268,18 +268,20 @@ void Renderer::Impl::create_render_pass() {
   mesh_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_mesh_vert));
 }
 
-VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface) {
-  const int key = info.shader_id * 8 + surface_id(surface);
+VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface, int features) {
+  features &= FEATURE_FLAGS;
+  const int key = (info.shader_id * 8 + surface_id(surface)) * 128 + features;
   if (const auto found = pipelines.find(key); found != pipelines.end()) return found->second.get();
   const bool reference = info.family == MethodFamily::reference;
   const bool quadric = is_quadric(surface);
   const bool mesh = surface == Surface::mesh;
 
-  // specialization constants 0 (METHOD) and 1 (SURFACE)
-  const std::array<std::int32_t, 2> constants = {info.shader_id, surface_id(surface)};
-  const std::array<VkSpecializationMapEntry, 2> entries = {
+  // specialization constants 0 (METHOD), 1 (SURFACE) and 2 (FEATURES; the fragment shaders only)
+  const std::array<std::int32_t, 3> constants = {info.shader_id, surface_id(surface), features};
+  const std::array<VkSpecializationMapEntry, 3> entries = {
       VkSpecializationMapEntry{0, 0, sizeof(std::int32_t)},
-      VkSpecializationMapEntry{1, sizeof(std::int32_t), sizeof(std::int32_t)}};
+      VkSpecializationMapEntry{1, sizeof(std::int32_t), sizeof(std::int32_t)},
+      VkSpecializationMapEntry{2, 2 * sizeof(std::int32_t), sizeof(std::int32_t)}};
   VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(), sizeof(constants),
                                       constants.data()};
   std::array<VkPipelineShaderStageCreateInfo, 2> stages{};

@@ -137,15 +137,17 @@ struct Renderer::Impl {
   OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex, mesh_vertex;
   OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
   OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with Address::clamp: u wraps, v clamps
-  std::map<int, OwnedPipeline> pipelines;      // by shader id * 8 + surface id
-  std::string pipeline_cache_file;             // empty: the cache is off
+  // by (shader id * 8 + surface id) * 128 + features (config.h, FEATURE_FLAGS)
+  std::map<int, OwnedPipeline> pipelines;
+  std::string pipeline_cache_file;  // empty: the cache is off
   OwnedPipelineCache pipeline_cache;
   long long pipelines_created = 0;
   void create_layouts();
   void create_render_pass();
   void load_pipeline_cache(const std::string& directory);
   void save_pipeline_cache() noexcept;
-  VkPipeline pipeline(const MethodInfo& info, Surface surface);
+  // the pipeline of a method on a surface with the features (FEATURE_FLAGS) its view uses
+  VkPipeline pipeline(const MethodInfo& info, Surface surface, int features);
 
   // renderer.cpp: per-frame slots and set-up resources
   OwnedQueryPool timestamps;  // 2 per slot
@@ -269,12 +271,15 @@ struct Renderer::Impl {
   void ensure_mesh_reference(int tile);
   // one frame (render), by its stages: validate, write the uniforms and descriptors, record, read back
   void validate_frame(const View& view, const MethodSettings& method, unsigned outputs) const;
+  // FrameUniforms::counts.z of a frame of this view (config.h's FLAG_*)
+  int frame_flags(const View& view) const;
   void write_uniforms(FrameSlot& frame_slot, const View& view, const MethodSettings& method,
                       const MethodInfo& info) const;
   void write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info);
   void ensure_readbacks(FrameSlot& frame_slot, int width, int height, unsigned outputs);
+  // levels_pipeline: the coarser levels' pass of a view that traces levels (config.h), else null
   void record_frame(FrameSlot& frame_slot, int slot_index, const View& view, const MethodInfo& info,
-                    VkPipeline pipeline_handle, unsigned outputs);
+                    VkPipeline pipeline_handle, VkPipeline levels_pipeline, unsigned outputs);
   void read_back(const FrameSlot& frame_slot, int slot_index, unsigned outputs, Frame& frame) const;
   void render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs);
 };

@@ -23,7 +23,7 @@ const int bracket_max_steps = 32;       // bracketing steps; the last one always
 
 float fetch_height(vec2 uv) {
   g_fetches += 1u;
-  return g_level == 0 ? bilinear_height_of(height_map, uv) : level_bilinear_height(uv);
+  return on_level() ? level_bilinear_height(uv) : bilinear_height_of(height_map, uv);
 }
 
 // The sector of an n-sector cone map holding horizontal direction d (azimuth atan(dv, du) in [0, 2 pi)).
@@ -74,7 +74,7 @@ float cell_step(vec3 origin, vec3 descent, float s, inout ivec2 cell, out bool e
   vec4 map_size = traced_map_size();
   vec2 size = map_size.xy;
   // the gather at the cell's middle returns its corners: w = (j, i), z = (j+1, i), x = (j, i+1), y = (j+1, i+1)
-  vec4 corners = g_level == 0 ? textureGather(height_map, (vec2(cell) + 1.0) * map_size.zw, 0) : level_gather(cell);
+  vec4 corners = on_level() ? level_gather(cell) : textureGather(height_map, (vec2(cell) + 1.0) * map_size.zw, 0);
   vec2 x0 = origin.xy * size - 0.5, dx = descent.xy * size;
   vec2 exits = vec2(3.0e38);
   for (int axis = 0; axis < 2; ++axis) {
@@ -111,30 +111,38 @@ ivec2 cone_texel(vec2 uv) {
   return clamp(texel, ivec2(0), size - 1);
 }
 
-// The plane's safe cone step from s (cone_march in root_search.inc.glsl): one fetch of the cone of
-// the texel under the ray point in the sector of the ray's azimuth, and `stall`, a quarter texel of
-// travel, below which the march takes an exact cell step instead.
-float plane_safe_cone_step(vec3 origin, vec3 descent, float s, int sectors, out float stall) {
-  float travel = length(descent.xy);
+// What the plane's cone steps along one ray share, found once per ray (a straight ray keeps them at
+// every step; lavapipe does not hoist them out of the march's loop): the sector of the ray's azimuth,
+// its horizontal travel per unit of descent, and `stall`, a quarter texel of travel, the step below
+// which the march takes an exact cell step instead.
+struct PlaneCones {
+  int sector;
+  float travel;
+  float stall;
+};
+PlaneCones plane_cones(vec3 descent, int sectors) {
+  PlaneCones c;
+  c.travel = length(descent.xy);
   vec2 texel = traced_map_size().zw;
-  int sector = cone_sector(descent.xy, sectors);
-  stall = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
+  c.sector = cone_sector(descent.xy, sectors);
+  c.stall = c.travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / c.travel : 1.0;
+  return c;
+}
+
+// The plane's safe cone step from s (cone_march in root_search.inc.glsl): one fetch of the cone of
+// the texel under the ray point in the ray's sector.
+float plane_safe_cone_step(vec3 origin, vec3 descent, float s, PlaneCones c) {
   vec3 p = origin + s * descent;
   g_fetches += 1u;
-  vec2 cone = cone_value(ivec3(cone_texel(p.xy), sector));  // (r_k, H_c)
-  return max(cone.x * (p.z - cone.y) / max(cone.x + travel, min_denominator), 0.0);
+  vec2 cone = cone_value(ivec3(cone_texel(p.xy), c.sector));  // (r_k, H_c)
+  return max(cone.x * (p.z - cone.y) / max(cone.x + c.travel, min_denominator), 0.0);
 }
 
 // Whether the plane's safe cone step from a point `gap` above the surface under it would stall for
 // certain: the stored ratios are at most 1 and the apex H_c of the point's texel is at or above the
 // surface there, so the step r (z - H_c) / (r + travel) is at most gap / (1 + travel); a relative
 // 1e-3 keeps a float rounding from calling a step that would not stall a stall.
-bool plane_cone_step_stalls(vec3 descent, float gap) {
-  float travel = length(descent.xy);
-  vec2 texel = traced_map_size().zw;
-  float stall = travel > 0.0 ? fallback_step_texels * min(texel.x, texel.y) / travel : 1.0;
-  return gap < stall * (1.0 + travel) * 0.999;
-}
+bool plane_cone_step_stalls(PlaneCones c, float gap) { return gap < c.stall * (1.0 + c.travel) * 0.999; }
 
 #include "root_search.inc.glsl"
 #include "relaxed_march.inc.glsl"

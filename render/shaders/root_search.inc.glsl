@@ -159,16 +159,6 @@ float secant_refine(SearchRay ray, Bracket b, int refine) {
   return mix(b.t_above, b.t_below, crossing_fraction(b.gap_above, b.gap_below));
 }
 
-// The safe cone step from t (never into the relief) and `stall`, the step below which the march
-// takes the surface's fallback step instead.
-float safe_cone_step(SearchRay ray, float t, int sectors, out float stall) {
-#if SEARCH_PLANAR
-  return plane_safe_cone_step(ray.origin, ray.direction, t, sectors, stall);
-#else
-  return quadric_safe_cone_step(ray, t, sectors, stall);
-#endif
-}
-
 // Moves the march on to t; the point it leaves is the last one read above the surface.
 void march_to(inout ConeMarch m, float t) {
   m.t_above = m.t;
@@ -199,6 +189,9 @@ bool fallback_step(SearchRay ray, float stall, inout ConeMarch m) {
 // where the steps run out.
 ConeMarch cone_march(SearchRay ray, int steps, int sectors) {
   ConeMarch m = ConeMarch(ray.t_in, 0.0, false, ray.t_in, 0.0, false, false, ivec2(0), 3.0e38);
+#if SEARCH_PLANAR
+  PlaneCones cones = plane_cones(ray.direction, sectors);  // the same at every step of a straight ray
+#endif
   for (int i = 0; i < steps; ++i) {
     if (march_reads_gap) {
       m.gap = search_gap(ray, m.t);
@@ -210,13 +203,18 @@ ConeMarch cone_march(SearchRay ray, int steps, int sectors) {
 #if SEARCH_PLANAR
     // On a level of detail (levels.md) a walk goes on without the cone fetch where that fetch would
     // stall for certain (the same cell step follows either way, so the march is unchanged).
-    if (g_level > 0 && m.walking && plane_cone_step_stalls(ray.direction, m.exit_gap)) {
+    if (on_level() && m.walking && plane_cone_step_stalls(cones, m.exit_gap)) {
       if (fallback_step(ray, 0.0, m)) break;
       continue;
     }
-#endif
+    // the safe cone step from t (never into the relief), and the step below which the march takes
+    // the surface's fallback step instead
+    float stall = cones.stall;
+    float step = plane_safe_cone_step(ray.origin, ray.direction, m.t, cones);
+#else
     float stall;
-    float step = safe_cone_step(ray, m.t, sectors, stall);
+    float step = quadric_safe_cone_step(ray, m.t, sectors, stall);
+#endif
     if (step >= stall) {
       march_to(m, min(m.t + step, ray.t_end));
       m.walking = false;

@@ -42,7 +42,7 @@ vec3 grid_albedo(vec2 uv) {
 }
 
 vec3 albedo(vec2 uv) {
-  if ((frame.counts.z & FLAG_ALBEDO) != 0) return textureLod(albedo_map, uv, 0.0).rgb;
+  if (albedo_on) return textureLod(albedo_map, uv, 0.0).rgb;
   return grid_albedo(uv);
 }
 
@@ -80,10 +80,10 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   vec3 reflected = reflect(view_direction, n);
   vec3 reflection = sky(reflected);
   float glint = lit * sun_glint_strength * pow(max(dot(reflected, l), 0.0), sun_glint_exponent);
-  float h = g_level == 0 ? shading_height(uv) : level_bilinear_height(uv);
+  float h = on_level() ? level_bilinear_height(uv) : shading_height(uv);
   vec3 body = mix(water_deep, water_shallow, h) * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
   vec3 colour = mix(body, reflection, fresnel) + glint;
-  if ((frame.counts.z & FLAG_FOAM) != 0) {
+  if (foam_on) {
     float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
     colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
                  foam * frame.foam.a);
@@ -144,7 +144,7 @@ vec3 shade_water_level(vec2 uv, mat3 tangent_frame, vec3 view_direction, vec3 l,
   float exponent = 1.0 / (1.0 / sun_glint_exponent + 4.0 * tilt * tilt);
   colour += lit * sun_glint_strength * (exponent / sun_glint_exponent) *
             pow(max(dot(reflect(view_direction, n), l), 0.0), exponent);
-  if ((frame.counts.z & FLAG_FOAM) != 0) {
+  if (foam_on) {
     float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
     colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
                  foam * frame.foam.a);
@@ -154,10 +154,10 @@ vec3 shade_water_level(vec2 uv, mat3 tangent_frame, vec3 view_direction, vec3 l,
 
 // lit: 1 where the light reaches the hit, 0 in shadow (then only the ambient term is left)
 vec3 shade(vec2 uv, mat3 tangent_frame, vec3 view_direction, float lit) {
-  if ((frame.counts.z & FLAG_WATER) != 0 && g_level > 0)
+  if (water_on && on_level())
     return shade_water_level(uv, tangent_frame, view_direction, normalize(frame.light.xyz), lit);
-  vec3 n = g_level == 0 ? surface_normal(uv, tangent_frame) : level_surface_normal(uv, tangent_frame);
-  if ((frame.counts.z & FLAG_WATER) != 0) return shade_water(uv, n, view_direction, normalize(frame.light.xyz), lit);
+  vec3 n = on_level() ? level_surface_normal(uv, tangent_frame) : surface_normal(uv, tangent_frame);
+  if (water_on) return shade_water(uv, n, view_direction, normalize(frame.light.xyz), lit);
   vec3 l = normalize(frame.light.xyz);
   vec3 half_vector = normalize(l - view_direction);
   float diffuse = lit * max(dot(n, l), 0.0);

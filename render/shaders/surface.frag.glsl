@@ -7,6 +7,15 @@
 
 layout(constant_id = 0) const int METHOD = METHOD_RELIEF;
 layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
+// The features the pipeline is made for (config.h, FEATURE_FLAGS), constants when it is compiled: a
+// pipeline keeps no code of the others.
+layout(constant_id = 2) const int FEATURES = 0;
+const bool shadows_on = (FEATURES & FLAG_SHADOWS) != 0;
+const bool albedo_on = (FEATURES & FLAG_ALBEDO) != 0;
+const bool water_on = (FEATURES & FLAG_WATER) != 0;
+const bool foam_on = (FEATURES & FLAG_FOAM) != 0;
+const bool unbounded_on = (FEATURES & FLAG_UNBOUNDED) != 0;
+const bool levels_on = (FEATURES & FLAG_LEVELS) != 0;
 
 #include "frame_block.inc.glsl"
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
@@ -43,37 +52,42 @@ vec4 g_level_size = vec4(0.0);
 ivec2 g_level_origin = ivec2(0);
 float g_level_start = 0.0;  // the s where a ray on the level starts its march: above the level's top
 
-// The map size the trace works with: level 0's (frame.map_size) or the level's.
-vec4 traced_map_size() { return g_level == 0 ? frame.map_size : g_level_size; }
+// Whether the pixel traces a coarser level than the map itself: exactly in the pipelines with
+// FLAG_LEVELS, which discard every pixel of level 0 (main).
+bool on_level() { return levels_on; }
 
-// Texel t of the level, wrapped (levels serve the unbounded plane, which wraps).
-float level_texel(ivec2 t) {
+// The map size the trace works with: level 0's (frame.map_size) or the level's.
+vec4 traced_map_size() { return on_level() ? g_level_size : frame.map_size; }
+
+// The atlas texels of the level's cell whose lower corner is texel `cell`: its lower corner (xy) and
+// its upper one (zw), each wrapped into the level (levels serve the unbounded plane, which wraps).
+// One division per axis: the upper corner is the lower one's next texel, or texel 0 past the last.
+ivec4 level_cell_texels(ivec2 cell) {
   ivec2 size = ivec2(g_level_size.xy);
-  t -= size * ivec2(floor(vec2(t) / vec2(size)));
-  return texelFetch(height_levels, t + g_level_origin, 0).r;
+  ivec2 lower = cell - size * ivec2(floor(vec2(cell) / vec2(size)));
+  ivec2 upper = lower + 1;
+  upper.x = upper.x == size.x ? 0 : upper.x;
+  upper.y = upper.y == size.y ? 0 : upper.y;
+  return ivec4(lower + g_level_origin, upper + g_level_origin);
 }
 
 // The level's slope moments at uv, bilinear like its heights (the atlas's gba: the means of level 0's
 // g_u, g_v and g_u^2 + g_v^2 over each texel's footprint, bake::downsample_moments).
 vec3 level_slope_moments(vec2 uv) {
   vec2 x = uv * g_level_size.xy - 0.5;
-  ivec2 cell = ivec2(floor(x));
+  ivec4 t = level_cell_texels(ivec2(floor(x)));
   vec2 f = x - floor(x);
-  ivec2 size = ivec2(g_level_size.xy);
-  vec3 m[4];
-  for (int k = 0; k < 4; ++k) {
-    ivec2 t = cell + ivec2(k & 1, k >> 1);
-    t -= size * ivec2(floor(vec2(t) / vec2(size)));
-    m[k] = texelFetch(height_levels, t + g_level_origin, 0).gba;
-  }
-  return mix(mix(m[0], m[1], f.x), mix(m[2], m[3], f.x), f.y);
+  vec3 m00 = texelFetch(height_levels, t.xy, 0).gba, m10 = texelFetch(height_levels, t.zy, 0).gba;
+  vec3 m01 = texelFetch(height_levels, t.xw, 0).gba, m11 = texelFetch(height_levels, t.zw, 0).gba;
+  return mix(mix(m00, m10, f.x), mix(m01, m11, f.x), f.y);
 }
 
 // The four texels of the level's cell whose lower corner is texel `cell`, in textureGather's order
 // (u0 v1, u1 v1, u1 v0, u0 v0): four texel reads, counted as one fetch like a gather.
 vec4 level_gather(ivec2 cell) {
-  return vec4(level_texel(cell + ivec2(0, 1)), level_texel(cell + ivec2(1, 1)), level_texel(cell + ivec2(1, 0)),
-              level_texel(cell));
+  ivec4 t = level_cell_texels(cell);
+  return vec4(texelFetch(height_levels, t.xw, 0).r, texelFetch(height_levels, t.zw, 0).r,
+              texelFetch(height_levels, t.zy, 0).r, texelFetch(height_levels, t.xy, 0).r);
 }
 
 // The level's bilinear height at uv, as bilinear_height_of on level 0.
@@ -89,8 +103,8 @@ float level_bilinear_height(vec2 uv) {
 // R16G16_UINT: the ratio as a half float rounded down and the apex in units of 1 / 65535 rounded up
 // (render/map_pack.h), so the values read claim no more empty space than the baked ones.
 vec2 cone_value(ivec3 texel) {
-  uvec2 stored = g_level == 0 ? texelFetch(cone_map, texel, 0).rg
-                              : texelFetch(cone_levels, ivec3(texel.xy + g_level_origin, texel.z), 0).rg;
+  uvec2 stored = on_level() ? texelFetch(cone_levels, ivec3(texel.xy + g_level_origin, texel.z), 0).rg
+                            : texelFetch(cone_map, texel, 0).rg;
   return vec2(unpackHalf2x16(stored.x).x, float(stored.y) / 65535.0);
 }
 
@@ -167,9 +181,9 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_worl
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
   // (the unbounded plane's hits past the far plane keep the farthest depth the LESS test passes)
   gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0 - 1.0 / 16777216.0);
-  float lit = (frame.counts.z & FLAG_SHADOWS) != 0 ? light_visibility(hit, tangent_frame, normal) : 1.0;
+  float lit = shadows_on ? light_visibility(hit, tangent_frame, normal) : 1.0;
   vec3 colour = shade(hit.xy, tangent_frame, d, lit);
-  if ((frame.counts.z & FLAG_UNBOUNDED) != 0) {
+  if (unbounded_on) {
     // aerial perspective: towards the sky's colour at the horizon with the distance
     float seen = exp(-length(world_hit - frame.eye.xyz) / AERIAL_DISTANCE);
     colour = mix(sky(vec3(d.xy, 0.0)), colour, seen);
@@ -221,8 +235,9 @@ void main() {
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
   mat3 to_texture = inverse(tangent_frame);
-  const bool unbounded = (frame.counts.z & FLAG_UNBOUNDED) != 0;
+  const bool unbounded = unbounded_on;
   if (unbounded && (frame.eye.z <= 0.0 || d.z >= 0.0)) {  // above the horizon: the sky
+    if (levels_on) discard;  // the level-0 pass draws it
     out_color = vec4(sky_with_sun(d), 1.0);
     out_hit = vec4(0.0);
     out_counters = vec4(0.0);
@@ -230,7 +245,10 @@ void main() {
     return;
   }
   if (frame.eye.z <= 0.0 || d.z >= 0.0) discard;  // the relief is seen from above only
-  if (unbounded && frame.levels.x > 0.0) choose_level(d);
+  if (unbounded && frame.levels.x > 0.0) {
+    choose_level(d);
+    if ((g_level > 0) != levels_on) discard;  // the other pass draws it (config.h, FLAG_LEVELS)
+  }
   // Only what is seen through the base polygon: a ray that enters the relief box through one of its
   // sides has no fragment there (nor has a fragment on the polygon's edge whose ray misses it). The
   // reference's fragments lie on the displaced surface (reference.vert.glsl), not on the base plane.
