@@ -72,13 +72,15 @@ using mat4 = glm::mat4;
 // so that a pipeline holds no code of a feature its view does not use: lavapipe (llvmpipe) runs both
 // sides of every branch under a lane mask and each loop's body at least once, so code behind a
 // uniform flag that is off still costs its instructions in every pixel (a discard that empties a
-// block of pixels does end it). FLAG_WRAP only picks an address and stays a uniform.
+// block of pixels does end it). FLAG_WRAP, FLAG_ALBEDO and FLAG_FOAM cost a read or a select each and
+// stay uniforms: as constants they would multiply the pipelines to compile for next to nothing; so
+// does FLAG_SHADOWS on meshes and quadrics, whose every method is drawn with and without shadows.
 // FLAG_LEVELS is a pipeline feature only: a view that traces levels of detail (FrameUniforms::levels.x
 // > 0) is drawn twice, by a pipeline without it for the pixels that trace level 0 and the sky, and by
 // one with it for those that trace a coarser level; each discards the other's pixels first, so neither
 // holds the other's reads and shading.
 #define FLAG_LEVELS 64
-#define FEATURE_FLAGS (FLAG_SHADOWS | FLAG_ALBEDO | FLAG_WATER | FLAG_FOAM | FLAG_UNBOUNDED | FLAG_LEVELS)
+#define FEATURE_FLAGS (FLAG_SHADOWS | FLAG_WATER | FLAG_UNBOUNDED | FLAG_LEVELS)
 #define AERIAL_DISTANCE 40.0  // world units: light from that far keeps 1/e of its colour (unbounded)
 // the level a pixel traces (View::level_auto): log2 of the texels of level 0 its footprint spans where
 // its ray enters the relief, across the ray times (1 / |d.z|)^LEVEL_ANISOTROPY along it (0: the

@@ -193,7 +193,7 @@ void quadric_fragment() {
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
   gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
   float lit = 1.0;
-  if (shadows_on) {
+  if (shadows_on()) {
     // the reference's light ray starts on the bilinear surface at its (u, v), not on its triangle
     vec3 shadow_point = METHOD == METHOD_REFERENCE
                             ? quadric_frame(hit.xy, bilinear_height_of(height_map, hit.xy)).position

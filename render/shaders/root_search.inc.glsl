@@ -201,16 +201,15 @@ ConeMarch cone_march(SearchRay ray, int steps, int sectors) {
     if (m.t >= ray.t_end) break;  // planar: on the floor h = 0, the ray cannot be above the surface there
     g_iterations += 1u;
 #if SEARCH_PLANAR
-    // On a level of detail (levels.md) a walk goes on without the cone fetch where that fetch would
-    // stall for certain (the same cell step follows either way, so the march is unchanged).
-    if (on_level() && m.walking && plane_cone_step_stalls(cones, m.exit_gap)) {
-      if (fallback_step(ray, 0.0, m)) break;
-      continue;
-    }
     // the safe cone step from t (never into the relief), and the step below which the march takes
-    // the surface's fallback step instead
+    // the surface's fallback step instead. On a level of detail (levels.md) a walk goes on without
+    // the cone fetch where that fetch would stall for certain (the same cell step follows either
+    // way, so the march is unchanged); the march keeps one cell step in its loop, not two (lavapipe
+    // would run both).
     float stall = cones.stall;
-    float step = plane_safe_cone_step(ray.origin, ray.direction, m.t, cones);
+    float step = 0.0;
+    if (!(on_level() && m.walking && plane_cone_step_stalls(cones, m.exit_gap)))
+      step = plane_safe_cone_step(ray.origin, ray.direction, m.t, cones);
 #else
     float stall;
     float step = quadric_safe_cone_step(ray, m.t, sectors, stall);

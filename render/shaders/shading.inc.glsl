@@ -42,7 +42,7 @@ vec3 grid_albedo(vec2 uv) {
 }
 
 vec3 albedo(vec2 uv) {
-  if (albedo_on) return textureLod(albedo_map, uv, 0.0).rgb;
+  if ((frame.counts.z & FLAG_ALBEDO) != 0) return textureLod(albedo_map, uv, 0.0).rgb;
   return grid_albedo(uv);
 }
 
@@ -83,7 +83,7 @@ vec3 shade_water(vec2 uv, vec3 n, vec3 view_direction, vec3 l, float lit) {
   float h = on_level() ? level_bilinear_height(uv) : shading_height(uv);
   vec3 body = mix(water_deep, water_shallow, h) * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0));
   vec3 colour = mix(body, reflection, fresnel) + glint;
-  if (foam_on) {
+  if ((frame.counts.z & FLAG_FOAM) != 0) {
     float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
     colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
                  foam * frame.foam.a);
@@ -104,11 +104,12 @@ vec3 shade_water_level(vec2 uv, mat3 tangent_frame, vec3 view_direction, vec3 l,
   vec2 texel = g_level_size.zw;
   float dh_du = (level_bilinear_height(uv + vec2(texel.x, 0.0)) - level_bilinear_height(uv - vec2(texel.x, 0.0))) / (2.0 * texel.x);
   float dh_dv = (level_bilinear_height(uv + vec2(0.0, texel.y)) - level_bilinear_height(uv - vec2(0.0, texel.y))) / (2.0 * texel.y);
-  vec3 moments = level_slope_moments(uv);
+  vec4 here = level_height_and_moments(uv);
+  vec3 moments = here.gba;
   float sigma = sqrt(max(moments.z - dot(moments.xy, moments.xy), 0.0) * 0.5);  // per axis, per uv
   vec3 up = normalize(tangent_frame[2]);
   vec3 to_eye = -view_direction;
-  float h = level_bilinear_height(uv);
+  float h = here.r;
   vec3 body_colour = mix(water_deep, water_shallow, h);
   const float node = 1.7320508;  // sqrt(3)
   const float weights[3] = float[3](1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0);
@@ -144,7 +145,7 @@ vec3 shade_water_level(vec2 uv, mat3 tangent_frame, vec3 view_direction, vec3 l,
   float exponent = 1.0 / (1.0 / sun_glint_exponent + 4.0 * tilt * tilt);
   colour += lit * sun_glint_strength * (exponent / sun_glint_exponent) *
             pow(max(dot(reflect(view_direction, n), l), 0.0), exponent);
-  if (foam_on) {
+  if ((frame.counts.z & FLAG_FOAM) != 0) {
     float foam = clamp(textureLod(foam_map, uv, 0.0).r, 0.0, 1.0);
     colour = mix(colour, frame.foam.rgb * (ambient + (1.0 - ambient) * lit * max(dot(n, l), 0.0)),
                  foam * frame.foam.a);

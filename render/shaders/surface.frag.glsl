@@ -10,14 +10,17 @@ layout(constant_id = 1) const int SURFACE = SURFACE_PLANE;
 // The features the pipeline is made for (config.h, FEATURE_FLAGS), constants when it is compiled: a
 // pipeline keeps no code of the others.
 layout(constant_id = 2) const int FEATURES = 0;
-const bool shadows_on = (FEATURES & FLAG_SHADOWS) != 0;
-const bool albedo_on = (FEATURES & FLAG_ALBEDO) != 0;
 const bool water_on = (FEATURES & FLAG_WATER) != 0;
-const bool foam_on = (FEATURES & FLAG_FOAM) != 0;
 const bool unbounded_on = (FEATURES & FLAG_UNBOUNDED) != 0;
 const bool levels_on = (FEATURES & FLAG_LEVELS) != 0;
 
 #include "frame_block.inc.glsl"
+
+// shadows: a constant on the plane; meshes and quadrics read the uniform flag (config.h)
+bool shadows_on() {
+  return SURFACE == SURFACE_PLANE ? (FEATURES & FLAG_SHADOWS) != 0 : (frame.counts.z & FLAG_SHADOWS) != 0;
+}
+
 layout(binding = BINDING_HEIGHT) uniform sampler2D height_map;
 #include "height_fetch.inc.glsl"
 layout(binding = BINDING_CONES) uniform usampler2DArray cone_map;
@@ -71,14 +74,14 @@ ivec4 level_cell_texels(ivec2 cell) {
   return ivec4(lower + g_level_origin, upper + g_level_origin);
 }
 
-// The level's slope moments at uv, bilinear like its heights (the atlas's gba: the means of level 0's
-// g_u, g_v and g_u^2 + g_v^2 over each texel's footprint, bake::downsample_moments).
-vec3 level_slope_moments(vec2 uv) {
+// The level's height (r) and slope moments (gba: the means of level 0's g_u, g_v and g_u^2 + g_v^2
+// over each texel's footprint, bake::downsample_moments) at uv, bilinear.
+vec4 level_height_and_moments(vec2 uv) {
   vec2 x = uv * g_level_size.xy - 0.5;
   ivec4 t = level_cell_texels(ivec2(floor(x)));
   vec2 f = x - floor(x);
-  vec3 m00 = texelFetch(height_levels, t.xy, 0).gba, m10 = texelFetch(height_levels, t.zy, 0).gba;
-  vec3 m01 = texelFetch(height_levels, t.xw, 0).gba, m11 = texelFetch(height_levels, t.zw, 0).gba;
+  vec4 m00 = texelFetch(height_levels, t.xy, 0), m10 = texelFetch(height_levels, t.zy, 0);
+  vec4 m01 = texelFetch(height_levels, t.xw, 0), m11 = texelFetch(height_levels, t.zw, 0);
   return mix(mix(m00, m10, f.x), mix(m01, m11, f.x), f.y);
 }
 
@@ -181,7 +184,7 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_worl
   vec4 clip = frame.view_projection * vec4(world_hit, 1.0);
   // (the unbounded plane's hits past the far plane keep the farthest depth the LESS test passes)
   gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0 - 1.0 / 16777216.0);
-  float lit = shadows_on ? light_visibility(hit, tangent_frame, normal) : 1.0;
+  float lit = shadows_on() ? light_visibility(hit, tangent_frame, normal) : 1.0;
   vec3 colour = shade(hit.xy, tangent_frame, d, lit);
   if (unbounded_on) {
     // aerial perspective: towards the sky's colour at the horizon with the distance

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # tests/bench/compare.sh - the frame's stages of this tree and of another revision, side by side.
 #
-# usage: tests/bench/compare.sh [--quick] [--rounds N] [--frames N] [--views REGEX] [--output FILE.md] REV
+# usage: tests/bench/compare.sh [--quick] [--cpu-only] [--rounds N] [--frames N] [--views REGEX] [--output FILE.md] REV
 #
 # Builds REV (any git revision) in a worktree under build-compare/ and this tree in build/, then runs
 # `displace bench-frame --serial --budget-ms 0` with both binaries for every view of a fixed set, the
@@ -10,25 +10,27 @@
 # each build's p50 milliseconds, and their ratio (this / REV; above 1: this tree is slower).
 # Run it before landing a change to render/, its shaders or pipeline/ (docs/figures.md keeps a table).
 #
-# The set: water on its patch (extent patch) and to the horizon (unbounded), calm, bricks and cliff;
+# The set: water and calm on their patch (extent patch) and to the horizon (unbounded), bricks, cliff;
 # acm4, csm, relief and relaxed; maps and images of 256 and 512 a side; the CPU backend everywhere and
 # the device backend (sim and cone bake in compute shaders) on the two ocean scenes with acm4 and csm.
 # relaxed runs on the static scenes only: on a moving sea its bake takes seconds a frame.
-# --quick: 256 only, CPU only. A view a binary cannot run (a flag it lacks; `--extent patch` is
-# dropped for a binary that has no --extent, whose water was the patch) is "-" in its column.
-# Both binaries share one pipeline cache in the worktree's folder, so neither compiles twice.
+# --quick: 256 only, CPU only; --cpu-only: no device backend (on lavapipe its bake takes seconds).
+# A view a binary cannot run (a flag it lacks; `--extent patch` is dropped for a binary that has no
+# --extent, whose water was the patch) is "-" in its column. Both binaries share one pipeline cache.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 rounds=2
 frames=40
 device_frames=8
 quick=0
+cpu_only=0
 views_filter='.*'
 output=""
 revision=""
 while [ $# -gt 0 ]; do
   case "$1" in
-    --quick) quick=1 ;;
+    --quick) quick=1; cpu_only=1 ;;
+    --cpu-only) cpu_only=1 ;;
     --rounds) rounds="$2"; shift ;;
     --frames) frames="$2"; shift ;;
     --views) views_filter="$2"; shift ;;
@@ -72,8 +74,9 @@ old_help="$("$old" bench-frame --help)"
 new_help="$("$new" bench-frame --help)"
 
 # name | scene flags
-views=("water-patch|--scene water --extent patch" "water|--scene water --extent unbounded" "calm|--scene calm"
-       "bricks|--scene bricks" "cliff|--scene cliff")
+views=("water-patch|--scene water --extent patch" "water|--scene water --extent unbounded"
+       "calm-patch|--scene calm --extent patch" "calm|--scene calm --extent unbounded" "bricks|--scene bricks"
+       "cliff|--scene cliff")
 methods=(acm4 csm relief relaxed)
 sizes=(256 512)
 if [ "$quick" -eq 1 ]; then sizes=(256); fi
@@ -130,7 +133,7 @@ for size in "${sizes[@]}"; do
     scene="${view#*|}"
     [[ "$name" =~ $views_filter ]] || continue
     backends=(cpu)
-    if [ "$quick" -eq 0 ] && [[ "$name" == water* || "$name" == calm ]]; then backends+=(device); fi
+    if [ "$cpu_only" -eq 0 ] && [[ "$name" == water* || "$name" == calm ]]; then backends+=(device); fi
     for backend in "${backends[@]}"; do
       for method in "${methods[@]}"; do
         if [ "$backend" = device ] && [[ "$method" != acm4 && "$method" != csm ]]; then continue; fi
