@@ -133,11 +133,11 @@ for size in "${sizes[@]}"; do
     scene="${view#*|}"
     [[ "$name" =~ $views_filter ]] || continue
     backends=(cpu)
-    if [ "$cpu_only" -eq 0 ] && [[ "$name" == water* || "$name" == calm ]]; then backends+=(device); fi
+    if [ "$cpu_only" -eq 0 ] && [[ "$name" == water* || "$name" == calm* ]]; then backends+=(device); fi
     for backend in "${backends[@]}"; do
       for method in "${methods[@]}"; do
         if [ "$backend" = device ] && [[ "$method" != acm4 && "$method" != csm ]]; then continue; fi
-        if [ "$method" = relaxed ] && [[ "$name" == water* || "$name" == calm ]]; then continue; fi
+        if [ "$method" = relaxed ] && [[ "$name" == water* || "$name" == calm* ]]; then continue; fi
         count="$frames"
         if [ "$backend" = device ]; then count="$device_frames"; fi
         # shellcheck disable=SC2206
@@ -180,7 +180,7 @@ for key in order:
     for index, _ in enumerate(stages):
         a, b = median(runs[key]["old"], index), median(runs[key]["new"], index)
         cells += [f"{a:.2f}" if a is not None else "-", f"{b:.2f}" if b is not None else "-",
-                  f"{b / a:.2f}" if a and b is not None and a > 0 else "-"]
+                  f"{b / a:.2f}" if a is not None and b is not None and min(a, b) >= 0.05 else "-"]
     print("| " + " | ".join(cells) + " |")
 EOF
 )"
