@@ -19,7 +19,8 @@ source "$root/cmake/setup_lib.sh"
 packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev libgtest-dev libbenchmark-dev
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools spirv-tools
           glslang-dev libvkfft-dev
-          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev libimgui-dev xvfb python3-matplotlib clang-format)
+          mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev libimgui-dev xvfb python3-matplotlib clang-format
+          slurmctld slurmd slurm-client munge)
 missing=()
 for p in "${packages[@]}"; do
   if ! package_installed "$p"; then

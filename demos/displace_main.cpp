@@ -1,7 +1,7 @@
 // demos/displace_main.cpp - the `displace` CLI: parse, run, and the one place errors are caught.
 //
 // A user sees "displace: error: <message>" on stderr and exit status 2 (usage) or 1 (runtime),
-// never a stack trace.
+// never a stack trace; a run that SIGINT or SIGTERM stopped exits 130 or 143 (demos/interrupt.h).
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -13,6 +13,7 @@
 #include "bake/bake.h"
 #include "demos/cli/command.h"
 #include "demos/error.h"
+#include "demos/interrupt.h"
 
 namespace {
 
@@ -38,11 +39,15 @@ int main(int argc, char** argv) {
     std::cerr << app::overview();
     return exit_usage_error;
   }
+  app::install_interrupt_handlers();
   try {
     const app::ParsedCommand command = app::parse_command_line(args);
     command.run(std::cout);
     std::cout.flush();
     return 0;
+  } catch (const app::Interrupted& stop) {
+    std::cerr << "displace: stopped by " << app::signal_name(stop.signal) << ": " << stop.what() << '\n';
+    return stop.status();
   } catch (const app::AppError& error) {
     const std::string_view command = app::is_command(args.front()) ? args.front() : std::string_view{};
     return report(error.what(), error.kind == app::ErrorKind::usage ? exit_usage_error : exit_runtime_error,

@@ -2,7 +2,6 @@
 #include "demos/frame_output.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -95,11 +94,10 @@ MethodRun measure_method(render::Renderer& renderer, pipeline::MapMaker& maps, c
   return run;
 }
 
-void write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
-                       const Metadata& metadata) {
+files::WrittenFile write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
+                                     const Metadata& metadata) {
   if (lower_extension(file) == ".png") {
-    write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
-    return;
+    return write_png_rgba8(file, frame.width, frame.height, frame.color, metadata);
   }
   const std::size_t pixels = std::size_t(frame.width) * frame.height;
   std::vector<float> channels[4];
@@ -108,10 +106,10 @@ void write_frame_image(const std::filesystem::path& file, const render::Frame& f
     for (int c = 0; c < 4; ++c) channels[c][p] = float(frame.color[p * 4 + c]) / 255.0f;
   }
   const ExrChannel exr[] = {{"R", channels[0]}, {"G", channels[1]}, {"B", channels[2]}, {"A", channels[3]}};
-  write_exr(file, frame.width, frame.height, exr, metadata);
+  return write_exr(file, frame.width, frame.height, exr, metadata);
 }
 
-void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata) {
+files::WrittenFile write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata) {
   const std::size_t pixels = std::size_t(frame.width) * frame.height;
   if (aov.aov == Aov::uv) {
     std::vector<float> u(pixels), v(pixels), hit(pixels);
@@ -121,13 +119,11 @@ void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata&
       hit[p] = frame.uv[p * 3 + 2];
     }
     const ExrChannel exr[] = {{"u", u}, {"v", v}, {"hit", hit}};
-    write_exr(aov.file, frame.width, frame.height, exr, metadata);
-    return;
+    return write_exr(aov.file, frame.width, frame.height, exr, metadata);
   }
   if (aov.aov == Aov::depth) {
     const ExrChannel exr[] = {{"depth", frame.depth}};
-    write_exr(aov.file, frame.width, frame.height, exr, metadata);
-    return;
+    return write_exr(aov.file, frame.width, frame.height, exr, metadata);
   }
   const bool iterations = aov.aov == Aov::iterations;
   const std::vector<float>& values = iterations ? frame.iterations : frame.fetches;
@@ -135,25 +131,11 @@ void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata&
     const float maximum = values.empty() ? 0.0f : *std::max_element(values.begin(), values.end());
     Metadata heat_metadata = metadata;
     heat_metadata.push_back({"displace:heatmap_maximum", maximum});
-    write_png_rgba8(aov.file, frame.width, frame.height, heatmap(values, frame.uv, maximum), heat_metadata);
-    return;
+    return write_png_rgba8(aov.file, frame.width, frame.height, heatmap(values, frame.uv, maximum),
+                           heat_metadata);
   }
   const ExrChannel exr[] = {{iterations ? "iterations" : "fetches", values}};
-  write_exr(aov.file, frame.width, frame.height, exr, metadata);
-}
-
-void write_atomically(const std::filesystem::path& file,
-                      const std::function<void(const std::filesystem::path&)>& write) {
-  const std::filesystem::path temporary =
-      file.parent_path() /
-      fmt::format(".{}.partial{}{}", file.stem().string(), ::getpid(), file.extension().string());
-  write(temporary);
-  std::error_code error;
-  std::filesystem::rename(temporary, file, error);
-  if (error) {
-    std::filesystem::remove(temporary, error);
-    throw runtime_error(fmt::format("cannot move the frame into place as '{}'", file.string()));
-  }
+  return write_exr(aov.file, frame.width, frame.height, exr, metadata);
 }
 
 std::vector<std::string> effect_names(unsigned effects) {

@@ -1,6 +1,6 @@
 // demos/frame_output.h - what a rendered frame becomes: its picture (.png 8-bit, .exr float), its
 // AOVs (uv, depth, iterations, fetches), its per-pixel statistics and its error against a reference;
-// files written atomically (a temporary name, then a rename), so an interrupted run leaves no half file.
+// files written by the checked writer (render/files.h), so an interrupted run leaves no half file.
 #pragma once
 
 #include <filesystem>
@@ -26,13 +26,9 @@ unsigned frame_outputs(const std::vector<AovOutput>& aovs);
 std::string lower_extension(const std::filesystem::path& path);
 
 // A rendered frame's colour to .png (8-bit) or .exr (float RGBA), and one AOV (AovOutput's formats).
-void write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
-                       const Metadata& metadata);
-void write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata);
-
-// Writes through a temporary name in the same directory and renames it into place.
-void write_atomically(const std::filesystem::path& file,
-                      const std::function<void(const std::filesystem::path&)>& write);
+files::WrittenFile write_frame_image(const std::filesystem::path& file, const render::Frame& frame,
+                                     const Metadata& metadata);
+files::WrittenFile write_aov(const AovOutput& aov, const render::Frame& frame, const Metadata& metadata);
 
 // The error target of `sweep` and `report`: rmse against the reference, 8-bit units.
 inline constexpr double sweep_target_rmse = 3.0;

@@ -12,6 +12,8 @@
 // (--height-range on integer samples, --channel naming no channel of it), of kind runtime for the
 // file itself: missing, not an image, of a size outside the limits, or not whole (truncated or
 // corrupt: refused, never read with rows filled in), with the decoders' messages in one line.
+// The writers encode in memory and write through render/files.h: a file is whole under its name or
+// absent, and a failed write throws files::WriteError naming the file and the system's reason.
 #pragma once
 
 #include <cstdint>
@@ -23,6 +25,7 @@
 #include <vector>
 
 #include "demos/error.h"
+#include "render/files.h"
 #include "sim/sim.h"
 
 namespace displace::app {
@@ -75,6 +78,10 @@ LoadedHeights load_heights(const std::filesystem::path& file, const HeightLoadSe
 LoadedHeights load_heights(std::span<const std::uint8_t> bytes, const std::filesystem::path& name,
                            const HeightLoadSettings& settings);
 
+// True when `file` opens as an image and every pixel of it decodes (not truncated, not corrupt):
+// what --resume asks of a frame its manifest does not vouch for.
+bool decodes_whole(const std::filesystem::path& file);
+
 // Image attributes: EXR header attributes or PNG text chunks.
 using AttributeValue = std::variant<std::string, float, int>;
 struct Attribute {
@@ -92,22 +99,22 @@ struct ExrChannel {
 };
 
 // Writes a float32 EXR (zip compressed) with the named channels and attributes.
-void write_exr(const std::filesystem::path& file, int width, int height, std::span<const ExrChannel> channels,
-               const Metadata& metadata);
+files::WrittenFile write_exr(const std::filesystem::path& file, int width, int height,
+                             std::span<const ExrChannel> channels, const Metadata& metadata);
 
 // Writes an 8-bit RGBA PNG from interleaved, unassociated (straight) RGBA samples; the attributes
 // become text chunks (numbers in decimal). No colour conversion and no colour chunk: the bytes are
 // stored as given.
-void write_png_rgba8(const std::filesystem::path& file, int width, int height,
-                     std::span<const std::uint8_t> rgba, const Metadata& metadata);
+files::WrittenFile write_png_rgba8(const std::filesystem::path& file, int width, int height,
+                                   std::span<const std::uint8_t> rgba, const Metadata& metadata);
 // Writes a 16-bit grey PNG of raw values (data for plots: iteration counts, not a picture).
-void write_png_gray16(const std::filesystem::path& file, int width, int height,
-                      std::span<const std::uint16_t> values);
+files::WrittenFile write_png_gray16(const std::filesystem::path& file, int width, int height,
+                                    std::span<const std::uint16_t> values);
 
 // An animated GIF of RGBA8 frames of one size (the first frame's), `fps` frames a second; for
 // previews (GIF's 256 colours a frame).
-void write_animated_gif(const std::filesystem::path& file, int width, int height,
-                        const std::vector<std::vector<std::uint8_t>>& frames, int fps);
+files::WrittenFile write_animated_gif(const std::filesystem::path& file, int width, int height,
+                                      const std::vector<std::vector<std::uint8_t>>& frames, int fps);
 
 // Any image, every channel converted to float, interleaved.
 struct FloatImage {

@@ -230,3 +230,21 @@ void read_pixels(oiio::ImageInput& input, int first, int end, oiio::TypeDesc typ
 }
 
 }  // namespace displace::app
+
+namespace displace::app {
+
+bool decodes_whole(const std::filesystem::path& file) {
+  try {
+    const ImageUse frame_use{"a frame", 1};
+    std::unique_ptr<oiio::ImageInput> input = open_input(file, frame_use, nullptr);
+    const oiio::ImageSpec& spec = input->spec();
+    std::vector<float> pixels(std::size_t(spec.width) * std::size_t(spec.height) *
+                              std::size_t(spec.nchannels));
+    read_pixels(*input, 0, spec.nchannels, oiio::TypeDesc::FLOAT, pixels.data(), file);
+    return true;
+  } catch (const AppError&) {
+    return false;
+  }
+}
+
+}  // namespace displace::app

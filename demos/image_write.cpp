@@ -1,6 +1,7 @@
-// demos/image_write.cpp - float EXR, RGBA8 and 16-bit grey PNG, and animated GIF out, through
-// OpenImageIO (demos/image_io.h). PNG alpha is written straight (oiio:UnassociatedAlpha = 1): cone
-// maps use it as a data channel. A PNG's attributes are text chunks: numbers are written in decimal.
+// demos/image_write.cpp - float EXR, RGBA8 and 16-bit grey PNG, and animated GIF out: encoded in
+// memory by OpenImageIO, written by the checked writer (demos/image_io.h, render/files.h). PNG alpha
+// is written straight (oiio:UnassociatedAlpha = 1): cone maps use it as a data channel. A PNG's
+// attributes are text chunks: numbers are written in decimal.
 #include <fmt/format.h>
 
 #include <cstdint>
@@ -9,6 +10,7 @@
 
 #include "demos/image_io.h"
 #include "demos/image_oiio.h"
+#include "render/files.h"
 
 namespace displace::app {
 namespace {
@@ -47,29 +49,48 @@ Metadata as_text(const Metadata& metadata) {
   return text;
 }
 
-void write_image(const std::filesystem::path& file, const oiio::ImageSpec& spec, oiio::TypeDesc type,
-                 const void* pixels) {
+// Encodes into memory (OpenImageIO's I/O proxy): the image library never touches the disk, and the
+// bytes go through the checked writer, which sees every failed write (render/files.h).
+std::vector<unsigned char> encode(const std::filesystem::path& file, std::span<const oiio::ImageSpec> specs,
+                                  oiio::TypeDesc type, std::span<const void* const> pixels) {
   auto output = oiio::ImageOutput::create(file.string());
   if (!output) {
     throw runtime_error("cannot write " + quoted(file) + ": " + take_error<oiio::ImageOutput>(nullptr));
   }
-  if (!output->open(file.string(), spec)) {
+  if (specs.size() > 1 && !output->supports("multiimage")) {
+    throw runtime_error("cannot write " + quoted(file) + ": this OpenImageIO writes one image to it, not " +
+                        std::to_string(specs.size()));
+  }
+  std::vector<unsigned char> bytes;
+  oiio::Filesystem::IOVecOutput memory(bytes);
+  if (!output->set_ioproxy(&memory)) {
     throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
   }
-  if (!output->write_image(type, pixels)) {
-    std::string message = take_error(output.get());
-    output->close();
-    throw runtime_error("cannot write " + quoted(file) + ": " + message);
+  const bool opened = specs.size() > 1 ? output->open(file.string(), int(specs.size()), specs.data())
+                                       : output->open(file.string(), specs[0]);
+  if (!opened) throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
+  for (std::size_t n = 0; n < specs.size(); ++n) {
+    if ((n > 0 && !output->open(file.string(), specs[n], oiio::ImageOutput::AppendSubimage)) ||
+        !output->write_image(type, pixels[n])) {
+      const std::string message = take_error(output.get());
+      output->close();
+      throw runtime_error("cannot write " + quoted(file) + ": " + message);
+    }
   }
-  if (!output->close()) {
-    throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
-  }
+  if (!output->close()) throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
+  return bytes;
+}
+
+files::WrittenFile write_image(const std::filesystem::path& file, const oiio::ImageSpec& spec,
+                               oiio::TypeDesc type, const void* pixels) {
+  const std::vector<unsigned char> bytes = encode(file, std::span(&spec, 1), type, std::span(&pixels, 1));
+  return files::write_file(file, std::as_bytes(std::span(bytes)));
 }
 
 }  // namespace
 
-void write_exr(const std::filesystem::path& file, int width, int height, std::span<const ExrChannel> channels,
-               const Metadata& metadata) {
+files::WrittenFile write_exr(const std::filesystem::path& file, int width, int height,
+                             std::span<const ExrChannel> channels, const Metadata& metadata) {
   check_size(file, width, height);
   const std::size_t texels = std::size_t(width) * std::size_t(height);
   if (channels.empty()) throw runtime_error("cannot write " + quoted(file) + ": no channels");
@@ -95,11 +116,11 @@ void write_exr(const std::filesystem::path& file, int width, int height, std::sp
   // same bytes, so that re-rendered frames and shards of a sequence compare equal
   spec.attribute("DateTime", "");
   add_metadata(spec, metadata);
-  write_image(file, spec, oiio::TypeDesc::FLOAT, pixels.data());
+  return write_image(file, spec, oiio::TypeDesc::FLOAT, pixels.data());
 }
 
-void write_png_rgba8(const std::filesystem::path& file, int width, int height,
-                     std::span<const std::uint8_t> rgba, const Metadata& metadata) {
+files::WrittenFile write_png_rgba8(const std::filesystem::path& file, int width, int height,
+                                   std::span<const std::uint8_t> rgba, const Metadata& metadata) {
   check_size(file, width, height);
   if (rgba.size() != std::size_t(width) * std::size_t(height) * 4) {
     throw runtime_error("cannot write " + quoted(file) + ": " + std::to_string(rgba.size()) +
@@ -109,11 +130,11 @@ void write_png_rgba8(const std::filesystem::path& file, int width, int height,
   oiio::ImageSpec spec(width, height, 4, oiio::TypeDesc::UINT8);
   spec.attribute("oiio:UnassociatedAlpha", 1);
   add_metadata(spec, as_text(metadata));
-  write_image(file, spec, oiio::TypeDesc::UINT8, rgba.data());
+  return write_image(file, spec, oiio::TypeDesc::UINT8, rgba.data());
 }
 
-void write_png_gray16(const std::filesystem::path& file, int width, int height,
-                      std::span<const std::uint16_t> values) {
+files::WrittenFile write_png_gray16(const std::filesystem::path& file, int width, int height,
+                                    std::span<const std::uint16_t> values) {
   check_size(file, width, height);
   if (values.size() != std::size_t(width) * std::size_t(height)) {
     throw runtime_error("cannot write " + quoted(file) + ": " + std::to_string(values.size()) +
@@ -121,36 +142,25 @@ void write_png_gray16(const std::filesystem::path& file, int width, int height,
                         " image");
   }
   const oiio::ImageSpec spec(width, height, 1, oiio::TypeDesc::UINT16);
-  write_image(file, spec, oiio::TypeDesc::UINT16, values.data());
+  return write_image(file, spec, oiio::TypeDesc::UINT16, values.data());
 }
 
-void write_animated_gif(const std::filesystem::path& file, int width, int height,
-                        const std::vector<std::vector<std::uint8_t>>& frames, int fps) {
+files::WrittenFile write_animated_gif(const std::filesystem::path& file, int width, int height,
+                                      const std::vector<std::vector<std::uint8_t>>& frames, int fps) {
   check_size(file, width, height);
   if (frames.empty()) throw runtime_error("cannot write " + quoted(file) + ": no frames");
-  auto output = oiio::ImageOutput::create(file.string());
-  if (!output || !output->supports("multiimage")) {
-    throw runtime_error("cannot write " + quoted(file) + ": this OpenImageIO writes no animated GIF");
-  }
   std::vector<oiio::ImageSpec> specs(frames.size(), oiio::ImageSpec(width, height, 4, oiio::TypeDesc::UINT8));
   const int rate[2] = {std::max(fps, 1), 1};
   for (oiio::ImageSpec& spec : specs) spec.attribute("FramesPerSecond", oiio::TypeRational, rate);
-  if (!output->open(file.string(), int(specs.size()), specs.data())) {
-    throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
-  }
-  for (std::size_t n = 0; n < frames.size(); ++n) {
-    if (frames[n].size() != std::size_t(width) * std::size_t(height) * 4) {
-      output->close();
+  std::vector<const void*> pixels;
+  for (const std::vector<std::uint8_t>& frame : frames) {
+    if (frame.size() != std::size_t(width) * std::size_t(height) * 4) {
       throw runtime_error("cannot write " + quoted(file) + ": frames of different sizes");
     }
-    if ((n > 0 && !output->open(file.string(), specs[n], oiio::ImageOutput::AppendSubimage)) ||
-        !output->write_image(oiio::TypeDesc::UINT8, frames[n].data())) {
-      const std::string message = take_error(output.get());
-      output->close();
-      throw runtime_error("cannot write " + quoted(file) + ": " + message);
-    }
+    pixels.push_back(frame.data());
   }
-  if (!output->close()) throw runtime_error("cannot write " + quoted(file) + ": " + take_error(output.get()));
+  const std::vector<unsigned char> bytes = encode(file, specs, oiio::TypeDesc::UINT8, pixels);
+  return files::write_file(file, std::as_bytes(std::span(bytes)));
 }
 
 }  // namespace displace::app

@@ -11,7 +11,6 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -23,6 +22,7 @@
 #include "demos/error.h"
 #include "demos/frame_output.h"
 #include "demos/heights.h"
+#include "demos/text_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/maps.h"
 
@@ -37,13 +37,6 @@ constexpr render::Method heatmap_methods[] = {
     render::Method::maxmip, render::Method::qdm};
 
 std::string number(double value) { return std::isfinite(value) ? fmt::format("{:g}", value) : "inf"; }
-
-std::ofstream open_table(const std::filesystem::path& file, std::string_view header) {
-  std::ofstream csv(file);
-  if (!csv) throw runtime_error("cannot write " + file.string());
-  csv << header << '\n';
-  return csv;
-}
 
 pipeline::Scene sized(pipeline::Scene scene, int side) {
   scene.camera.width = side;
@@ -143,10 +136,9 @@ const pipeline::Scene& main_scene(const std::vector<pipeline::Scene>& scenes) {
 void cost_part(render::Renderer& renderer, pipeline::MapMaker& maps,
                const std::vector<pipeline::Scene>& scenes, const Plan& plan,
                const std::filesystem::path& directory, std::ostream& out) {
-  std::ofstream csv =
-      open_table(directory / "cost.csv",
-                 "scene,method,steps,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,"
-                 "mean_iterations,median_ms");
+  TextFile csv(directory / "cost.csv",
+               "scene,method,steps,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,"
+               "mean_iterations,median_ms");
   render::Frame frame;
   for (const pipeline::Scene& scene_settings : scenes) {
     const pipeline::Scene scene = sized(scene_settings, plan.image_side);
@@ -168,17 +160,18 @@ void cost_part(render::Renderer& renderer, pipeline::MapMaker& maps,
         if (info.family == render::MethodFamily::surface) break;  // no steps to give: one row
       }
     }
+    csv.save();
     out << fmt::format("  cost: {} done\n", scene.name) << std::flush;
   }
+  csv.save();
 }
 
 void grazing_part(render::Renderer& renderer, pipeline::MapMaker& maps,
                   const std::vector<pipeline::Scene>& scenes, const Plan& plan,
                   const std::filesystem::path& directory, std::ostream& out) {
-  std::ofstream csv =
-      open_table(directory / "grazing.csv",
-                 "scene,elevation_deg,tile,fov_y_deg,reference_pixels,method,steps,rmse,fraction_over_10,"
-                 "mean_fetches,median_ms");
+  TextFile csv(directory / "grazing.csv",
+               "scene,elevation_deg,tile,fov_y_deg,reference_pixels,method,steps,rmse,fraction_over_10,"
+               "mean_fetches,median_ms");
   render::Frame frame;
   for (const pipeline::Scene& scene_settings : scenes) {
     const pipeline::Scene scene = sized(scene_settings, plan.image_side);
@@ -205,8 +198,10 @@ void grazing_part(render::Renderer& renderer, pipeline::MapMaker& maps,
         }
       }
     }
+    csv.save();
     out << fmt::format("  grazing: {} done\n", scene.name) << std::flush;
   }
+  csv.save();
 }
 
 // acm4 from `cones` (4 sectors, bilinear) at the plan's step counts until rmse <= target: the
@@ -238,10 +233,9 @@ ConeRender acm4_until_target(render::Renderer& renderer, render::MapSet maps, co
 
 void bake_part(render::Renderer& renderer, const pipeline::Scene& scene_settings, const Plan& plan,
                const std::filesystem::path& directory, std::ostream& out) {
-  std::ofstream csv =
-      open_table(directory / "bake.csv",
-                 "scene,cones,budget_ms,tolerance,bake_ms,mean_ratio,texels_refined,texels_fallback,"
-                 "acm4_steps,acm4_fetches,acm4_rmse,acm4_ms");
+  TextFile csv(directory / "bake.csv",
+               "scene,cones,budget_ms,tolerance,bake_ms,mean_ratio,texels_refined,texels_fallback,"
+               "acm4_steps,acm4_fetches,acm4_rmse,acm4_ms");
   const pipeline::Scene scene = sized(scene_settings, plan.image_side);
   const SceneHeights input = scene_heights(scene, scene.start);
   const bake::Address address = start_view(scene).address;
@@ -297,15 +291,15 @@ void bake_part(render::Renderer& renderer, const pipeline::Scene& scene_settings
       bake_bilinear(input.heights, input.width, input.height, 4, Baker::full, address, unlimited);
   const ConeRender render = acm4_until_target(renderer, maps, full, address, view, reference, plan);
   row("bilinear-full", "inf", 0.0f, full, &render);
+  csv.save();
   out << fmt::format("  bake: {} done ({} x {} map)\n", scene.name, input.width, input.height) << std::flush;
 }
 
 void frame_part(render::Renderer& renderer, const Plan& plan, const std::filesystem::path& directory,
                 std::ostream& out) {
-  std::ofstream csv =
-      open_table(directory / "frame.csv",
-                 "frame_budget_ms,frame,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,"
-                 "mean_ratio,pending,mean_fetches,rmse,fraction_over_10");
+  TextFile csv(directory / "frame.csv",
+               "frame_budget_ms,frame,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,"
+               "mean_ratio,pending,mean_fetches,rmse,fraction_over_10");
   render::Frame frame, reference;
   for (double budget : plan.frame_budgets_ms) {
     pipeline::Scene scene = pipeline::builtin_scene("water");
@@ -329,14 +323,16 @@ void frame_part(render::Renderer& renderer, const Plan& plan, const std::filesys
                          record.cones.mean_ratio, record.pending, summarize(frame).mean_fetches, error.rmse,
                          error.fraction_over_10);
     }
+    csv.save();
     out << fmt::format("  frame: budget {} ms done\n", number(budget)) << std::flush;
   }
+  csv.save();
 }
 
 void heatmap_part(render::Renderer& renderer, pipeline::MapMaker& maps, const pipeline::Scene& scene_settings,
                   const Plan& plan, const std::filesystem::path& directory, std::ostream& out) {
-  std::ofstream csv = open_table(directory / "heatmaps.csv",
-                                 "scene,method,steps,mean_iterations,max_iterations,mean_fetches,rmse,file");
+  TextFile csv(directory / "heatmaps.csv",
+               "scene,method,steps,mean_iterations,max_iterations,mean_fetches,rmse,file");
   const pipeline::Scene scene = sized(scene_settings, plan.image_side);
   load_scene(renderer, maps, scene);
   const render::Frame reference =
@@ -360,6 +356,7 @@ void heatmap_part(render::Renderer& renderer, pipeline::MapMaker& maps, const pi
                        run.summary.mean_iterations, run.summary.max_iterations, run.summary.mean_fetches,
                        run.error.rmse, file);
   }
+  csv.save();
   out << fmt::format("  heatmaps: {} done\n", scene.name) << std::flush;
 }
 

@@ -15,6 +15,7 @@
 #include <system_error>
 #include <vector>
 
+#include "render/files.h"
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
 #include "spirv/mesh_vert.h"
@@ -94,31 +95,22 @@ void Renderer::Impl::load_pipeline_cache(const std::string& requested) {
   pipeline_cache = OwnedPipelineCache(context.device(), cache);
 }
 
-// Written to a temporary name and renamed into place, so that processes sharing the directory never
-// read half a file; a cache that cannot be written costs the next run its compile time, nothing more.
+// Written by the checked writer (render/files.h), so that processes sharing the directory never read
+// half a file; a cache that cannot be written costs the next run its compile time, nothing more.
 void Renderer::Impl::save_pipeline_cache() noexcept {
   if (pipeline_cache_file.empty() || !pipeline_cache.get() || pipelines_created == 0) return;
   try {
     std::size_t size = 0;
     if (vkGetPipelineCacheData(context.device(), pipeline_cache.get(), &size, nullptr) != VK_SUCCESS) return;
-    std::vector<char> data(size);
+    std::vector<std::byte> data(size);
     if (vkGetPipelineCacheData(context.device(), pipeline_cache.get(), &size, data.data()) != VK_SUCCESS)
       return;
     const std::filesystem::path path(pipeline_cache_file);
     std::error_code error;
     std::filesystem::create_directories(path.parent_path(), error);
-    const std::string temporary = pipeline_cache_file + ".tmp" + std::to_string(::getpid());
-    {
-      std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-      file.write(data.data(), std::streamsize(size));
-      if (!file) {
-        std::fprintf(stderr, "displace: warning: could not write the pipeline cache %s\n", temporary.c_str());
-        std::filesystem::remove(temporary, error);
-        return;
-      }
-    }
-    std::filesystem::rename(temporary, path, error);
-    if (error) std::filesystem::remove(temporary, error);
+    files::write_file(path, std::span(data.data(), size));
+  } catch (const files::WriteError& error) {
+    std::fprintf(stderr, "displace: warning: the pipeline cache is not saved: %s\n", error.what());
   } catch (...) {
   }
 }

@@ -261,11 +261,7 @@ void run_bench_frame(const BenchFrameSettings& settings, std::ostream& out) {
   nlohmann::ordered_json stages = print_bench_table(settings, samples, device, out);
   if (!settings.json.empty()) {
     const nlohmann::ordered_json json = bench_json(settings, samples, std::move(stages), device);
-    write_atomically(settings.json, [&](const std::filesystem::path& file) {
-      std::ofstream stream(file);
-      stream << json.dump(2) << '\n';
-      if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
-    });
+    files::write_file(settings.json, json.dump(2) + '\n');
     out << "  wrote " << settings.json.string() << '\n';
   }
   require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());

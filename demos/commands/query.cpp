@@ -99,11 +99,7 @@ void run_query(const QuerySettings& settings, std::ostream& out) {
     out << text.str();
     return;
   }
-  write_atomically(settings.output, [&](const std::filesystem::path& file) {
-    std::ofstream stream(file);
-    stream << text.str();
-    if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
-  });
+  files::write_file(settings.output, text.str());
   out << fmt::format("displace query: {} points of {} at t = {:g} s; wrote '{}'\n", points.size(),
                      settings.scene.name, settings.scene.start, settings.output);
 }

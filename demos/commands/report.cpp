@@ -154,11 +154,7 @@ void run_report(const ReportSettings& settings, std::ostream& out) {
   json["heatmap_steps"] = plan.heatmap_steps;
   json["seconds"] = seconds;
   json["seconds"]["total"] = std::round(whole.seconds() * 10.0) / 10.0;
-  {
-    std::ofstream file(settings.output / "report.json");
-    if (!file) throw runtime_error("cannot write " + (settings.output / "report.json").string());
-    file << json.dump(2) << '\n';
-  }
+  files::write_file(settings.output / "report.json", json.dump(2) + '\n');
   if (settings.plots) run_plots(settings.output);
   out << fmt::format("  wrote {} in {:.0f} s\n",
                      (settings.output / (settings.plots ? "README.md" : "report.json")).string(),

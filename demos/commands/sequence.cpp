@@ -10,9 +10,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -21,9 +23,11 @@
 #include "demos/cli/scene_flags.h"
 #include "demos/commands/settings.h"
 #include "demos/error.h"
+#include "demos/frame_manifest.h"
 #include "demos/frame_output.h"
 #include "demos/heights.h"
 #include "demos/image_io.h"
+#include "demos/interrupt.h"
 #include "demos/memory.h"
 #include "demos/progress.h"
 #include "pipeline/frame_pipeline.h"
@@ -47,12 +51,18 @@ bool on_path(const std::string& program) {
   return false;
 }
 
-// The per-frame CSV of a sequence: next to the frames, named after the pattern without its '#'s.
-std::filesystem::path csv_file(const SequenceSettings& settings) {
+// The name the per-frame CSVs and manifests of a sequence start with: the pattern without its '#'s.
+std::string csv_stem(const SequenceSettings& settings) {
   std::string stem = settings.output.stem().string();
   stem.erase(std::remove(stem.begin(), stem.end(), '#'), stem.end());
   while (!stem.empty() && (stem.back() == '_' || stem.back() == '-' || stem.back() == '.')) stem.pop_back();
-  if (stem.empty()) stem = "frames";
+  return stem.empty() ? "frames" : stem;
+}
+
+// The per-frame CSV of a sequence (or of one shard): next to the frames. Its manifest
+// (demos/frame_manifest.h) has the same name ending in .manifest.
+std::filesystem::path csv_file(const SequenceSettings& settings) {
+  std::string stem = csv_stem(settings);
   if (settings.shard_count > 1)
     stem += fmt::format(".shard{}of{}", settings.shard_index, settings.shard_count);
   return settings.output.parent_path() / (stem + ".csv");
@@ -92,7 +102,11 @@ std::FILE* start_video(const SequenceSettings& settings) {
   return video;
 }
 
-constexpr const char* sequence_csv_header =
+// The CSV and the manifest are saved at most this often (seconds) while frames are written, and at
+// the end: a killed run loses at most this much of its manifest (those frames are then decoded).
+constexpr double manifest_save_seconds = 5.0;
+
+const std::string sequence_csv_header =
     "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
     "mean_ratio,texels_pending,cone_lag_frames,cone_lift,sim_backend,bake_backend,sim_device_ms,"
     "bake_device_ms,render_device_ms\n";
@@ -109,22 +123,58 @@ std::string sequence_csv_row(long long n, const pipeline::FrameRecord& record) {
       record.bake_device_ms, record.render_device_ms);
 }
 
-// Frame n's picture and AOVs, each written atomically.
+// Frame n's picture and AOVs, each written whole by the checked writer and entered in the manifest.
 void write_sequence_frame(const SequenceSettings& settings, long long n, const pipeline::FrameRecord& record,
                           const render::Frame& frame, const std::filesystem::path& picture,
-                          const std::vector<AovOutput>& aovs) {
+                          const std::vector<AovOutput>& aovs, FrameManifest& manifest) {
   const pipeline::Scene& scene = settings.scene;
   Metadata metadata = {{"displace:scene", scene.name},
                        {"displace:frame", int(n)},
                        {"displace:time", fmt::format("{:.17g}", record.time)},
                        {"displace:method", std::string(render::method_info(scene.method).name)},
                        {"displace:steps", scene.steps}};
-  write_atomically(picture,
-                   [&](const std::filesystem::path& file) { write_frame_image(file, frame, metadata); });
-  for (const AovOutput& aov : aovs) {
-    write_atomically(aov.file, [&](const std::filesystem::path& file) {
-      write_aov({aov.aov, file}, frame, metadata);
-    });
+  manifest.add(picture, write_frame_image(picture, frame, metadata));
+  for (const AovOutput& aov : aovs) manifest.add(aov.file, write_aov(aov, frame, metadata));
+}
+
+// The rows by frame of the sequence's per-frame CSVs beside `csv` (any shard layout) whose header is
+// this version's: what a resumed run keeps for the frames it skips.
+std::map<long long, std::string> read_csv_rows(const std::filesystem::path& csv, const std::string& stem) {
+  std::map<long long, std::string> rows;
+  std::error_code error;
+  const std::filesystem::path directory = csv.parent_path().empty() ? "." : csv.parent_path();
+  for (const auto& entry : std::filesystem::directory_iterator(directory, error)) {
+    if (!is_sequence_file(entry.path(), stem, ".csv")) continue;
+    std::ifstream stream(entry.path());
+    std::string line;
+    if (!std::getline(stream, line) || line + '\n' != sequence_csv_header) continue;
+    while (std::getline(stream, line)) {
+      long long frame = 0;
+      char comma = 0;
+      if (std::sscanf(line.c_str(), "%lld%c", &frame, &comma) == 2 && comma == ',') rows[frame] = line + '\n';
+    }
+  }
+  return rows;
+}
+
+// Temporaries a killed run of this shard left (".NAME.partial-PID-N", render/files.h) beside the
+// frames it owns: removed before the first frame. Only this shard's names, so that shards sharing a
+// directory never touch each other's writes.
+void remove_stale_partials(const std::vector<std::vector<std::filesystem::path>>& outputs) {
+  std::map<std::filesystem::path, std::set<std::string>> owned;
+  for (const auto& frame_files : outputs) {
+    for (const std::filesystem::path& file : frame_files) {
+      owned[file.parent_path().empty() ? "." : file.parent_path()].insert(file.filename().string());
+    }
+  }
+  std::error_code error;
+  for (const auto& [directory, names] : owned) {
+    for (const auto& entry : std::filesystem::directory_iterator(directory, error)) {
+      const std::string name = entry.path().filename().string();
+      const std::size_t partial = name.rfind(".partial-");
+      if (name.size() < 2 || name[0] != '.' || partial == std::string::npos) continue;
+      if (names.count(name.substr(1, partial - 1))) std::filesystem::remove(entry.path(), error);
+    }
   }
 }
 
@@ -166,50 +216,90 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
   const pipeline::Scene& scene = settings.scene;
   std::FILE* video = start_video(settings);
 
+  // the files of each frame: its picture, then its AOVs
+  std::vector<std::vector<std::filesystem::path>> frame_files;
+  for (const long long n : frames) {
+    std::vector<std::filesystem::path> names{pipeline::image_for_frame(settings.output, n)};
+    for (const AovOutput& aov : settings.aovs) names.push_back(pipeline::image_for_frame(aov.file, n));
+    frame_files.push_back(std::move(names));
+  }
+  const StopBetweenFrames stop;
+  remove_stale_partials(frame_files);
+
+  // the per-frame CSV and the manifest, saved together: they list only frames written whole
   const std::filesystem::path csv_path = csv_file(settings);
-  std::string csv = sequence_csv_header;
+  FrameManifest manifest(std::filesystem::path(csv_path).replace_extension(".manifest"));
+  const bool resume = settings.resume && !video && settings.preview.empty();
+  std::map<long long, std::string> earlier_rows;
+  if (resume) {
+    manifest.read_beside(csv_stem(settings));
+    earlier_rows = read_csv_rows(csv_path, csv_stem(settings));
+  }
+  std::string rows;
+  double last_save = steady_seconds();
+  const auto save = [&] {
+    files::write_file(csv_path, sequence_csv_header + rows);
+    manifest.save();
+    last_save = steady_seconds();
+  };
+  // on the way out after a failure or a signal: what can still be saved, the first error kept
+  const auto save_after_stop = [&] {
+    try {
+      if (!rows.empty()) save();
+    } catch (const files::WriteError&) {
+    }
+  };
+
   const bool terminal = stderr_is_terminal();
   const double start = steady_seconds();
   render::Frame frame;
   std::vector<std::vector<std::uint8_t>> preview;
   long long done = 0, skipped = 0;
-  for (const long long n : frames) {
-    const std::filesystem::path picture = pipeline::image_for_frame(settings.output, n);
+  for (std::size_t position = 0; position < frames.size(); ++position) {
+    const long long n = frames[position];
+    if (const int signal = stop.requested()) {
+      save_after_stop();
+      throw Interrupted(
+          signal, fmt::format("stopped before frame {}, {} frames written whole; --resume goes on", n, done));
+    }
+    const std::filesystem::path& picture = frame_files[position][0];
     std::vector<AovOutput> aovs = settings.aovs;
-    for (AovOutput& aov : aovs) aov.file = pipeline::image_for_frame(aov.file, n);
-    const bool present = std::filesystem::exists(picture) &&
-                         std::all_of(aovs.begin(), aovs.end(),
-                                     [](const AovOutput& aov) { return std::filesystem::exists(aov.file); });
-    if (settings.resume && present && !video && settings.preview.empty()) {
+    for (std::size_t a = 0; a < aovs.size(); ++a) aovs[a].file = frame_files[position][a + 1];
+    if (resume && std::all_of(frame_files[position].begin(), frame_files[position].end(),
+                              [&](const std::filesystem::path& file) { return manifest.whole(file); })) {
       ++skipped;
+      if (const auto row = earlier_rows.find(n); row != earlier_rows.end()) rows += row->second;
       continue;
     }
     const pipeline::FrameRecord record = pipeline.run(n, frame, outputs);
-    write_sequence_frame(settings, n, record, frame, picture, aovs);
+    try {
+      write_sequence_frame(settings, n, record, frame, picture, aovs, manifest);
+    } catch (const files::WriteError& error) {
+      save_after_stop();
+      throw runtime_error(
+          fmt::format("frame {}: {} (the frames before it are whole; --resume goes on)", n, error.what()));
+    }
     if (!settings.preview.empty()) preview.push_back(frame.color);
     if (video && std::fwrite(frame.color.data(), 1, frame.color.size(), video) != frame.color.size()) {
       ::pclose(video);
       throw runtime_error("ffmpeg stopped taking frames for --video");
     }
-    csv += sequence_csv_row(n, record);
+    rows += sequence_csv_row(n, record);
     ++done;
+    if (steady_seconds() - last_save >= manifest_save_seconds) save();
     const double rate = double(done) / std::max(steady_seconds() - start, 1e-9);
     report_sequence_progress(out, terminal, n, done + skipped, frames.size(), rate, record, picture);
   }
   if (terminal) std::fprintf(stderr, "\r%*s\r", 90, "");
   if (video && ::pclose(video) != 0) throw runtime_error("ffmpeg failed to encode --video");
   if (!preview.empty()) {
-    write_atomically(settings.preview, [&](const std::filesystem::path& file) {
-      write_animated_gif(file, scene.camera.width, scene.camera.height, preview, int(std::lround(scene.fps)));
-    });
+    write_animated_gif(settings.preview, scene.camera.width, scene.camera.height, preview,
+                       int(std::lround(scene.fps)));
     out << "  animated preview: " << settings.preview.string() << '\n';
   }
-  if (done > 0) {
-    write_atomically(csv_path, [&](const std::filesystem::path& file) {
-      std::ofstream stream(file);
-      stream << csv;
-      if (!stream) throw runtime_error(fmt::format("cannot write '{}'", file.string()));
-    });
+  if (done > 0) save();
+  if (const int signal = stop.requested()) {
+    throw Interrupted(signal, fmt::format("after the last frame: all {} frames are whole", frames.size()));
   }
   out << fmt::format(
       "displace sequence: {} {}, frames {}..{} step {}{}: rendered {}, skipped {} (present), "
@@ -242,7 +332,12 @@ Finish add_sequence_command(CLI::App& command) {
       "frame), bake_budget_ms (the bake's share; inf: unlimited), overrun (1: the frame took longer than\n"
       "the budget), ffts, effects (+-joined), cone_mean_ratio, texels_pending (left to refine),\n"
       "cone_lag_frames, cone_lift (apexes raised, fraction of the height range), sim_backend, bake_backend\n"
-      "(cpu, device), sim_device_ms, bake_device_ms, render_device_ms (GPU timestamps; 0: none).");
+      "(cpu, device), sim_device_ms, bake_device_ms, render_device_ms (GPU timestamps; 0: none).\n"
+      "It lists only frames written whole, as does OUTPUT_STEM.manifest (each file's size, time and\n"
+      "checksum: what --resume trusts); both are saved every few seconds and when the run ends.\n"
+      "Every file is written whole or not at all (a temporary, fsync, rename): the first frame that\n"
+      "cannot be written ends the run (exit 1). SIGINT and SIGTERM stop it after the frame in progress\n"
+      "(exit 130, 143); a second one stops it at once; neither leaves a partial file.");
   struct Draft {
     cli::SceneFlags scene;
     SequenceSettings settings;
@@ -284,7 +379,10 @@ Finish add_sequence_command(CLI::App& command) {
         }
         return {};
       }));
-  cli::add_switch(command, "--resume", draft->settings.resume, "skip frames whose outputs all exist");
+  cli::add_switch(command, "--resume", draft->settings.resume,
+                  "skip frames whose files are all whole: a file is whole when its size and time are the "
+                  "manifest's (OUTPUT_STEM*.manifest, no byte read), else when its bytes' checksum is, else "
+                  "when it decodes whole; empty, truncated and corrupt files are rendered again");
   cli::add_value(command, "--video", draft->video,
                  "also encode the frames with ffmpeg (needs ffmpeg on the PATH)", "FILE.mp4|FILE.webm",
                  cli::output_file({".mp4", ".webm"}));

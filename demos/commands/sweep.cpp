@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <array>
-#include <fstream>
 #include <ostream>
 #include <sstream>
 
@@ -14,14 +13,14 @@
 #include "demos/error.h"
 #include "demos/frame_output.h"
 #include "demos/heights.h"
+#include "demos/text_file.h"
 
 namespace displace::app {
 
 void run_sweep(const SweepSettings& settings, std::ostream& out) {
   render::Renderer renderer(settings.renderer);
   pipeline::MapMaker maps(renderer.device().max_image_dimension_3d);
-  std::ofstream csv(settings.output);
-  if (!csv) throw runtime_error("cannot write " + settings.output.string());
+  TextFile csv(settings.output);
   csv << "scene,method,steps,refine,rmse,max_error,fraction_over_10,mean_fetches,p99_fetches,mean_iterations,"
          "median_ms,device\n";
   out << "displace sweep on " << renderer.device().name << " (" << renderer.device().type << "), "
@@ -82,6 +81,7 @@ void run_sweep(const SweepSettings& settings, std::ostream& out) {
                          sectors, sectors == 1 ? "" : "s", stats.milliseconds, stats.mean_ratio,
                          stats.texels_refined, (long long)stats.width * stats.height);
     }
+    csv.save();
   }
   out << "  wrote " << settings.output.string() << '\n';
   require_no_validation_messages(settings.renderer.validate, renderer.validation_messages());

@@ -1,14 +1,17 @@
 // embed: displace used as a library. Runs the built-in `water` scene for ten frames, asks the
 // surface's height at a few points (a buoy, say) at the last frame's time, and writes that frame.
 //   embed OUT.png
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cstdio>
 #include <exception>
+#include <span>
 #include <vector>
 
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
+#include "render/files.h"
 #include "render/render.h"
 
 namespace pipeline = displace::pipeline;
@@ -49,18 +52,22 @@ int main(int argc, char** argv) {
                   heights.height_m[i], heights.normal[i].x, heights.normal[i].y, heights.normal[i].z);
     }
 
-    // the last frame, RGBA8
+    // the last frame, RGBA8: encoded in memory, then written whole or not at all (render/files.h)
     auto output = OIIO::ImageOutput::create(argv[1]);
     const OIIO::ImageSpec spec(frame.width, frame.height, 4, OIIO::TypeDesc::UINT8);
-    if (!output || !output->open(argv[1], spec) ||
+    std::vector<unsigned char> encoded;
+    OIIO::Filesystem::IOVecOutput memory(encoded);
+    if (!output || !output->set_ioproxy(&memory) || !output->open(argv[1], spec) ||
         !output->write_image(OIIO::TypeDesc::UINT8, frame.color.data()) || !output->close()) {
-      std::fprintf(stderr, "embed: cannot write %s\n", argv[1]);
+      std::fprintf(stderr, "embed: cannot encode %s\n", argv[1]);
       return 1;
     }
+    displace::files::write_file(argv[1], std::as_bytes(std::span(encoded)));
     std::printf("wrote %s (%d x %d)\n", argv[1], frame.width, frame.height);
     return 0;
   } catch (const std::exception& error) {
-    // pipeline::SceneError and render::RenderError say what went wrong (no device, a bad scene)
+    // pipeline::SceneError, render::RenderError and files::WriteError say what went wrong (no device,
+    // a bad scene, a full disk)
     std::fprintf(stderr, "embed: %s\n", error.what());
     return 1;
   }

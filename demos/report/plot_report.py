@@ -8,6 +8,7 @@ heatmap_*.png data images; writes DIR/*.png figures and DIR/README.md. Every num
 tables is computed here from those CSVs (tests/report_check.py recomputes them on its own).
 """
 import csv
+import io
 import json
 import math
 import os
@@ -29,6 +30,35 @@ HORIZON_BAND_DEG = 2.0  # the horizon band: the grazing elevations at or below t
 HORIZON_BASE_DEG = 45.0  # what the band is compared with: the default camera's elevation
 FRACTION_FLOOR = 1e-4  # a fraction of pixels off below this is drawn at it (log axes)
 SURFACE_METHODS = {"bump", "parallax", "parallax-limited", "parallax-slope"}
+
+
+def write_whole(path, data):
+    """Writes the bytes whole or not at all, as the project's C++ writer does (render/files.h): a
+    temporary in the same directory, fsync, rename, fsync of the directory; removed on failure."""
+    directory = os.path.dirname(os.path.abspath(path))
+    temporary = os.path.join(directory, f".{os.path.basename(path)}.partial-{os.getpid()}")
+    try:
+        with open(temporary, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+    descriptor = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
+def save_figure(fig, path):
+    """A figure as PNG bytes in memory, then written whole (write_whole)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90)
+    write_whole(path, buffer.getvalue())
 
 
 def read_table(directory, name):
@@ -191,7 +221,7 @@ def cost_figure(directory, scene, rows, target, styles):
     fig.suptitle(f"{scene}: error against what it costs (dotted: rmse = {target:g})")
     fig.tight_layout()
     name = f"cost_{scene}.png"
-    fig.savefig(os.path.join(directory, name), dpi=90)
+    save_figure(fig, os.path.join(directory, name))
     plt.close(fig)
     return name
 
@@ -225,7 +255,7 @@ def grazing_figure(directory, rows, scenes, target, styles):
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, fontsize=8, loc="center right")
     fig.tight_layout(rect=(0, 0, 0.87, 1))
-    fig.savefig(os.path.join(directory, "grazing.png"), dpi=90)
+    save_figure(fig, os.path.join(directory, "grazing.png"))
     plt.close(fig)
     return "grazing.png"
 
@@ -265,7 +295,7 @@ def horizon_figure(directory, rows, scenes, steps, styles):
     fig.legend(handles, labels, fontsize=8, loc="center right")
     fig.suptitle(f"The horizon band (shaded: at or below {HORIZON_BAND_DEG:g} degrees) at {steps} steps")
     fig.tight_layout(rect=(0, 0, 0.88, 1))
-    fig.savefig(os.path.join(directory, "horizon.png"), dpi=90)
+    save_figure(fig, os.path.join(directory, "horizon.png"))
     plt.close(fig)
     return "horizon.png"
 
@@ -303,7 +333,7 @@ def bake_figure(directory, rows):
     axes[1].legend(fontsize=8)
     axes[1].grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(os.path.join(directory, "bake.png"), dpi=90)
+    save_figure(fig, os.path.join(directory, "bake.png"))
     plt.close(fig)
     return "bake.png"
 
@@ -332,7 +362,7 @@ def frame_figure(directory, rows, summary):
     axes[1].legend(fontsize=8)
     axes[1].grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(os.path.join(directory, "frame.png"), dpi=90)
+    save_figure(fig, os.path.join(directory, "frame.png"))
     plt.close(fig)
     return "frame.png"
 
@@ -355,7 +385,7 @@ def heatmap_figure(directory, rows):
     for axis in list(axes.flat)[len(rows):]:
         axis.axis("off")
     fig.colorbar(shown, ax=axes, shrink=0.9, label="search iterations per pixel")
-    fig.savefig(os.path.join(directory, "heatmaps.png"), dpi=90)
+    save_figure(fig, os.path.join(directory, "heatmaps.png"))
     plt.close(fig)
     return "heatmaps.png"
 
@@ -586,8 +616,7 @@ def main():
     out.append(table("heatmaps", ["method", "steps", "mean iterations", "max iterations", "fetches/pixel", "rmse"],
                      body))
 
-    with open(os.path.join(directory, "README.md"), "w") as handle:
-        handle.write("\n".join(out))
+    write_whole(os.path.join(directory, "README.md"), "\n".join(out).encode())
 
 
 if __name__ == "__main__":

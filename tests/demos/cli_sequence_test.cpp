@@ -44,12 +44,15 @@ std::string file_bytes(const fs::path& file) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-// Every file of `directory` with its bytes, except the CSVs and job logs (which hold timings).
+// Every file of `directory` with its bytes, except the CSVs, manifests and job logs (which hold
+// timings).
 std::map<std::string, std::string> frames_in(const fs::path& directory) {
   std::map<std::string, std::string> files;
   for (const auto& entry : fs::directory_iterator(directory)) {
     const std::string name = entry.path().filename().string();
-    if (entry.path().extension() == ".csv" || name.find("joblog") != std::string::npos) continue;
+    if (entry.path().extension() == ".csv" || entry.path().extension() == ".manifest" ||
+        name.find("joblog") != std::string::npos)
+      continue;
     files[name] = file_bytes(entry.path());
   }
   return files;
@@ -91,6 +94,9 @@ TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
   ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
   EXPECT_NE(resumed.out.find("rendered 1, skipped 5"), std::string::npos) << resumed.out;
   EXPECT_EQ(frames_in(split), expected);
+  // the resumed run's CSV keeps the shards' rows of the frames it skipped
+  const std::string resumed_csv = read_text(fs::path(split) / "w.csv");
+  EXPECT_EQ(std::count(resumed_csv.begin(), resumed_csv.end(), '\n'), 7) << resumed_csv;
 
   EXPECT_EQ(run_displace(dir, "sequence --frames 0:3 --output out.png").exit_code, 2);  // no '#'
   EXPECT_EQ(run_displace(dir, "sequence --frames 3:1 --output o_#.png").exit_code, 2);  // B < A
@@ -103,8 +109,6 @@ TEST(Cli, SequenceShardsAndResumesGiveTheSameFilesBitForBit) {
   }
 }
 
-// The GNU parallel recipe (demos/farm/parallel.sh) on this machine: three shards as parallel jobs
-// give the files of one run.
 // The main job's loop, small: frames 0..T fps - 1 are one whole loop, the line says so and by how much
 // the frequencies moved, and frame T fps draws frame 0's pixels.
 TEST(Cli, SequenceOfALoopSaysSoAndComesBackToFrameZero) {
@@ -130,25 +134,6 @@ TEST(Cli, SequenceOfALoopSaysSoAndComesBackToFrameZero) {
   const Rgba8Image half = read_rgba8_image(dir / "loop" / "l_0004.png");
   EXPECT_TRUE(first.pixels == again.pixels);
   EXPECT_FALSE(first.pixels == half.pixels);
-}
-
-TEST(Cli, GnuParallelShardsGiveTheFilesOfOneRun) {
-  if (std::system("command -v parallel >/dev/null 2>&1") != 0) {
-    GTEST_SKIP() << "GNU parallel is not installed (cmake/setup.sh installs it)";
-  }
-  TempDir dir;
-  const std::string whole = dir.operator/("whole").string(), farm = dir.operator/("farm").string();
-  ASSERT_EQ(run_displace(dir, std::string("sequence ") + small_sequence + " --frames 0:4 --output '" + whole +
-                                  "/f_##.png'")
-                .exit_code,
-            0);
-  const std::string script = std::string(DISPLACE_SOURCE_DIR) + "/demos/farm/parallel.sh";
-  const std::string command = "DISPLACE='" + std::string(DISPLACE_BINARY) + "' bash '" + script +
-                              "' 3 0:4 '" + farm + "/f_##.png' " + small_sequence + " >/dev/null 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0);
-  EXPECT_TRUE(fs::exists(fs::path(farm) / "parallel.joblog"));
-  EXPECT_EQ(frames_in(farm), frames_in(whole));
-  EXPECT_EQ(frames_in(whole).size(), 5u);
 }
 
 }  // namespace

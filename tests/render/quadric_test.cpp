@@ -62,7 +62,7 @@ View looking_at(Surface surface, glm::vec3 eye, glm::vec3 target, int pixels, fl
   return view;
 }
 
-Frame render_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
+Frame render_quadric_frame(const HeightField& field, const View& view, Method method, int steps, int refine) {
   shared_maps().set_heights(field);
   return draw(view, {method, steps, refine});
 }
@@ -134,14 +134,14 @@ TEST(Quadric, ConstantHeightSphereHasItsSilhouetteWhereTheRadiusPutsIt) {
   EXPECT_EQ(shared_renderer().validation_messages(), 0);
 }
 
-struct HitError {
+struct QuadricHitError {
   double max_texels = 0.0;
   long long over_half_texel = 0, hit_mismatch = 0, compared = 0;
 };
 
-HitError hit_error(const Frame& frame, const HeightField& field, const View& view,
-                   const std::vector<render::CpuHit>& truth) {
-  HitError error;
+QuadricHitError hit_error(const Frame& frame, const HeightField& field, const View& view,
+                          const std::vector<render::CpuHit>& truth) {
+  QuadricHitError error;
   for (std::size_t p = 0; p < truth.size(); ++p) {
     const bool gpu_hit = hit_at(frame, p);
     if (gpu_hit != truth[p].hit) {
@@ -200,8 +200,8 @@ TEST(Quadric, MethodsHitWithinHalfATexelOfTheExactTrace) {
     for (Method method : quadric_methods()) {
       if (method == Method::bump) continue;       // no displacement
       if (method == Method::reference) continue;  // the tessellated surface: tested on its own below
-      const Frame frame = render_frame(test.field, view, method, 256, 16);
-      const HitError error = hit_error(frame, test.field, view, truth);
+      const Frame frame = render_quadric_frame(test.field, view, method, 256, 16);
+      const QuadricHitError error = hit_error(frame, test.field, view, truth);
       const char* name = render::method_info(method).name;
       std::printf(
           "%-24s %-13s max %.3f texels, %lld over half a texel, %lld hit mismatches, of %lld (exact hits "
@@ -281,7 +281,7 @@ TEST(Quadric, ReferenceIsTheTessellatedSurface) {
     for (const glm::vec3 eye : {glm::vec3(0.5f, -0.4f, 0.45f), above}) {
       const View view = looking_at(surface, eye, {0.5f, 0.5f, 0.0f}, 40, 36.0f);
       const HeightField field = waves_field(size);
-      const Frame frame = render_frame(field, view, Method::reference, 1, 0);
+      const Frame frame = render_quadric_frame(field, view, Method::reference, 1, 0);
       const std::vector<Triangle> mesh = reference_mesh(field, view);
       const quadric::Shape shape = quadric::shape_of(view);
       long long compared = 0, mismatches = 0, depth_errors = 0;
@@ -396,7 +396,7 @@ struct WhiteAlbedo {  // sets a white albedo on the shared renderer for the scop
   ~WhiteAlbedo() { shared_renderer().clear_albedo(); }
 };
 
-bool colour_differs(const Frame& a, const Frame& b, std::size_t p) {
+bool quadric_colour_differs(const Frame& a, const Frame& b, std::size_t p) {
   for (int c = 0; c < 3; ++c) {
     if (std::abs(int(a.color[p * 4 + c]) - int(b.color[p * 4 + c])) > 8) return true;
   }
@@ -452,8 +452,8 @@ TEST(Quadric, ShadowsDarkenWhatLiesBeyondTheTerminator) {
     const char* name = render::method_info(method).name;
     long long lit_pixels = 0, dark_pixels = 0, false_shadows = 0, lit_beyond = 0;
     {
-      const Frame lit = render_frame(constant, view, method, 256, 16);
-      const Frame shaded = render_frame(constant, shadow_view, method, 256, 16);
+      const Frame lit = render_quadric_frame(constant, view, method, 256, 16);
+      const Frame shaded = render_quadric_frame(constant, shadow_view, method, 256, 16);
       for (int py = 0; py < lit.height; ++py) {
         for (int px = 0; px < lit.width; ++px) {
           const std::size_t p = std::size_t(py) * lit.width + px;
@@ -461,7 +461,7 @@ TEST(Quadric, ShadowsDarkenWhatLiesBeyondTheTerminator) {
           const double facing = glm::dot(base_normal(view, hit_point(view, lit, px, py)), light);
           if (facing > 0.05) {
             ++lit_pixels;
-            false_shadows += colour_differs(lit, shaded, p);
+            false_shadows += quadric_colour_differs(lit, shaded, p);
           } else if (facing < -0.05) {
             ++dark_pixels;
             lit_beyond += brightest_channel(shaded, p) > ambient_only + 1;
@@ -471,8 +471,8 @@ TEST(Quadric, ShadowsDarkenWhatLiesBeyondTheTerminator) {
     }
     long long ripple_beyond = 0, ripple_lit_beyond = 0, ripple_observable = 0;
     {
-      const Frame lit = render_frame(ripples, view, method, 256, 16);
-      const Frame shaded = render_frame(ripples, shadow_view, method, 256, 16);
+      const Frame lit = render_quadric_frame(ripples, view, method, 256, 16);
+      const Frame shaded = render_quadric_frame(ripples, shadow_view, method, 256, 16);
       for (int py = 0; py < lit.height; ++py) {
         for (int px = 0; px < lit.width; ++px) {
           const std::size_t p = std::size_t(py) * lit.width + px;
@@ -556,8 +556,8 @@ TEST(Quadric, ARingCastsItsShadowWhereTheCpuTracePutsIt) {
       const char* name = render::method_info(method).name;
       View shadow_view = view;
       shadow_view.shadows = true;
-      const Frame lit = render_frame(ring, view, method, 256, 16);
-      const Frame shaded = render_frame(ring, shadow_view, method, 256, 16);
+      const Frame lit = render_quadric_frame(ring, view, method, 256, 16);
+      const Frame shaded = render_quadric_frame(ring, shadow_view, method, 256, 16);
       long long shadowed = 0, clear = 0, wrong = 0, band = 0;
       for (std::size_t p = 0; p < truth.size(); ++p) {
         if (!truth[p].hit || !hit_at(lit, p)) continue;
@@ -569,10 +569,10 @@ TEST(Quadric, ARingCastsItsShadowWhereTheCpuTracePutsIt) {
         }
         if (expected[p] == 0) {
           ++clear;
-          wrong += colour_differs(lit, shaded, p);
+          wrong += quadric_colour_differs(lit, shaded, p);
         } else if (brightest_channel(lit, p) > ambient_only + 10) {  // its diffuse light shows
           ++shadowed;
-          wrong += !colour_differs(lit, shaded, p);
+          wrong += !quadric_colour_differs(lit, shaded, p);
         }
       }
       std::printf("%-8s %-13s %lld shadowed, %lld lit, %lld wrong; %lld in the edge band\n",
@@ -637,7 +637,7 @@ TEST(Quadric, ShadowsStayFiniteForHardLights) {
               if (field_name == "all-one" && hit_at(lit, p) &&
                   glm::dot(base_normal(view, hit_point(view, lit, px, py)),
                            glm::normalize(glm::dvec3(light))) > 0.05) {
-                acne += colour_differs(lit, shaded, p);
+                acne += quadric_colour_differs(lit, shaded, p);
               }
             }
           }
@@ -683,7 +683,7 @@ TEST(Quadric, ConstantHeightCastsNoShadowOnItself) {
             if (!hit_at(lit, p) || glm::dot(base_normal(view, hit_point(view, lit, px, py)), light) <= 0.05)
               continue;
             ++facing;
-            acne += colour_differs(lit, shaded, p);
+            acne += quadric_colour_differs(lit, shaded, p);
           }
         }
         const char* name = render::method_info(method).name;

@@ -173,8 +173,9 @@ TEST(ShaderSize, APipelineReadsOnlyTheImagesItsFeaturesUse) {
           << info.name << ", features " << features;
       EXPECT_FALSE(counts.bindings_read.contains(BINDING_CONE_LEVELS))
           << info.name << ", features " << features;
-      if ((features & FLAG_WATER) == 0)
+      if ((features & FLAG_WATER) == 0) {
         EXPECT_FALSE(counts.bindings_read.contains(BINDING_FOAM)) << info.name << ", features " << features;
+      }
     }
   }
   // and the features that use them do read them
