@@ -37,7 +37,11 @@ inline std::uint16_t encode_ratio(float ratio) {  // ratio >= 0
 }
 inline std::uint16_t encode_apex(float apex) {  // apex in [0, 1]
   // a * 65535 + 2 in float is above the exact a * 65535 by more than 1.99, and truncation loses < 1
-  return std::uint16_t(int(std::min(apex * 65535.0f + 2.0f, 65535.0f)));
+  const float scaled = std::min(apex * 65535.0f + 2.0f, 65535.0f);
+  // NaN, and values int cannot hold, of maps the packer refuses (never drawn): 0, for a cast of them
+  // to int is undefined (clang's UBSan, float-cast-overflow)
+  if (!(scaled > -2147483648.0f)) return 0;
+  return std::uint16_t(int(scaled));
 }
 // What the shader reads (the apex in float as a driver may convert: times the rounded 1 / 65535)
 inline float decode_ratio(std::uint16_t value) {

@@ -297,7 +297,7 @@ void run_sequence(const SequenceSettings& settings, std::ostream& out) {
                        int(std::lround(scene.fps)));
     out << "  animated preview: " << settings.preview.string() << '\n';
   }
-  if (done > 0) save();
+  if (done > 0 || resume) save();  // a resume keeps what it judged whole for the next one
   if (const int signal = stop.requested()) {
     throw Interrupted(signal, fmt::format("after the last frame: all {} frames are whole", frames.size()));
   }

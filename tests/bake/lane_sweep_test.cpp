@@ -742,7 +742,10 @@ TEST(LaneSweep, ChamferPathsAreNeverLongerThanTheStraightLine) {
       sets.push_back(tall ? moves(0, 0, n, columns, false) : moves(0, n, 2, columns, false));  // next to v
       sets.push_back(tall ? moves(1, rows, 2, n, true) : moves(n, rows, 2, 1, true));          // next to u
     }
-    auto length = [&](int da, int db) { return std::hypot(double(db) / w, double(da) / h); };
+    // (copies: clang 14 lambdas capture no structured binding)
+    auto length = [width = w, height = h](int da, int db) {
+      return std::hypot(double(db) / width, double(da) / height);
+    };
     const int last_a = std::min(h, 300), last_b = std::min(w, 300);  // uv distance 1 (or as far as that)
     for (std::size_t set = 0; set < sets.size(); ++set) {
       // cheapest paths over the lattice points (a rows, b columns) of the quadrant

@@ -205,7 +205,9 @@ TEST(Renderer, SecantRefinedMethodsNeedFewerFetchesThanReliefForTheSameAccuracy)
     int steps = 0, refine = 0;
     double max_texels = 0.0;
   };
-  for (const auto& [name, field] : fields) {
+  for (const auto& named_field : fields) {  // (no structured binding: clang 14 lambdas capture none)
+    const std::string& name = named_field.first;
+    const HeightField& field = named_field.second;
     std::vector<render::CpuHit> truth;
     for (int py = 0; py < view.camera.height; ++py)
       for (int px = 0; px < view.camera.width; ++px)
@@ -664,7 +666,9 @@ TEST(Renderer, SphereTracingNeedsFewerFetchesThanReliefOnSmoothFields) {
   const std::vector<std::pair<std::string, HeightField>> fields = {{"ramp", ramp_field(size)},
                                                                    {"waves", waves_field(size)}};
   const View view = oblique_view(48);
-  for (const auto& [name, field] : fields) {
+  for (const auto& named_field : fields) {  // (no structured binding: clang 14 lambdas capture none)
+    const std::string& name = named_field.first;
+    const HeightField& field = named_field.second;
     std::vector<render::CpuHit> truth;
     for (int py = 0; py < view.camera.height; ++py)
       for (int px = 0; px < view.camera.width; ++px)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # No frame lost: `displace` under real write faults and signals (issue 47's checks).
 #   tests/scripts/no_frame_lost.sh full-disk DISPLACE  # a tmpfs this script mounts, filled (skips: exit 77)
-#   tests/scripts/no_frame_lost.sh faults DISPLACE     # a file size limit, /dev/full, a read-only and a gone directory
+#   tests/scripts/no_frame_lost.sh faults DISPLACE     # a file size limit (sequence, report), /dev/full, a read-only and a gone directory
 #   tests/scripts/no_frame_lost.sh signals DISPLACE    # SIGTERM, SIGINT and a second signal during a sequence
 # Each fault: exit 1 and one line naming the file and the system's reason, no file under a final name
 # that is not byte for byte the clean run's (so none that does not decode whole), no temporary left;
@@ -151,6 +151,12 @@ faults() {
   "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$work/limited/w_####.png" --resume >/dev/null
   [ "$(same_as_clean "$work/limited" "$work/clean")" -eq 21 ] || fail "the rerun after the size limit"
   echo "  size limit: exit 1 at frame 0, nothing left; the rerun gave the clean frames"
+  # the report's first table over a 1 kB limit (no rerun to compare: its tables hold timings)
+  expect 1 "error: cannot write '$work/report/cost\.csv': File too large" \
+    bash -c 'trap "" XFSZ; ulimit -f 1; exec "$@"' limit "$displace" report --quick --size 16 --scene bricks \
+    --no-plots --pipeline-cache off --output "$work/report"
+  [ -z "$(ls -A "$work/report")" ] || fail "the report left files under the size limit: $(ls -A "$work/report")"
+  echo "  report: exit 1 at its first table, nothing left"
 
   # /dev/full (through a link with the name the command asks for) and a directory are never written over
   ln -s /dev/full "$work/full.csv"
@@ -185,7 +191,8 @@ faults() {
   local runner=$!
   local waited=0
   until [ -f "$work/gone/w_0001.png" ] || [ "$waited" -ge 600 ]; do sleep 0.1; waited=$((waited + 1)); done
-  rm -rf "$work/gone"
+  # (again if a temporary appeared in it while it went)
+  rm -rf "$work/gone" 2>/dev/null || rm -rf "$work/gone"
   local status=0
   wait "$runner" || status=$?
   [ "$status" -eq 1 ] || fail "a sequence into a removed directory exited $status ($(cat "$work/gone.stderr"))"
