@@ -71,7 +71,10 @@ if(glslang_interface MATCHES "max_mesh_output_vertices_ext" AND NOT vkfft_header
   string(REPLACE "${vkfft_last_limit}"
          "/* mesh limits of glslang 12, added by displace */ 256, 256, 128, 128, 128, 128, 128, 128, 4,\n${vkfft_last_limit}"
          vkfft_header "${vkfft_header}")
-  file(WRITE ${CMAKE_BINARY_DIR}/vkfft/vkFFT.h "${vkfft_header}")
+  # written only when it changes (file(WRITE) would touch it at every configure, and every file of
+  # render/ that includes it would compile again)
+  file(WRITE ${CMAKE_BINARY_DIR}/vkfft/vkFFT.h.new "${vkfft_header}")
+  file(COPY_FILE ${CMAKE_BINARY_DIR}/vkfft/vkFFT.h.new ${CMAKE_BINARY_DIR}/vkfft/vkFFT.h ONLY_IF_DIFFERENT)
   set(DISPLACE_VKFFT_INCLUDE_DIR ${CMAKE_BINARY_DIR}/vkfft)
 endif()
 

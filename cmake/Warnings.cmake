@@ -10,6 +10,8 @@ if(DISPLACE_SANITIZE OR DISPLACE_FUZZ)
   target_compile_options(displace_sanitizers INTERFACE -fsanitize=address,undefined -fno-sanitize-recover=undefined
                          -fno-omit-frame-pointer -g1)
   target_link_options(displace_sanitizers INTERFACE -fsanitize=address,undefined)
+  # what code that must know asks (GCC says __SANITIZE_ADDRESS__, clang 14 only __has_feature)
+  target_compile_definitions(displace_sanitizers INTERFACE DISPLACE_ADDRESS_SANITIZER=1)
   # clang's -fsanitize=undefined checks float-to-integer casts too (GCC's does not); one of them in a
   # header of Debian's toml++ is suppressed by its file name (tests/sanitizers/ubsan.supp), which only
   # a recoverable check allows: UBSAN_OPTIONS=halt_on_error=1 still stops at any other

@@ -213,7 +213,7 @@ long resident_kib() {
 // renderer tests); the bound catches any leak of 30 KiB a frame or more.
 TEST(Maps, AFrameLoopKeepsResidentMemoryFlat) {
   if (resident_kib() < 0) GTEST_SKIP() << "no /proc/self/status";
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(DISPLACE_ADDRESS_SANITIZER)
   GTEST_SKIP() << "AddressSanitizer keeps freed memory resident (its quarantine)";
 #endif
   shared_maps().set_heights(waves_field(32));
