@@ -208,6 +208,7 @@ parallel_recipe() {
   kept="$(find "$work/farm" -name 'w_*.png' | wc -l)"
   DISPLACE="$displace" bash "${recipe[@]}" >>"$work/parallel.log" 2>&1 || fail "the rerun failed"
   [ "$(same_as_clean "$work/farm")" -eq 24 ] || fail "the rerun did not give the clean frames"
+  [ -s "$work/farm/parallel.joblog" ] || fail "the recipe kept no job log (its --resume needs one)"
   echo "  killed with $kept frames written (exit $status), run again: the 24 frames of one sequence run"
 }
 
