@@ -40,7 +40,6 @@ class FrameManifest {
   void add(const std::filesystem::path& file, const files::WrittenFile& written);
   // Writes this run's entries (written or judged whole) through the checked writer.
   void save() const;
-  const std::filesystem::path& file() const { return file_; }
 
  private:
   std::string key(const std::filesystem::path& file) const;

@@ -23,7 +23,6 @@ class TextFile {
     return *this;
   }
   void save() const { files::write_file(file_, text_); }
-  const std::filesystem::path& file() const { return file_; }
 
  private:
   std::filesystem::path file_;
