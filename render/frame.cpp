@@ -11,6 +11,7 @@
 #include <limits>
 #include <string>
 
+#include "render/pass_rows.h"
 #include "render/quadric.h"
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
@@ -154,6 +155,11 @@ std::string limits_text(const char* field, double low, double high, const char* 
   return text;
 }
 
+// the level every pixel traces (FrameUniforms::levels.y), or -1 where each pixel chooses its own
+int pinned_level(const View& view, int levels) {
+  return view.level == View::level_auto ? -1 : std::min(std::max(view.level, 0), levels);
+}
+
 }  // namespace
 
 void Renderer::Impl::validate_frame(const View& view, const MethodSettings& method, unsigned outputs) const {
@@ -247,7 +253,7 @@ void Renderer::Impl::write_uniforms(FrameSlot& frame_slot, const View& view, con
   uniforms.ray_along_x = glm::vec4(glm::vec3(rays.along_x), 0.0f);
   uniforms.ray_along_y = glm::vec4(glm::vec3(rays.along_y), 0.0f);
   const int levels = traced_levels(view, info);
-  const int pinned = view.level == View::level_auto ? -1 : std::min(std::max(view.level, 0), levels);
+  const int pinned = pinned_level(view, levels);
   uniforms.levels = glm::vec4(float(levels), float(pinned), 0.0f, 0.0f);
   for (int level = 1; level <= levels; ++level)
     uniforms.level_tops[(level - 1) / 4][(level - 1) % 4] = level_tops[std::size_t(level - 1)];
@@ -278,7 +284,7 @@ void Renderer::Impl::ensure_readbacks(FrameSlot& frame_slot, int width, int heig
 // the draw between two timestamps, then the copies of the outputs asked for
 void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const View& view,
                                   const MethodInfo& info, VkPipeline pipeline_handle,
-                                  VkPipeline levels_pipeline, unsigned outputs) {
+                                  VkPipeline levels_pipeline, VkPipeline sky_pipeline, unsigned outputs) {
   const auto width = std::uint32_t(view.camera.width), height = std::uint32_t(view.camera.height);
   const bool mesh = view.surface == Surface::mesh;
   const bool reference = info.family == MethodFamily::reference;
@@ -331,10 +337,28 @@ void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const V
     vkCmdDrawIndexed(commands, reference_index_count, 1, 0, 0, 0);
   } else {
     // the proxy box, or the plane's two triangles
-    vkCmdDraw(commands, is_quadric(view.surface) ? 36 : 6, 1, 0, 0);
-    if (levels_pipeline) {  // and the plane again for the pixels of the coarser levels
+    if (!levels_pipeline) {
+      vkCmdDraw(commands, is_quadric(view.surface) ? 36 : 6, 1, 0, 0);
+    } else {
+      // the plane three times, for the pixels of level 0, of the coarser levels and of the sky, each
+      // pass over the rows where it has pixels (pass_rows.h)
+      const int levels = traced_levels(view, info);
+      const detail::PassRows rows =
+          detail::level_pass_rows(view.camera, levels, pinned_level(view, levels),
+                                  double(view.tile) * double(std::max(map_width, map_height)));
+      const auto draw_rows = [&](detail::RowRange range) {
+        if (range.empty()) return;
+        const VkRect2D band{{0, range.begin}, {width, std::uint32_t(range.end - range.begin)}};
+        vkCmdSetScissor(commands, 0, 1, &band);
+        vkCmdDraw(commands, 6, 1, 0, 0);
+      };
+      draw_rows(rows.level_zero);
       vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, levels_pipeline);
-      vkCmdDraw(commands, 6, 1, 0, 0);
+      draw_rows(rows.coarser);
+      if (!rows.sky.empty()) {
+        vkCmdBindPipeline(commands, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_pipeline);
+        draw_rows(rows.sky);
+      }
     }
   }
   vkCmdEndRenderPass(commands);
@@ -423,10 +447,13 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   // pipeline, geometry, targets (made once per key; each may wait for the frames in flight)
   const int features = frame_flags(view) & FEATURE_FLAGS;
   const VkPipeline pipeline_handle = pipeline(info, view.surface, features);
-  // a view that traces levels of detail draws the pixels of the coarser levels with a pipeline of their
-  // own (config.h, FLAG_LEVELS)
+  // a view that traces levels of detail draws the pixels of the coarser levels and those of the sky with
+  // pipelines of their own (config.h, FLAG_LEVELS, FLAG_SKY)
+  const bool levels = traced_levels(view, info) > 0;
   const VkPipeline levels_handle =
-      traced_levels(view, info) > 0 ? pipeline(info, view.surface, features | FLAG_LEVELS) : VK_NULL_HANDLE;
+      levels ? pipeline(info, view.surface, features | FLAG_LEVELS) : VK_NULL_HANDLE;
+  const VkPipeline sky_handle =
+      levels ? pipeline(info, view.surface, features | FLAG_LEVELS | FLAG_SKY) : VK_NULL_HANDLE;
   if (info.family == MethodFamily::reference) {
     if (view.surface == Surface::mesh) {
       ensure_mesh_reference(view.tile);
@@ -441,7 +468,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   write_uniforms(frame_slot, view, method, info);
   write_descriptors(frame_slot, view, info);
   ensure_readbacks(frame_slot, view.camera.width, view.camera.height, outputs);
-  record_frame(frame_slot, slot_index, view, info, pipeline_handle, levels_handle, outputs);
+  record_frame(frame_slot, slot_index, view, info, pipeline_handle, levels_handle, sky_handle, outputs);
   submit_slot(outputs != output_none);  // waits only for a frame that is read back
   frame.width = view.camera.width;
   frame.height = view.camera.height;

@@ -263,7 +263,7 @@ void Renderer::Impl::create_render_pass() {
 VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface, int features) {
   features &= FEATURE_FLAGS;
   if (surface != Surface::plane) features &= ~FLAG_SHADOWS;  // a uniform there (config.h)
-  const int key = (info.shader_id * 8 + surface_id(surface)) * 128 + features;
+  const int key = (info.shader_id * 8 + surface_id(surface)) * 256 + features;
   if (const auto found = pipelines.find(key); found != pipelines.end()) return found->second.get();
   const bool reference = info.family == MethodFamily::reference;
   const bool quadric = is_quadric(surface);

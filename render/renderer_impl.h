@@ -277,9 +277,11 @@ struct Renderer::Impl {
                       const MethodInfo& info) const;
   void write_descriptors(FrameSlot& frame_slot, const View& view, const MethodInfo& info);
   void ensure_readbacks(FrameSlot& frame_slot, int width, int height, unsigned outputs);
-  // levels_pipeline: the coarser levels' pass of a view that traces levels (config.h), else null
+  // levels_pipeline, sky_pipeline: the coarser levels' and the sky's passes of a view that traces
+  // levels (config.h), else null
   void record_frame(FrameSlot& frame_slot, int slot_index, const View& view, const MethodInfo& info,
-                    VkPipeline pipeline_handle, VkPipeline levels_pipeline, unsigned outputs);
+                    VkPipeline pipeline_handle, VkPipeline levels_pipeline, VkPipeline sky_pipeline,
+                    unsigned outputs);
   void read_back(const FrameSlot& frame_slot, int slot_index, unsigned outputs, Frame& frame) const;
   void render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs);
 };

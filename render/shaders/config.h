@@ -76,11 +76,15 @@ using mat4 = glm::mat4;
 // stay uniforms: as constants they would multiply the pipelines to compile for next to nothing; so
 // does FLAG_SHADOWS on meshes and quadrics, whose every method is drawn with and without shadows.
 // FLAG_LEVELS is a pipeline feature only: a view that traces levels of detail (FrameUniforms::levels.x
-// > 0) is drawn twice, by a pipeline without it for the pixels that trace level 0 and the sky, and by
-// one with it for those that trace a coarser level; each discards the other's pixels first, so neither
-// holds the other's reads and shading.
+// > 0) is drawn three times: by a pipeline without it for the pixels that trace level 0, by one with it
+// for those that trace a coarser level, and by one with FLAG_SKY as well for the sky, which holds
+// nothing but the sky. Each discards the others' pixels first, so none holds the others' reads and
+// shading, and each is drawn over the rows where it has pixels only (render/pass_rows.h: lavapipe
+// runs a discarded block of pixels through the rest of the shader). A view without levels draws
+// its sky in its one pass.
 #define FLAG_LEVELS 64
-#define FEATURE_FLAGS (FLAG_SHADOWS | FLAG_WATER | FLAG_UNBOUNDED | FLAG_LEVELS)
+#define FLAG_SKY 128
+#define FEATURE_FLAGS (FLAG_SHADOWS | FLAG_WATER | FLAG_UNBOUNDED | FLAG_LEVELS | FLAG_SKY)
 #define AERIAL_DISTANCE 40.0  // world units: light from that far keeps 1/e of its colour (unbounded)
 // the level a pixel traces (View::level_auto): log2 of the texels of level 0 its footprint spans where
 // its ray enters the relief, across the ray times (1 / |d.z|)^LEVEL_ANISOTROPY along it (0: the

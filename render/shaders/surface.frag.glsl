@@ -13,6 +13,7 @@ layout(constant_id = 2) const int FEATURES = 0;
 const bool water_on = (FEATURES & FLAG_WATER) != 0;
 const bool unbounded_on = (FEATURES & FLAG_UNBOUNDED) != 0;
 const bool levels_on = (FEATURES & FLAG_LEVELS) != 0;
+const bool sky_pass = (FEATURES & FLAG_SKY) != 0;
 
 #include "frame_block.inc.glsl"
 
@@ -196,6 +197,14 @@ void write_hit(vec3 hit, mat3 tangent_frame, vec3 d, vec3 normal, vec3 base_worl
   out_counters = vec4(float(g_iterations), float(g_fetches), 0.0, 0.0);
 }
 
+// The sky seen in direction d (unbounded plane): at the farthest depth the LESS test keeps.
+void write_sky(vec3 d) {
+  out_color = vec4(sky_with_sun(d), 1.0);
+  out_hit = vec4(0.0);
+  out_counters = vec4(0.0);
+  gl_FragDepth = 1.0 - 1.0 / 16777216.0;
+}
+
 #if SEARCH_PLANAR
 #include "mesh.inc.glsl"
 
@@ -235,18 +244,21 @@ void main() {
     return;
   }
   vec3 d = pixel_direction();
+  const bool unbounded = unbounded_on;
+  const bool sky = unbounded && (frame.eye.z <= 0.0 || d.z >= 0.0);  // above the horizon
+  if (sky_pass) {  // the sky pass (config.h, FLAG_SKY): the sky and nothing else
+    if (!sky) discard;
+    write_sky(d);
+    return;
+  }
+  if (sky) {
+    if (frame.levels.x > 0.0) discard;  // a view with levels draws its sky in the sky pass
+    write_sky(d);
+    return;
+  }
   vec3 normal = normalize(in_normal);
   mat3 tangent_frame = mat3(in_tangent_u, in_tangent_v, normal * frame.surface.y);
   mat3 to_texture = inverse(tangent_frame);
-  const bool unbounded = unbounded_on;
-  if (unbounded && (frame.eye.z <= 0.0 || d.z >= 0.0)) {  // above the horizon: the sky
-    if (levels_on) discard;  // the level-0 pass draws it
-    out_color = vec4(sky_with_sun(d), 1.0);
-    out_hit = vec4(0.0);
-    out_counters = vec4(0.0);
-    gl_FragDepth = 1.0 - 1.0 / 16777216.0;  // the farthest depth the LESS test keeps
-    return;
-  }
   if (frame.eye.z <= 0.0 || d.z >= 0.0) discard;  // the relief is seen from above only
   if (unbounded && frame.levels.x > 0.0) {
     choose_level(d);
