@@ -14,8 +14,8 @@
 #include <string_view>
 #include <vector>
 
-#include "render/device.h"
-#include "render/render.h"
+#include "render/device_info.h"
+#include "render/view.h"
 #include "sim/sim.h"
 
 namespace displace::pipeline {

@@ -13,7 +13,7 @@
 // DeviceCones: the renderer's cone maps (bake.h's bake_bilinear_cones contract: apex H_c = max of the
 // bilinear surface over the texel's square, r_k valid from every point of it) made in compute from
 // heights on the device - a DeviceSim's, or a static map uploaded once - into the cone image the
-// renderer samples (ConeMapView::on_device). Proof and figures: docs/design/device-cones.md.
+// renderer samples (ConeMapView::on_device). Proof: docs/design/device-cones.md; figures: docs/figures.md.
 //
 // DeviceLevels: the levels of detail of a DeviceSim's heights (bake.h's chain and its slope moments)
 // with each level's cones, made in compute into the atlases the renderer samples
@@ -91,29 +91,6 @@ class DeviceSim {
 
  private:
   std::unique_ptr<State> state_;
-};
-
-// How a DeviceCones first pass bounds a texel: from its slope window (the window_radius cells around
-// it on each side, bounded by the surface's slopes), the Lipschitz floor and the max pyramid. The
-// pyramid either by a search (ring_radius 0) that opens nodes down to blocks of 4 x 4 cells, bounding
-// those whole, or by rings (ring_radius r > 0): at every level, the nodes more than r nodes from the
-// texel's own are bounded whole, the same nodes for every texel (no search: the device runs a group's
-// texels in step). r = 1 examines about 220 nodes a texel, r = 2 about 660 and bounds more tightly.
-// Or by its group (group = true, ring_radius 0): each 8 x 8 texel group searches the pyramid once for
-// the cells more than 8 cells from its texels, from the group's square at a few apex heights, and each
-// texel bounds the cells nearer than that itself, by rings of radius 1 from blocks of 4 x 4 cells down
-// (54 nodes a texel with the full window, 90 with a window of 2; the same nodes for a group's texels).
-// The default, rings of radius 2 with the full window, is the fastest on a GPU of the shapes at or
-// above the search's mean ratio (H200, ocean 512: 1.47 ms at 0.2345; the search 1.64 at 0.2198, the
-// group 7.46 at 0.2171; 2048: 21.7, 33.2 and 18.4 ms at 0.1946, 0.1878 and 0.1874). On lavapipe, which
-// runs a group's texels as lanes of a CPU, the search and the group are faster.
-inline constexpr int max_first_pass_window = 4;  // cells (the search's window: CONE_SLOPE_WINDOW)
-inline constexpr int max_first_pass_rings = 8;   // nodes: (4 r + 2)^2 examined a level, 1156 at 8
-inline constexpr int default_first_pass_rings = 2;
-struct DeviceFirstPass {
-  int window_radius = max_first_pass_window;   // 1 .. max_first_pass_window
-  int ring_radius = default_first_pass_rings;  // 0 .. max_first_pass_rings
-  bool group = false;                          // the group's first pass (with ring_radius 0)
 };
 
 // How much of a DeviceCones bake goes beyond the first pass. A texel whose first pass bounded a node

@@ -36,7 +36,8 @@ static_assert(sizeof(gpu::ConeComposePush) == 16);
 namespace {
 
 // the first pass opens no pyramid node at or below this level: blocks of 2^2 x 2^2 cells are bounded
-// whole (levels, docs/design/device-cones.md#budget for the figures behind it)
+// whole (levels; the figures behind it:
+// docs/figures.md#the-searchs-walk-on-the-h200-and-where-the-first-passs-time-goes)
 constexpr int first_pass_level = 2;
 static_assert(max_first_pass_window == CONE_SLOPE_WINDOW);
 

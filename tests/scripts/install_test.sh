@@ -21,6 +21,28 @@ for header in sim/sim.h bake/bake.h render/render.h render/device.h pipeline/fra
   test -f "$prefix/include/displace/$header" || { echo "install_test: $header not installed" >&2; exit 1; }
 done
 
+# every installed header compiles on its own (it includes what it uses), and the headers that only
+# name a device (a scene's) pull in no Vulkan
+include_dir="$prefix/include/displace"
+count=0
+while IFS= read -r header; do
+  relative="${header#"$include_dir"/}"
+  if ! printf '#include "%s"\nint main() {}\n' "$relative" |
+      "$compiler" -std=c++20 -fsyntax-only -I"$include_dir" -x c++ - 2>"$work/header.log"; then
+    cat "$work/header.log" >&2
+    echo "install_test: $relative does not compile on its own" >&2
+    exit 1
+  fi
+  count=$((count + 1))
+done < <(find "$include_dir" -name '*.h' | sort)
+for header in pipeline/scene.h render/device_info.h sim/sim.h bake/bake.h render/files.h; do
+  dependencies="$(printf '#include "%s"\n' "$header" | "$compiler" -std=c++20 -M -I"$include_dir" -x c++ -)"
+  if [[ "$dependencies" == *vulkan* ]]; then
+    echo "install_test: $header includes Vulkan" >&2
+    exit 1
+  fi
+done
+
 cmake -S "$source_dir/demos/embed" -B "$work/embed" -DCMAKE_PREFIX_PATH="$prefix" \
   -DCMAKE_CXX_COMPILER="$compiler" >"$work/configure.log"
 cmake --build "$work/embed" >"$work/build.log"
@@ -40,4 +62,4 @@ if cmake -S "$work/newer" -B "$work/newer/build" -DCMAKE_PREFIX_PATH="$prefix" >
   echo "install_test: find_package(displace 99.0) accepted version $version" >&2
   exit 1
 fi
-echo "install_test: displace $version installed, demos/embed built against it and ran"
+echo "install_test: displace $version installed ($count headers, each compiling on its own), demos/embed built against it and ran"
