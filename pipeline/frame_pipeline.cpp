@@ -188,6 +188,21 @@ void simulate_on_device(FramePipeline::State& s, int slot, double time, FrameRec
   heights.foam.clear();
 }
 
+// The bake's share of the frame budget: what the last frame's other stages left of it (unlimited
+// without a frame budget).
+double bake_budget(const FramePipeline::State& s) {
+  return std::isfinite(s.scene.frame_ms) ? std::max(0.0, s.scene.frame_ms - s.last_other_ms.load())
+                                         : std::numeric_limits<double>::infinity();
+}
+
+// A frame's last accounting once its render ended at `drawn` (the frame began at `start`): its time,
+// whether it overran the budget, and so what the next frame's bake may take.
+void close_record(FramePipeline::State& s, FrameRecord& record, double start, double drawn) {
+  record.frame_ms = drawn - start;
+  record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
+  s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
+}
+
 void simulate_into(FramePipeline::State& s, int slot, double time, FrameRecord& record) {
   if (s.sim_on_device()) {
     simulate_on_device(s, slot, time, record);
@@ -328,9 +343,7 @@ FrameRecord FramePipeline::run(long long index, const render::View& view, render
   const double start = s.clock();
   simulate(time, record);
   const double simulated = s.clock();
-  const double budget = std::isfinite(s.scene.frame_ms) ? std::max(0.0, s.scene.frame_ms - s.last_other_ms)
-                                                        : std::numeric_limits<double>::infinity();
-  bake(budget, record);
+  bake(bake_budget(s), record);
   const double baked = s.clock();
   upload(record);
   const double uploaded = s.clock();
@@ -340,18 +353,14 @@ FrameRecord FramePipeline::run(long long index, const render::View& view, render
   record.bake_ms = baked - simulated;
   record.upload_ms = uploaded - baked;
   record.render_ms = drawn - uploaded;
-  record.frame_ms = drawn - start;
-  record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
-  s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
+  close_record(s, record, start, drawn);
   return record;
 }
 
 void FramePipeline::run_frames(long long first, long long count, unsigned outputs,
                                const std::function<void(const FrameRecord&, const render::Frame&)>& consume) {
   State& s = *state_;
-  if (s.sim_on_device() || s.bake_on_device) {
-    // the device records its sim and bake into the renderer's frame, which only the render thread may
-    // do: the frames one after another (the device runs them while the CPU records the next)
+  if (s.sim_on_device() || s.bake_on_device) {  // (frame_pipeline.h: run() frame after frame)
     render::Frame frame;
     for (long long n = 0; n < count; ++n) consume(run(first + n, frame, outputs), frame);
     return;
@@ -364,10 +373,6 @@ void FramePipeline::run_frames(long long first, long long count, unsigned output
   std::array<Token, 2> tokens;
   render::Frame frame;
   long long next = 0;
-  auto budget_now = [&] {
-    return std::isfinite(s.scene.frame_ms) ? std::max(0.0, s.scene.frame_ms - s.last_other_ms.load())
-                                           : std::numeric_limits<double>::infinity();
-  };
   tbb::parallel_pipeline(
       tokens.size(),
       tbb::make_filter<void, Token*>(tbb::filter_mode::serial_in_order,
@@ -390,7 +395,7 @@ void FramePipeline::run_frames(long long first, long long count, unsigned output
           tbb::make_filter<Token*, Token*>(tbb::filter_mode::serial_in_order,
                                            [&](Token* token) {
                                              const double start = s.clock();
-                                             bake_into(s, token->slot, budget_now(), token->record);
+                                             bake_into(s, token->slot, bake_budget(s), token->record);
                                              token->record.bake_ms = s.clock() - start;
                                              return token;
                                            }) &
@@ -399,15 +404,11 @@ void FramePipeline::run_frames(long long first, long long count, unsigned output
             const double start = s.clock();
             upload_from(s, token->slot);
             const double uploaded = s.clock();
-            const render::View view = scene_view(s.scene, record.time);
-            s.renderer.render(view, {s.scene.method, s.scene.steps, s.scene.refine}, frame, outputs);
-            record.render_device_ms = outputs != render::output_none ? frame.gpu_milliseconds : 0.0;
+            draw(scene_view(s.scene, record.time), frame, outputs, record);
             const double drawn = s.clock();
             record.upload_ms = uploaded - start;
             record.render_ms = drawn - uploaded;
-            record.frame_ms = drawn - token->start;
-            record.overrun = std::isfinite(s.scene.frame_ms) && record.frame_ms > s.scene.frame_ms;
-            s.last_other_ms = record.sim_ms + record.upload_ms + record.render_ms;
+            close_record(s, record, token->start, drawn);
             consume(record, frame);
           }));
 }

@@ -74,7 +74,10 @@ class FramePipeline {
   // Frames first .. first + count - 1 with the stages overlapped (tbb::parallel_pipeline, two frames
   // in flight): frame n + 1's sim and bake run while frame n uploads and renders. `consume` gets
   // every frame, in order, with its record (the frame is reused: copy what is kept). The pictures
-  // are the same as run()'s, frame by frame.
+  // are the same as run()'s, frame by frame, and so are the budget and the records' accounting. With
+  // the sim or the bake on the device these are run()'s frames one after another: the device
+  // records its stages into the renderer's frame, which only the thread that renders may do, and
+  // runs them while the host records the next frame.
   void run_frames(long long first, long long count, unsigned outputs,
                   const std::function<void(const FrameRecord&, const render::Frame&)>& consume);
 
