@@ -105,39 +105,15 @@ FrameSlot& Renderer::Impl::begin_slot() {
   return frame_slot;
 }
 
-namespace {
-// Submits `commands` to `queue`, signalling `signal` at `value`, after `wait` reaches `wait_value`
-// (none where `wait` is null), with `fence` (may be null).
-void submit_timeline(VkQueue queue, VkCommandBuffer commands, VkSemaphore signal, std::uint64_t value,
-                     VkSemaphore wait, std::uint64_t wait_value, VkFence fence) {
-  VkTimelineSemaphoreSubmitInfo timeline{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
-  timeline.signalSemaphoreValueCount = 1;
-  timeline.pSignalSemaphoreValues = &value;
-  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
-  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  submit.pNext = &timeline;
-  if (wait != VK_NULL_HANDLE) {
-    timeline.waitSemaphoreValueCount = 1;
-    timeline.pWaitSemaphoreValues = &wait_value;
-    submit.waitSemaphoreCount = 1;
-    submit.pWaitSemaphores = &wait;
-    submit.pWaitDstStageMask = &wait_stage;
-  }
-  submit.commandBufferCount = 1;
-  submit.pCommandBuffers = &commands;
-  submit.signalSemaphoreCount = 1;
-  submit.pSignalSemaphores = &signal;
-  DISPLACE_VK_CHECK(vkQueueSubmit(queue, 1, &submit, fence));
-}
-}  // namespace
-
 // The frame queue's submission of `commands`: after the async work it must wait for, signalling
 // the frame timeline's next value.
 static std::uint64_t submit_frame(Renderer::Impl& impl, VkCommandBuffer commands, VkFence fence) {
   const bool waits = impl.frame_waits_for > impl.frame_waited;
   if (waits) impl.release_async(impl.frame_waits_for);
-  submit_timeline(impl.context.queue(), commands, impl.frame_timeline.get(), impl.frame_signalled + 1,
-                  waits ? impl.async_timeline.get() : VK_NULL_HANDLE, impl.frame_waits_for, fence);
+  submit_commands(impl.context.queue(), commands,
+                  {waits ? impl.async_timeline.get() : VK_NULL_HANDLE, impl.frame_waits_for},
+                  VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {impl.frame_timeline.get(), impl.frame_signalled + 1},
+                  fence);
   if (waits) impl.frame_waited = impl.frame_waits_for;
   return ++impl.frame_signalled;
 }
@@ -176,8 +152,9 @@ std::uint64_t Renderer::Impl::flush_slot() {
 std::uint64_t Renderer::Impl::submit_async(VkCommandBuffer commands, std::uint64_t after_frame) {
   const std::uint64_t value = ++async_signalled;
   if (!hold_async_work || context.async_apart()) {
-    submit_timeline(context.async_queue(), commands, async_timeline.get(), value,
-                    after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, after_frame, VK_NULL_HANDLE);
+    submit_commands(context.async_queue(), commands,
+                    {after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, after_frame},
+                    VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {async_timeline.get(), value}, VK_NULL_HANDLE);
   } else {
     deferred_async.push_back({commands, after_frame, value});
   }
@@ -188,9 +165,9 @@ void Renderer::Impl::release_async(std::uint64_t value) {
   std::size_t released = 0;
   for (; released < deferred_async.size() && deferred_async[released].value <= value; ++released) {
     const DeferredAsync& work = deferred_async[released];
-    submit_timeline(context.async_queue(), work.commands, async_timeline.get(), work.value,
-                    work.after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, work.after_frame,
-                    VK_NULL_HANDLE);
+    submit_commands(context.async_queue(), work.commands,
+                    {work.after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, work.after_frame},
+                    VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {async_timeline.get(), work.value}, VK_NULL_HANDLE);
   }
   deferred_async.erase(deferred_async.begin(), deferred_async.begin() + std::ptrdiff_t(released));
 }

@@ -391,18 +391,9 @@ bool Swapchain::Impl::present(int width, int height, Frame* shown) {
 
   // submit after the renderer's frame (same queue), then present
   DISPLACE_VK_CHECK(vkResetFences(device, 1, &fence));
-  const VkSemaphore wait = present_slot.acquired.get();
   const VkSemaphore signal = blitted[index].get();
-  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  submit.waitSemaphoreCount = 1;
-  submit.pWaitSemaphores = &wait;
-  submit.pWaitDstStageMask = &wait_stage;
-  submit.commandBufferCount = 1;
-  submit.pCommandBuffers = &commands;
-  submit.signalSemaphoreCount = 1;
-  submit.pSignalSemaphores = &signal;
-  DISPLACE_VK_CHECK(vkQueueSubmit(context.queue(), 1, &submit, fence));
+  submit_commands(context.queue(), commands, {present_slot.acquired.get()}, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                  {signal}, fence);
   slot = (slot + 1) % frames_in_flight;
   if (shown) {
     DISPLACE_VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, no_timeout));

@@ -237,6 +237,30 @@ int pick_async_family(std::span<const VkQueueFamilyProperties> families, bool ti
   return -1;
 }
 
+void submit_commands(VkQueue queue, VkCommandBuffer commands, SemaphorePoint wait,
+                     VkPipelineStageFlags wait_stage, SemaphorePoint signal, VkFence fence) {
+  // the values are read for timeline semaphores only (Vulkan ignores them for binary ones)
+  VkTimelineSemaphoreSubmitInfo timeline{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.pNext = &timeline;
+  if (wait.semaphore != VK_NULL_HANDLE) {
+    timeline.waitSemaphoreValueCount = 1;
+    timeline.pWaitSemaphoreValues = &wait.value;
+    submit.waitSemaphoreCount = 1;
+    submit.pWaitSemaphores = &wait.semaphore;
+    submit.pWaitDstStageMask = &wait_stage;
+  }
+  if (signal.semaphore != VK_NULL_HANDLE) {
+    timeline.signalSemaphoreValueCount = 1;
+    timeline.pSignalSemaphoreValues = &signal.value;
+    submit.signalSemaphoreCount = 1;
+    submit.pSignalSemaphores = &signal.semaphore;
+  }
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &commands;
+  DISPLACE_VK_CHECK(vkQueueSubmit(queue, 1, &submit, fence));
+}
+
 void check_vk(VkResult result, const char* call, const char* file, int line) {
   if (result == VK_SUCCESS) return;
   throw RenderError(std::string(call) + " failed with " + result_name(result) + " (" +

@@ -27,6 +27,17 @@ int pick_async_family(std::span<const VkQueueFamilyProperties> families, bool ti
 void check_vk(VkResult result, const char* call, const char* file, int line);
 #define DISPLACE_VK_CHECK(call) ::displace::render::check_vk((call), #call, __FILE__, __LINE__)
 
+// A semaphore a submission waits for or signals: a timeline semaphore at `value`, or a binary one
+// (its value ignored); none where `semaphore` is null.
+struct SemaphorePoint {
+  VkSemaphore semaphore = VK_NULL_HANDLE;
+  std::uint64_t value = 0;
+};
+// Submits `commands` to `queue` after `wait` (its work at `wait_stage` waits), signalling `signal`,
+// with `fence` (may be null); throws RenderError when the submission fails.
+void submit_commands(VkQueue queue, VkCommandBuffer commands, SemaphorePoint wait,
+                     VkPipelineStageFlags wait_stage, SemaphorePoint signal, VkFence fence);
+
 class Context {
  public:
   explicit Context(const RendererOptions& options);

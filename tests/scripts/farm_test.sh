@@ -161,7 +161,9 @@ EOF
   # shard 2 of 3 renders frames 1, 4, 7, ...: requeue it once its second frame is there
   wait_for "$work/requeued/w_0004.png" 1200 || fail "task 2 wrote no frame"
   scontrol requeue "${job}_2" || fail "scontrol requeue ${job}_2 failed"
-  # Slurm makes a requeued batch job eligible again 121 s after it left the node: now, here
+  # Slurm makes a requeued batch job eligible again 121 s after it left the node; here 2 s after it
+  # went back to the queue: slurmd refuses ("Job credential revoked") a launch whose credential was
+  # made in the same second as the revocation of the killed one (seen once with StartTime=now)
   local state="" waited=0
   until [[ "$state" == *JobState=PENDING* ]]; do
     [ "$waited" -lt 300 ] || fail "task 2 did not go back to the queue: $state"
@@ -169,7 +171,7 @@ EOF
     waited=$((waited + 1))
     state="$(scontrol show job "${job}_2" 2>/dev/null || true)"
   done
-  scontrol update JobId="${job}_2" StartTime=now || fail "scontrol update ${job}_2 StartTime=now failed"
+  scontrol update JobId="${job}_2" StartTime=now+2 || fail "scontrol update ${job}_2 StartTime=now+2 failed"
   wait_job "$job"
   local restarts
   restarts="$(scontrol show job "${job}_2" 2>/dev/null | grep -o 'Restarts=[0-9]*' || true)"
