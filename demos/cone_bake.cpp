@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "demos/error.h"
+#include "pipeline/maps.h"
 #include "render/device.h"
 
 namespace displace::app {
@@ -94,10 +95,9 @@ BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const f
   }
   const auto start = std::chrono::steady_clock::now();
   render::DeviceCones cones(renderer, bake::HeightView{heights.data(), width, height}, sector_count, address);
-  render::DeviceConeBudget budget;
-  budget.first_pass = first_pass;
-  budget.texels = baker == Baker::budgeted && budget_milliseconds == 0.0 ? 0 : render::unlimited_texels;
-  cones.bake(budget);
+  bake::Budget budget;  // the full baker: unlimited
+  if (baker == Baker::budgeted) budget.milliseconds = budget_milliseconds;
+  cones.bake(pipeline::device_cone_budget(budget, first_pass));
   BakedCones baked;
   const render::DeviceConeStats device_stats = cones.read_back(&baked.ratios, &baked.apex);
   baked.stats.mode = bake::Mode::bilinear;

@@ -23,10 +23,11 @@ struct BakedCones {
 BakedCones bake_cones(std::span<const float> heights, int width, int height, int sector_count, Baker baker,
                       bake::Address address, double budget_milliseconds, float tolerance = 0.25f,
                       const bake::Progress& progress = {});
-// Bilinear cones on `renderer`'s device (render::DeviceCones, the same contract): Baker::full and a
-// budgeted bake with any budget but 0 search every texel to the cells, a budget of 0 makes the first
-// pass only, of the shape `first_pass` says. Stats: mode bilinear, texels refined, wall milliseconds,
-// mean ratio.
+// Bilinear cones on `renderer`'s device (render::DeviceCones, the same contract), with the frame
+// pipeline's rule (pipeline::device_cone_budget): Baker::full and a budgeted bake without a budget
+// search every texel to the cells, a budgeted bake with a budget (a dispatch cannot stop when it runs
+// out) makes the first pass only, of the shape `first_pass` says. Stats: mode bilinear, texels refined, wall
+// milliseconds, mean ratio.
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
                                    double budget_milliseconds,

@@ -4,8 +4,9 @@
 //
 // Stages, each a function a test can call alone: simulate(time) -> bake(budget) -> upload() ->
 // draw(view). run(index) chains them for frame `index` at scene time start + index / fps (double).
-// State made once and kept for the whole run: the source (a HeightSource), the map maker (a MapMaker
-// with two slots), the heights of two frames, the renderer's device maps.
+// State made once and kept for the whole run: where the stages run (place_stages), the height stage
+// and the map stage of that placement (pipeline/stages.h: a CPU or a device backend each), the
+// heights of two frames.
 //
 // Budget: the bake gets what the frame budget leaves after the other stages of the previous frame. A
 // work budget (scene.bake_work) or none makes every frame reproducible from its index alone; a
@@ -93,6 +94,7 @@ class FramePipeline {
   void query(std::span<const QueryPoint> points, double time, QueryResult& out);
 
   const Scene& scene() const;
+  const Placement& placement() const;  // where the stages run (decided once, here)
   // An ocean loop's largest relative change to a wave frequency ([ocean] loop_seconds; 0: none).
   double loop_error() const;
   const render::HeightField& heights() const;  // [0, 1], the source's fixed mapping applied

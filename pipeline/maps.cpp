@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <cmath>
 #include <optional>
 
 namespace displace::pipeline {
@@ -498,14 +499,29 @@ const bake::BakeStats& MapMaker::cone_stats(int sector_count) const {
   return state_->slots[0].cones[std::size_t(render::cone_slot(sector_count))].stats;
 }
 
+render::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
+                                            const render::DeviceFirstPass& first_pass) {
+  render::DeviceConeBudget work;
+  work.first_pass = first_pass;
+  work.texels = budget.max_work >= 0                 ? budget.max_work
+                : std::isfinite(budget.milliseconds) ? 0
+                                                     : render::unlimited_texels;
+  return work;
+}
+
+MapHeights map_heights(const render::HeightField& field, std::uint64_t version) {
+  MapHeights heights;
+  heights.heights = field.heights;
+  heights.width = field.width;
+  heights.height = field.height;
+  heights.version = version;
+  return heights;
+}
+
 const render::MapSet& MapMaker::maps(const render::MapNeeds& needs) {
   State& s = *state_;
   if (s.field.heights.empty()) throw bake::BakeError("maps: no heights were set");
-  MapHeights heights;
-  heights.heights = s.field.heights;
-  heights.width = s.field.width;
-  heights.height = s.field.height;
-  heights.version = s.heights_version;
+  MapHeights heights = map_heights(s.field, s.heights_version);
   heights.dirty = s.heights_dirty;
   heights.dirty_since = s.heights_dirty_since;
   ConeSchedule schedule;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "render/device.h"
 #include "render/render.h"
 
 namespace displace::pipeline {
@@ -65,6 +66,9 @@ struct MapHeights {
   std::uint64_t foam_version = 0;
 };
 
+// A height field's MapHeights (no dirty rectangles, no foam), viewing `field`.
+MapHeights map_heights(const render::HeightField& field, std::uint64_t version);
+
 // How make() bakes a frame's cone map.
 struct ConeSchedule {
   bake::Budget budget;  // the cone bake's budget for this frame
@@ -78,6 +82,13 @@ struct ConeSchedule {
   int lag_frames = 0;
   long long frame_index = 0;  // the frame the heights belong to (a lagged map's age)
 };
+
+// The one rule from a cone budget to a device bake's work (render/device.h), for the frame pipeline
+// and every command: a work budget (max_work) is that many cut texels searched again; a wall-clock
+// budget the first pass alone (a dispatch cannot stop when the time runs out); none, every texel
+// searched to the cells.
+render::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
+                                            const render::DeviceFirstPass& first_pass);
 
 // What make() did.
 struct MapStats {

@@ -144,6 +144,21 @@ struct Scene {
   render::DeviceFirstPass device_first_pass{};
 };
 
+// Where a scene's stages run on `device`, decided once for a pipeline or a command (the one place
+// `auto` is resolved): the sim on the device for the ocean and sinusoids; the bilinear cone bake there
+// (not a relaxed layer) from a device sim's heights or a static map's; the levels of detail with a
+// device sim's heights, whichever bakes level 0. Throws SceneError for a device bake of moving heights
+// made on the CPU.
+struct Placement {
+  bool sim_on_device = false;
+  bool cones_on_device = false;
+  bool levels_on_device = false;
+  bool heights_to_cpu = true;  // the host's maps read the heights (a device sim then reads them back)
+  // A stage on the device records into the renderer's next frame: its frames run on the render thread.
+  bool records_into_frame() const { return sim_on_device || cones_on_device; }
+};
+Placement place_stages(const Scene& scene, const render::DeviceInfo& device);
+
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.
 std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);
 bool is_image_sequence(const std::filesystem::path& pattern);
