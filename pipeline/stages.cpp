@@ -92,6 +92,7 @@ class DeviceHeights final : public HeightStage {
   // The heights at `time` again (a map stage that baked the frame ahead's map first).
   void simulate(double time) { sim_->simulate(source_time(settings_, time)); }
   long long fft_count() const { return sim_->fft_count(); }
+  std::shared_ptr<const render::DeviceHeightImages> maps() const { return sim_->maps(); }
 
   unsigned effects() const override { return effects_; }
   bool is_static() const override { return false; }
@@ -99,8 +100,7 @@ class DeviceHeights final : public HeightStage {
   void hand_over(render::MapSet& maps) const override {
     maps.width = maps.height = sim_->size();
     maps.heights = {};
-    maps.heights_on_device = true;
-    maps.foam_on_device = (sim_->effects() & render::device_foam) != 0;
+    maps.device_heights = sim_->maps();
   }
   void finished(FrameRecord& record) const override { record.sim_device_ms = sim_->device_milliseconds(); }
 
@@ -189,9 +189,11 @@ class DeviceMaps final : public MapStage {
         lag_frames_(lag_frames),
         ahead_(ahead) {
     if (cones_on_device_ && sim_)
-      cones_ = std::make_unique<render::DeviceCones>(renderer, needs.cone_sectors, needs.cone_address);
+      cones_ = std::make_unique<render::DeviceCones>(renderer, sim_->maps(), needs.cone_sectors,
+                                                     needs.cone_address);
     if (placement.levels_on_device)
-      levels_ = std::make_unique<render::DeviceLevels>(renderer, needs.cone_sectors, needs.cone_address);
+      levels_ = std::make_unique<render::DeviceLevels>(renderer, sim_->maps(), needs.cone_sectors,
+                                                       needs.cone_address);
   }
 
   void make(int slot, const HeightFrame& frame, const ConeSchedule& schedule, FrameRecord& record) override {
@@ -204,7 +206,7 @@ class DeviceMaps final : public MapStage {
   render::MapSet hand_over(int slot) const override {
     render::MapSet maps = host_.made(slot);
     if (levels_) {
-      maps.levels_on_device = true;
+      maps.device_levels = levels_->maps();
       maps.level_count = levels_->level_count();
       maps.level_sectors = levels_->sector_count();
       maps.level_address = levels_->address();
@@ -215,7 +217,7 @@ class DeviceMaps final : public MapStage {
       cones = render::ConeMapView{};
       cones.sector_count = needs_.cone_sectors;
       cones.address = needs_.cone_address;
-      cones.on_device = true;
+      cones.device = cones_->map();
     }
     return maps;
   }

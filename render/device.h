@@ -17,7 +17,7 @@
 //
 // DeviceLevels: the levels of detail of a DeviceSim's heights (bake.h's chain and its slope moments)
 // with each level's cones, made in compute into the atlases the renderer samples
-// (MapSet::levels_on_device): the far sea of the device path. docs/design/levels.md.
+// (MapSet::device_levels): the far sea of the device path. docs/design/levels.md.
 #pragma once
 
 #include <memory>
@@ -27,8 +27,6 @@
 #include "render/render.h"
 
 namespace displace::render {
-
-class Image;  // render/vulkan_context.h
 
 // What the device ocean needs, made once on the CPU (pipeline/ fills it from sim::Ocean::half_spectrum).
 struct OceanSpectrumView {
@@ -69,8 +67,7 @@ class DeviceSim {
   DeviceSim& operator=(const DeviceSim&) = delete;
 
   // Records the heights at `time` (seconds) into the renderer's next frame, ahead of its draw. The
-  // renderer samples these heights (and foam) for the frames whose MapSet says heights_on_device
-  // (foam_on_device).
+  // renderer samples these heights (and foam) for the frames whose MapSet::device_heights is maps().
   void simulate(double time);
   // Submits what is recorded, waits, and reads back the last simulate()'s maps (any may be null):
   // heights in [0, 1], heights in metres, foam coverage (empty without device_foam).
@@ -79,6 +76,8 @@ class DeviceSim {
   // to another queue's work).
   void finish();
 
+  // The heights (and foam) as a MapSet names them, and as DeviceCones and DeviceLevels read them.
+  std::shared_ptr<const DeviceHeightImages> maps() const;
   int size() const;
   unsigned effects() const;
   long long fft_count()
@@ -110,8 +109,10 @@ struct DeviceConeStats {
 
 class DeviceCones {
  public:
-  // Cones of the heights this renderer's DeviceSim writes (made before, alive while this is used).
-  DeviceCones(Renderer& renderer, int sector_count, bake::Address address);
+  // Cones of the heights a device stage of this renderer writes (DeviceSim::maps(); alive while this
+  // bakes).
+  DeviceCones(Renderer& renderer, std::shared_ptr<const DeviceHeightImages> heights, int sector_count,
+              bake::Address address);
   // Cones of a static map, uploaded once (heights finite, in [0, 1]).
   DeviceCones(Renderer& renderer, bake::HeightView heights, int sector_count, bake::Address address);
   ~DeviceCones();
@@ -119,7 +120,7 @@ class DeviceCones {
   DeviceCones& operator=(const DeviceCones&) = delete;
 
   // Records the bake into the renderer's next frame, after the ocean's simulate() recorded there and
-  // ahead of the draw; frames whose MapSet has cones[cone_slot(sector_count)].on_device sample it.
+  // ahead of the draw; frames whose MapSet has cones[cone_slot(sector_count)].device = map() sample it.
   void bake(const DeviceConeBudget& budget = {});
   // Submits what is recorded, waits, and reads back what the renderer samples (either may be null):
   // ratios decoded, W x H x sectors interleaved (bake::ConeView's layout), and apex heights decoded.
@@ -148,6 +149,7 @@ class DeviceCones {
   // or it was not lagged).
   float lift() const;
 
+  std::shared_ptr<const DeviceConeImage> map() const;  // the cone map as a MapSet names it
   int width() const;
   int height() const;
   int sector_count() const;
@@ -156,18 +158,16 @@ class DeviceCones {
   // none has, or the device has no timestamps.
   double device_milliseconds() const;
 
+  // render/'s own parts (not installed): what DeviceLevels reads of its levels' bakes.
   struct State;
+  const State& state() const { return *state_; }
 
  private:
-  friend class DeviceLevels;
-  // A level's cones (DeviceLevels): of `heights`, an image DeviceLevels writes, into a cone image of its
-  // own (not the one the renderer samples for level 0).
-  DeviceCones(Renderer& renderer, const Image& heights, int sector_count, bake::Address address);
   std::unique_ptr<State> state_;
 };
 
 // DeviceLevels: the levels of detail of the heights this renderer's DeviceSim writes, made on the
-// device for frames whose MapSet has levels_on_device. The chain is bake.h's (levels 1 ..
+// device for frames whose MapSet::device_levels is maps(). The chain is bake.h's (levels 1 ..
 // bake::detail_level_count(W, H), each the 2 x 2 box means of the one below, with the slope moments of
 // bake::gradient_moments and downsample_moments): the same heights as the CPU's chain of the same
 // level-0 heights, bit for bit, and the same moments within a float rounding. Each level's cones are
@@ -176,9 +176,10 @@ class DeviceCones {
 // copied into the frame's uniforms on the device: nothing is read back or uploaded per frame.
 class DeviceLevels {
  public:
-  // A chain of the renderer's DeviceSim's heights (made before, alive while this is used), with
+  // A chain of a DeviceSim's heights (DeviceSim::maps(), alive while this makes levels), with
   // cones of `sector_count` sectors and `address`; its images and bakes are made here, once.
-  DeviceLevels(Renderer& renderer, int sector_count, bake::Address address);
+  DeviceLevels(Renderer& renderer, std::shared_ptr<const DeviceHeightImages> heights, int sector_count,
+               bake::Address address);
   ~DeviceLevels();
   DeviceLevels(const DeviceLevels&) = delete;
   DeviceLevels& operator=(const DeviceLevels&) = delete;
@@ -193,7 +194,8 @@ class DeviceLevels {
   DeviceConeStats read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
                             std::vector<float>* ratios, std::vector<float>* apex, float* top = nullptr);
 
-  int level_count() const;  // 0 for a map with an odd side
+  std::shared_ptr<const DeviceLevelImages> maps() const;  // the levels as a MapSet names them
+  int level_count() const;                                // 0 for a map with an odd side
   int sector_count() const;
   bake::Address address() const;
   // The device's milliseconds for the last make() whose frame has finished (the chain and every

@@ -142,7 +142,8 @@ struct DeviceCones::State {
   bake::Address address = bake::Address::wrap;
   int cells_u = 0, cells_v = 0, levels = 0, layers = 0;
   std::vector<int> level_width, level_height, level_offset;  // the pyramid's levels, in the buffer (floats)
-  const Image* source = nullptr;                             // the heights read (own_heights or the ocean's)
+  const Image* source = nullptr;                             // the heights read (own_heights or a stage's)
+  std::shared_ptr<const DeviceHeightImages> stage_heights;   // the stage whose heights it reads (or null)
   Image own_heights;
   Buffer pyramid, counters, cone_values, readback;
   Buffer group_far;  // a group first pass's far ratios (cone_texel.comp.glsl's GroupFar)
@@ -151,8 +152,8 @@ struct DeviceCones::State {
   ComputeKernel cells_kernel, reduce_kernel;
   // the texel kernel's forms (texel_form) bound to the heights read: [0] the source, [1 + k] snapshot k
   std::array<std::array<ComputeKernel, texel_forms>, 3> texel_kernels;
-  Renderer::Impl::DeviceConeImage registration;
-  bool borrowed = false;       // the heights are another stage's (a level's), checked by it
+  std::shared_ptr<DeviceConeImage>
+      map;                     // the renderer's handle (map_set.h), its image cleared when this goes
   long long refine_limit = 0;  // of the last bake(); unlimited_texels: every texel searched to the cells
   bool baked = false;
   StageTimer timer;
@@ -188,7 +189,7 @@ struct DeviceCones::State {
 
   explicit State(Renderer::Impl& renderer) : impl(renderer) {}
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
-  void make(const Image& heights, int sector_count, bake::Address address_mode, bool registered = true);
+  void make(const Image& heights, int sector_count, bake::Address address_mode);
   void make_lagged();
   void check_source() const;
   void record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells);
@@ -198,8 +199,7 @@ struct DeviceCones::State {
   void record_to_image(VkCommandBuffer commands, VkBuffer values);
 };
 
-void DeviceCones::State::make(const Image& heights, int sector_count, bake::Address address_mode,
-                              bool registered) {
+void DeviceCones::State::make(const Image& heights, int sector_count, bake::Address address_mode) {
   timer = StageTimer(impl.context);
   sectors = sector_count;
   address = address_mode;
@@ -265,38 +265,29 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   reduce_kernel = impl.cone_kernels->reduce.sibling();
   reduce_kernel.bind_buffer(0, pyramid.handle());
 
-  registration = {&cones, width, height, sectors, address};
-  if (registered) impl.device_cones[std::size_t(cone_slot(sectors))] = &registration;
-}
-
-DeviceCones::DeviceCones(Renderer& renderer, const Image& heights, int sector_count, bake::Address address)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
-  State& s = *state_;
-  s.width = int(heights.width());
-  s.height = int(heights.height());
-  validate_shape(s.width, s.height, sector_count);
-  s.borrowed = true;
-  s.make(heights, sector_count, address, false);
+  map = std::make_shared<DeviceConeImage>(DeviceConeImage{&impl, &cones, width, height, sectors, address});
 }
 
 LevelConeParts level_cone_parts(const DeviceCones::State& state) {
   return {&state.cones, state.pyramid.handle(), VkDeviceSize(state.level_offset.back()) * 4};
 }
 
-DeviceCones::DeviceCones(Renderer& renderer, int sector_count, bake::Address address)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
+DeviceCones::DeviceCones(Renderer& renderer, std::shared_ptr<const DeviceHeightImages> heights,
+                         int sector_count, bake::Address address)
+    : state_(std::make_unique<State>(renderer.impl())) {
   State& s = *state_;
-  if (s.impl.device_heights == nullptr)
-    throw RenderError("DeviceCones: this renderer has no DeviceSim whose heights it could read");
-  s.width = int(s.impl.device_heights->width());
-  s.height = int(s.impl.device_heights->height());
+  if (!heights || heights->owner != &s.impl || heights->heights == nullptr)
+    throw RenderError("DeviceCones: the heights of a device stage of this renderer, alive, are needed");
+  s.width = int(heights->heights->width());
+  s.height = int(heights->heights->height());
   validate_shape(s.width, s.height, sector_count);
-  s.make(*s.impl.device_heights, sector_count, address);
+  s.stage_heights = std::move(heights);
+  s.make(*s.stage_heights->heights, sector_count, address);
 }
 
 DeviceCones::DeviceCones(Renderer& renderer, bake::HeightView heights, int sector_count,
                          bake::Address address)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
+    : state_(std::make_unique<State>(renderer.impl())) {
   State& s = *state_;
   validate_shape(heights.width, heights.height, sector_count);
   s.width = heights.width;
@@ -341,17 +332,12 @@ DeviceCones::~DeviceCones() {
   s.impl.wait_submitted();  // the async bands too
   for (VkCommandBuffer commands : s.band_commands)
     if (commands != VK_NULL_HANDLE) s.impl.context.free_async_command_buffer(commands);
-  const std::size_t slot = std::size_t(cone_slot(s.sectors));
-  if (s.impl.device_cones[slot] == &s.registration) {
-    s.impl.device_cones[slot] = nullptr;
-    s.impl.cones_from_device[slot] = false;
-  }
+  s.map->image = nullptr;  // (a MapSet may still name it: the renderer then refuses the frame)
 }
 
 void DeviceCones::State::check_source() const {
-  if (borrowed) return;
-  if (own_heights.handle() == VK_NULL_HANDLE && impl.device_heights != source)
-    throw RenderError("DeviceCones::bake: the DeviceSim whose heights it reads is gone");
+  if (stage_heights && stage_heights->heights == nullptr)
+    throw RenderError("DeviceCones::bake: the stage whose heights it reads is gone");
 }
 
 // Clears the counters, then the cells (their maxima, the Lipschitz constant, the heights' check) and
@@ -734,6 +720,7 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
   return stats;
 }
 
+std::shared_ptr<const DeviceConeImage> DeviceCones::map() const { return state_->map; }
 int DeviceCones::width() const { return state_->width; }
 int DeviceCones::height() const { return state_->height; }
 int DeviceCones::sector_count() const { return state_->sectors; }

@@ -33,13 +33,14 @@ struct DeviceLevels::State {
   Renderer::Impl& impl;
   int width = 0, height = 0, count = 0, sectors = 0;  // level 0's size
   bake::Address address = bake::Address::wrap;
-  const Image* source = nullptr;  // level 0's heights: the DeviceSim's
-  std::vector<Image> heights;     // levels 1 .. count, R32F: what each level's cone bake reads
+  std::shared_ptr<const DeviceHeightImages> source;  // level 0's heights: a DeviceSim's
+  std::vector<Image> heights;  // levels 1 .. count, R32F: what each level's cone bake reads
+  std::vector<std::shared_ptr<DeviceHeightImages>> level_maps;  // level l's heights at l - 1, for its bake
   Image atlas_heights, atlas_cones;
   Buffer tops, readback;
   std::vector<ComputeKernel> down;                  // level l's kernel at l - 1, its images bound
   std::vector<std::unique_ptr<DeviceCones>> cones;  // level l's at l - 1
-  Renderer::Impl::DeviceLevelImages registration;
+  std::shared_ptr<DeviceLevelImages> map;  // the renderer's handle (map_set.h), cleared when this goes
   StageTimer timer;
   bool made = false;
 
@@ -48,17 +49,18 @@ struct DeviceLevels::State {
   int level_height(int level) const { return height >> level; }
 };
 
-DeviceLevels::DeviceLevels(Renderer& renderer, int sector_count, bake::Address address)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
+DeviceLevels::DeviceLevels(Renderer& renderer, std::shared_ptr<const DeviceHeightImages> heights,
+                           int sector_count, bake::Address address)
+    : state_(std::make_unique<State>(renderer.impl())) {
   State& s = *state_;
   Renderer::Impl& impl = s.impl;
-  if (impl.device_heights == nullptr)
-    throw RenderError("DeviceLevels: this renderer has no DeviceSim whose heights it could read");
+  if (!heights || heights->owner != &impl || heights->heights == nullptr)
+    throw RenderError("DeviceLevels: the heights of a DeviceSim of this renderer, alive, are needed");
   if (sector_count != 1 && sector_count != 4 && sector_count != 8)
     throw RenderError("DeviceLevels: a cone map has 1, 4 or 8 sectors, not " + std::to_string(sector_count));
-  s.source = impl.device_heights;
-  s.width = int(s.source->width());
-  s.height = int(s.source->height());
+  s.source = std::move(heights);
+  s.width = int(s.source->heights->width());
+  s.height = int(s.source->heights->height());
   s.count = bake::detail_level_count(s.width, s.height);
   s.sectors = sector_count;
   s.address = address;
@@ -100,31 +102,33 @@ DeviceLevels::DeviceLevels(Renderer& renderer, int sector_count, bake::Address a
                                sizeof(gpu::LevelDownPush));
     for (int level = 1; level <= s.count; ++level) {
       ComputeKernel& down = s.down.emplace_back(kernel.sibling());
-      down.bind_image(0, level == 1 ? s.source->view() : s.heights[std::size_t(level - 2)].view());
+      down.bind_image(0, level == 1 ? s.source->heights->view() : s.heights[std::size_t(level - 2)].view());
       down.bind_image(1, s.atlas_heights.view());
       down.bind_image(2, s.heights[std::size_t(level - 1)].view());
-      s.cones.push_back(std::unique_ptr<DeviceCones>(
-          new DeviceCones(renderer, s.heights[std::size_t(level - 1)], sector_count, address)));
+      s.level_maps.push_back(std::make_shared<DeviceHeightImages>(
+          DeviceHeightImages{&impl, &s.heights[std::size_t(level - 1)]}));
+      s.cones.push_back(std::make_unique<DeviceCones>(renderer, s.level_maps.back(), sector_count, address));
     }
   }
-  s.registration = {&s.atlas_heights, &s.atlas_cones, s.tops.handle(), s.width,
-                    s.height,         s.count,        s.sectors,       s.address};
-  impl.device_levels = &s.registration;
+  s.map = std::make_shared<DeviceLevelImages>(DeviceLevelImages{&impl, &s.atlas_heights, &s.atlas_cones,
+                                                                s.tops.handle(), s.width, s.height, s.count,
+                                                                s.sectors, s.address});
 }
 
 DeviceLevels::~DeviceLevels() {
   State& s = *state_;
   s.impl.wait_submitted();
   s.cones.clear();
-  if (s.impl.device_levels == &s.registration) {
-    s.impl.device_levels = nullptr;
-    s.impl.levels_from_device = false;
-  }
+  for (const std::shared_ptr<DeviceHeightImages>& level : s.level_maps) level->heights = nullptr;
+  s.map->heights = s.map->cones =
+      nullptr;  // (a MapSet may still name it: the renderer then refuses the frame)
 }
+
+std::shared_ptr<const DeviceLevelImages> DeviceLevels::maps() const { return state_->map; }
 
 void DeviceLevels::make(const DeviceConeBudget& budget) {
   State& s = *state_;
-  if (s.impl.device_heights != s.source)
+  if (s.source->heights == nullptr)
     throw RenderError("DeviceLevels::make: the DeviceSim whose heights it reads is gone");
   if (s.count == 0) return;
   const int slot = s.impl.slot;
@@ -160,7 +164,7 @@ void DeviceLevels::make(const DeviceConeBudget& budget) {
                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0, VK_ACCESS_TRANSFER_WRITE_BIT,
                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
   for (int level = 1; level <= s.count; ++level) {
-    const LevelConeParts parts = level_cone_parts(*s.cones[std::size_t(level - 1)]->state_);
+    const LevelConeParts parts = level_cone_parts(s.cones[std::size_t(level - 1)]->state());
     const glm::ivec2 origin = level_atlas_origin(s.width, s.height, level);
     image_barrier(commands, parts.cones->handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
                   VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,

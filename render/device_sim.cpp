@@ -64,6 +64,7 @@ struct DeviceSim::State {
   enum class Source { ocean, sinusoids };
   Renderer::Impl& impl;
   Source source = Source::ocean;
+  std::shared_ptr<DeviceHeightImages> maps;  // the renderer's handle (map_set.h), cleared when this goes
   int size = 0, half = 0;
   unsigned effects = 0;
   int batches = 1;  // the ocean's spectra, one inverse FFT each
@@ -148,7 +149,7 @@ void DeviceSim::State::write_anchor(double time) {
 }
 
 DeviceSim::DeviceSim(Renderer& renderer, const OceanSpectrumView& spectrum, unsigned effects)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
+    : state_(std::make_unique<State>(renderer.impl())) {
   State& s = *state_;
   const int n = spectrum.size;
   if (n < 2 || n % 2 != 0 || n > max_map_side)
@@ -208,12 +209,12 @@ DeviceSim::DeviceSim(Renderer& renderer, const OceanSpectrumView& spectrum, unsi
   s.assemble_kernel.bind_image(3, s.foam.view());
   s.fft = std::make_unique<DeviceFft>(context, s.spectra.handle(), s.spectra.size(), n, s.batches);
 
-  s.impl.device_heights = &s.heights;
-  s.impl.device_foam = (s.effects & device_foam) ? &s.foam : nullptr;
+  s.maps = std::make_shared<DeviceHeightImages>(
+      DeviceHeightImages{&s.impl, &s.heights, (s.effects & device_foam) ? &s.foam : nullptr});
 }
 
 DeviceSim::DeviceSim(Renderer& renderer, const SinusoidWavesView& waves)
-    : state_(std::make_unique<State>(*renderer.impl_)) {
+    : state_(std::make_unique<State>(renderer.impl())) {
   State& s = *state_;
   if (waves.size < 1 || waves.size > max_map_side)
     throw RenderError("DeviceSim: the sinusoids' size must be between 1 and " + std::to_string(max_map_side));
@@ -280,17 +281,14 @@ DeviceSim::DeviceSim(Renderer& renderer, const SinusoidWavesView& waves)
   s.sinusoid_kernel.bind_buffer(3, s.anchor.handle());
   s.sinusoid_kernel.bind_buffer(4, s.metres.handle());
   s.sinusoid_kernel.bind_image(5, s.heights.view());
-  s.impl.device_heights = &s.heights;
-  s.impl.device_foam = nullptr;
+  s.maps = std::make_shared<DeviceHeightImages>(DeviceHeightImages{&s.impl, &s.heights, nullptr});
 }
 
 DeviceSim::~DeviceSim() {
   State& s = *state_;
   s.impl.wait_submitted();
-  if (s.impl.device_heights == &s.heights) {
-    s.impl.device_heights = nullptr;
-    s.impl.device_foam = nullptr;
-  }
+  s.maps->heights = s.maps->foam =
+      nullptr;  // (a MapSet may still name them: the renderer then refuses the frame)
 }
 
 void DeviceSim::simulate(double time) {
@@ -412,6 +410,7 @@ void DeviceSim::read_back(std::vector<float>* heights, std::vector<float>* metre
 
 void DeviceSim::finish() { state_->impl.submit_slot(true); }
 
+std::shared_ptr<const DeviceHeightImages> DeviceSim::maps() const { return state_->maps; }
 int DeviceSim::size() const { return state_->size; }
 unsigned DeviceSim::effects() const { return state_->effects; }
 long long DeviceSim::fft_count() const { return state_->fft_count; }

@@ -74,7 +74,7 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const bool wrap = view.address == bake::Address::wrap;
   const bool quadric = is_quadric(view.surface);
   const std::size_t cone_index = info.cone_sectors > 0 ? std::size_t(cone_slot(info.cone_sectors)) : 0;
-  const bool device_cone_map = info.cone_sectors > 0 && cones_from_device[cone_index];
+  const bool device_cone_map = info.cone_sectors > 0 && device_cones[cone_index];
   const VkImageView cone_view = device_cone_map         ? device_cones[cone_index]->image->view()
                                 : info.cone_sectors > 0 ? cones[cone_index].image.view()
                                                         : dummy_cones.view();
@@ -87,8 +87,8 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkSampler nearest =
       wrap ? nearest_wrap.get() : (quadric ? nearest_wrap_u.get() : nearest_clamp.get());
   const VkDescriptorImageInfo height_info =
-      heights_from_device ? VkDescriptorImageInfo{linear, device_heights->view(), VK_IMAGE_LAYOUT_GENERAL}
-                          : VkDescriptorImageInfo{linear, heights.image.view(), heights.read_layout()};
+      device_heights ? VkDescriptorImageInfo{linear, device_heights->heights->view(), VK_IMAGE_LAYOUT_GENERAL}
+                     : VkDescriptorImageInfo{linear, heights.image.view(), heights.read_layout()};
   const VkDescriptorImageInfo cone_info{nearest, cone_view,
                                         device_cone_map         ? VK_IMAGE_LAYOUT_GENERAL
                                         : info.cone_sectors > 0 ? cones[cone_index].read_layout()
@@ -99,8 +99,8 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
   const VkDescriptorImageInfo distance_info{wrap ? linear_wrap.get() : linear_clamp.get(), distance_view,
                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const VkDescriptorImageInfo foam_info =
-      foam_from_device
-          ? VkDescriptorImageInfo{linear, device_foam->view(), VK_IMAGE_LAYOUT_GENERAL}
+      device_heights && device_heights->foam
+          ? VkDescriptorImageInfo{linear, device_heights->foam->view(), VK_IMAGE_LAYOUT_GENERAL}
           : VkDescriptorImageInfo{linear, foam.held ? foam.image.view() : dummy_foam.view(),
                                   foam.held ? foam.read_layout() : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   const bool levels = traced_levels(view, info) > 0;
@@ -108,7 +108,7 @@ void Renderer::Impl::write_descriptors(FrameSlot& frame_slot, const View& view, 
                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   VkDescriptorImageInfo level_cone_info{nearest, dummy_cones.view(),
                                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-  if (levels && levels_from_device) {  // a DeviceLevels' atlases (device.h)
+  if (levels && device_levels) {  // a DeviceLevels' atlases (device.h)
     level_height_info = {nearest, device_levels->heights->view(), VK_IMAGE_LAYOUT_GENERAL};
     level_cone_info = {nearest, device_levels->cones->view(), VK_IMAGE_LAYOUT_GENERAL};
   } else if (levels) {
@@ -211,7 +211,8 @@ int Renderer::Impl::frame_flags(const View& view) const {
   const bool water = view.material == Material::water;
   return (view.address == bake::Address::wrap ? FLAG_WRAP : 0) | (view.shadows ? FLAG_SHADOWS : 0) |
          (has_albedo ? FLAG_ALBEDO : 0) | (water ? FLAG_WATER : 0) |
-         (water && (foam.held || foam_from_device) ? FLAG_FOAM : 0) | (view.unbounded ? FLAG_UNBOUNDED : 0);
+         (water && (foam.held || (device_heights && device_heights->foam)) ? FLAG_FOAM : 0) |
+         (view.unbounded ? FLAG_UNBOUNDED : 0);
 }
 
 // near and far planes enclose the relief box ([0,1]^2 x [-D, 0] on the plane)
@@ -303,7 +304,7 @@ void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const V
   begin.clearValueCount = std::uint32_t(clears.size());
   begin.pClearValues = clears.data();
   if (queries) vkCmdWriteTimestamp(commands, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, first_query);
-  if (levels_from_device && traced_levels(view, info) > 0) {
+  if (device_levels && traced_levels(view, info) > 0) {
     // the levels' highest heights, made on the device: over the host's values in the uniforms
     const VkBufferCopy tops{0, offsetof(gpu::FrameUniforms, level_tops),
                             sizeof(gpu::FrameUniforms::level_tops)};
@@ -437,7 +438,7 @@ void Renderer::Impl::read_back(const FrameSlot& frame_slot, int slot_index, unsi
 }
 
 void Renderer::Impl::render(const View& view, const MethodSettings& method, Frame& frame, unsigned outputs) {
-  if (!heights.held && !heights_from_device)
+  if (!heights.held && !device_heights)
     throw RenderError("render: no height map was given (Renderer::set_maps)");
   validate_frame(view, method, outputs);
   const MethodInfo& info = method_info(method.method);

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -13,6 +14,13 @@
 #include "render/view.h"
 
 namespace displace::render {
+
+// Maps a compute stage wrote on the renderer's own device (render/device.h), named by the stage that
+// made them (DeviceSim::maps, DeviceCones::map, DeviceLevels::maps): the renderer samples them where
+// they are. Opaque; a frame that samples maps whose stage is gone fails with a RenderError.
+struct DeviceHeightImages;
+struct DeviceConeImage;
+struct DeviceLevelImages;
 
 // A height field on the CPU (the reference tracers' input and what map makers read).
 struct HeightField {
@@ -50,9 +58,9 @@ struct ConeMapView {
   std::uint64_t version = 0;
   std::uint64_t dirty_since = 0;
   std::span<const bake::Rect> dirty;
-  // The device path (render/device.h): the cones this renderer's DeviceCones of this sector count made
-  // on the device (ratios, apex and relaxed then stay empty; address is the DeviceCones').
-  bool on_device = false;
+  // Or the cones a DeviceCones of this renderer made (its sector count and address; ratios, apex and
+  // relaxed then stay empty).
+  std::shared_ptr<const DeviceConeImage> device = nullptr;
 };
 
 // bake::build_dual_max_pyramid's pyramid of the heights (maxmip, qdm).
@@ -84,10 +92,9 @@ struct MapSet {
   // foam coverage in [0, 1] per texel, for the water material (empty: none), with its version
   std::span<const float> foam;
   std::uint64_t foam_version = 0;
-  // The device path (render/device.h): the heights, and the foam, a DeviceSim of this renderer made
-  // on the device (`heights` and `foam` then stay empty; width and height are the ocean's).
-  bool heights_on_device = false;
-  bool foam_on_device = false;
+  // Or the heights, and the foam where it makes any, a DeviceSim of this renderer made (`heights` and
+  // `foam` then stay empty; width and height are the DeviceSim's).
+  std::shared_ptr<const DeviceHeightImages> device_heights = nullptr;
   // Levels of detail (bake::downsample_heights; optional: without them every view traces level 0):
   // levels[l - 1] is level l = 1 .. level_count, (width >> l) x (height >> l) texels, its heights and
   // the bilinear cone map of `level_sectors` sectors baked for them with `level_address`. The chain
@@ -95,9 +102,9 @@ struct MapSet {
   int level_count = 0;  // 0 .. bake::max_detail_levels
   int level_sectors = 0;
   bake::Address level_address = bake::Address::wrap;
-  // The levels a DeviceLevels of this renderer makes (render/device.h; with heights_on_device): the
-  // count, sectors and address must be its own, and `levels` stays empty.
-  bool levels_on_device = false;
+  // Or the levels a DeviceLevels of this renderer makes (with device_heights): the count, sectors and
+  // address must be its own, and `levels` stays empty.
+  std::shared_ptr<const DeviceLevelImages> device_levels = nullptr;
   struct Level {
     std::span<const float> heights;  // (W >> l) x (H >> l)
     std::span<const float> ratios;   // (W >> l) x (H >> l) x level_sectors, interleaved

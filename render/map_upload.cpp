@@ -147,7 +147,7 @@ void validate_cone_sizes(const MapSet& maps) {
       throw RenderError(std::string("maps: the ") + name + " belongs in cones[" +
                         std::to_string(cone_slot(given.sector_count)) + "]");
     }
-    if (given.on_device) continue;  // reshape_cones checks the DeviceCones
+    if (given.device) continue;  // reshape_cones checks the DeviceCones
     if (given.ratios.size() != texels * std::size_t(given.sector_count) || given.apex.size() != texels ||
         !(given.relaxed.empty() || given.relaxed.size() == texels)) {
       throw RenderError(std::string("maps: the ") + name + " does not match the " + size_text(width, height) +
@@ -160,8 +160,8 @@ void validate_cone_sizes(const MapSet& maps) {
 // The levels of detail: a chain the heights' sides halve into, with cone maps of one sector count.
 void validate_levels(const MapSet& maps) {
   const int count = maps.level_count;
-  if (count == 0 || maps.levels_on_device) return;  // a DeviceLevels': checked against it (reshape_levels)
-  if (count < 0 || count > bake::max_detail_levels || maps.heights_on_device ||
+  if (count == 0 || maps.device_levels) return;  // a DeviceLevels': checked against it (reshape_levels)
+  if (count < 0 || count > bake::max_detail_levels || maps.device_heights ||
       (maps.width >> count) << count != maps.width || (maps.height >> count) << count != maps.height ||
       (maps.width >> count) < 1 || (maps.height >> count) < 1 ||
       !bake::is_valid_sector_count(maps.level_sectors)) {
@@ -189,7 +189,7 @@ void validate_levels(const MapSet& maps) {
 VkDeviceSize validate_map_sizes(const MapSet& maps, const DeviceInfo& device) {
   const int width = maps.width, height = maps.height;
   if (width < 1 || height < 1 || width > max_map_side || height > max_map_side ||
-      (!maps.heights_on_device && maps.heights.size() != std::size_t(width) * std::size_t(height))) {
+      (!maps.device_heights && maps.heights.size() != std::size_t(width) * std::size_t(height))) {
     throw RenderError("MapSet::width and MapSet::height must be between 1 and " +
                       std::to_string(max_map_side) + " texels, with one height per texel (got " +
                       size_text(width, height) + " and " + std::to_string(maps.heights.size()) + " heights)");
@@ -275,23 +275,18 @@ struct Reshaper {
 void reshape_values(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   Renderer::Impl& impl = reshaper.impl;
   const int width = maps.width, height = maps.height;
-  impl.heights_from_device = maps.heights_on_device;
-  impl.foam_from_device = maps.foam_on_device;
-  if (maps.heights_on_device) {
-    if (impl.device_heights == nullptr || int(impl.device_heights->width()) != width ||
-        int(impl.device_heights->height()) != height) {
-      throw RenderError("maps: heights_on_device needs this renderer's DeviceSim of " +
+  impl.device_heights = maps.device_heights;
+  if (const DeviceHeightImages* device = maps.device_heights.get()) {
+    if (device->owner != &impl || device->heights == nullptr || int(device->heights->width()) != width ||
+        int(device->heights->height()) != height) {
+      impl.device_heights = nullptr;
+      throw RenderError("maps: device_heights needs a DeviceSim of this renderer, alive, of " +
                         size_text(width, height) + " texels");
     }
-    if (maps.foam_on_device && impl.device_foam == nullptr)
-      throw RenderError("maps: foam_on_device needs a DeviceSim made with device_foam");
     copies.heights = Copy::none;
     copies.foam = Copy::none;
     impl.foam.held = false;
     return;
-  }
-  if (maps.foam_on_device) {
-    throw RenderError("maps: foam_on_device goes with heights_on_device");
   }
   copies.heights = copy_kind(impl.heights, impl.heights.width == width && impl.heights.height == height,
                              maps.heights_version, maps.heights_dirty_since, maps.heights_dirty.size());
@@ -313,19 +308,19 @@ void reshape_cones(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   for (std::size_t index = 0; index < reshaper.impl.cones.size(); ++index) {
     const ConeMapView& view = maps.cones[index];
     DeviceMap& map = reshaper.impl.cones[index];
-    reshaper.impl.cones_from_device[index] = false;
+    reshaper.impl.device_cones[index] = nullptr;
     if (view.sector_count == 0) {
       map.held = false;
       continue;
     }
-    if (view.on_device) {  // the DeviceCones' image: nothing to upload, the host's map is stale
-      const Renderer::Impl::DeviceConeImage* device = reshaper.impl.device_cones[index];
-      if (device == nullptr || device->width != width || device->height != height) {
-        throw RenderError("maps: cones[" + std::to_string(index) + "].on_device needs this renderer's " +
-                          std::to_string(view.sector_count) + "-sector DeviceCones of " +
-                          size_text(width, height) + " texels");
+    if (const DeviceConeImage* device = view.device.get()) {  // nothing to upload, the host's map is stale
+      if (device->owner != &reshaper.impl || device->image == nullptr || device->width != width ||
+          device->height != height || device->sectors != view.sector_count) {
+        throw RenderError(
+            "maps: cones[" + std::to_string(index) + "].device needs a " + std::to_string(view.sector_count) +
+            "-sector DeviceCones of this renderer, alive, of " + size_text(width, height) + " texels");
       }
-      reshaper.impl.cones_from_device[index] = true;
+      reshaper.impl.device_cones[index] = view.device;
       copies.cones[index] = Copy::none;
       map.held = false;
       continue;
@@ -351,27 +346,27 @@ void reshape_levels(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   Renderer::Impl& impl = reshaper.impl;
   DeviceMap& heights = impl.level_heights;
   DeviceMap& cones = impl.level_cones;
-  impl.levels_from_device = false;
+  impl.device_levels = nullptr;
   if (maps.level_count == 0) {
     heights.held = false;
     cones.held = false;
     impl.level_count = 0;
     return;
   }
-  if (maps.levels_on_device) {  // the DeviceLevels' atlases: nothing to upload, the host's are stale
-    const Renderer::Impl::DeviceLevelImages* device = impl.device_levels;
-    if (!maps.heights_on_device || device == nullptr || device->width != maps.width ||
-        device->height != maps.height || device->count != maps.level_count ||
+  if (const DeviceLevelImages* device =
+          maps.device_levels.get()) {  // nothing to upload, the host's are stale
+    if (!maps.device_heights || device->owner != &impl || device->heights == nullptr ||
+        device->width != maps.width || device->height != maps.height || device->count != maps.level_count ||
         device->sectors != maps.level_sectors || device->address != maps.level_address) {
       throw RenderError(
-          "maps: levels_on_device needs heights_on_device and this renderer's DeviceLevels of " +
+          "maps: device_levels needs device_heights and a DeviceLevels of this renderer, alive, of " +
           size_text(maps.width, maps.height) + " heights, with its level count, sector count and address");
     }
     heights.held = false;
     cones.held = false;
     copies.levels = Copy::none;
     impl.level_count = maps.level_count;
-    impl.levels_from_device = true;
+    impl.device_levels = maps.device_levels;
     return;
   }
   const glm::ivec2 atlas = level_atlas_size(maps.width, maps.height, maps.level_count);
@@ -808,23 +803,34 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
 
 int Renderer::Impl::traced_levels(const View& view, const MethodInfo& info) const {
   if (!traces_levels(info.method, view) || level_count == 0) return 0;
-  if (levels_from_device) {
-    return device_levels != nullptr && device_levels->sectors == info.cone_sectors &&
-                   device_levels->address == bake::Address::wrap
+  if (device_levels) {
+    return device_levels->sectors == info.cone_sectors && device_levels->address == bake::Address::wrap
                ? level_count
                : 0;
   }
-  if (heights_from_device || !level_heights.held || !level_cones.held ||
+  if (device_heights || !level_heights.held || !level_cones.held ||
       level_cones.sectors != info.cone_sectors || level_cones.address != bake::Address::wrap)
     return 0;
   return level_count;
 }
 
+void Renderer::Impl::check_device_maps_alive() const {
+  if (device_heights && device_heights->heights == nullptr)
+    throw RenderError("render: the DeviceSim whose heights the maps name is gone");
+  for (const std::shared_ptr<const DeviceConeImage>& device : device_cones) {
+    if (device && device->image == nullptr)
+      throw RenderError("render: the DeviceCones whose cone map the maps name is gone");
+  }
+  if (device_levels && device_levels->heights == nullptr)
+    throw RenderError("render: the DeviceLevels whose levels the maps name is gone");
+}
+
 void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info) const {
   const std::string method = std::string("MethodSettings::method ") + info.name;
-  if (!heights.held && !heights_from_device)
+  if (!heights.held && !device_heights)
     throw RenderError("render: no height map was given (Renderer::set_maps)");
-  if (needs.cone_sectors > 0 && cones_from_device[std::size_t(cone_slot(needs.cone_sectors))]) {
+  check_device_maps_alive();
+  if (needs.cone_sectors > 0 && device_cones[std::size_t(cone_slot(needs.cone_sectors))]) {
     const DeviceConeImage& device = *device_cones[std::size_t(cone_slot(needs.cone_sectors))];
     const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";
     if (needs.relaxed)

@@ -314,7 +314,7 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
       (shape.foam && (foam.width != maps.width || foam.height != maps.height || !foam.image.handle()));
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {
     const ConeMapView& view = maps.cones[index];
-    if (view.sector_count == 0 || view.on_device) continue;  // a DeviceCones' image: made with it
+    if (view.sector_count == 0 || view.device) continue;  // a DeviceCones' image: made with it
     const DeviceMap& held = cones[index];
     const int layers = cone_layer_count(view.sector_count, !view.relaxed.empty());
     reshaped |= held.width != maps.width || held.height != maps.height || held.layers != layers ||
@@ -335,7 +335,7 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
     reshaped |= distance.width != maps.distance.width || distance.height != maps.distance.height ||
                 distance.layers != maps.distance.depth || !distance.image.handle();
   }
-  if (maps.level_count > 0 && !maps.levels_on_device) {  // a DeviceLevels' atlases are made with it
+  if (maps.level_count > 0 && !maps.device_levels) {  // a DeviceLevels' atlases are made with it
     shape.level_count = maps.level_count;
     shape.level_sectors = maps.level_sectors;
     reshaped |= level_heights.width != level_atlas_size(maps.width, maps.height, maps.level_count).x ||
@@ -347,7 +347,7 @@ void Renderer::Impl::check_map_memory(const MapSet& maps) const {
   std::vector<Allocation> needed = map_memory(shape);
   for (std::size_t index = 0; index < maps.cones.size(); ++index) {  // the other cone maps
     const ConeMapView& view = maps.cones[index];
-    if (view.sector_count == 0 || view.on_device || view.sector_count == shape.cone_sectors) continue;
+    if (view.sector_count == 0 || view.device || view.sector_count == shape.cone_sectors) continue;
     const std::uint64_t bytes = pixels_of(maps.width, maps.height) *
                                 std::uint64_t(cone_layer_count(view.sector_count, !view.relaxed.empty())) *
                                 cone_layer_texel_bytes;

@@ -56,10 +56,6 @@ struct RendererOptions {
   // family where the device has one, so that a GPU runs them beside the frame's draw; off, or where
   // there is none (lavapipe), they go to the frame's own queue. The same submissions and waits either way.
   bool async_compute = true;
-  // For tests, where the async queue is the frame's own: hold each async submission on the host until
-  // a submission or a host wait needs it, so that it runs as late as a GPU's other queue may (on
-  // lavapipe, which runs one queue in order, a wait left out then changes what a frame computes).
-  bool hold_async_work = false;
 };
 
 // $DISPLACE_PIPELINE_CACHE when set ("off" turns the cache off), else $XDG_CACHE_HOME/displace,
@@ -117,13 +113,11 @@ class Renderer {
   // The memory this renderer's device and the host offer now (RendererOptions::memory_limit applied).
   MemoryLimits memory_limits() const;
 
+  // render/'s own parts (renderer_impl.h, not installed): what the swapchain and the device stages use.
   struct Impl;
+  Impl& impl() { return *impl_; }
 
  private:
-  friend class Swapchain;
-  friend class DeviceSim;
-  friend class DeviceCones;
-  friend class DeviceLevels;
   std::unique_ptr<Impl> impl_;
 };
 

@@ -13,6 +13,7 @@
 
 #include "render/renderer_impl.h"
 #include "render/shaders/config.h"
+#include "render/testing.h"
 
 namespace displace::render {
 
@@ -148,6 +149,8 @@ std::uint64_t Renderer::Impl::flush_slot() {
   DISPLACE_VK_CHECK(vkBeginCommandBuffer(frame_slot.commands, &begin));
   return value;
 }
+
+void testing::hold_async_work(Renderer& renderer, bool hold) { renderer.impl().hold_async_work = hold; }
 
 std::uint64_t Renderer::Impl::submit_async(VkCommandBuffer commands, std::uint64_t after_frame) {
   const std::uint64_t value = ++async_signalled;

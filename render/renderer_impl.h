@@ -111,19 +111,44 @@ struct Targets {
   OwnedFramebuffer framebuffer;
 };
 
+// The maps a device stage wrote (map_set.h's handles; device.h): images in the GENERAL layout on this
+// renderer's device, each named with the renderer that owns them. A stage clears its images' pointers
+// when it goes, so that a stage still holding the handle sees that they are gone.
+struct DeviceHeightImages {
+  const Renderer::Impl* owner = nullptr;
+  const Image* heights = nullptr;
+  const Image* foam = nullptr;  // null: no foam
+};
+struct DeviceConeImage {  // cone_format, a layer per sector
+  const Renderer::Impl* owner = nullptr;
+  const Image* image = nullptr;
+  int width = 0, height = 0, sectors = 0;
+  bake::Address address = bake::Address::wrap;
+};
+// Atlases laid out as level_heights' and level_cones', and each level's highest height at level_tops'
+// place in FrameUniforms (`tops`, 16 floats, copied into a frame's uniforms on the device).
+struct DeviceLevelImages {
+  const Renderer::Impl* owner = nullptr;
+  const Image* heights = nullptr;
+  const Image* cones = nullptr;
+  VkBuffer tops = VK_NULL_HANDLE;
+  int width = 0, height = 0;  // level 0's
+  int count = 0, sectors = 0;
+  bake::Address address = bake::Address::wrap;
+};
+
 struct Renderer::Impl {
   explicit Impl(const RendererOptions& options)
       : context(options),
         memory_limit(options.memory_limit),
         memory_limit_source(options.memory_limit_source),
-        host_written_maps(options.host_written_maps),
-        hold_async_work(options.hold_async_work) {}
+        host_written_maps(options.host_written_maps) {}
 
   Context context;
   std::uint64_t memory_limit = 0;  // RendererOptions::memory_limit
   std::string memory_limit_source;
   bool host_written_maps = true;  // RendererOptions::host_written_maps
-  bool hold_async_work = false;   // RendererOptions::hold_async_work
+  bool hold_async_work = false;   // render/testing.h
   MemoryLimits memory_limits() const { return context.memory_limits(memory_limit, memory_limit_source); }
 
   // pipelines.cpp
@@ -182,7 +207,7 @@ struct Renderer::Impl {
   std::uint64_t submit_async(VkCommandBuffer commands, std::uint64_t after_frame);
   // The frame queue's next submission (and every later one) waits for async `value`.
   void frame_waits_for_async(std::uint64_t value) { frame_waits_for = std::max(frame_waits_for, value); }
-  // RendererOptions::hold_async_work where the async queue is the frame's own: an async submission
+  // hold_async_work (render/testing.h) where the async queue is the frame's own: an async submission
   // is held on the host until a frame submission or a host wait needs it (then it and those before
   // it go in), so that it runs as late as a GPU's other queue may run it.
   struct DeferredAsync {
@@ -214,38 +239,16 @@ struct Renderer::Impl {
   DeviceMap level_heights, level_cones;
   int level_count = 0;                                      // levels held (0: none)
   std::array<float, bake::max_detail_levels> level_tops{};  // each level's highest height
-  // device.h: the maps a DeviceSim writes (GENERAL layout), and whether the last MapSet uses them
-  const Image* device_heights = nullptr;
-  const Image* device_foam = nullptr;
-  bool heights_from_device = false, foam_from_device = false;
-  // device.h: the cone image a DeviceCones writes (cone_format, GENERAL layout), by cone_slot, and
-  // whether the last MapSet samples it
-  struct DeviceConeImage {
-    const Image* image = nullptr;
-    int width = 0, height = 0, sectors = 0;
-    bake::Address address = bake::Address::wrap;
-  };
-  std::array<const DeviceConeImage*, 3> device_cones{};
-  std::array<bool, 3> cones_from_device{};
-  // device.h: the levels of detail a DeviceLevels makes - atlases laid out as level_heights' and
-  // level_cones' (GENERAL layout), and each level's highest height at level_tops' place in
-  // FrameUniforms (`tops`, 16 floats, copied into a frame's uniforms on the device) - and whether the
-  // last MapSet uses them
-  struct DeviceLevelImages {
-    const Image* heights = nullptr;
-    const Image* cones = nullptr;
-    VkBuffer tops = VK_NULL_HANDLE;
-    int width = 0, height = 0;  // level 0's
-    int count = 0, sectors = 0;
-    bake::Address address = bake::Address::wrap;
-  };
-  const DeviceLevelImages* device_levels = nullptr;
-  bool levels_from_device = false;
+  // the device stages' maps the last MapSet named (device.h; null: the host's maps above)
+  std::shared_ptr<const DeviceHeightImages> device_heights;
+  std::array<std::shared_ptr<const DeviceConeImage>, 3> device_cones;  // by cone_slot
+  std::shared_ptr<const DeviceLevelImages> device_levels;
   std::shared_ptr<struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
   std::vector<VkBufferImageCopy> copy_regions;             // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
+  void check_device_maps_alive() const;  // the device stages the last MapSet named are not gone
   // The coarser levels a frame of this view and method traces: the levels held when it traces levels
   // (traces_levels) with cones of its sector count on the host's heights, else 0 (level 0 only).
   int traced_levels(const View& view, const MethodInfo& info) const;

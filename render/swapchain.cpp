@@ -418,7 +418,7 @@ bool Swapchain::Impl::present(int width, int height, Frame* shown) {
 
 Swapchain::Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height,
                      bool vsync)
-    : impl_(std::make_unique<Impl>(*renderer.impl_, make_surface, vsync)) {
+    : impl_(std::make_unique<Impl>(renderer.impl(), make_surface, vsync)) {
   impl_->recreate(width, height);
 }
 Swapchain::~Swapchain() = default;

@@ -147,7 +147,7 @@ void run_device_bake(benchmark::State& state, render::DeviceConeBudget budget) {
       pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
   render::DeviceSim& ocean = *made;
   ocean.simulate(3.0);
-  render::DeviceCones cones(renderer, device_bake_sectors, bake::Address::wrap);
+  render::DeviceCones cones(renderer, ocean.maps(), device_bake_sectors, bake::Address::wrap);
   render::DeviceConeStats stats;
   for (auto _ : state) {
     cones.bake(budget);

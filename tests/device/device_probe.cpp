@@ -368,7 +368,7 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
     const std::unique_ptr<render::DeviceSim> ocean =
         pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
     ocean->simulate(3.0);
-    render::DeviceCones cones(renderer, 4, bake::Address::wrap);
+    render::DeviceCones cones(renderer, ocean->maps(), 4, bake::Address::wrap);
     for (const Shape& shape : shapes) {
       const long long texels = shape.texels;
       std::vector<double> wall, device;

@@ -18,6 +18,7 @@
 #include "pipeline/height_source.h"
 #include "render/device.h"
 #include "render/render.h"
+#include "render/testing.h"
 #include "tests/bake/bake_checks.h"
 #include "tests/test_maps.h"
 
@@ -28,12 +29,13 @@ using bake::Address;
 using test::Map;
 
 render::Renderer& cones_renderer() {
-  static render::Renderer renderer([] {
+  static render::Renderer renderer = [] {
     render::RendererOptions options;
     options.validate = true;
-    options.hold_async_work = true;  // lagged bands run as late as a GPU's other queue may run them
-    return options;
-  }());
+    render::Renderer made(options);
+    render::testing::hold_async_work(made);  // lagged bands run as late as a GPU's other queue may run them
+    return made;
+  }();
   return renderer;
 }
 
@@ -290,13 +292,13 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
   render::Renderer& renderer = cones_renderer();
   const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 7);
   render::DeviceSim& ocean = *made;
-  render::DeviceCones cones(renderer, 4, Address::wrap);
+  render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
   ASSERT_EQ(cones.width(), 32);
   render::MapSet maps;
   maps.width = maps.height = 32;
-  maps.heights_on_device = true;
+  maps.device_heights = ocean.maps();
   maps.cones[std::size_t(render::cone_slot(4))].sector_count = 4;
-  maps.cones[std::size_t(render::cone_slot(4))].on_device = true;
+  maps.cones[std::size_t(render::cone_slot(4))].device = cones.map();
   render::View view;
   view.camera.width = view.camera.height = 24;
   const render::MethodSettings method{render::Method::acm4, 32, 4};
@@ -333,7 +335,7 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
   const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 11);
   render::DeviceSim& ocean = *made;
   for (int lag : {1, 3}) {
-    render::DeviceCones cones(renderer, 4, Address::wrap);
+    render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
     struct Served {
       std::vector<float> heights;
       DeviceBake bake;
@@ -348,7 +350,7 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       served.age = cones.bake_lagged({0}, lag);
       // the frame submitted first, as a frame loop submits it. Nothing here waits for a band in
       // flight (read_back neither), and the renderer holds the bands back until something waits for
-      // them (RendererOptions::hold_async_work): a wait that the serving frame lacks shows in its map.
+      // them (render::testing::hold_async_work): a wait that the serving frame lacks shows in its map.
       ocean.finish();
       served.bake = read(cones, 32, 32);
       served.lift = cones.lift();
@@ -405,7 +407,7 @@ TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
   const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 12);
   render::DeviceSim& ocean = *made;
   const int lag = 3;
-  render::DeviceCones cones(renderer, 4, Address::wrap);
+  render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
   std::vector<std::vector<float>> heights;
   for (int f = 0; f < 2 * lag + 3; ++f) {
     ocean.simulate(1.0 + 0.4 * f);
@@ -449,10 +451,35 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
               render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 3, Address::wrap);
             }).find("1, 4 or 8 sectors"),
             std::string::npos);
-  EXPECT_NE(message_of([&] { render::DeviceCones(renderer, 4, Address::wrap); }).find("no DeviceSim"),
+  EXPECT_NE(message_of([&] { render::DeviceCones(renderer, nullptr, 4, Address::wrap); }).find("alive"),
             std::string::npos);
+  {  // the heights of a DeviceSim that is gone: refused by a bake and by a frame that would read them
+    std::unique_ptr<render::DeviceSim> ocean = small_ocean(renderer, 3);
+    const std::shared_ptr<const render::DeviceHeightImages> handle = ocean->maps();
+    ocean->simulate(1.0);
+    ocean->finish();  // nothing recorded is left to run when it goes
+    render::DeviceCones cones(renderer, handle, 4, Address::wrap);
+    render::MapSet maps;
+    maps.width = maps.height = ocean->size();
+    maps.device_heights = handle;
+    renderer.set_maps(maps);
+    ocean.reset();
+    EXPECT_NE(message_of([&] { cones.bake({0}); }).find("is gone"), std::string::npos);
+    render::View view;
+    view.camera.width = view.camera.height = 8;
+    EXPECT_NE(message_of([&] {
+                renderer.render(view, {render::Method::pom, 8, 0});
+              }).find("is gone"),
+              std::string::npos);
+    EXPECT_NE(message_of([&] { render::DeviceCones(renderer, handle, 4, Address::wrap); }).find("alive"),
+              std::string::npos);
+    EXPECT_NE(message_of([&] { renderer.set_maps(maps); }).find("DeviceSim of this renderer, alive"),
+              std::string::npos);
+  }
+  std::shared_ptr<const render::DeviceConeImage> gone;
   {
     render::DeviceCones cones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
+    gone = cones.map();
     EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
     EXPECT_THROW(cones.bake_lagged({0}, -1), render::RenderError);
     for (const render::DeviceFirstPass first_pass :
@@ -465,13 +492,13 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
     const std::string both = message_of([&] { cones.bake({0, render::DeviceFirstPass{4, 1, true}}); });
     EXPECT_NE(both.find("by rings or by its group"), std::string::npos) << both;
   }
-  // a MapSet asking for device cones the renderer does not have (the DeviceCones above is gone)
+  // a MapSet naming the cones of a DeviceCones that is gone
   render::MapSet maps;
   maps.width = maps.height = 4;
   maps.heights = heights;
   maps.cones[std::size_t(render::cone_slot(4))].sector_count = 4;
-  maps.cones[std::size_t(render::cone_slot(4))].on_device = true;
-  EXPECT_NE(message_of([&] { renderer.set_maps(maps); }).find("needs this renderer's 4-sector DeviceCones"),
+  maps.cones[std::size_t(render::cone_slot(4))].device = gone;
+  EXPECT_NE(message_of([&] { renderer.set_maps(maps); }).find("4-sector DeviceCones of this renderer, alive"),
             std::string::npos);
   EXPECT_EQ(renderer.validation_messages(), 0);
 }

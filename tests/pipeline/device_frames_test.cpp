@@ -11,18 +11,20 @@
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/scene.h"
 #include "render/render.h"
+#include "render/testing.h"
 
 namespace {
 
 using namespace displace;
 
 render::Renderer& frames_renderer() {
-  static render::Renderer renderer([] {
+  static render::Renderer renderer = [] {
     render::RendererOptions options;
     options.validate = true;
-    options.hold_async_work = true;  // lagged bands run as late as a GPU's other queue may run them
-    return options;
-  }());
+    render::Renderer made(options);
+    render::testing::hold_async_work(made);  // lagged bands run as late as a GPU's other queue may run them
+    return made;
+  }();
   return renderer;
 }
 

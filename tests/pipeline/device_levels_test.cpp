@@ -73,7 +73,7 @@ std::vector<std::vector<float>> cpu_moments(const render::HeightField& field, in
 TEST(DeviceLevels, TheChainIsTheCpusChainOfTheSameHeights) {
   render::Renderer& renderer = levels_renderer();
   const std::unique_ptr<render::DeviceSim> sim = device_ocean(renderer, 64, 3);
-  render::DeviceLevels levels(renderer, 4, Address::wrap);
+  render::DeviceLevels levels(renderer, sim->maps(), 4, Address::wrap);
   ASSERT_EQ(levels.level_count(), 6);
   for (const double time : {0.0, 1.5}) {
     sim->simulate(time);
@@ -114,7 +114,7 @@ TEST(DeviceLevels, EveryLevelsConesKeepTheBilinearContract) {
   sim->simulate(2.0);
   const render::HeightField field = heights_of(*sim);
   for (const int sectors : {1, 4, 8}) {
-    render::DeviceLevels levels(renderer, sectors, Address::wrap);
+    render::DeviceLevels levels(renderer, sim->maps(), sectors, Address::wrap);
     ASSERT_EQ(levels.level_count(), 5);
     for (const long long budget : {0LL, render::unlimited_texels}) {
       levels.make({budget, {}});
@@ -140,18 +140,18 @@ TEST(DeviceLevels, RaysOnEachLevelEndAtThatLevelsFirstCrossing) {
   constexpr double tolerance = 1e-4;  // world units (a level-0 texel here is 0.016)
   render::Renderer& renderer = levels_renderer();
   const std::unique_ptr<render::DeviceSim> sim = device_ocean(renderer, 64, 5);
-  render::DeviceCones cones(renderer, 4, Address::wrap);
-  render::DeviceLevels levels(renderer, 4, Address::wrap);
+  render::DeviceCones cones(renderer, sim->maps(), 4, Address::wrap);
+  render::DeviceLevels levels(renderer, sim->maps(), 4, Address::wrap);
   sim->simulate(3.0);
   cones.bake({0, {}});
   levels.make({0, {}});
   const render::HeightField field = heights_of(*sim);
   render::MapSet maps;
   maps.width = maps.height = 64;
-  maps.heights_on_device = true;
+  maps.device_heights = sim->maps();
   maps.cones[std::size_t(render::cone_slot(4))].sector_count = 4;
-  maps.cones[std::size_t(render::cone_slot(4))].on_device = true;
-  maps.levels_on_device = true;
+  maps.cones[std::size_t(render::cone_slot(4))].device = cones.map();
+  maps.device_levels = levels.maps();
   maps.level_count = levels.level_count();
   maps.level_sectors = 4;
   maps.level_address = Address::wrap;
