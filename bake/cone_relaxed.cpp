@@ -13,6 +13,7 @@
 // is below the ratio found. The proof is in docs/design/bakers.md, "Relaxed cones".
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include <algorithm>
 #include <atomic>
@@ -30,7 +31,8 @@ namespace {
 
 using detail::Grid;
 
-constexpr int chunk_texels = 8;  // texels in a chunk of a row or column whose maximum the scan tests first
+constexpr int rows_per_band = 8;  // rows a thread bakes in order (at most, and at least half as many)
+constexpr int chunk_texels = 8;   // texels in a chunk of a row or column whose maximum the scan tests first
 // relative margins of the squared float comparisons below, over the few ulps of their rounding
 constexpr float scan_margin = 1e-5f;
 constexpr float drop_margin = 2e-5f;
@@ -90,6 +92,9 @@ Extents ring_extents(const Grid& grid, int r) {
 // One texel's search in one sector: its ratio so far, the offset that set it, the candidates not
 // yet followed (a heap).
 struct SectorSearch {
+  SectorSearch(int i, int j, float h, std::vector<Candidate>& candidates, long long& work_done)
+      : ci(i), cj(j), hc(h), pending(candidates), work(work_done) {}
+
   int ci, cj;
   float hc;
   std::vector<Candidate>& pending;
@@ -257,7 +262,7 @@ struct RingSearch {
           window.max_dy = std::min(window.max_dy, 0);
       }
       pending.clear();
-      SectorSearch t{ci, cj, hc, pending, work};
+      SectorSearch t(ci, cj, hc, pending, work);
       if (map_max > hc) {
         if (left && (left[k].dx != 0 || left[k].dy != 0)) seed(t, window, {left[k].dx - 1, left[k].dy});
         if (above && (above[k].dx != 0 || above[k].dy != 0)) seed(t, window, {above[k].dx, above[k].dy - 1});
@@ -277,32 +282,41 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
     throw BakeError("relaxed cone maps support 1 or 4 sectors, not " + std::to_string(out.sector_count));
   const auto start = std::chrono::steady_clock::now();
   const Grid grid(heights.width, heights.height, out.sector_count, address);
-  const detail::RelaxedSurface surface{heights.data, heights.width, heights.height, address};
+  std::vector<double> first_ends(std::size_t(std::max(heights.width, heights.height)) + 1);
+  for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
+  const detail::RelaxedSurface surface{heights.data, heights.width,     heights.height,
+                                       address,      first_ends.data(), int(first_ends.size())};
   const std::size_t texels = std::size_t(heights.width) * heights.height;
   const ChunkMaxima maxima = chunk_maxima(heights);
   const RingSearch search{grid, surface, maxima, *std::max_element(heights.data, heights.data + texels)};
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(progress, heights.height);
 
-  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
-    long long work = 0;
-    std::vector<Candidate> pending;
-    // the offsets that limited the previous row's texels and this row's
-    const std::size_t row_offsets = std::size_t(heights.width) * out.sector_count;
-    std::vector<Offset> previous(row_offsets), current(row_offsets);
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      for (int j = 0; j < heights.width; ++j) {
-        const std::size_t at = std::size_t(j) * out.sector_count;
-        search.texel(i, j, j > 0 ? &current[at - out.sector_count] : nullptr,
-                     i > rows.begin() ? &previous[at] : nullptr,
-                     out.data + (std::size_t(i) * heights.width + j) * out.sector_count, &current[at],
-                     pending, work);
-      }
-      std::swap(previous, current);
-      rows_done.row_done();
-    }
-    total_work += work;
-  });
+  // bands of rows, each on one thread from top to bottom, so that a row's texels find the blockers of
+  // the row above
+  const tbb::blocked_range<int> bands(0, heights.height, rows_per_band);
+  tbb::parallel_for(
+      bands,
+      [&](const tbb::blocked_range<int>& rows) {
+        long long work = 0;
+        std::vector<Candidate> pending;
+        // the offsets that limited the previous row's texels and this row's
+        const std::size_t row_offsets = std::size_t(heights.width) * out.sector_count;
+        std::vector<Offset> previous(row_offsets), current(row_offsets);
+        for (int i = rows.begin(); i < rows.end(); ++i) {
+          for (int j = 0; j < heights.width; ++j) {
+            const std::size_t at = std::size_t(j) * out.sector_count;
+            search.texel(i, j, j > 0 ? &current[at - out.sector_count] : nullptr,
+                         i > rows.begin() ? &previous[at] : nullptr,
+                         out.data + (std::size_t(i) * heights.width + j) * out.sector_count, &current[at],
+                         pending, work);
+          }
+          std::swap(previous, current);
+          rows_done.row_done();
+        }
+        total_work += work;
+      },
+      tbb::simple_partitioner());
   rows_done.finish();
 
   return detail::whole_map_stats(Mode::exact, heights, out.sector_count, total_work, start, out.data);

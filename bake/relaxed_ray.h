@@ -23,6 +23,10 @@ struct RelaxedSurface {
   const float* heights;
   int width, height;
   Address address;
+  // first_ends[n] = (n + 1) / n (n >= 1), rounded as a division rounds, for n < first_end_count:
+  // where the ray leaves its first cell along an axis (exit_parameter); optional
+  const double* first_ends = nullptr;
+  int first_end_count = 0;
 
   double texel(int i, int j) const {
     if (address == Address::wrap) {
@@ -56,10 +60,17 @@ double exit_parameter(const RelaxedSurface& surface, double x0, double y0, doubl
     const int j = int(std::floor(px)), i = int(std::floor(py));
     // parameter where the ray leaves this cell
     double s_end = s_stop;
-    if (dx > 0) s_end = std::min(s_end, (j + 1 - x0) / dx);
-    if (dx < 0) s_end = std::min(s_end, (j - x0) / dx);
-    if (dy > 0) s_end = std::min(s_end, (i + 1 - y0) / dy);
-    if (dy < 0) s_end = std::min(s_end, (i - y0) / dy);
+    const int steps_x = int(std::fabs(dx)), steps_y = int(std::fabs(dy));
+    if (s == 1.0 && steps_x < surface.first_end_count && steps_y < surface.first_end_count) {
+      // the first cell: the divisions below are (|dx| + 1) / |dx| and (|dy| + 1) / |dy| there
+      if (dx != 0) s_end = std::min(s_end, surface.first_ends[steps_x]);
+      if (dy != 0) s_end = std::min(s_end, surface.first_ends[steps_y]);
+    } else {
+      if (dx > 0) s_end = std::min(s_end, (j + 1 - x0) / dx);
+      if (dx < 0) s_end = std::min(s_end, (j - x0) / dx);
+      if (dy > 0) s_end = std::min(s_end, (i + 1 - y0) / dy);
+      if (dy < 0) s_end = std::min(s_end, (i - y0) / dy);
+    }
     ++work;
     // f(s) = bilinear - z as a quadratic a s^2 + b s + c, with tx = x0 - j + s dx, ty = y0 - i + s dy
     const double h00 = surface.texel(i, j), h01 = surface.texel(i, j + 1);
