@@ -33,7 +33,11 @@ using detail::Grid;
 
 constexpr int rows_per_band = 8;  // rows a thread bakes in order (at most, and at least half as many)
 constexpr int chunk_texels = 8;   // texels in a chunk of a row or column whose maximum the scan tests first
-// relative margins of the squared float comparisons below, over the few ulps of their rounding
+// Relative margins of the squared float comparisons below. With u = 2^-24: d2 = x * x + y * y is
+// the float whose root pair_ratio takes; if d2 >= fl(fl(gap * gap) * fl(fl(best * best) * (1 +
+// scan_margin))), then d2 >= gap^2 best^2 (1 + 1e-5) (1 - u)^4 (1 - 6e-8), so fl(sqrt(d2)) >= gap
+// best (1 + 4.6e-6) and fl(fl(sqrt(d2)) / gap) >= best (1 + 4.6e-6) (1 - u) > best: the float pair
+// ratio is >= best. The key d2 / gap^2 (one more rounding) against best^2 (1 + drop_margin) likewise.
 constexpr float scan_margin = 1e-5f;
 constexpr float drop_margin = 2e-5f;
 
