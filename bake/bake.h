@@ -159,8 +159,17 @@ BakeStats bake_budgeted(HeightView heights, Address address, const Budget& budge
 // sectors. The relaxed ratio of texel c in sector k is the largest r <= 1 such that every ray that
 // starts on the top plane (height 1) within the cone of ratio r above c and travels to c's apex
 // (c, h(c)), through directions of sector k, crosses the height field at most once: it never leaves
-// the relief after entering it. It is never smaller than the conservative ratio.
+// the relief after entering it. It is never smaller than the conservative ratio. As computed: for
+// texel c and every higher texel d, the ray from (c, 1) through (d, h(d)) is followed until it
+// leaves the bilinear relief at E (a ray that touches the surface leaves it); the ratio is the
+// minimum over d in sector k of max(pair ratio of d, |E - c| / (h(E) - h(c))), a d whose E is not
+// above c counting 1. bake_relaxed searches rings around each texel, pruned by pair ratios
+// (bake/cone_relaxed.cpp); bake_relaxed_reference is the slow search it is tested against (the exact
+// baker's pyramid search, following the ray to its exit for every blocker it reaches). Both emit
+// the same map, bit for bit.
 BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const Progress& progress = {});
+BakeStats bake_relaxed_reference(HeightView heights, Address address, ConeView out,
+                                 const Progress& progress = {});
 
 // Cone map for the BILINEAR surface, conservative from anywhere in a texel's square, for cone
 // stepping with no slack (the renderer's csm / acm4 / acm8 / acm4-interval). The cone maps above

@@ -1,101 +1,282 @@
 // bake/cone_relaxed.cpp - relaxed cone maps (Policarpo & Oliveira, "Relaxed Cone Stepping for
-// Relief Mapping", GPU Gems 3), for 1 and 4 sectors.
+// Relief Mapping", GPU Gems 3), for 1 and 4 sectors: bake_relaxed_reference's map, bit for bit,
+// from a search that follows the rays of far fewer blockers.
 //
-// A relaxed cone may contain relief, as long as a viewing ray inside it crosses the height field at
-// most once: a renderer that steps to the cone's edge then lands at most one crossing past the first
-// hit, which a binary search finds. As in their preprocessing, for texel c and every other texel d
-// we follow the ray from the top of c's axis, (c, 1), through the surface point (d, h(d)) and on
-// until it leaves the bilinear relief at E (found exactly, cell by cell, not by marching); the cone must not
-// contain E, so its ratio is at most |E - c| / (h(E) - h(c)) when E lies above c. Because E is beyond d and
-// no higher than d, that bound is never below d's pair ratio: the max pyramid search of the exact baker
-// prunes the texels d (search.h), and a relaxed ratio is never below the conservative one.
+// The one fact: a blocker d's relaxed value V(c, d) is never below its pair ratio (relaxed_ray.h),
+// so only a d whose pair ratio is below the ratio found so far can lower it. Per texel and sector,
+// the blockers that limited the texel's left and upper neighbours give a first ratio; then rings of
+// offsets are scanned, nearest first (a chunk of 8 texels whose maximum cannot lower the ratio is
+// skipped whole), and the rays of the candidates are followed in order of pair ratio, each only
+// until its ray point's own ratio reaches the ratio found. The search ends at the first ring whose
+// nearest offset could not lower the ratio even at the map's maximum height. Every test compares
+// monotone float formulas with a margin over their rounding, so none drops a blocker whose value
+// is below the ratio found. The proof is in docs/design/bakers.md, "Relaxed cones".
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
-#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
 
 #include "bake/progress.h"
-#include "bake/search.h"
+#include "bake/relaxed_ray.h"
 
 namespace displace::bake {
 
 namespace {
 
-struct Surface {
-  const float* heights;
-  int width, height;
-  Address address;
+using detail::Grid;
 
-  double texel(int i, int j) const {
-    if (address == Address::wrap) {
-      i = ((i % height) + height) % height;
-      j = ((j % width) + width) % width;
-    } else {
-      i = std::clamp(i, 0, height - 1);
-      j = std::clamp(j, 0, width - 1);
+constexpr int rows_per_band = 8;  // rows a thread bakes in order (at most, and at least half as many)
+constexpr int chunk_texels = 8;   // texels in a chunk of a row or column whose maximum the scan tests first
+// Relative margins of the squared float comparisons below. With u = 2^-24: d2 = x * x + y * y is
+// the float whose root pair_ratio takes; if d2 >= fl(fl(gap * gap) * fl(fl(best * best) * (1 +
+// scan_margin))), then d2 >= gap^2 best^2 (1 + 1e-5) (1 - u)^4 (1 - 6e-8), so fl(sqrt(d2)) >= gap
+// best (1 + 4.6e-6) and fl(fl(sqrt(d2)) / gap) >= best (1 + 4.6e-6) (1 - u) > best: the float pair
+// ratio is >= best. The key d2 / gap^2 (one more rounding) against best^2 (1 + drop_margin) likewise.
+constexpr float scan_margin = 1e-5f;
+constexpr float drop_margin = 2e-5f;
+
+struct Offset {
+  int dx = 0, dy = 0;
+};
+
+// A blocker whose pair ratio may lower a ratio; its ray is not followed yet. key estimates the
+// square of the pair ratio: it orders the candidates, and drops them only with a margin (follow).
+struct Candidate {
+  float key;
+  int dx, dy;
+  float height;
+};
+bool larger_key(const Candidate& a, const Candidate& b) { return a.key > b.key; }  // heap: smallest on top
+
+// The maxima of aligned chunks: of row i's texels [b * 8, b * 8 + 8) at rows[i * row_chunks + b], of
+// column j's texels [b * 8, b * 8 + 8) at columns[b * W + j] (the last chunk may be shorter).
+struct ChunkMaxima {
+  int row_chunks = 0;
+  std::vector<float> rows, columns;
+};
+
+ChunkMaxima chunk_maxima(HeightView heights) {
+  ChunkMaxima maxima;
+  const int w = heights.width, h = heights.height;
+  maxima.row_chunks = (w + chunk_texels - 1) / chunk_texels;
+  maxima.rows.assign(std::size_t(h) * maxima.row_chunks, 0.0f);
+  maxima.columns.assign(std::size_t((h + chunk_texels - 1) / chunk_texels) * w, 0.0f);
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const float value = heights.data[std::size_t(i) * w + j];
+      float& row = maxima.rows[std::size_t(i) * maxima.row_chunks + j / chunk_texels];
+      float& column = maxima.columns[std::size_t(i / chunk_texels) * w + j];
+      row = std::max(row, value);
+      column = std::max(column, value);
     }
-    return heights[std::size_t(i) * width + j];
+  return maxima;
+}
+
+// The offsets one search looks at: dx in [min_dx, max_dx], dy in [min_dy, max_dy] - a closed
+// quadrant (the sector of a 4-sector map) or everything, cut to the map with clamp.
+struct Window {
+  int min_dx, max_dx, min_dy, max_dy;
+};
+
+// Half extents (texels) of the rectangle of ring r: the same uv reach along u and v.
+struct Extents {
+  int x = 0, y = 0;
+};
+Extents ring_extents(const Grid& grid, int r) {
+  if (grid.width >= grid.height) return {int((long long)r * grid.width / grid.height), r};
+  return {r, int((long long)r * grid.height / grid.width)};
+}
+
+// One texel's search in one sector: its ratio so far, the offset that set it, the candidates not
+// yet followed (a heap).
+struct SectorSearch {
+  SectorSearch(int i, int j, float h, std::vector<Candidate>& candidates, long long& work_done)
+      : ci(i), cj(j), hc(h), pending(candidates), work(work_done) {}
+
+  int ci, cj;
+  float hc;
+  std::vector<Candidate>& pending;
+  long long& work;
+  float best = 1.0f;
+  Offset bound_by;
+  float scan_limit = 1.0f + scan_margin;  // best^2 (1 + scan_margin)
+  float drop_limit = 1.0f + drop_margin;  // best^2 (1 + drop_margin)
+
+  void lower(float value, Offset by) {
+    best = value;
+    bound_by = by;
+    scan_limit = value * value * (1.0f + scan_margin);
+    drop_limit = value * value * (1.0f + drop_margin);
+  }
+  // Whether a texel at squared uv distance d2 (float products) and height hq may have a pair ratio
+  // below best: false only when its float pair ratio is at least best, as the margin covers the
+  // rounding of d2, of these products and of the pair ratio's root and quotient. Branch free.
+  bool may_lower(float d2, float hq) const {
+    const float gap = std::max(hq - hc, 0.0f);
+    return d2 < gap * gap * scan_limit;
+  }
+  void push(int dx, int dy, float d2, float hq) {
+    const float gap = hq - hc;
+    pending.push_back({d2 / (gap * gap), dx, dy, hq});
+    std::push_heap(pending.begin(), pending.end(), larger_key);
   }
 };
 
-// The ray (x, y, z) = (x0 + s dx, y0 + s dy, 1 - drop s), s >= 1, starts on the surface at s = 1 (a
-// texel centre). Returns the first s > 1 where the bilinear surface is at or below the ray (the
-// exit), or a value >= s_stop when the ray stays inside until s_stop. Exact per bilinear cell: along
-// a line the bilinear patch is a quadratic in s. Texel (i, j) sits at (j, i).
-double exit_parameter(const Surface& surface, double x0, double y0, double dx, double dy, double drop,
-                      double s_stop, long long& work) {
-  double s = 1.0;
-  // the cell the ray enters just after s (a direction with 0 components stays on the cell edge)
-  const double eps = 1e-9;
-  while (s < s_stop) {
-    const double px = x0 + (s + eps) * dx, py = y0 + (s + eps) * dy;
-    if (surface.address == Address::clamp &&
-        (px < 0.0 || py < 0.0 || px > surface.width - 1.0 || py > surface.height - 1.0))
-      return s;  // off the map: nothing there
-    const int j = int(std::floor(px)), i = int(std::floor(py));
-    // parameter where the ray leaves this cell
-    double s_end = s_stop;
-    if (dx > 0) s_end = std::min(s_end, (j + 1 - x0) / dx);
-    if (dx < 0) s_end = std::min(s_end, (j - x0) / dx);
-    if (dy > 0) s_end = std::min(s_end, (i + 1 - y0) / dy);
-    if (dy < 0) s_end = std::min(s_end, (i - y0) / dy);
-    ++work;
-    // f(s) = bilinear - z as a quadratic a s^2 + b s + c, with tx = x0 - j + s dx, ty = y0 - i + s dy
-    const double h00 = surface.texel(i, j), h01 = surface.texel(i, j + 1);
-    const double h10 = surface.texel(i + 1, j), h11 = surface.texel(i + 1, j + 1);
-    const double ax = x0 - j, ay = y0 - i;
-    // bilinear = h00 + (h01 - h00) tx + (h10 - h00) ty + k tx ty,  k = h00 - h01 - h10 + h11
-    const double k = h00 - h01 - h10 + h11;
-    const double qa = k * dx * dy;
-    const double qb = (h01 - h00) * dx + (h10 - h00) * dy + k * (ax * dy + ay * dx) + drop;
-    const double qc = h00 + (h01 - h00) * ax + (h10 - h00) * ay + k * ax * ay - 1.0;
-    auto f = [&](double t) { return (qa * t + qb) * t + qc; };
-    // first t in (s, s_end] with f(t) <= 0; f(s) >= 0 holds (inside, or on the surface at the start)
-    double roots[2];
-    int root_count = 0;
-    if (std::fabs(qa) < 1e-15) {
-      if (qb != 0.0) roots[root_count++] = -qc / qb;
-    } else {
-      const double disc = qb * qb - 4.0 * qa * qc;
-      if (disc >= 0.0) {
-        const double r = std::sqrt(disc);
-        const double q = -0.5 * (qb + (qb >= 0 ? r : -r));
-        roots[root_count++] = q / qa;
-        if (q != 0.0) roots[root_count++] = qc / q;
-      }
-    }
-    if (root_count == 2 && roots[1] < roots[0]) std::swap(roots[0], roots[1]);
-    const double probe = std::min(s_end, s + 1e-6 * (s_end - s) + 1e-12);
-    if (f(probe) <= 0.0) return s;  // leaves right away
-    for (int n = 0; n < root_count; ++n)
-      if (roots[n] > s && roots[n] <= s_end) return roots[n];
-    if (f(s_end) <= 0.0) return s_end;
-    s = s_end;
+struct RingSearch {
+  const Grid& grid;
+  const detail::RelaxedSurface& surface;
+  const ChunkMaxima& maxima;
+  float map_max;  // the highest texel of the map
+
+  int wrap_row(int i) const {
+    return unsigned(i) < unsigned(grid.height) ? i : ((i % grid.height) + grid.height) % grid.height;
   }
-  return s_stop;
-}
+  int wrap_column(int j) const {
+    return unsigned(j) < unsigned(grid.width) ? j : ((j % grid.width) + grid.width) % grid.width;
+  }
+
+  // The offsets (dx, dy), dx in [x0, x1], chunk by chunk: a chunk whose maximum at its nearest
+  // offset cannot lower best holds no texel that can (the float products are monotone).
+  void scan_row(SectorSearch& t, int dy, int x0, int x1) const {
+    const int i = wrap_row(t.ci + dy);
+    const float* row = surface.heights + std::size_t(i) * grid.width;
+    const float* row_maxima = maxima.rows.data() + std::size_t(i) * maxima.row_chunks;
+    const float y = float(dy) * grid.inv_height, y2 = y * y;
+    for (int dx = x0; dx <= x1;) {
+      const unsigned j = unsigned(wrap_column(t.cj + dx)), chunk = j / chunk_texels;
+      const int count = std::min(x1 - dx + 1, std::min(int(chunk + 1) * chunk_texels, grid.width) - int(j));
+      const float nearest = float(detail::interval_gap(dx, dx + count - 1)) * grid.inv_width;
+      if (t.may_lower(nearest * nearest + y2, row_maxima[chunk]))
+        for (int n = 0; n < count; ++n) {
+          const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
+          if (t.may_lower(d2, row[j + n])) t.push(dx + n, dy, d2, row[j + n]);
+        }
+      dx += count;
+    }
+  }
+
+  // The offsets (dx, dy), dy in [y0, y1], chunk by chunk.
+  void scan_column(SectorSearch& t, int dx, int y0, int y1) const {
+    const int j = wrap_column(t.cj + dx);
+    const float x = float(dx) * grid.inv_width, x2 = x * x;
+    for (int dy = y0; dy <= y1;) {
+      const unsigned i = unsigned(wrap_row(t.ci + dy)), chunk = i / chunk_texels;
+      const int count = std::min(y1 - dy + 1, std::min(int(chunk + 1) * chunk_texels, grid.height) - int(i));
+      const float nearest = float(detail::interval_gap(dy, dy + count - 1)) * grid.inv_height;
+      if (t.may_lower(nearest * nearest + x2, maxima.columns[std::size_t(chunk) * grid.width + j]))
+        for (int n = 0; n < count; ++n) {
+          const float hq = surface.heights[std::size_t(i + n) * grid.width + j];
+          const float y = float(dy + n) * grid.inv_height, d2 = x2 + y * y;
+          if (t.may_lower(d2, hq)) t.push(dx, dy + n, d2, hq);
+        }
+      dy += count;
+    }
+  }
+
+  // Follows the ray through the blocker at (dx, dy), height hq > hc, when its pair ratio is below
+  // best, only as far as it can lower best.
+  void evaluate(SectorSearch& t, int dx, int dy, float hq) const {
+    const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - t.hc);
+    if (!(pair < t.best)) return;
+    ++t.work;
+    const float value =
+        detail::relaxed_value(surface, grid, t.ci, t.cj, t.hc, dx, dy, hq, pair, t.best, t.work);
+    if (value < t.best) t.lower(value, {dx, dy});
+  }
+
+  // Follows the candidates whose key is below `limit`, smallest first, and drops them all once the
+  // smallest key proves that none can lower best (drop_margin covers the key's rounding).
+  void follow(SectorSearch& t, float limit) const {
+    while (!t.pending.empty() && t.pending.front().key < limit) {
+      const Candidate d = t.pending.front();
+      if (!(d.key < t.drop_limit)) {
+        t.pending.clear();
+        return;
+      }
+      std::pop_heap(t.pending.begin(), t.pending.end(), larger_key);
+      t.pending.pop_back();
+      evaluate(t, d.dx, d.dy, d.height);
+    }
+  }
+
+  // A first ratio from a blocker that limited a neighbour (any real offset in the window will do).
+  void seed(SectorSearch& t, const Window& window, Offset offset) const {
+    if ((offset.dx == 0 && offset.dy == 0) || offset.dx < window.min_dx || offset.dx > window.max_dx ||
+        offset.dy < window.min_dy || offset.dy > window.max_dy)
+      return;
+    const float hq =
+        surface.heights[std::size_t(wrap_row(t.ci + offset.dy)) * grid.width + wrap_column(t.cj + offset.dx)];
+    if (hq > t.hc) evaluate(t, offset.dx, offset.dy, hq);
+  }
+
+  // Rings of offsets in the window, nearest first, until no offset outside those done has a pair
+  // ratio below best even at the map's maximum height.
+  void search_rings(SectorSearch& t, const Window& window) const {
+    Extents inner;  // done: the window's offsets within +-inner.x, +-inner.y
+    for (int r = 1;; ++r) {
+      float reach = std::numeric_limits<float>::infinity();  // uv distance of the nearest offset left
+      if (window.max_dx > inner.x || window.min_dx < -inner.x) reach = grid.distance(inner.x + 1, 0);
+      if (window.max_dy > inner.y || window.min_dy < -inner.y)
+        reach = std::min(reach, grid.distance(0, inner.y + 1));
+      const float bound = detail::pair_ratio(reach, map_max - t.hc);
+      follow(t, bound * bound);
+      if (!(bound < t.best)) {
+        follow(t, std::numeric_limits<float>::infinity());
+        return;
+      }
+      const Extents outer = ring_extents(grid, r);
+      const int x0 = std::max(-outer.x, window.min_dx), x1 = std::min(outer.x, window.max_dx);
+      const int y0 = std::max(-inner.y, window.min_dy), y1 = std::min(inner.y, window.max_dy);
+      // the rows above and below the rectangle done, whole; then the columns beside it
+      for (int dy = std::max(-outer.y, window.min_dy); dy < y0; ++dy) scan_row(t, dy, x0, x1);
+      for (int dy = y1 + 1; dy <= std::min(outer.y, window.max_dy); ++dy) scan_row(t, dy, x0, x1);
+      for (int dx = x0; dx < std::max(-inner.x, window.min_dx); ++dx) scan_column(t, dx, y0, y1);
+      for (int dx = std::min(inner.x, window.max_dx) + 1; dx <= x1; ++dx) scan_column(t, dx, y0, y1);
+      inner = outer;
+    }
+  }
+
+  // best[k] = texel (ci, cj)'s relaxed ratio in sector k, bound_by[k] the offset that set it ((0, 0):
+  // none). left and above (or null) hold those of texels (ci, cj - 1) and (ci - 1, cj): their
+  // blockers are tried first.
+  void texel(int ci, int cj, const Offset* left, const Offset* above, float* best, Offset* bound_by,
+             std::vector<Candidate>& pending, long long& work) const {
+    const float hc = surface.heights[std::size_t(ci) * grid.width + cj];
+    const bool clamp = grid.address == Address::clamp;
+    constexpr int far = std::numeric_limits<int>::max() / 4;  // no end: every periodic image (wrap)
+    const Window map{clamp ? -cj : -far, clamp ? grid.width - 1 - cj : far, clamp ? -ci : -far,
+                     clamp ? grid.height - 1 - ci : far};
+    for (int k = 0; k < grid.sector_count; ++k) {
+      // sector k of 4 is the closed quadrant k (bake.h): dx >= 0 for k = 0, 3, dy >= 0 for k = 0, 1
+      Window window = map;
+      if (grid.sector_count == 4) {
+        if (k == 0 || k == 3)
+          window.min_dx = std::max(window.min_dx, 0);
+        else
+          window.max_dx = std::min(window.max_dx, 0);
+        if (k <= 1)
+          window.min_dy = std::max(window.min_dy, 0);
+        else
+          window.max_dy = std::min(window.max_dy, 0);
+      }
+      pending.clear();
+      SectorSearch t(ci, cj, hc, pending, work);
+      if (map_max > hc) {
+        if (left && (left[k].dx != 0 || left[k].dy != 0)) seed(t, window, {left[k].dx - 1, left[k].dy});
+        if (above && (above[k].dx != 0 || above[k].dy != 0)) seed(t, window, {above[k].dx, above[k].dy - 1});
+        search_rings(t, window);
+      }
+      best[k] = t.best;
+      bound_by[k] = t.bound_by;
+    }
+  }
+};
 
 }  // namespace
 
@@ -104,44 +285,45 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
   if (out.sector_count != 1 && out.sector_count != 4)
     throw BakeError("relaxed cone maps support 1 or 4 sectors, not " + std::to_string(out.sector_count));
   const auto start = std::chrono::steady_clock::now();
-  const detail::Grid grid(heights.width, heights.height, out.sector_count, address);
-  const detail::Pyramid pyramid = detail::make_pyramid(heights);
-  const detail::SearchContext context{grid, pyramid};
-  const std::vector<detail::Node> roots = detail::root_nodes(context);
-  const Surface surface{heights.data, heights.width, heights.height, address};
-  const int sectors = out.sector_count;
+  const Grid grid(heights.width, heights.height, out.sector_count, address);
+  std::vector<double> first_ends(std::size_t(std::max(heights.width, heights.height)) + 1);
+  for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
+  const detail::RelaxedSurface surface{heights.data, heights.width,     heights.height,
+                                       address,      first_ends.data(), int(first_ends.size())};
+  const std::size_t texels = std::size_t(heights.width) * heights.height;
+  const ChunkMaxima maxima = chunk_maxima(heights);
+  const RingSearch search{grid, surface, maxima, *std::max_element(heights.data, heights.data + texels)};
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(progress, heights.height);
 
-  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
-    long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      for (int j = 0; j < heights.width; ++j) {
-        const std::size_t t = std::size_t(i) * heights.width + j;
-        const float hc = heights.data[t];
-        // exit point of the ray from (c, 1) through (d, hq), d at texel offset (dx, dy)
-        const detail::LeafRatio leaf = [&](int dx, int dy, float hq) {
-          const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - hc);
-          if (!(hq < 1.0f)) return pair;         // a horizontal ray along the top leaves at once
-          const double drop = 1.0 - double(hq);  // ray height lost per unit of the c -> d offset
-          const double s_stop = (1.0 - double(hc)) / drop;
-          const double s = exit_parameter(surface, j, i, dx, dy, drop, s_stop, work);
-          if (s >= s_stop) return 1.0f;  // inside until below the apex: no constraint
-          const double z = 1.0 - drop * s;
-          const double u = s * dx * grid.inv_width, v = s * dy * grid.inv_height;
-          return float(std::min(1.0, std::sqrt(u * u + v * v) / (z - double(hc))));
-        };
-        float* best = out.data + t * sectors;
-        std::fill_n(best, sectors, 1.0f);
-        work += detail::search_texel_leaves(context, i, j, hc, roots, 1.0f, best, nullptr, &leaf);
-      }
-      rows_done.row_done();
-    }
-    total_work += work;
-  });
+  // bands of rows, each on one thread from top to bottom, so that a row's texels find the blockers of
+  // the row above
+  const tbb::blocked_range<int> bands(0, heights.height, rows_per_band);
+  tbb::parallel_for(
+      bands,
+      [&](const tbb::blocked_range<int>& rows) {
+        long long work = 0;
+        std::vector<Candidate> pending;
+        // the offsets that limited the previous row's texels and this row's
+        const std::size_t row_offsets = std::size_t(heights.width) * out.sector_count;
+        std::vector<Offset> previous(row_offsets), current(row_offsets);
+        for (int i = rows.begin(); i < rows.end(); ++i) {
+          for (int j = 0; j < heights.width; ++j) {
+            const std::size_t at = std::size_t(j) * out.sector_count;
+            search.texel(i, j, j > 0 ? &current[at - out.sector_count] : nullptr,
+                         i > rows.begin() ? &previous[at] : nullptr,
+                         out.data + (std::size_t(i) * heights.width + j) * out.sector_count, &current[at],
+                         pending, work);
+          }
+          std::swap(previous, current);
+          rows_done.row_done();
+        }
+        total_work += work;
+      },
+      tbb::simple_partitioner());
   rows_done.finish();
 
-  return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
+  return detail::whole_map_stats(Mode::exact, heights, out.sector_count, total_work, start, out.data);
 }
 
 }  // namespace displace::bake

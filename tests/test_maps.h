@@ -108,6 +108,25 @@ inline Map make_bricks(int w, int h) {
   return m;
 }
 
+// Deep rectangular pockets with steep walls (a toy box's face, depth inverted): a grid of 4 x 4
+// cells, each a pocket of its own size and depth (0.35 to 0.85 below the top) sunk into a frame at
+// 0.95, the walls one texel wide, rough tops and floors. The pockets scale with the map.
+inline Map make_pockets(int w, int h, std::uint64_t seed = 5) {
+  Map m{"pockets", w, h, std::vector<float>(std::size_t(w) * h)};
+  const int cells = 4;
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const float u = (j + 0.5f) / w * cells, v = (i + 0.5f) / h * cells;
+      const int cell_x = std::min(int(u), cells - 1), cell_y = std::min(int(v), cells - 1);
+      const float fu = u - cell_x, fv = v - cell_y;
+      auto margin = [&](int side) { return 0.06f + 0.14f * hash01(seed, cell_y, cell_x * 5 + side); };
+      const bool inside = fu > margin(0) && fu < 1.0f - margin(1) && fv > margin(2) && fv < 1.0f - margin(3);
+      const float depth = 0.35f + 0.5f * hash01(seed, cell_y, cell_x * 5 + 4);
+      m.at(i, j) = (inside ? 0.95f - depth : 0.95f) - 0.003f * hash01(seed + 1, i, j);
+    }
+  return m;
+}
+
 // An FFT ocean frame (the default sim::Ocean at t = 0, mapped onto [0, 1]) of the longer side N,
 // sampled every N / w columns and N / h rows: the same periodic surface, coarser along the shorter
 // side of a non-square map. N must be a multiple of both sides.

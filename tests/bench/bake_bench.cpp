@@ -12,6 +12,12 @@
 // and 1448x1448; 1024x512, 512x1024 and 724x724; 4096x256, 256x4096 and 1024x1024); the ocean is
 // the FFT ocean of the longer side sampled along the shorter (test::make_ocean); refined_frac is
 // the share of texels the refinement stages took after stage L.
+// BM_BakeRelaxed/<map>/<baker>/<size>: bake_relaxed (relaxed) and the search it replaced,
+// bake_relaxed_reference (relaxed-reference, up to 512: minutes above), 1 sector, clamp, on the
+// built-in bricks and cliff (sim::brick_heights, sim::cliff_heights) and test::make_pockets;
+// vs_conservative = mean ratio / the exact conservative map's; where the reference row of the same
+// map and size ran before in the process, vs_reference = mean ratio / the reference's and wider =
+// ratios above the reference's, bit for bit (-1: not compared).
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
@@ -343,8 +349,89 @@ void run_bilinear_map(benchmark::State& state, MapKind kind, int width, int heig
   state.counters["mean_ratio"] = stats.mean_ratio;
 }
 
+// ---- relaxed cone maps: BM_BakeRelaxed/<map>/<baker>/<size>
+
+enum class ReliefKind { built_in_bricks, built_in_cliff, pockets };
+
+const char* relief_name(ReliefKind kind) {
+  switch (kind) {
+    case ReliefKind::built_in_bricks: return "bricks";
+    case ReliefKind::built_in_cliff: return "cliff";
+    case ReliefKind::pockets: return "pockets";
+  }
+  return "?";
+}
+
+// Heights, the exact conservative map's mean and (once its row has run) the reference relaxed map.
+struct RelaxedReference {
+  std::vector<float> heights;
+  double conservative_mean = 0.0;
+  std::vector<float> relaxed;
+};
+
+RelaxedReference& relaxed_reference(ReliefKind kind, int size) {
+  static std::mutex mutex;
+  static std::map<std::pair<int, int>, RelaxedReference> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  RelaxedReference& entry = cache[{int(kind), size}];
+  if (entry.heights.empty()) {
+    entry.heights.resize(std::size_t(size) * size);
+    if (kind == ReliefKind::built_in_bricks) sim::brick_heights(size, size, 1, entry.heights);
+    if (kind == ReliefKind::built_in_cliff) sim::cliff_heights(size, size, 1, entry.heights);
+    if (kind == ReliefKind::pockets) entry.heights = test::make_pockets(size, size).values;
+    std::vector<float> exact(entry.heights.size());
+    entry.conservative_mean = bake::bake_exact({entry.heights.data(), size, size}, bake::Address::clamp,
+                                               {exact.data(), size, size, 1})
+                                  .mean_ratio;
+  }
+  return entry;
+}
+
+void run_relaxed(benchmark::State& state, ReliefKind kind, bool reference) {
+  const int size = int(state.range(0));
+  RelaxedReference& ref = relaxed_reference(kind, size);
+  std::vector<float> cones(ref.heights.size());
+  const bake::HeightView heights{ref.heights.data(), size, size};
+  const bake::ConeView out{cones.data(), size, size, 1};
+  bake::BakeStats stats;
+  for (auto _ : state) {
+    stats = reference ? bake::bake_relaxed_reference(heights, bake::Address::clamp, out)
+                      : bake::bake_relaxed(heights, bake::Address::clamp, out);
+    benchmark::DoNotOptimize(cones.data());
+  }
+  if (reference) ref.relaxed = cones;
+  state.counters["mean_ratio"] = stats.mean_ratio;
+  state.counters["vs_conservative"] = stats.mean_ratio / ref.conservative_mean;
+  state.counters["work_per_texel"] = double(stats.work) / double(cones.size());
+  double wider = -1.0, vs_reference = -1.0;
+  if (!ref.relaxed.empty()) {
+    wider = 0.0;
+    double sum = 0.0;
+    for (std::size_t n = 0; n < cones.size(); ++n) {
+      wider += cones[n] > ref.relaxed[n];
+      sum += ref.relaxed[n];
+    }
+    vs_reference = stats.mean_ratio / (sum / double(cones.size()));
+  }
+  state.counters["wider"] = wider;
+  state.counters["vs_reference"] = vs_reference;
+}
+
 struct Registration {
   Registration() {
+    // the reference first, so that the relaxed row of the same map and size compares with it
+    for (ReliefKind kind : {ReliefKind::built_in_bricks, ReliefKind::built_in_cliff, ReliefKind::pockets})
+      for (int size : {256, 512, 1024})
+        for (bool reference : {true, false}) {
+          if (reference && size > 512) continue;  // minutes above 512
+          auto* b = benchmark::RegisterBenchmark(
+              (std::string("BM_BakeRelaxed/") + relief_name(kind) +
+               (reference ? "/relaxed-reference" : "/relaxed"))
+                  .c_str(),
+              [kind, reference](benchmark::State& state) { run_relaxed(state, kind, reference); });
+          b->Arg(size)->Unit(benchmark::kMillisecond)->UseRealTime();
+          if (reference) b->Iterations(1);
+        }
     // BM_BakeBilinearNonSquare/<map>/<W>x<H>: stage L on non-square maps next to the square one
     for (MapKind kind : {MapKind::ocean, MapKind::bricks})
       for (const auto& [width, height] : {std::pair{2048, 1024}, std::pair{1024, 2048}, std::pair{1448, 1448},
