@@ -18,10 +18,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-const char* spectrum_name(sim::Spectrum spectrum) {
-  return spectrum == sim::Spectrum::phillips ? "phillips" : "jonswap";
-}
-
 Metadata synthesis_metadata(const pipeline::Scene& source, double time, const sim::HeightMapping& mapping) {
   Metadata metadata = {
       {"displace:units", std::string("metres")},
@@ -35,7 +31,15 @@ Metadata synthesis_metadata(const pipeline::Scene& source, double time, const si
     const Metadata ocean_metadata = {
         {"displace:seed", std::to_string(ocean.seed)},
         {"displace:patch_size", ocean.patch_size},
-        {"displace:spectrum", std::string(spectrum_name(ocean.spectrum))},
+        {"displace:spectrum", std::string(pipeline::spectrum_word(ocean.spectrum))},
+        {"displace:spreading_model", std::string(pipeline::spreading_word(ocean.spreading_model))},
+        {"displace:depth", ocean.depth},
+        {"displace:significant_height", ocean.significant_height},
+        {"displace:peak_period", ocean.peak_period},
+        {"displace:swell_significant_height", ocean.swell.significant_height},
+        {"displace:swell_peak_period", ocean.swell.peak_period},
+        {"displace:swell_direction", ocean.swell.direction},
+        {"displace:swell_spreading", ocean.swell.spreading},
         {"displace:wind_speed", ocean.wind_speed},
         {"displace:wind_direction", ocean.wind_direction},
         {"displace:fetch", ocean.fetch},

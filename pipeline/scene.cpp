@@ -37,6 +37,44 @@ const char* backend_word(Backend backend) {
   return "auto";
 }
 
+namespace {
+
+constexpr std::pair<sim::Spectrum, std::string_view> spectrum_names[] = {
+    {sim::Spectrum::phillips, "phillips"},
+    {sim::Spectrum::pierson_moskowitz, "pierson-moskowitz"},
+    {sim::Spectrum::jonswap, "jonswap"},
+    {sim::Spectrum::tma, "tma"}};
+constexpr std::pair<sim::Spreading, std::string_view> spreading_names[] = {
+    {sim::Spreading::cos2s, "cos2s"},
+    {sim::Spreading::mitsuyasu, "mitsuyasu"},
+    {sim::Spreading::hasselmann, "hasselmann"},
+    {sim::Spreading::donelan_banner, "donelan-banner"}};
+
+}  // namespace
+
+std::vector<sim::Spectrum> ocean_spectra() {
+  std::vector<sim::Spectrum> values;
+  for (const auto& [value, name] : spectrum_names) values.push_back(value);
+  return values;
+}
+std::vector<sim::Spreading> spreading_models() {
+  std::vector<sim::Spreading> values;
+  for (const auto& [value, name] : spreading_names) values.push_back(value);
+  return values;
+}
+std::string_view spectrum_word(sim::Spectrum spectrum) {
+  for (const auto& [value, name] : spectrum_names) {
+    if (value == spectrum) return name;
+  }
+  return "phillips";
+}
+std::string_view spreading_word(sim::Spreading model) {
+  for (const auto& [value, name] : spreading_names) {
+    if (value == model) return name;
+  }
+  return "cos2s";
+}
+
 bool runs_on_device(Backend backend, const render::DeviceInfo& device) {
   return backend == Backend::device || (backend == Backend::automatic && device.type != "cpu");
 }
@@ -47,7 +85,8 @@ Backend backend_of(const std::string& word) {
   return word == "cpu" ? Backend::cpu : word == "device" ? Backend::device : Backend::automatic;
 }
 
-std::string join(std::initializer_list<std::string_view> words) {
+template <typename Words>
+std::string join(const Words& words) {
   std::string out;
   for (std::string_view word : words) out += (out.empty() ? "" : ", ") + std::string(word);
   return out;
@@ -118,18 +157,11 @@ class Reader {
 
   std::string word(const toml::table* table, const std::string& section, const std::string& key,
                    const std::string& value, std::initializer_list<std::string_view> allowed) const {
-    const toml::node* node = table ? table->get(key) : nullptr;
-    if (!node) return value;
-    if (!node->is_string()) {
-      fail(node, qualified(section, key),
-           allowed.size() == 0 ? std::string("must be a string")
-                               : "must be a string (one of " + join(allowed) + ")");
-    }
-    const std::string read = node->as_string()->get();
-    if (allowed.size() > 0 && std::find(allowed.begin(), allowed.end(), read) == allowed.end()) {
-      fail(node, qualified(section, key), "'" + read + "' is not one of " + join(allowed));
-    }
-    return read;
+    return word_of(table, section, key, value, allowed);
+  }
+  std::string word(const toml::table* table, const std::string& section, const std::string& key,
+                   const std::string& value, const std::vector<std::string_view>& allowed) const {
+    return word_of(table, section, key, value, allowed);
   }
 
   glm::vec3 vector3(const toml::node* node, const std::string& key, glm::vec3 value) const {
@@ -147,6 +179,22 @@ class Reader {
   }
 
  private:
+  template <typename Words>
+  std::string word_of(const toml::table* table, const std::string& section, const std::string& key,
+                      const std::string& value, const Words& allowed) const {
+    const toml::node* node = table ? table->get(key) : nullptr;
+    if (!node) return value;
+    if (!node->is_string()) {
+      fail(node, qualified(section, key),
+           allowed.size() == 0 ? std::string("must be a string")
+                               : "must be a string (one of " + join(allowed) + ")");
+    }
+    const std::string read = node->as_string()->get();
+    if (allowed.size() > 0 && std::find(allowed.begin(), allowed.end(), read) == allowed.end()) {
+      fail(node, qualified(section, key), "'" + read + "' is not one of " + join(allowed));
+    }
+    return read;
+  }
   static std::string qualified(const std::string& section, std::string_view key) {
     return section.empty() ? std::string(key) : section + "." + std::string(key);
   }
@@ -244,23 +292,54 @@ render::View scene_view(const Scene& scene, double time) {
 }
 
 std::vector<std::string> builtin_scene_names() {
-  return {"water", "calm", "ripples", "ocean", "bricks", "cliff"};
+  return {"water", "calm", "storm", "harbour", "ripples", "ocean", "bricks", "cliff"};
 }
 
 Scene builtin_scene(std::string_view name) {
   Scene scene;
   scene.name = std::string(name);
   scene.camera.width = scene.camera.height = 512;
-  if (name == "water" || name == "calm") {
+  if (name == "water" || name == "calm" || name == "storm" || name == "harbour") {
     scene.source = SourceKind::ocean;
-    scene.ocean.choppiness = name == "calm" ? 0.0f : 1.5f;
     scene.material = render::Material::water;
-    scene.foam = name == "water";
-    scene.depth_scale = 0.04f;         // 8 m of relief over the 200 m patch
     scene.light = {0.0f, 1.0f, 0.3f};  // a low sun ahead: its glint path runs towards the eye
     scene.camera.eye = {0.5f, -0.25f, 0.22f};
     scene.camera.look_at = {0.5f, 0.6f, -0.02f};
     scene.unbounded = true;
+    sim::OceanParams& ocean = scene.ocean;
+    if (name == "water" || name == "calm") {
+      // a fully developed sea in an 11 m/s wind (Hs 2.7 m, peak wavelength 106 m), on the 200 m patch
+      ocean.spectrum = sim::Spectrum::pierson_moskowitz;
+      ocean.wind_speed = 11.0f;
+      ocean.choppiness = name == "calm" ? 0.0f : 1.0f;
+      scene.foam = name == "water";
+      scene.depth_scale = 0.04f;  // 8 m of relief over the 200 m patch (6 sigma, 4.1 m, drawn twice as tall)
+    } else if (name == "storm") {
+      // Beaufort 9 (22.6 m/s), fully developed in deep water: Hs 11.4 m, peak wavelength 446 m
+      ocean.spectrum = sim::Spectrum::pierson_moskowitz;
+      ocean.wind_speed = sim::beaufort_wind_speed(9);
+      ocean.patch_size = 1200.0f;
+      ocean.choppiness = 1.0f;
+      scene.map_size = 512;
+      scene.foam = true;
+      scene.foam_coverage = 1.0f;
+      scene.depth_scale = 0.03f;  // 36 m of relief over the 1200 m patch (6 sigma, 17 m, drawn twice as tall)
+      scene.camera.eye = {0.5f, -0.1f, 0.1f};
+      scene.camera.look_at = {0.5f, 0.35f, -0.02f};
+    } else {
+      // a harbour 6 m deep: a short-fetch local sea (10 m/s over 5 km, TMA) and a swell from the entrance
+      ocean.spectrum = sim::Spectrum::tma;
+      ocean.wind_speed = 10.0f;
+      ocean.fetch = 5.0f;
+      ocean.depth = 6.0f;
+      ocean.patch_size = 350.0f;
+      ocean.swell = {0.8f, 9.0f, float(std::numbers::pi / 6.0), 40.0f};
+      ocean.choppiness = 0.5f;
+      scene.depth_scale =
+          0.008f;  // 2.8 m of relief over the 350 m patch (6 sigma, 1.3 m, drawn twice as tall)
+      scene.camera.eye = {0.5f, -0.05f, 0.045f};
+      scene.camera.look_at = {0.5f, 0.25f, -0.01f};
+    }
   } else if (name == "ripples") {
     scene.source = SourceKind::sinusoids;
     scene.material = render::Material::water;
@@ -359,15 +438,34 @@ void read_source(const Reader& read, const toml::table& root, const std::string&
                                           std::numeric_limits<std::int64_t>::max()));
 }
 
+template <typename Enum, std::size_t count>
+std::vector<std::string_view> words_in(const std::pair<Enum, std::string_view> (&names)[count]) {
+  std::vector<std::string_view> words;
+  for (const auto& [value, name] : names) words.push_back(name);
+  return words;
+}
+template <typename Enum, std::size_t count>
+Enum value_of(const std::pair<Enum, std::string_view> (&names)[count], std::string_view word) {
+  for (const auto& [known, name] : names) {
+    if (name == word) return known;
+  }
+  return names[0].first;
+}
+
+double degrees(float radians) { return double(radians) * 180.0 / std::numbers::pi; }
+float radians(double degrees) { return float(degrees * std::numbers::pi / 180.0); }
+
 // [ocean]: the ocean's spectrum; [ocean] size is the ocean's grid, the same as [source] map_size
-// (either may be given; not both, differing)
+// (either may be given; not both, differing). The sea state comes one way in a table: by the wind
+// (wind_speed, fetch), by the Beaufort force (its wind, fully developed) or by hs and tp.
 void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
   const toml::table* source = read.section(root, "source");
   const toml::table* ocean = read.section(root, "ocean");
   if (ocean) {
-    read.known_keys(*ocean, "ocean",
-                    {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "fetch", "spreading",
-                     "choppiness", "seed", "loop_seconds"});
+    read.known_keys(
+        *ocean, "ocean",
+        {"size", "patch_size", "spectrum", "wind_speed", "wind_direction", "fetch", "beaufort", "hs", "tp",
+         "depth", "spreading", "spreading_model", "choppiness", "seed", "loop_seconds"});
   }
   sim::OceanParams& params = scene.ocean;
   if (const toml::node* size = key_node(ocean, "size")) {
@@ -381,22 +479,67 @@ void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
   }
   params.patch_size = float(
       read.number(ocean, "ocean", "patch_size", params.patch_size, sim::min_patch_size, sim::max_patch_size));
-  params.spectrum = read.word(ocean, "ocean", "spectrum",
-                              params.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips",
-                              {"phillips", "jonswap"}) == "jonswap"
-                        ? sim::Spectrum::jonswap
-                        : sim::Spectrum::phillips;
+  params.spectrum = value_of(
+      spectrum_names, read.word(ocean, "ocean", "spectrum", std::string(spectrum_word(params.spectrum)),
+                                words_in(spectrum_names)));
+  const bool fetch_limited =
+      params.spectrum == sim::Spectrum::jonswap || params.spectrum == sim::Spectrum::tma;
+
+  // the sea state, one way
+  const toml::node* wind = key_node(ocean, "wind_speed");
+  const toml::node* fetch = key_node(ocean, "fetch");
+  const toml::node* beaufort = key_node(ocean, "beaufort");
+  const toml::node* hs = key_node(ocean, "hs");
+  const toml::node* tp = key_node(ocean, "tp");
+  if (beaufort && (wind || fetch)) {
+    read.fail(beaufort, "ocean.beaufort",
+              "gives the wind speed and a fully developed sea: not with wind_speed or fetch");
+  }
+  if ((hs || tp) && (wind || fetch || beaufort)) {
+    read.fail(hs ? hs : tp, hs ? "ocean.hs" : "ocean.tp",
+              "hs and tp give the sea state: not with wind_speed, fetch or beaufort");
+  }
   params.wind_speed = float(
       read.number(ocean, "ocean", "wind_speed", params.wind_speed, sim::min_wind_speed, sim::max_wind_speed));
-  params.wind_direction = float(read.number(ocean, "ocean", "wind_direction",
-                                            double(params.wind_direction) * 180.0 / std::numbers::pi,
-                                            -max_direction_degrees, max_direction_degrees) *
-                                std::numbers::pi / 180.0);
   params.fetch = float(read.number(ocean, "ocean", "fetch", params.fetch, sim::min_fetch, sim::max_fetch));
-  if (key_node(ocean, "fetch") && params.spectrum != sim::Spectrum::jonswap)
-    read.fail(key_node(ocean, "fetch"), "ocean.fetch", "applies to spectrum = \"jonswap\" only");
+  if (fetch && !fetch_limited)
+    read.fail(fetch, "ocean.fetch", "applies to spectrum = \"jonswap\" or \"tma\" only");
+  if (beaufort) {
+    const int force = int(read.integer(ocean, "ocean", "beaufort", 0, 0, sim::max_beaufort));
+    params.wind_speed = sim::beaufort_wind_speed(force);
+    params.fetch = sim::max_fetch;  // as far as the growth goes: fully developed
+  }
+  if (wind || fetch || beaufort) params.significant_height = params.peak_period = 0.0f;
+  params.significant_height = float(read.number(ocean, "ocean", "hs", params.significant_height,
+                                                sim::min_significant_height, sim::max_significant_height));
+  params.peak_period = float(
+      read.number(ocean, "ocean", "tp", params.peak_period, sim::min_peak_period, sim::max_peak_period));
+  if ((params.significant_height > 0.0f) != (params.peak_period > 0.0f)) {
+    read.fail(hs ? hs : tp, hs ? "ocean.hs" : "ocean.tp",
+              "hs and tp go together: the significant height (metres) and the peak period (seconds)");
+  }
+  if (params.significant_height > 0.0f && params.spectrum == sim::Spectrum::phillips) {
+    const toml::node* where = hs ? hs : tp ? tp : key_node(ocean, "spectrum");
+    read.fail(where, hs || tp ? (hs ? "ocean.hs" : "ocean.tp") : "ocean.spectrum",
+              "hs and tp make a pierson-moskowitz, jonswap or tma sea, not phillips");
+  }
+
+  params.wind_direction =
+      radians(read.number(ocean, "ocean", "wind_direction", degrees(params.wind_direction),
+                          -max_direction_degrees, max_direction_degrees));
+  if (key_node(ocean, "depth"))
+    params.depth = float(read.number(ocean, "ocean", "depth", 0.0, sim::min_depth, sim::max_depth));
+  params.spreading_model =
+      value_of(spreading_names,
+               read.word(ocean, "ocean", "spreading_model",
+                         std::string(spreading_word(params.spreading_model)), words_in(spreading_names)));
   params.spreading =
       float(read.number(ocean, "ocean", "spreading", params.spreading, 0.0, sim::max_spreading));
+  if (key_node(ocean, "spreading") && params.spreading_model != sim::Spreading::cos2s) {
+    read.fail(key_node(ocean, "spreading"), "ocean.spreading",
+              "the exponent of spreading_model = \"cos2s\"; " +
+                  std::string(spreading_word(params.spreading_model)) + " sets its own");
+  }
   params.choppiness =
       float(read.number(ocean, "ocean", "choppiness", params.choppiness, 0.0, sim::max_choppiness));
   params.seed = std::uint64_t(read.integer(ocean, "ocean", "seed", std::int64_t(params.seed), 0,
@@ -407,6 +550,29 @@ void read_ocean(const Reader& read, const toml::table& root, Scene& scene) {
     read.fail(key_node(ocean, "loop_seconds"), "ocean.loop_seconds",
               "must be 0 (no loop) or at least " + std::to_string(sim::min_loop_seconds).substr(0, 3) + " s");
   }
+}
+
+// [swell]: a swell from elsewhere over the ocean's sea (hs 0: none)
+void read_swell(const Reader& read, const toml::table& root, Scene& scene) {
+  const toml::table* table = read.section(root, "swell");
+  if (!table) return;
+  read.known_keys(*table, "swell", {"hs", "tp", "direction", "spreading"});
+  sim::SwellParams& swell = scene.ocean.swell;
+  swell.significant_height =
+      float(read.number(table, "swell", "hs", swell.significant_height, 0.0, sim::max_significant_height));
+  if (swell.significant_height > 0.0f && swell.significant_height < sim::min_significant_height) {
+    std::ostringstream least;
+    least << sim::min_significant_height;
+    read.fail(key_node(table, "hs"), "swell.hs",
+              "must be 0 (no swell) or at least " + least.str() + " metres");
+  }
+  swell.peak_period =
+      float(read.number(table, "swell", "tp", swell.peak_period, sim::min_peak_period, sim::max_peak_period));
+  swell.direction = radians(read.number(table, "swell", "direction", degrees(swell.direction),
+                                        -max_direction_degrees, max_direction_degrees));
+  swell.spreading = float(read.number(table, "swell", "spreading", swell.spreading, 0.0, sim::max_spreading));
+  if (swell.significant_height == 0.0f && !key_node(table, "hs"))
+    read.fail(table, "swell.hs", "a swell needs its significant height (hs, metres)");
 }
 
 void read_sinusoids(const Reader& read, const toml::table& root, Scene& scene) {
@@ -656,13 +822,14 @@ Scene apply_scene(const Scene& base, std::string_view text, const std::string& s
                      std::string(error.description()));
   }
   const Reader read(source_name);
-  read.known_keys(
-      root, "",
-      {"name", "source", "ocean", "sinusoids", "material", "camera", "render", "time", "budget", "backend"});
+  read.known_keys(root, "",
+                  {"name", "source", "ocean", "swell", "sinusoids", "material", "camera", "render", "time",
+                   "budget", "backend"});
   Scene scene = base;
   scene.name = read.word(&root, "", "name", scene.name, {});
   read_source(read, root, source_name, scene);
   read_ocean(read, root, scene);
+  read_swell(read, root, scene);
   read_sinusoids(read, root, scene);
   read_material(read, root, source_name, scene);
   const toml::table* camera = read_camera(read, root, scene);
@@ -716,19 +883,34 @@ std::string scene_toml(const Scene& scene) {
       source.insert("height_range", toml::array{double(tidy((*range)[0])), double(tidy((*range)[1]))});
   }
   root.insert("source", source);
-  root.insert(
-      "ocean",
-      toml::table{
-          {"patch_size", tidy(scene.ocean.patch_size)},
-          {"spectrum", scene.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips"},
-          {"wind_speed", tidy(scene.ocean.wind_speed)},
-          {"wind_direction", tidy(float(double(scene.ocean.wind_direction) * 180.0 / std::numbers::pi))},
-          {"spreading", tidy(scene.ocean.spreading)},
-          {"choppiness", tidy(scene.ocean.choppiness)},
-          {"seed", std::int64_t(scene.ocean.seed)},
-          {"loop_seconds", scene.ocean.loop_seconds}});
-  if (scene.ocean.spectrum == sim::Spectrum::jonswap)
-    root["ocean"].as_table()->insert("fetch", tidy(scene.ocean.fetch));
+  const sim::OceanParams& ocean = scene.ocean;
+  toml::table ocean_table{{"patch_size", tidy(ocean.patch_size)},
+                          {"spectrum", spectrum_word(ocean.spectrum)}};
+  if (ocean.significant_height > 0.0f) {
+    ocean_table.insert("hs", tidy(ocean.significant_height));
+    ocean_table.insert("tp", tidy(ocean.peak_period));
+  } else {
+    ocean_table.insert("wind_speed", tidy(ocean.wind_speed));
+    if (ocean.spectrum == sim::Spectrum::jonswap || ocean.spectrum == sim::Spectrum::tma)
+      ocean_table.insert("fetch", tidy(ocean.fetch));
+  }
+  ocean_table.insert("wind_direction", tidy(float(degrees(ocean.wind_direction))));
+  if (std::isfinite(ocean.depth)) ocean_table.insert("depth", tidy(ocean.depth));
+  if (ocean.spreading_model == sim::Spreading::cos2s) {
+    ocean_table.insert("spreading", tidy(ocean.spreading));
+  } else {
+    ocean_table.insert("spreading_model", spreading_word(ocean.spreading_model));
+  }
+  ocean_table.insert("choppiness", tidy(ocean.choppiness));
+  ocean_table.insert("seed", std::int64_t(ocean.seed));
+  ocean_table.insert("loop_seconds", ocean.loop_seconds);
+  root.insert("ocean", ocean_table);
+  if (ocean.swell.significant_height > 0.0f) {
+    root.insert("swell", toml::table{{"hs", tidy(ocean.swell.significant_height)},
+                                     {"tp", tidy(ocean.swell.peak_period)},
+                                     {"direction", tidy(float(degrees(ocean.swell.direction)))},
+                                     {"spreading", tidy(ocean.swell.spreading)}});
+  }
   root.insert("sinusoids", toml::table{{"wave_count", scene.sinusoids.wave_count},
                                        {"patch_size", tidy(scene.sinusoids.patch_size)},
                                        {"steepness", tidy(scene.sinusoids.steepness)},

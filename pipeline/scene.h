@@ -64,6 +64,12 @@ inline sim::OceanParams calm_ocean() {
 // CPU driver (lavapipe), where the device path only moves the CPU's work into the driver.
 enum class Backend { automatic, cpu, device };
 const char* backend_word(Backend backend);  // "auto", "cpu", "device"
+// The scene file's words for the ocean's spectra and spreading models ([ocean] spectrum and
+// spreading_model: "pierson-moskowitz", "donelan-banner", ...), in the order the docs list them.
+std::vector<sim::Spectrum> ocean_spectra();
+std::vector<sim::Spreading> spreading_models();
+std::string_view spectrum_word(sim::Spectrum spectrum);
+std::string_view spreading_word(sim::Spreading model);
 // Whether a stage set to `backend` runs on the device of `device`.
 bool runs_on_device(Backend backend, const render::DeviceInfo& device);
 
@@ -172,9 +178,11 @@ long long loop_frames(const Scene& scene);  // N, or 0: no loop (or T fps not a 
 // every key, tangents from the neighbouring keys; held before the first and after the last).
 render::View scene_view(const Scene& scene, double time);
 
-// Built-in scenes: "water" (the ocean with choppy crests resampled onto the grid, foam, the water
-// material), "calm" (the ocean with choppiness 0 and no foam, water material), "ripples" (sinusoids,
-// water material), "bricks", "cliff" (static maps, the grid).
+// Built-in scenes: "water" (a fully developed sea in an 11 m/s wind, Pierson-Moskowitz, with choppy
+// crests resampled onto the grid, foam, the water material), "calm" (the same sea with choppiness 0 and
+// no foam), "storm" (Beaufort 9, fully developed, deep), "harbour" (6 m deep: a short-fetch TMA sea and a
+// swell), "ripples" (sinusoids, water material), "ocean" (the default Phillips ocean on the grid),
+// "bricks", "cliff" (static maps, the grid).
 std::vector<std::string> builtin_scene_names();
 Scene builtin_scene(std::string_view name);  // throws SceneError naming the built-ins
 

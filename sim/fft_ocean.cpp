@@ -1,5 +1,5 @@
 // sim/fft_ocean.cpp - FFT ocean after Tessendorf, "Simulating Ocean Water" (SIGGRAPH course notes):
-// h(x, t) = sum_k h~(k, t) exp(i k.x), h~(k, t) = h0(k) e^{i w t} + conj(h0(-k)) e^{-i w t}, w^2 = g |k|.
+// h(x, t) = sum_k h~(k, t) exp(i k.x), h~(k, t) = h0(k) e^{i w t} + conj(h0(-k)) e^{-i w t}.
 // The one fact to know: the sum is taken at the texel centres x_j = (j + 1/2) L / N, so the FFT input is
 // h~ times the half-texel phase exp(i pi (m + n) / N); h~ itself (height_spectrum) is in world positions.
 //
@@ -11,8 +11,8 @@
 // - Choppy displacement is D = lambda sum i k/|k| h~ exp(i k.x): Tessendorf's -i k/|k| with the sign of
 //   lambda flipped, so that a positive choppiness sharpens crests as Gerstner waves do (and the Jacobian
 //   drops below 1 at crests, where foam belongs).
-// - Spectra are per-mode variances P(k) = E|h0(k)|^2 (Phillips; JONSWAP, Hasselmann et al. 1973):
-//   docs/design/sim.md#the-fft-oceans-spectra-simfft_oceancpp
+// - Spectra are per-mode variances P(k) = E|h0(k)|^2 drawn from the sea of sim/sea_spectrum.cpp (Phillips,
+//   Pierson-Moskowitz, JONSWAP, TMA; a swell), w^2 = g |k| tanh(|k| h): docs/design/sim.md
 #include <fftw3.h>
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>
@@ -22,26 +22,19 @@
 #include <bit>
 #include <cmath>
 #include <complex>
-#include <cstdio>
 #include <cstring>
 #include <mutex>
 #include <new>
 #include <numbers>
 #include <stdexcept>
-#include <string>
 
 #include "displace/simd_clones.h"
+#include "sim/sea_model.h"
 #include "sim/sim.h"
 
 namespace displace::sim {
 namespace {
 
-constexpr double jonswap_alpha_coefficient = 0.076;  // Phillips constant alpha = 0.076 (U^2 / (F g))^0.22
-constexpr double jonswap_alpha_exponent = 0.22;
-constexpr double jonswap_peak_coefficient = 22.0;  // peak w_p = 22 (g^2 / (U F))^(1/3), rad/s
-constexpr double jonswap_sigma_below_peak = 0.07;  // peak width for w <= w_p
-constexpr double jonswap_sigma_above_peak = 0.09;  // peak width for w > w_p
-constexpr double metres_per_kilometre = 1000.0;
 constexpr float fast_phase_limit = 1.0e5f;    // radians; above, phases are reduced in double
 constexpr int spectrum_rows_per_task = 8;     // rows of the half spectrum per TBB task
 constexpr int max_fft_chunks = 16;            // most pieces each FFT pass is cut into for TBB
@@ -85,106 +78,6 @@ std::complex<double> gaussian_pair(std::uint64_t seed, int m, int n) {
   const double angle = 2.0 * std::numbers::pi * uniform();
   return std::polar(radius, angle);
 }
-
-bool positive_finite(float value) { return std::isfinite(value) && value > 0.0f; }
-
-// "[0.01, 100000]", or one value: "1"
-std::string range_text(float low, float high) {
-  char text[64];
-  std::snprintf(text, sizeof text, "[%g, %g]", double(low), double(high));
-  return text;
-}
-std::string range_text(float value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", double(value));
-  return text;
-}
-
-void validate(const OceanParams& params) {
-  auto fail = [](const std::string& message) { throw std::invalid_argument("OceanParams: " + message); };
-  if (params.size < min_ocean_size || params.size > max_ocean_size || params.size % 2 != 0) {
-    fail("size must be even and in [" + std::to_string(min_ocean_size) + ", " +
-         std::to_string(max_ocean_size) + "], got " + std::to_string(params.size));
-  }
-  if (!(params.patch_size >= min_patch_size && params.patch_size <= max_patch_size))
-    fail("patch_size must be in " + range_text(min_patch_size, max_patch_size) + " metres");
-  if (params.spectrum != Spectrum::phillips && params.spectrum != Spectrum::jonswap) fail("unknown spectrum");
-  if (!(params.wind_speed >= min_wind_speed && params.wind_speed <= max_wind_speed))
-    fail("wind_speed must be in " + range_text(min_wind_speed, max_wind_speed) + " m/s");
-  if (!std::isfinite(params.wind_direction)) fail("wind_direction must be finite");
-  if (!(params.fetch >= min_fetch && params.fetch <= max_fetch))
-    fail("fetch must be in " + range_text(min_fetch, max_fetch) + " km");
-  if (!std::isfinite(params.peak_enhancement) || params.peak_enhancement < min_peak_enhancement) {
-    fail("peak_enhancement (JONSWAP gamma) must be finite and >= " + range_text(min_peak_enhancement));
-  }
-  if (!(params.spreading >= 0.0f && params.spreading <= max_spreading))
-    fail("spreading must be in " + range_text(0.0f, max_spreading));
-  if (!positive_finite(params.phillips_amplitude)) fail("phillips_amplitude must be positive and finite");
-  if (!std::isfinite(params.small_wave_cutoff) || params.small_wave_cutoff < 0.0f) {
-    fail("small_wave_cutoff must be finite and >= 0 (metres)");
-  }
-  if (!(params.choppiness >= 0.0f && params.choppiness <= max_choppiness))
-    fail("choppiness must be in " + range_text(0.0f, max_choppiness));
-  if (!positive_finite(params.gravity)) fail("gravity must be positive and finite");
-  if (!(params.loop_seconds == 0.0 ||
-        (params.loop_seconds >= min_loop_seconds && params.loop_seconds <= max_loop_seconds))) {
-    fail("loop_seconds must be 0 (no loop) or in [" + range_text(float(min_loop_seconds)) + ", " +
-         range_text(float(max_loop_seconds)) + "]");
-  }
-}
-
-// Normalisation G(s) of D_s(theta) = G(s) cos^{2s}(theta / 2) over [-pi, pi]: Gamma(s+1) / (2 sqrt(pi)
-// Gamma(s+1/2)).
-double spreading_normalisation(double s) {
-  return std::tgamma(s + 1.0) / (2.0 * std::sqrt(std::numbers::pi) * std::tgamma(s + 0.5));
-}
-
-// Per-mode variance P(k) of the wave travelling along (dir_x, dir_y) with wave number k > 0.
-struct SpectrumModel {
-  OceanParams params;
-  double spreading_norm = 0.0;
-  double wind_x = 0.0, wind_y = 0.0;
-  double mode_area = 0.0;        // dk^2, (rad/m)^2
-  double phillips_length = 0.0;  // L_w = U^2 / g, metres
-  double damping_length = 0.0;   // l, metres
-  double alpha = 0.0, peak_omega = 0.0;
-
-  explicit SpectrumModel(const OceanParams& ocean) : params(ocean) {
-    spreading_norm = spreading_normalisation(params.spreading);
-    wind_x = std::cos(static_cast<double>(params.wind_direction));
-    wind_y = std::sin(static_cast<double>(params.wind_direction));
-    const double dk = 2.0 * std::numbers::pi / params.patch_size;
-    mode_area = dk * dk;
-    const double g = params.gravity;
-    const double u = params.wind_speed;
-    phillips_length = u * u / g;
-    damping_length =
-        params.small_wave_cutoff > 0.0f ? params.small_wave_cutoff : 0.5 * params.patch_size / params.size;
-    const double fetch = params.fetch * metres_per_kilometre;
-    alpha = jonswap_alpha_coefficient * std::pow(u * u / (fetch * g), jonswap_alpha_exponent);
-    peak_omega = jonswap_peak_coefficient * std::cbrt(g * g / (u * fetch));
-  }
-
-  double variance(double dir_x, double dir_y, double k) const {
-    const double cos_half_squared = std::max(0.0, 0.5 * (1.0 + dir_x * wind_x + dir_y * wind_y));
-    const double spread = spreading_norm * std::pow(cos_half_squared, static_cast<double>(params.spreading));
-    if (params.spectrum == Spectrum::phillips) {
-      const double kl = k * phillips_length;
-      return params.phillips_amplitude * std::exp(-1.0 / (kl * kl)) / (k * k * k * k) *
-             std::exp(-k * k * damping_length * damping_length) * std::numbers::pi * spread;
-    }
-    const double g = params.gravity;
-    const double omega = std::sqrt(g * k);
-    const double sigma = omega <= peak_omega ? jonswap_sigma_below_peak : jonswap_sigma_above_peak;
-    const double offset = (omega - peak_omega) / (sigma * peak_omega);
-    const double ratio = peak_omega / omega;
-    const double s_omega =
-        alpha * g * g / std::pow(omega, 5.0) * std::exp(-1.25 * ratio * ratio * ratio * ratio) *
-        std::pow(static_cast<double>(params.peak_enhancement), std::exp(-0.5 * offset * offset));
-    const double d_omega_dk = 0.5 * g / omega;
-    return 0.5 * s_omega * d_omega_dk * spread / k * mode_area;
-  }
-};
 
 // A float split into a high part with 12 significant bits and the exact remainder, so that the product
 // of two high parts is exact in float. Bit masking keeps it exact under any contraction setting.
@@ -374,7 +267,7 @@ void Ocean::Impl::make_plans() {
 }
 
 void Ocean::Impl::draw_spectrum() {
-  const SpectrumModel model(params);
+  const detail::SeaModel model(params);
   const double dk = 2.0 * std::numbers::pi / params.patch_size;
   h0.assign(grid_size(), {});
   omega_full.assign(grid_size(), 0.0f);
@@ -386,7 +279,7 @@ void Ocean::Impl::draw_spectrum() {
       const double ky = lattice_y * dk;
       const double k = std::hypot(kx, ky);
       const std::size_t index = static_cast<std::size_t>(i) * n + j;
-      const double omega = std::sqrt(params.gravity * k);
+      const double omega = model.omega(k);
       // a loop of T seconds: w rounded to a multiple of 2 pi / T
       const double loop_step = params.loop_seconds > 0.0 ? 2.0 * std::numbers::pi / params.loop_seconds : 0.0;
       const double quantised = loop_step > 0.0 ? std::round(omega / loop_step) * loop_step : omega;
@@ -395,7 +288,7 @@ void Ocean::Impl::draw_spectrum() {
       if (k == 0.0 || nyquist) continue;
       loop_error = std::max(loop_error, std::abs(quantised - omega) / omega);
       // travel direction of h0(k) is -k
-      const double mode_variance = model.variance(-kx / k, -ky / k, k);
+      const double mode_variance = model.mode_variance(-kx / k, -ky / k, k);
       const std::complex<double> xi = gaussian_pair(params.seed, lattice_x, lattice_y);
       h0[index] = std::complex<float>(xi * std::sqrt(0.5 * mode_variance));
       variance += mode_variance;
@@ -507,7 +400,7 @@ float* Ocean::Impl::output_for(int grid, std::vector<float>* target) {
 }
 
 Ocean::Ocean(const OceanParams& params) : impl_(std::make_unique<Impl>()) {
-  validate(params);
+  detail::validate_ocean(params);
   Impl& impl = *impl_;
   impl.params = params;
   impl.n = params.size;

@@ -14,6 +14,7 @@
 
 #include <complex>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -74,8 +75,19 @@ void sinusoid_heights(std::span<const Wave> waves, float patch_size, double time
 HeightMapping sinusoid_mapping(std::span<const Wave> waves);
 
 // ---------------------------------------------------------------------------------------------
-// FFT ocean (Tessendorf, "Simulating Ocean Water").
-enum class Spectrum { phillips, jonswap };
+// FFT ocean (Tessendorf, "Simulating Ocean Water") with the sea spectra of oceanography
+// (sim/sea_spectrum.cpp; sources and formulas in docs/design/sim.md):
+// - phillips: Tessendorf's shape, its amplitude per unit area (Hs does not depend on the patch);
+// - pierson_moskowitz: the fully developed sea of a wind (Pierson & Moskowitz 1964);
+// - jonswap: the fetch-limited sea (Hasselmann et al. 1973), its growth capped where it is fully developed;
+// - tma: jonswap times Kitaigorodskii's depth function (Bouws et al. 1985), for finite depth.
+enum class Spectrum { phillips, jonswap, pierson_moskowitz, tma };
+
+// Directional spreading D(theta; w) about the mean direction, each integrating to 1 over theta:
+// cos2s: cos^(2s)(theta / 2) with a fixed s (OceanParams::spreading); mitsuyasu (Mitsuyasu et al. 1975) and
+// hasselmann (Hasselmann et al. 1980): cos^(2s)(theta / 2) with s following w / w_p and the wave age;
+// donelan_banner: sech^2(beta theta) (Donelan et al. 1985, Banner 1990 above 1.6 w_p).
+enum class Spreading { cos2s, mitsuyasu, hasselmann, donelan_banner };
 
 inline constexpr int min_ocean_size = 2;             // OceanParams::size, samples a side, even
 inline constexpr int max_ocean_size = 8192;          // samples a side
@@ -86,28 +98,121 @@ inline constexpr float max_fetch = 1e5f;             // km
 inline constexpr float max_spreading = 100.0f;       // OceanParams::spreading, exponent s, from 0
 inline constexpr float max_choppiness = 10.0f;       // OceanParams::choppiness, lambda, from 0
 inline constexpr float min_peak_enhancement = 1.0f;  // OceanParams::peak_enhancement, JONSWAP gamma
-inline constexpr double min_loop_seconds = 0.1;      // OceanParams::loop_seconds, when not 0
-inline constexpr double max_loop_seconds = 1e6;      // seconds
+inline constexpr float max_peak_enhancement = 20.0f;
+inline constexpr double min_loop_seconds = 0.1;         // OceanParams::loop_seconds, when not 0
+inline constexpr double max_loop_seconds = 1e6;         // seconds
+inline constexpr float min_depth = 0.1f;                // metres, OceanParams::depth when finite
+inline constexpr float max_depth = 1e4f;                // metres (deeper: leave it infinite)
+inline constexpr float min_significant_height = 1e-3f;  // metres, OceanParams and SwellParams, when set
+inline constexpr float max_significant_height = 50.0f;  // metres
+inline constexpr float min_peak_period = 0.1f;          // seconds, OceanParams and SwellParams, when set
+inline constexpr float max_peak_period = 60.0f;         // seconds
+inline constexpr int max_beaufort = 12;                 // Beaufort force, from 0
+// Tessendorf's amplitude A is the per-mode variance scale of a patch this wide (metres); other patches
+// scale it by their mode area, so that the spectral density, and with it Hs, stays the same.
+inline constexpr float phillips_reference_patch = 200.0f;
+
+// A swell: a narrow, long-period sea made elsewhere (a JONSWAP shape with a sharp peak, cos^(2s)
+// spreading about its own direction), added to the local sea. Only computed when present.
+struct SwellParams {
+  float significant_height = 0.0f;  // metres, Hs of the swell alone; 0: no swell
+  float peak_period = 12.0f;        // seconds
+  float direction = 0.0f;           // radians, azimuth in (u, v) the swell travels towards
+  float spreading = 24.0f;          // exponent s of cos^(2s)(theta / 2), in [0, max_spreading]
+};
 
 struct OceanParams {
   int size = 256;             // N x N grid, N even in [min_ocean_size, max_ocean_size]
   float patch_size = 200.0f;  // metres
   Spectrum spectrum = Spectrum::phillips;
-  float wind_speed = 12.0f;          // m/s at 10 m
-  float wind_direction = 0.0f;       // radians, azimuth in (u, v)
-  float fetch = 200.0f;              // km, JONSWAP only
-  float peak_enhancement = 3.3f;     // JONSWAP gamma
-  float spreading = 2.0f;            // directional spreading exponent s of cos^(2s)(theta / 2)
-  float phillips_amplitude = 3e-7f;  // Phillips constant A (m^2 scale factor)
+  float wind_speed = 12.0f;       // m/s at 10 m
+  float wind_direction = 0.0f;    // radians, azimuth in (u, v): the sea's mean direction
+  float fetch = 200.0f;           // km, jonswap and tma
+  float peak_enhancement = 3.3f;  // JONSWAP gamma (jonswap, tma)
+  float spreading = 2.0f;         // directional spreading exponent s of cos^(2s)(theta / 2) (cos2s)
+  Spreading spreading_model = Spreading::cos2s;
+  float phillips_amplitude = 3e-7f;  // Tessendorf's A for a patch of phillips_reference_patch metres
   float small_wave_cutoff = 0.0f;    // metres; Phillips damping length l (0 = patch/N/2)
   float choppiness = 1.0f;           // lambda, scales the horizontal displacement; > 0 sharpens crests
   std::uint64_t seed = 1;
   float gravity = 9.81f;  // m/s^2
+  // Water depth in metres (finite: [min_depth, max_depth]); infinity: deep water. Every spectrum's
+  // modes follow w^2 = g k tanh(k h); tma also takes its energy from it.
+  float depth = std::numeric_limits<float>::infinity();
+  // pierson_moskowitz, jonswap, tma: the sea by its significant height (m) and peak period (s) instead of
+  // wind_speed and fetch; both 0 (the wind's sea) or both set.
+  float significant_height = 0.0f;
+  float peak_period = 0.0f;
+  SwellParams swell;
   // A seamless loop of this many seconds (0: none): every mode's angular frequency is rounded to the
   // nearest multiple of 2 pi / loop_seconds (Ocean::loop_error says how far that moved them), and
   // time is taken modulo loop_seconds, so heights at t and t + loop_seconds are equal bit for bit.
   double loop_seconds = 0.0;
 };
+
+// The wind speed (m/s at 10 m) of Beaufort force 0-12: the WMO's v = 0.836 B^(3/2) (force 0: the
+// least wind speed). Throws std::invalid_argument outside [0, max_beaufort].
+float beaufort_wind_speed(int force);
+
+// Linear dispersion in water `depth` metres deep (infinity: deep water): w(k) = sqrt(g k tanh(k h)) in
+// rad/s for a wave number k in rad/m, and its inverse k(w) (Newton's method, to double precision).
+double dispersion_omega(double wave_number, double depth, double gravity);
+double dispersion_wave_number(double omega, double depth, double gravity);
+
+namespace detail {
+class SeaModel;
+}
+
+// The analytic sea an Ocean of the same parameters draws its modes from (sea and swell).
+class SeaSpectrum {
+ public:
+  // Validates the parameters as Ocean does (throws std::invalid_argument).
+  explicit SeaSpectrum(const OceanParams& params);
+  ~SeaSpectrum();
+  SeaSpectrum(SeaSpectrum&&) noexcept;
+  SeaSpectrum& operator=(SeaSpectrum&&) noexcept;
+
+  // The one-sided frequency spectrum S(w), m^2 s / rad: its integral over w > 0 is the height variance m0.
+  double frequency(double omega) const;
+  // The wave-number spectrum E(k) = S(w) dw/dk, m^2 per rad/m, k in rad/m.
+  double wave_number(double wave_number) const;
+  // The sea's directional spreading D(theta; w), 1/rad, theta from wind_direction (the swell's spreading
+  // is its own cos^(2s) about its direction).
+  double spreading(double omega, double theta) const;
+  // w(k) at the depth, rad/s.
+  double omega(double wave_number) const;
+
+ private:
+  std::unique_ptr<detail::SeaModel> model_;
+};
+
+// What sea the parameters make, and how much of it the patch and the map hold. The lattice of a patch L
+// with N samples a side holds wave numbers between 2 sqrt(pi) / L and 2 sqrt(pi) (N - 1) / L (the radii of
+// circles with the areas of the missing k = 0 cell and of the lattice's square); a patch a few peak
+// wavelengths wide samples the peak so coarsely that its modes hold more or less than the spectrum has.
+struct SeaState {
+  double significant_height = 0.0;          // metres, 4 sqrt(m0) of the analytic spectrum (sea and swell)
+  double peak_period = 0.0;                 // seconds, 2 pi / w at the maximum of S(w)
+  double peak_wavelength = 0.0;             // metres, 2 pi / k at that w and the depth
+  double lattice_significant_height = 0.0;  // metres, 4 sqrt of the variance the lattice's modes hold (the
+                                            // mean over seeds of what the ocean synthesizes)
+  double below_patch = 0.0;                 // share of m0 in waves longer than the patch holds
+  double above_map = 0.0;                   // share of m0 in waves shorter than the map holds
+  double lattice_error = 0.0;  // the lattice's variance over the spectrum's between those bounds, less 1
+  // below_patch + above_map > left_out_allowance with below_patch (above_map) more than half of it, or
+  // |lattice_error| > left_out_allowance: the patch's when it is narrower than patch_needed, else the map's
+  bool patch_too_small = false;
+  bool map_too_coarse = false;
+  // metres: a patch that leaves at most half the allowance below, is min_peak_wavelengths peak
+  // wavelengths wide and whose lattice is within half the allowance (1.25 times wider until it is)
+  double patch_needed = 0.0;
+  int size_needed = 0;  // samples a side (even) that leave at most half the allowance above, at
+                        // patch_needed when patch_too_small, else at patch_size
+};
+inline constexpr double left_out_allowance = 0.05;  // share of m0 a patch and map may leave out together
+inline constexpr double min_peak_wavelengths =
+    4.0;  // the least patch describe_sea suggests, in peak wavelengths
+SeaState describe_sea(const OceanParams& params);
 
 // Outputs beyond heights are computed only when requested; requesting none costs nothing.
 enum OceanOutput : unsigned {
@@ -156,7 +261,7 @@ class Ocean {
   // corner, so output sample (i, j) is this sum at its texel centre x = ((j + 0.5) L / N, (i + 0.5) L / N).
   // The Nyquist row and column (i or j = N/2) and k = 0 are zero, so the sum is real.
   std::vector<std::complex<float>> height_spectrum(double time) const;
-  // Angular frequency w(k) = sqrt(g |k|) of the mode at index (i, j).
+  // Angular frequency w(k) = sqrt(g |k| tanh(|k| h)) of the mode at index (i, j) (sqrt(g |k|) in deep water).
   float omega(int i, int j) const;
 
   // The half spectrum evaluate() transforms, for a caller that evaluates it elsewhere (the device

@@ -225,8 +225,18 @@ const Words<pipeline::SourceKind> source_words = {{"ocean", pipeline::SourceKind
                                                   {"bricks", pipeline::SourceKind::bricks},
                                                   {"cliff", pipeline::SourceKind::cliff},
                                                   {"image", pipeline::SourceKind::image}};
-const Words<sim::Spectrum> spectrum_words = {{"phillips", sim::Spectrum::phillips},
-                                             {"jonswap", sim::Spectrum::jonswap}};
+const Words<sim::Spectrum> spectrum_words = [] {
+  Words<sim::Spectrum> words;
+  for (sim::Spectrum spectrum : pipeline::ocean_spectra())
+    words.emplace_back(std::string(pipeline::spectrum_word(spectrum)), spectrum);
+  return words;
+}();
+const Words<sim::Spreading> spreading_words = [] {
+  Words<sim::Spreading> words;
+  for (sim::Spreading model : pipeline::spreading_models())
+    words.emplace_back(std::string(pipeline::spreading_word(model)), model);
+  return words;
+}();
 const Words<bake::Address> address_words = {{"wrap", bake::Address::wrap}, {"clamp", bake::Address::clamp}};
 const Words<render::Surface> surface_words = {{"plane", render::Surface::plane},
                                               {"sphere", render::Surface::sphere},

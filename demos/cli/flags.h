@@ -104,6 +104,7 @@ Enum word_value(const Words<Enum>& words, std::string_view text) {
 
 extern const Words<pipeline::SourceKind> source_words;
 extern const Words<sim::Spectrum> spectrum_words;
+extern const Words<sim::Spreading> spreading_words;
 extern const Words<bake::Address> address_words;
 extern const Words<render::Surface> surface_words;  // the quadrics and the plane (meshes: mesh:FILE.obj)
 extern const Words<render::Material> material_words;

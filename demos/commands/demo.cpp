@@ -40,8 +40,7 @@ void run_demo(const DemoSettings& settings, std::ostream& out) {
       "displace demo: FFT ocean {} x {} ({:g} m patch, {} spectrum, wind {:g} m/s), t = 0 s, "
       "synthesized in {:.1f} ms\n",
       ocean.width, ocean.height, double(source.ocean.patch_size),
-      source.ocean.spectrum == sim::Spectrum::jonswap ? "jonswap" : "phillips",
-      double(source.ocean.wind_speed), ocean.milliseconds);
+      pipeline::spectrum_word(source.ocean.spectrum), double(source.ocean.wind_speed), ocean.milliseconds);
   out << "  wrote " << height_file.string() << " (raw metres, channel height)\n";
 
   // mapped to [0, 1] with the spectrum's fixed mapping

@@ -20,8 +20,9 @@ namespace displace::app {
 enum class ImageFormat { exr, png };
 
 struct SimSettings {
-  pipeline::Scene scene;         // the heights at scene.start
-  std::filesystem::path output;  // .exr
+  pipeline::Scene scene;                     // the heights at scene.start
+  std::filesystem::path output;              // .exr
+  std::filesystem::path frequency_spectrum;  // .csv: the ocean's synthesized S(f) beside the analytic one
 };
 
 struct QuerySettings {

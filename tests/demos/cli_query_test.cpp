@@ -44,6 +44,7 @@ TEST(Cli, QueryEqualsTheBilinearSurfaceOfSimsHeights) {
   }
   {
     std::ofstream csv(dir / "points.csv");
+    csv.precision(17);  // the points where the expectation puts them (6 digits move 251.5625 by 0.5 mm)
     csv << "x,y\n";
     for (const auto& [j, i] : points) csv << j / n * patch << "," << i / n * patch << "\n";
   }

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <numbers>
 #include <set>
 #include <string>
 #include <string_view>
@@ -117,6 +118,15 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       {"ocean.wind_direction", {"\"n\"", "400"}},
       {"ocean.choppiness", {"[1]", "-1"}},
       {"ocean.seed", {"\"x\""}},
+      {"ocean.depth", {"\"deep\"", "0", "1e5"}},
+      {"ocean.spreading_model", {"1", "\"cos4\""}},
+      {"ocean.beaufort", {"13", "-1", "6.5"}},
+      {"ocean.hs", {"\"big\"", "0", "60"}},
+      {"ocean.tp", {"-1", "100"}},
+      {"swell.hs", {"\"a\"", "-1", "0.0001"}},
+      {"swell.tp", {"0", "61"}},
+      {"swell.direction", {"400"}},
+      {"swell.spreading", {"-1", "101"}},
       {"sinusoids.wave_count", {"1.5", "0"}},
       {"sinusoids.patch_size", {"true", "0"}},
       {"sinusoids.steepness", {"\"s\"", "2"}},
@@ -164,6 +174,63 @@ TEST(Scene, EveryKeyRefusesBadValuesNamingTheKey) {
       EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
       EXPECT_EQ(error.rfind("scene.toml:", 0), 0u) << text << " -> " << error;
     }
+  }
+}
+
+// The sea state comes one way in a table - the wind (wind_speed, fetch), the Beaufort force, or hs and tp -
+// and contradictions are refused with one line naming the key.
+TEST(Scene, SeaStateKeysOneWayAtATime) {
+  EXPECT_EQ(
+      error_of("[ocean]\nbeaufort = 6\nwind_speed = 10\n"),
+      "scene.toml:2: ocean.beaufort: gives the wind speed and a fully developed sea: not with wind_speed "
+      "or fetch");
+  EXPECT_EQ(error_of("[ocean]\nspectrum = \"jonswap\"\nhs = 2\ntp = 7\nfetch = 30\n"),
+            "scene.toml:3: ocean.hs: hs and tp give the sea state: not with wind_speed, fetch or beaufort");
+  EXPECT_EQ(error_of("[ocean]\nspectrum = \"jonswap\"\ntp = 7\nbeaufort = 4\n"),
+            "scene.toml:3: ocean.tp: hs and tp give the sea state: not with wind_speed, fetch or beaufort");
+  EXPECT_EQ(error_of("[ocean]\nspectrum = \"tma\"\nhs = 2\n"),
+            "scene.toml:3: ocean.hs: hs and tp go together: the significant height (metres) and the peak "
+            "period (seconds)");
+  EXPECT_EQ(error_of("[ocean]\nhs = 2\ntp = 7\n"),
+            "scene.toml:2: ocean.hs: hs and tp make a pierson-moskowitz, jonswap or tma sea, not phillips");
+  EXPECT_EQ(error_of("[ocean]\nspectrum = \"pierson-moskowitz\"\nfetch = 30\n"),
+            "scene.toml:3: ocean.fetch: applies to spectrum = \"jonswap\" or \"tma\" only");
+  EXPECT_EQ(
+      error_of("[ocean]\nspreading_model = \"mitsuyasu\"\nspreading = 4\n"),
+      "scene.toml:3: ocean.spreading: the exponent of spreading_model = \"cos2s\"; mitsuyasu sets its own");
+  EXPECT_EQ(error_of("[swell]\ntp = 10\n"),
+            "scene.toml:1: swell.hs: a swell needs its significant height (hs, metres)");
+
+  // what each way sets
+  const Scene beaufort = pipeline::parse_scene("[ocean]\nspectrum = \"jonswap\"\nbeaufort = 9\n", "s");
+  EXPECT_FLOAT_EQ(beaufort.ocean.wind_speed, sim::beaufort_wind_speed(9));
+  EXPECT_EQ(beaufort.ocean.fetch, sim::max_fetch);
+  const Scene sea = pipeline::parse_scene(
+      "[ocean]\nspectrum = \"tma\"\nhs = 1.5\ntp = 8\ndepth = 5\nspreading_model = \"donelan-banner\"\n"
+      "[swell]\nhs = 0.5\ntp = 12\ndirection = 90\nspreading = 30\n",
+      "s");
+  EXPECT_EQ(sea.ocean.spectrum, sim::Spectrum::tma);
+  EXPECT_EQ(sea.ocean.significant_height, 1.5f);
+  EXPECT_EQ(sea.ocean.peak_period, 8.0f);
+  EXPECT_EQ(sea.ocean.depth, 5.0f);
+  EXPECT_EQ(sea.ocean.spreading_model, sim::Spreading::donelan_banner);
+  EXPECT_EQ(sea.ocean.swell.significant_height, 0.5f);
+  EXPECT_NEAR(sea.ocean.swell.direction, std::numbers::pi / 2.0, 1e-6);
+  EXPECT_FALSE(std::isfinite(pipeline::parse_scene("", "s").ocean.depth));  // absent: deep water
+
+  // over a scene with hs and tp, the wind takes over (and the other way round)
+  const Scene windy = pipeline::apply_scene(sea, "[ocean]\nwind_speed = 14\n", "flags");
+  EXPECT_EQ(windy.ocean.significant_height, 0.0f);
+  EXPECT_EQ(windy.ocean.peak_period, 0.0f);
+  EXPECT_EQ(windy.ocean.wind_speed, 14.0f);
+  EXPECT_EQ(pipeline::apply_scene(sea, "[ocean]\nhs = 3\n", "flags").ocean.peak_period, 8.0f);
+  EXPECT_EQ(pipeline::apply_scene(sea, "[swell]\nhs = 0\n", "flags").ocean.swell.significant_height, 0.0f);
+  // every built-in makes a sea the ocean accepts
+  for (const std::string& name : pipeline::builtin_scene_names()) {
+    const Scene scene = pipeline::builtin_scene(name);
+    sim::OceanParams params = scene.ocean;
+    params.size = scene.map_size;
+    EXPECT_NO_THROW(sim::SeaSpectrum{params}) << name;
   }
 }
 

@@ -77,7 +77,7 @@ generate_scenes() {
   echo '```toml'
   "$binary" scene --print ocean
   echo '```'
-  for name in water calm ripples bricks cliff; do
+  for name in water calm storm harbour ripples bricks cliff; do
     echo
     echo "## The built-in \`$name\`"
     echo

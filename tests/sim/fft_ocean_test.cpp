@@ -178,7 +178,7 @@ TEST(Ocean, DispersionHoldsBetweenFramesASixtiethApartAtABillionSeconds) {
   EXPECT_GT(largest_turn, 1e-3);  // frames far enough apart that a wrong time would show
 }
 
-TEST(Ocean, OmegaIsDeepWaterDispersion) {
+TEST(Ocean, OmegaIsDeepWaterDispersionByDefault) {
   const OceanParams params = small_ocean();
   const Ocean ocean(params);
   const int n = ocean.size();
@@ -190,6 +190,83 @@ TEST(Ocean, OmegaIsDeepWaterDispersion) {
     }
   }
   EXPECT_THROW(static_cast<void>(ocean.omega(n, 0)), std::out_of_range);
+}
+
+// Finite depth: every mode turns at w = sqrt(g k tanh(k h)), i.e. travels at the phase speed
+// sqrt(g / k tanh(k h)), in the output heights at t = 1e6 s (phases reduced in double) and at 5000 s (the
+// fast phase reduction), for every spectrum.
+TEST(Ocean, FiniteDepthPhaseSpeedAtAMillionSeconds) {
+  for (Spectrum spectrum :
+       {Spectrum::phillips, Spectrum::pierson_moskowitz, Spectrum::jonswap, Spectrum::tma}) {
+    SCOPED_TRACE(int(spectrum));
+    OceanParams params = small_ocean(spectrum);
+    params.depth = 3.0f;  // k h from 0.19 to 3
+    Ocean ocean(params);
+    const int n = ocean.size();
+    const double dk = 2.0 * std::numbers::pi / params.patch_size;
+    for (double time : {5000.0, 1e6}) {
+      const double step = 0.3;
+      OceanFrame frame;
+      std::vector<std::vector<Complex>> spectra;
+      for (double t : {time - step, time, time + step}) {
+        ocean.evaluate(t, ocean_heights, frame);
+        spectra.push_back(texel_centre_dft(frame.height, n));
+      }
+      const double scale = max_magnitude(spectra[1]);
+      ASSERT_GT(scale, 0.0);
+      for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+          const double k = dk * std::hypot(i < n / 2 ? i : i - n, j < n / 2 ? j : j - n);
+          if (k == 0.0) continue;
+          const double speed = std::sqrt(params.gravity / k * std::tanh(k * params.depth));
+          EXPECT_NEAR(ocean.omega(i, j) / k, speed, 1e-6 * speed);
+          const std::size_t index = static_cast<std::size_t>(i) * n + j;
+          const double cos_w_dt = std::cos(speed * k * step);
+          const Complex residual = spectra[2][index] + spectra[0][index] - 2.0 * cos_w_dt * spectra[1][index];
+          EXPECT_LT(std::abs(residual), 5e-5 * scale) << "time " << time << " mode " << i << ", " << j;
+        }
+      }
+    }
+  }
+}
+
+// Depth absent is deep water as before, bit for bit: w = sqrt(g k) in every mode, and the same heights as
+// water so deep that tanh(k h) is 1 in double for every mode.
+TEST(Ocean, NoDepthIsDeepWaterBitForBit) {
+  for (Spectrum spectrum : {Spectrum::phillips, Spectrum::pierson_moskowitz}) {
+    OceanParams params = small_ocean(spectrum);
+    ASSERT_FALSE(std::isfinite(params.depth));
+    Ocean deep(params);
+    const int n = deep.size();
+    const double dk = 2.0 * std::numbers::pi / params.patch_size;
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) {
+        const double k = dk * std::hypot(i < n / 2 ? i : i - n, j < n / 2 ? j : j - n);
+        ASSERT_EQ(deep.omega(i, j), static_cast<float>(std::sqrt(params.gravity * k)));
+      }
+    }
+    params.depth = max_depth;  // k h >= 628
+    Ocean very_deep(params);
+    OceanFrame a, b;
+    deep.evaluate(12.5, ocean_heights | ocean_displacement, a);
+    very_deep.evaluate(12.5, ocean_heights | ocean_displacement, b);
+    EXPECT_EQ(a.height, b.height);
+    EXPECT_EQ(a.displacement_x, b.displacement_x);
+  }
+}
+
+TEST(Ocean, LoopsInShallowWaterBitForBit) {
+  OceanParams params = small_ocean(Spectrum::tma);
+  params.depth = 2.0f;
+  params.loop_seconds = 9.0;
+  Ocean ocean(params);
+  OceanFrame first, later;
+  for (double start : {0.0, 3.3, 1e9}) {
+    ocean.evaluate(start, ocean_heights, first);
+    ocean.evaluate(start + params.loop_seconds, ocean_heights, later);
+    EXPECT_EQ(first.height, later.height) << start;
+  }
+  EXPECT_GT(ocean.loop_error(), 0.0);
 }
 
 TEST(Ocean, DeterministicPerSeed) {
@@ -320,8 +397,9 @@ TEST(Ocean, JacobianOfTheDisplacement) {
   EXPECT_LT(covariance, 0.0);  // positive choppiness pinches crests: J < 1 where the water is high
 }
 
-TEST(Ocean, BothSpectraGiveFiniteNonZeroFields) {
-  for (Spectrum spectrum : {Spectrum::phillips, Spectrum::jonswap}) {
+TEST(Ocean, EverySpectrumGivesFiniteNonZeroFields) {
+  for (Spectrum spectrum :
+       {Spectrum::phillips, Spectrum::pierson_moskowitz, Spectrum::jonswap, Spectrum::tma}) {
     OceanParams params = small_ocean(spectrum);
     params.size = 64;
     Ocean ocean(params);
