@@ -306,19 +306,31 @@ RelaxedSearch::RelaxedSearch(HeightView heights, Address address, int sector_cou
     : impl_(std::make_unique<Impl>(heights, address, sector_count)) {}
 RelaxedSearch::~RelaxedSearch() = default;
 
+namespace {
+
+// Texels [first, last) of row i into `out`; above: the offsets that limited row i - 1's texels, or
+// null; bound_by receives this row's, from texel `first` on.
+void relax_texels(const RingSearch& search, int i, int first, int last, const Offset* above, Offset* bound_by,
+                  float* out, std::vector<Candidate>& pending, long long& work) {
+  const int sectors = search.grid.sector_count;
+  for (int j = first; j < last; ++j) {
+    const std::size_t at = std::size_t(j - first) * sectors;
+    search.texel(i, j, j > first ? &bound_by[at - sectors] : nullptr, above ? &above[at] : nullptr,
+                 out + (std::size_t(i) * search.grid.width + j) * sectors, &bound_by[at], pending, work);
+  }
+}
+
+}  // namespace
+
 long long RelaxedSearch::rows(int first, int last, float* out) const {
   const Impl& m = *impl_;
-  const int width = m.grid.width, sectors = m.grid.sector_count;
   long long work = 0;
   std::vector<Candidate> pending;
   // the offsets that limited the previous row's texels and this row's
-  std::vector<Offset> previous(std::size_t(width) * sectors), current(previous.size());
+  std::vector<Offset> previous(std::size_t(m.grid.width) * m.grid.sector_count), current(previous.size());
   for (int i = first; i < last; ++i) {
-    for (int j = 0; j < width; ++j) {
-      const std::size_t at = std::size_t(j) * sectors;
-      m.search.texel(i, j, j > 0 ? &current[at - sectors] : nullptr, i > first ? &previous[at] : nullptr,
-                     out + (std::size_t(i) * width + j) * sectors, &current[at], pending, work);
-    }
+    relax_texels(m.search, i, 0, m.grid.width, i > first ? previous.data() : nullptr, current.data(), out,
+                 pending, work);
     std::swap(previous, current);
   }
   return work;
@@ -326,15 +338,10 @@ long long RelaxedSearch::rows(int first, int last, float* out) const {
 
 long long RelaxedSearch::texels(int row, int first, int last, float* out) const {
   const Impl& m = *impl_;
-  const int sectors = m.grid.sector_count;
   long long work = 0;
   std::vector<Candidate> pending;
-  std::vector<Offset> bound_by(std::size_t(std::max(last - first, 0)) * sectors);
-  for (int j = first; j < last; ++j) {
-    const std::size_t at = std::size_t(j - first) * sectors;
-    m.search.texel(row, j, j > first ? &bound_by[at - sectors] : nullptr, nullptr,
-                   out + (std::size_t(row) * m.grid.width + j) * sectors, &bound_by[at], pending, work);
-  }
+  std::vector<Offset> bound_by(std::size_t(std::max(last - first, 0)) * m.grid.sector_count);
+  relax_texels(m.search, row, first, last, nullptr, bound_by.data(), out, pending, work);
   return work;
 }
 
