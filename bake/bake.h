@@ -171,6 +171,33 @@ BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const 
 BakeStats bake_relaxed_reference(HeightView heights, Address address, ConeView out,
                                  const Progress& progress = {});
 
+// Relaxed cone maps within a budget, kept between frames like BudgetedBaker (1 or 4 sectors). At
+// every budget (0 ms, a clock that runs out, a work limit of 0) every ratio bake() and refine() emit
+// is at most bake_relaxed's for the same heights: bake() always completes BudgetedBaker's stage L
+// for the whole map (conservative ratios, never above relaxed ones), then replaces pieces of 16
+// texels of a row by their relaxed ratios (bake_relaxed's search) while the budget lasts (a piece
+// begun is finished); refine() continues, and once nothing is pending the map is bake_relaxed's, bit
+// for bit. `out` must hold what this baker emitted last time for refine(). Budget::tolerance and
+// progress are not used. Stats: texels_refined = the call's texels replaced, texels_fallback =
+// pending().
+class RelaxedBaker {
+ public:
+  RelaxedBaker(int width, int height, int sector_count, Address address);
+  ~RelaxedBaker();
+  RelaxedBaker(RelaxedBaker&&) noexcept;
+  RelaxedBaker& operator=(RelaxedBaker&&) noexcept;
+
+  BakeStats bake(HeightView heights, const Budget& budget, ConeView out);
+  BakeStats refine(const Budget& budget, ConeView out);
+  // Texels whose ratios are still stage L's.
+  long long pending() const;
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
 // Cone map for the BILINEAR surface, conservative from anywhere in a texel's square, for cone
 // stepping with no slack (the renderer's csm / acm4 / acm8 / acm4-interval). The cone maps above
 // hold between texel centres; a ray samples the bilinear surface s between them (wrap: periodic;

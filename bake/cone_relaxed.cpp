@@ -24,6 +24,7 @@
 
 #include "bake/progress.h"
 #include "bake/relaxed_ray.h"
+#include "bake/relaxed_search.h"
 
 namespace displace::bake {
 
@@ -280,49 +281,90 @@ struct RingSearch {
 
 }  // namespace
 
+namespace detail {
+
+struct RelaxedSearch::Impl {
+  Impl(HeightView map, Address address, int sector_count)
+      : heights(map),
+        grid(map.width, map.height, sector_count, address),
+        first_ends(std::size_t(std::max(map.width, map.height)) + 1),
+        maxima(chunk_maxima(map)) {
+    for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
+  }
+
+  HeightView heights;
+  Grid grid;
+  std::vector<double> first_ends;
+  ChunkMaxima maxima;
+  RelaxedSurface surface{heights.data, heights.width,     heights.height,
+                         grid.address, first_ends.data(), int(first_ends.size())};
+  float map_max = *std::max_element(heights.data, heights.data + std::size_t(heights.width) * heights.height);
+  RingSearch search{grid, surface, maxima, map_max};
+};
+
+RelaxedSearch::RelaxedSearch(HeightView heights, Address address, int sector_count)
+    : impl_(std::make_unique<Impl>(heights, address, sector_count)) {}
+RelaxedSearch::~RelaxedSearch() = default;
+
+namespace {
+
+// Texels [first, last) of row i into `out`; above: the offsets that limited row i - 1's texels, or
+// null; bound_by receives this row's, from texel `first` on.
+void relax_texels(const RingSearch& search, int i, int first, int last, const Offset* above, Offset* bound_by,
+                  float* out, std::vector<Candidate>& pending, long long& work) {
+  const int sectors = search.grid.sector_count;
+  for (int j = first; j < last; ++j) {
+    const std::size_t at = std::size_t(j - first) * sectors;
+    search.texel(i, j, j > first ? &bound_by[at - sectors] : nullptr, above ? &above[at] : nullptr,
+                 out + (std::size_t(i) * search.grid.width + j) * sectors, &bound_by[at], pending, work);
+  }
+}
+
+}  // namespace
+
+long long RelaxedSearch::rows(int first, int last, float* out) const {
+  const Impl& m = *impl_;
+  long long work = 0;
+  std::vector<Candidate> pending;
+  // the offsets that limited the previous row's texels and this row's
+  std::vector<Offset> previous(std::size_t(m.grid.width) * m.grid.sector_count), current(previous.size());
+  for (int i = first; i < last; ++i) {
+    relax_texels(m.search, i, 0, m.grid.width, i > first ? previous.data() : nullptr, current.data(), out,
+                 pending, work);
+    std::swap(previous, current);
+  }
+  return work;
+}
+
+long long RelaxedSearch::texels(int row, int first, int last, float* out) const {
+  const Impl& m = *impl_;
+  long long work = 0;
+  std::vector<Candidate> pending;
+  std::vector<Offset> bound_by(std::size_t(std::max(last - first, 0)) * m.grid.sector_count);
+  relax_texels(m.search, row, first, last, nullptr, bound_by.data(), out, pending, work);
+  return work;
+}
+
+}  // namespace detail
+
 BakeStats bake_relaxed(HeightView heights, Address address, ConeView out, const Progress& progress) {
   validate(heights, out);
   if (out.sector_count != 1 && out.sector_count != 4)
     throw BakeError("relaxed cone maps support 1 or 4 sectors, not " + std::to_string(out.sector_count));
   const auto start = std::chrono::steady_clock::now();
-  const Grid grid(heights.width, heights.height, out.sector_count, address);
-  std::vector<double> first_ends(std::size_t(std::max(heights.width, heights.height)) + 1);
-  for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
-  const detail::RelaxedSurface surface{heights.data, heights.width,     heights.height,
-                                       address,      first_ends.data(), int(first_ends.size())};
-  const std::size_t texels = std::size_t(heights.width) * heights.height;
-  const ChunkMaxima maxima = chunk_maxima(heights);
-  const RingSearch search{grid, surface, maxima, *std::max_element(heights.data, heights.data + texels)};
+  const detail::RelaxedSearch search(heights, address, out.sector_count);
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(progress, heights.height);
-
   // bands of rows, each on one thread from top to bottom, so that a row's texels find the blockers of
   // the row above
-  const tbb::blocked_range<int> bands(0, heights.height, rows_per_band);
   tbb::parallel_for(
-      bands,
-      [&](const tbb::blocked_range<int>& rows) {
-        long long work = 0;
-        std::vector<Candidate> pending;
-        // the offsets that limited the previous row's texels and this row's
-        const std::size_t row_offsets = std::size_t(heights.width) * out.sector_count;
-        std::vector<Offset> previous(row_offsets), current(row_offsets);
-        for (int i = rows.begin(); i < rows.end(); ++i) {
-          for (int j = 0; j < heights.width; ++j) {
-            const std::size_t at = std::size_t(j) * out.sector_count;
-            search.texel(i, j, j > 0 ? &current[at - out.sector_count] : nullptr,
-                         i > rows.begin() ? &previous[at] : nullptr,
-                         out.data + (std::size_t(i) * heights.width + j) * out.sector_count, &current[at],
-                         pending, work);
-          }
-          std::swap(previous, current);
-          rows_done.row_done();
-        }
-        total_work += work;
+      tbb::blocked_range<int>(0, heights.height, rows_per_band),
+      [&](const tbb::blocked_range<int>& band) {
+        total_work += search.rows(band.begin(), band.end(), out.data);
+        for (int i = band.begin(); i < band.end(); ++i) rows_done.row_done();
       },
       tbb::simple_partitioner());
   rows_done.finish();
-
   return detail::whole_map_stats(Mode::exact, heights, out.sector_count, total_work, start, out.data);
 }
 

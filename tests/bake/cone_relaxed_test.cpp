@@ -93,7 +93,7 @@ void expect_never_wider(const std::vector<Map>& maps) {
       }
 }
 
-TEST(RelaxedBaker, NeverWiderThanTheReferenceOnTheHardMaps) {
+TEST(RelaxedCones, NeverWiderThanTheReferenceOnTheHardMaps) {
   std::vector<Map> maps = hard_maps();  // cliffs, spikes, flat fields, steps, bricks, non-square, 1 x 1
   maps.push_back(make_relaxed_pillar(20, 14));
   maps.push_back(make_relaxed_seams(18, 12));
@@ -102,13 +102,13 @@ TEST(RelaxedBaker, NeverWiderThanTheReferenceOnTheHardMaps) {
   expect_never_wider(maps);
 }
 
-TEST(RelaxedBaker, NeverWiderThanTheReferenceOnOceanAndBricks) {
+TEST(RelaxedCones, NeverWiderThanTheReferenceOnOceanAndBricks) {
   expect_never_wider({test::make_ocean(24, 24), test::make_ocean(32, 16), test::make_bricks(24, 20),
                       built_in("built-in bricks", 32, 32), built_in("built-in cliff", 32, 32)});
 }
 
 // The comparison is bit for bit: one ratio raised by one float step is caught, on every map.
-TEST(RelaxedBaker, TheComparisonCatchesACone1UlpTooWide) {
+TEST(RelaxedCones, TheComparisonCatchesACone1UlpTooWide) {
   for (const Map& map : {make_relaxed_pillar(12, 10), test::make_fractal_cliff(13, 7)}) {
     const ConeMap reference = relaxed_of(map, 4, Address::wrap, true);
     ConeMap widened = relaxed_of(map, 4, Address::wrap, false);
@@ -125,7 +125,7 @@ TEST(RelaxedBaker, TheComparisonCatchesACone1UlpTooWide) {
 // work depends on where the bands start; the map must not. With wrap, every computation depends on
 // offsets only: a map moved by whole texels bakes to the moved map, bit for bit, whichever rows
 // start the bands.
-TEST(RelaxedBaker, AMovedMapBakesToTheMovedMap) {
+TEST(RelaxedCones, AMovedMapBakesToTheMovedMap) {
   const Map map = test::make_pockets(24, 40);
   for (int sectors : {1, 4}) {
     const ConeMap baked = relaxed_of(map, sectors, Address::wrap, false);
@@ -147,7 +147,7 @@ TEST(RelaxedBaker, AMovedMapBakesToTheMovedMap) {
   }
 }
 
-TEST(RelaxedBaker, NeverBelowTheConservativeRatio) {
+TEST(RelaxedCones, NeverBelowTheConservativeRatio) {
   for (const Map& map :
        {test::make_spikes(24, 24), test::make_pockets(24, 24), test::make_fractal_cliff(20, 20)})
     for (int sectors : {1, 4}) {

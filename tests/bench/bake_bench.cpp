@@ -17,7 +17,8 @@
 // built-in bricks and cliff (sim::brick_heights, sim::cliff_heights) and test::make_pockets;
 // vs_conservative = mean ratio / the exact conservative map's; where the reference row of the same
 // map and size ran before in the process, vs_reference = mean ratio / the reference's and wider =
-// ratios above the reference's, bit for bit (-1: not compared).
+// ratios above the reference's, bit for bit (-1: not compared). BM_BakeRelaxedBudgeted/ocean/<ms>/<size>:
+// RelaxedBaker, one bake() a frame of the 256 ocean at a budget of 0, 16 or 50 ms (4 sectors, wrap).
 //   build/displace_bench --benchmark_filter=Bake --benchmark_repetitions=5
 //   (add --benchmark_report_aggregates_only=true for medians only)
 #include <benchmark/benchmark.h>
@@ -417,8 +418,55 @@ void run_relaxed(benchmark::State& state, ReliefKind kind, bool reference) {
   state.counters["vs_reference"] = vs_reference;
 }
 
+// RelaxedBaker on frames of the ocean (4 sectors, wrap), one bake() a frame at a budget:
+// pending_frac = texels still at stage L's ratio after the call, vs_relaxed = mean ratio / the full
+// relaxed map's (bake_relaxed, once per frame at set-up).
+void run_relaxed_budgeted(benchmark::State& state, double budget_ms) {
+  const int size = int(state.range(0));
+  const OceanFrames& frames = ocean_frames(size);
+  static std::mutex mutex;
+  static std::map<int, std::vector<double>> full_means;
+  std::vector<double> full;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<double>& means = full_means[size];
+    if (means.empty())
+      for (const std::vector<float>& heights : frames.heights) {
+        std::vector<float> cones(heights.size() * 4);
+        means.push_back(bake::bake_relaxed({heights.data(), size, size}, bake::Address::wrap,
+                                           {cones.data(), size, size, 4})
+                            .mean_ratio);
+      }
+    full = means;
+  }
+  std::vector<float> cones(std::size_t(size) * size * 4);
+  bake::RelaxedBaker baker(size, size, 4, bake::Address::wrap);  // kept from frame to frame
+  bake::BakeStats stats;
+  std::size_t frame = 0, last = 0;
+  for (auto _ : state) {
+    last = frame % frames.heights.size();
+    bake::Budget budget;
+    budget.milliseconds = budget_ms;
+    stats = baker.bake({frames.heights[last].data(), size, size}, budget, {cones.data(), size, size, 4});
+    benchmark::DoNotOptimize(cones.data());
+    ++frame;
+  }
+  state.counters["pending_frac"] = double(stats.texels_fallback) / double(size * size);
+  state.counters["mean_ratio"] = stats.mean_ratio;
+  state.counters["vs_relaxed"] = stats.mean_ratio / full[last];
+}
+
 struct Registration {
   Registration() {
+    // BM_BakeRelaxedBudgeted/ocean/<budget>/<size>: a frame of relaxed cones within a budget
+    for (double ms : {0.0, 16.0, 50.0}) {
+      auto* b = benchmark::RegisterBenchmark(
+          (std::string("BM_BakeRelaxedBudgeted/ocean/") + std::to_string(int(ms)) + "ms").c_str(),
+          [ms](benchmark::State& state) { run_relaxed_budgeted(state, ms); });
+      b->Arg(256)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();  // the full bake: seconds at 256, a minute at 512
+    }
     // the reference first, so that the relaxed row of the same map and size compares with it
     for (ReliefKind kind : {ReliefKind::built_in_bricks, ReliefKind::built_in_cliff, ReliefKind::pockets})
       for (int size : {256, 512, 1024})
