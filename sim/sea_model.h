@@ -65,7 +65,8 @@ class SeaModel {
   // phillips
   double phillips_amplitude_ = 0.0;  // A (L_ref / L)^2, per mode
   double phillips_length_ = 0.0;     // L_w = U^2 / g, metres
-  double damping_length_ = 0.0;      // l, metres
+  double damping_length_ = 0.0;      // l of the lattice's modes, metres (small_wave_cutoff, or half a texel)
+  double spectrum_damping_ = 0.0;    // l of the analytic spectrum: small_wave_cutoff only, metres
   // the other spectra
   PeakedSpectrum sea_;
   double sea_peak_omega_ = 0.0;

@@ -216,6 +216,8 @@ SeaModel::SeaModel(const OceanParams& params) : params_(params) {
   phillips_length_ = u * u / g;
   damping_length_ =
       params.small_wave_cutoff > 0.0f ? params.small_wave_cutoff : 0.5 * params.patch_size / params.size;
+  // half a texel is the lattice's filter, not the sea's: the analytic spectrum keeps the short waves
+  spectrum_damping_ = params.small_wave_cutoff;
 
   const bool by_height = params.significant_height > 0.0f;
   const double target_variance =
@@ -300,7 +302,7 @@ double SeaModel::phillips_spectrum(double wave_number) const {
   const double kl = wave_number * phillips_length_;
   return 2.0 * std::numbers::pi * phillips_amplitude_ / mode_area_ * std::exp(-1.0 / (kl * kl)) /
          (wave_number * wave_number * wave_number) *
-         std::exp(-wave_number * wave_number * damping_length_ * damping_length_);
+         std::exp(-wave_number * wave_number * spectrum_damping_ * spectrum_damping_);
 }
 
 double SeaModel::sea_spectrum(double omega, double wave_number) const {

@@ -132,7 +132,8 @@ struct OceanParams {
   float spreading = 2.0f;         // directional spreading exponent s of cos^(2s)(theta / 2) (cos2s)
   Spreading spreading_model = Spreading::cos2s;
   float phillips_amplitude = 3e-7f;  // Tessendorf's A for a patch of phillips_reference_patch metres
-  float small_wave_cutoff = 0.0f;    // metres; Phillips damping length l (0 = patch/N/2)
+  float small_wave_cutoff = 0.0f;    // metres; Phillips damping length l (0 = patch/N/2, a filter of the
+                                     // lattice's shortest waves that SeaSpectrum and describe_sea leave out)
   float choppiness = 1.0f;           // lambda, scales the horizontal displacement; > 0 sharpens crests
   std::uint64_t seed = 1;
   float gravity = 9.81f;  // m/s^2

@@ -255,16 +255,18 @@ TEST(SeaSpectrum, HsDoesNotDependOnThePatch) {
     params.spectrum = spectrum;
     params.wind_speed = 10.0f;
     params.fetch = 100.0f;
-    double hs[2];
+    double hs[2], analytic[2];
     int index = 0;
     for (const auto& [patch, size] : {std::pair{200.0f, 128}, std::pair{1600.0f, 1024}}) {
       params.patch_size = patch;
       params.size = size;  // the same texel: the same shortest waves
       const SeaState sea = describe_sea(params);
       EXPECT_LT(sea.below_patch + sea.above_map, 0.01) << patch;  // the band holds 99%
+      analytic[index] = sea.significant_height;
       hs[index++] = sea.lattice_significant_height;
     }
     EXPECT_NEAR(hs[0], hs[1], 0.03 * hs[1]);
+    EXPECT_NEAR(analytic[0], analytic[1], 1e-9 * analytic[1]);  // the sea itself: neither patch nor map
   }
 }
 
@@ -438,6 +440,15 @@ TEST(SeaSpectrum, WarnsWhereThePatchOrTheMapLeavesTheSeaOut) {
   const SeaState fine = describe_sea(params);
   EXPECT_LE(fine.above_map, 0.5 * left_out_allowance);
   EXPECT_FALSE(fine.map_too_coarse);
+
+  // Phillips' half-texel damping is the lattice's: 256 samples over 1600 m cut the sea's short waves
+  OceanParams phillips;
+  phillips.wind_speed = 10.0f;
+  phillips.patch_size = 1600.0f;
+  const SeaState damped = describe_sea(phillips);
+  EXPECT_LT(damped.lattice_error, -left_out_allowance);
+  EXPECT_TRUE(damped.map_too_coarse);
+  EXPECT_FALSE(damped.patch_too_small);
 }
 
 TEST(SeaSpectrum, BadParamsThrow) {
