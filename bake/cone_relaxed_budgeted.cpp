@@ -73,19 +73,20 @@ long long pending_texels(const RelaxedBaker::State& state) {
 // The pieces not yet done, in order, in parallel, each begun only while the budget lasts.
 BakeStats refine_pieces(RelaxedBaker::State& state, const Budget& budget, ConeView out) {
   detail::BudgetClock clock(budget);
-  std::vector<std::size_t> todo;
+  std::vector<std::size_t> pending;
   for (std::size_t n = 0; n < state.done.size(); ++n)
-    if (!state.done[n]) todo.push_back(n);
+    if (!state.done[n]) pending.push_back(n);
   std::atomic<long long> refined{0};
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, todo.size(), 1),
+      tbb::blocked_range<std::size_t>(0, pending.size(), 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t n = range.begin(); n < range.end(); ++n) {
           if (clock.exhausted()) return;
-          const int row = int(todo[n] / state.pieces), first = int(todo[n] % state.pieces) * piece_texels;
+          const int row = int(pending[n] / state.pieces),
+                    first = int(pending[n] % state.pieces) * piece_texels;
           const int last = std::min(first + piece_texels, state.width);
           clock.work += state.search->texels(row, first, last, out.data);
-          state.done[todo[n]] = 1;
+          state.done[pending[n]] = 1;
           refined += last - first;
         }
       },
