@@ -8,6 +8,7 @@
 // The one fact to know: everything is a variance density E(k) D(theta) / k over the wave-number plane
 // (E the one-dimensional wave-number spectrum, E(k) = S(w) dw/dk, D integrating to 1 over direction),
 // and a lattice mode of area dk^2 holds half of it times dk^2: the other half comes with its mirror mode.
+#include <math.h>  // lgamma_r
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -79,9 +80,15 @@ bool in_range(float value, float low, float high) { return value >= low && value
 double spreading_normalisation(double s) {
   return std::tgamma(s + 1.0) / (2.0 * std::sqrt(std::numbers::pi) * std::tgamma(s + 0.5));
 }
-// The same through log-gamma, for the frequency-dependent exponents.
+// The same through log-gamma, for the frequency-dependent exponents. lgamma_r, not std::lgamma: the
+// latter stores the sign in the global signgam, a data race when TBB's workers describe a sea (the
+// arguments here are positive, so the sign is not needed).
+double log_gamma(double x) {
+  int sign = 0;
+  return ::lgamma_r(x, &sign);
+}
 double spreading_normalisation_log(double s) {
-  return std::exp(std::lgamma(s + 1.0) - std::lgamma(s + 0.5)) / (2.0 * std::sqrt(std::numbers::pi));
+  return std::exp(log_gamma(s + 1.0) - log_gamma(s + 0.5)) / (2.0 * std::sqrt(std::numbers::pi));
 }
 
 // Simpson's rule for the integral of f(x) dx over [low, high] in u = ln x: intervals per unit of ln x.
