@@ -166,11 +166,10 @@ run_tsan() {
   rm -rf "$reports"
   mkdir -p "$reports"
   export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$root/tests/sanitizers/tsan.supp:log_path=$reports/report"
-  # (the frame pipeline's, the thread pinning's and the map uploads' suites run in the shared entry
-  # render_pipeline: here on their own, without the rest of its rendering)
-  if ! (cd "$tsan_build" && ctest --output-on-failure -j "$jobs" -R '^(sim|bake|pipeline)/|^render/map_pack$' &&
-          DISPLACE_PIPELINE_CACHE="$tsan_build/pipeline-cache" tests/displace_device_tests \
-            --gtest_filter='Pipeline.*:ThreadPinning.*:Maps.*' --gtest_brief=1); then
+  # (the frame pipeline's, the thread pinning's and the map uploads' suites, which run in the shared
+  # entry render_pipeline elsewhere: in render_pipeline/threads here, without the rest of its rendering)
+  if ! (cd "$tsan_build" &&
+          ctest --output-on-failure -j "$jobs" -R '^(sim|bake|pipeline)/|^render/map_pack$|^render_pipeline/threads$'); then
     cat "$reports"/report* >&2 2>/dev/null || true
     exit 1
   fi
