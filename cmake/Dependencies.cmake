@@ -84,3 +84,10 @@ endif()
 if(DISPLACE_BENCHMARKS)
   displace_require_package(benchmark libbenchmark-dev CONFIG)
 endif()
+
+# Debian's python3 (with the set-up's matplotlib, numpy and OpenImageIO), not one earlier on the PATH:
+# the report's figures, the Python module and its tests
+find_program(DISPLACE_SYSTEM_PYTHON python3 PATHS /usr/bin NO_DEFAULT_PATH)
+if(NOT DISPLACE_SYSTEM_PYTHON)
+  find_program(DISPLACE_SYSTEM_PYTHON python3 REQUIRED)
+endif()

@@ -20,7 +20,7 @@ packages=(cmake g++ make pkg-config libtbb-dev libopenimageio-dev libfftw3-dev l
           libvulkan-dev libglm-dev libtomlplusplus-dev libcli11-dev libfmt-dev nlohmann-json3-dev glslang-tools spirv-tools
           glslang-dev libvkfft-dev
           mesa-vulkan-drivers vulkan-validationlayers parallel libglfw3-dev libimgui-dev xvfb python3-matplotlib clang-format
-          slurmctld slurmd slurm-client munge)
+          slurmctld slurmd slurm-client munge pybind11-dev python3-dev python3-numpy python3-openimageio)
 missing=()
 for p in "${packages[@]}"; do
   if ! package_installed "$p"; then

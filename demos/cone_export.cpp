@@ -45,18 +45,6 @@ Metadata cone_metadata(const ConeMapExport& cones, const Metadata& extra) {
 
 }  // namespace
 
-const char* baker_name(Baker baker) {
-  switch (baker) {
-    case Baker::exact: return "exact";
-    case Baker::original: return "original";
-    case Baker::paper_adaptive: return "paper-adaptive";
-    case Baker::budgeted: return "budgeted";
-    case Baker::relaxed: return "relaxed";
-    case Baker::full: return "full";
-  }
-  return "unknown";
-}
-
 const char* cone_kind_name(ConeKind kind) { return kind == ConeKind::bilinear ? "bilinear" : "center"; }
 
 const char* address_name(bake::Address address) { return address == bake::Address::wrap ? "wrap" : "clamp"; }

@@ -20,16 +20,15 @@
 
 #include "bake/bake.h"
 #include "demos/image_io.h"
+#include "pipeline/cone_bake.h"
 
 namespace displace::app {
 
-// Which baker made a cone map: for center cones the four conservative-ratio modes plus the relaxed
-// baker; for bilinear cones budgeted (bake::BilinearBaker) or full (bake::bake_bilinear_cones).
-enum class Baker { exact, original, paper_adaptive, budgeted, relaxed, full };
+// Which baker made a cone map (pipeline/cone_bake.h) and which kind of cones it made.
+using pipeline::Baker;
+using pipeline::baker_name;
 enum class ConeKind { center, bilinear };
 
-// "exact", "original", "paper-adaptive", "budgeted", "relaxed", "full"
-const char* baker_name(Baker baker);
 const char* cone_kind_name(ConeKind kind);        // "center", "bilinear"
 const char* address_name(bake::Address address);  // "wrap", "clamp"
 

@@ -62,4 +62,19 @@ if cmake -S "$work/newer" -B "$work/newer/build" -DCMAKE_PREFIX_PATH="$prefix" >
   echo "install_test: find_package(displace 99.0) accepted version $version" >&2
   exit 1
 fi
-echo "install_test: displace $version installed ($count headers, each compiling on its own), demos/embed built against it and ran"
+# the Python module (issue 51), where the build made it: a fresh Debian python3 with only the prefix on
+# its path (not the build tree) imports it and runs one query
+python_dir="$prefix/lib/python3/dist-packages"
+module="no Python module"
+if [ -d "$build_dir/python/displace" ]; then
+  test -f "$python_dir/displace/__init__.pyi" || { echo "install_test: the module's stubs are not installed" >&2; exit 1; }
+  env -i PATH=/usr/bin:/bin PYTHONPATH="$python_dir" HOME="$work" /usr/bin/python3 -c '
+import displace, sys
+assert displace.__file__.startswith(sys.argv[1]), displace.__file__
+result = displace.query(displace.Scene.builtin("calm"), 1.0, [[3.0, 4.0]])
+print("python: height at (3, 4) m:", float(result["height_m"][0]))
+' "$python_dir" | tee "$work/python.log"
+  grep -q "^python: height at" "$work/python.log"
+  module="the Python module imported from it"
+fi
+echo "install_test: displace $version installed ($count headers, each compiling on its own), demos/embed built against it and ran, $module"
