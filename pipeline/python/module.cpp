@@ -17,6 +17,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -330,6 +331,18 @@ pipeline::Backend backend_named(const std::string& word) {
   throw py::value_error("backend: 'auto', 'cpu' or 'device', not '" + word + "'");
 }
 
+// Frames Pipeline.stats summarizes: the last ones, so that a long loop keeps its memory.
+constexpr long long stats_window = 1000;
+
+// bench-frame's percentile: the nearest rank.
+double percentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  return values[std::min(values.size() - 1, std::size_t(std::ceil(fraction * double(values.size())) - 1))];
+}
+
+const char* placement_word(bool on_device) { return on_device ? "device" : "cpu"; }
+
 // A frame pipeline and the renderer it draws with, as `displace sequence` runs them.
 class Pipeline {
  public:
@@ -359,35 +372,113 @@ class Pipeline {
 
   py::array_t<std::uint8_t> frame(long long index) {
     if (index < 0) throw py::value_error("frame: the index must be 0 or more");
+    Sample sample;
     {
       py::gil_scoped_release release;
-      record_ = pipeline_->run(index, frame_);
+      const auto start = std::chrono::steady_clock::now();
+      sample.record = pipeline_->run(index, frame_);
+      sample.wall_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     }
+    if (frames_ == 0) allocations_after_first_ = renderer_->memory_allocations();
+    samples_[std::size_t(frames_ % stats_window)] = sample;
+    ++frames_;
     const int width = scene_.camera.width, height = scene_.camera.height;
     py::array_t<std::uint8_t> image({py::ssize_t(height), py::ssize_t(width), py::ssize_t(4)});
     std::memcpy(image.mutable_data(), frame_.color.data(), frame_.color.size());
     return image;
   }
 
-  // the last frame's record, in milliseconds as bench-frame's stages name them
+  // bench-frame's --json keys over the last frames (up to stats_window), and the last frame's record
   py::dict stats() const {
+    const std::size_t count = std::size_t(std::min<long long>(frames_, stats_window));
+    const auto values = [&](auto field) {
+      std::vector<double> out;
+      for (std::size_t n = 0; n < count; ++n) out.push_back(field(samples_[n]));
+      return out;
+    };
+    using R = const Sample&;
+    struct Stage {
+      const char* name;
+      std::vector<double> host, device;
+      bool on_device;
+    };
+    const Stage stages[] = {{"sim", values([](R s) { return s.record.sim_ms; }),
+                             values([](R s) { return s.record.sim_device_ms; }), true},
+                            {"bake", values([](R s) { return s.record.bake_ms; }),
+                             values([](R s) { return s.record.bake_device_ms; }), true},
+                            {"upload", values([](R s) { return s.record.upload_ms; }), {}, false},
+                            {"render", values([](R s) { return s.record.render_ms; }),
+                             values([](R s) { return s.record.render_device_ms; }), true},
+                            {"frame", values([](R s) { return s.wall_ms; }), {}, false},
+                            {"latency", values([](R s) { return s.record.frame_ms; }), {}, false}};
+    py::dict stage_table;
+    for (const Stage& stage : stages) {
+      py::dict row;
+      row["p50_ms"] = percentile(stage.host, 0.50);
+      row["p95_ms"] = percentile(stage.host, 0.95);
+      row["p99_ms"] = percentile(stage.host, 0.99);
+      if (stage.on_device) {
+        const double device = percentile(stage.device, 0.50);
+        row["device_p50_ms"] = device > 0.0 ? py::object(py::float_(device)) : py::none();
+      }
+      stage_table[stage.name] = row;
+    }
+    long long within = 0, ffts = 0;
+    unsigned effects = 0;
+    bool cones = false;
+    for (std::size_t n = 0; n < count; ++n) {
+      const Sample& sample = samples_[n];
+      within += std::isfinite(scene_.frame_ms) ? sample.wall_ms <= scene_.frame_ms : 1;
+      ffts += sample.record.ffts;
+      effects |= sample.record.effects;
+      cones = cones || sample.record.cones.sector_count > 0;
+    }
+    const auto p50_and_max = [&](const std::vector<double>& v) -> py::object {
+      if (!cones) return py::none();
+      return py::dict(py::arg("p50") = percentile(v, 0.50), py::arg("max") = percentile(v, 1.0));
+    };
+    py::list effect_names;
+    if (effects & pipeline::effect_heights) effect_names.append("heights");
+    if (effects & pipeline::effect_choppy) effect_names.append("choppy");
+    if (effects & pipeline::effect_foam) effect_names.append("foam");
+    const double frames = std::max(double(count), 1.0);
     py::dict out;
-    out["frame"] = record_.index;
-    out["time_s"] = record_.time;
-    out["sim_ms"] = record_.sim_ms;
-    out["bake_ms"] = record_.bake_ms;
-    out["upload_ms"] = record_.upload_ms;
-    out["render_ms"] = record_.render_ms;
-    out["frame_ms"] = record_.frame_ms;
-    out["ffts"] = record_.ffts;
-    out["overrun"] = record_.overrun;
-    out["texels_refined"] = record_.cones.texels_refined;
-    out["pending"] = record_.pending;
-    out["cone_lag_frames"] = record_.cone_lag;
-    out["cone_lift"] = record_.cone_lift;
-    out["backend"] = py::dict(py::arg("sim") = record_.sim_on_device ? "device" : "cpu",
-                              py::arg("bake") = record_.bake_on_device ? "device" : "cpu");
+    out["frames"] = count;
+    out["backend"] = py::dict(py::arg("sim") = placement_word(pipeline_->placement().sim_on_device),
+                              py::arg("bake") = placement_word(pipeline_->placement().cones_on_device));
+    out["budget_ms"] = std::isfinite(scene_.frame_ms) ? py::object(py::float_(scene_.frame_ms)) : py::none();
+    out["stages"] = stage_table;
+    out["within_budget"] = double(within) / frames;
+    out["ffts_per_frame"] = double(ffts) / frames;
+    out["effects"] = effect_names;
+    out["vulkan_allocations_after_warmup"] =
+        frames_ > 0 ? renderer_->memory_allocations() - allocations_after_first_ : 0;
+    out["frames_rendered"] = frames_;
+    out["cone_lag_frames"] = p50_and_max(values([](R s) { return double(s.record.cone_lag); }));
+    out["cone_lift"] = p50_and_max(values([](R s) { return double(s.record.cone_lift); }));
+    out["overlapped"] = false;
+    out["pinned_threads"] = 0;
+    out["rss_kb"] = py::none();
+    out["scene"] = scene_.name;
     out["device"] = renderer_->device().name;
+    py::dict record;
+    if (frames_ > 0) {
+      const pipeline::FrameRecord& last = samples_[std::size_t((frames_ - 1) % stats_window)].record;
+      record["frame"] = last.index;
+      record["time_s"] = last.time;
+      record["sim_ms"] = last.sim_ms;
+      record["bake_ms"] = last.bake_ms;
+      record["upload_ms"] = last.upload_ms;
+      record["render_ms"] = last.render_ms;
+      record["frame_ms"] = last.frame_ms;
+      record["ffts"] = last.ffts;
+      record["texels_refined"] = last.cones.texels_refined;
+      record["pending"] = last.pending;
+      record["cone_lag_frames"] = last.cone_lag;
+      record["cone_lift"] = last.cone_lift;
+    }
+    out["last"] = record;
     return out;
   }
 
@@ -398,7 +489,13 @@ class Pipeline {
   std::unique_ptr<render::Renderer> renderer_;
   std::unique_ptr<pipeline::FramePipeline> pipeline_;
   render::Frame frame_;
-  pipeline::FrameRecord record_;
+  struct Sample {
+    pipeline::FrameRecord record;
+    double wall_ms = 0.0;  // the call's, with the copy out
+  };
+  std::vector<Sample> samples_ = std::vector<Sample>(stats_window);  // the last frames, a ring
+  long long frames_ = 0;
+  long long allocations_after_first_ = 0;
 };
 
 }  // namespace
@@ -464,7 +561,9 @@ PYBIND11_MODULE(_displace, m) {
            "bake run, 'auto', 'cpu' or 'device'")
       .def("frame", &Pipeline::frame, py::arg("n"),
            "Frame n (scene time start + n / fps) as uint8 (height, width, 4) RGBA, row 0 at the top")
-      .def_property_readonly("stats", &Pipeline::stats,
-                             "The last frame's record (milliseconds, work counters)")
+      .def_property_readonly(
+          "stats", &Pipeline::stats,
+          "bench-frame --json's keys over the last frames (up to 1,000; milliseconds), and "
+          "under 'last' the last frame's record")
       .def_property_readonly("scene", [](const Pipeline& p) { return Scene{p.scene()}; });
 }

@@ -133,7 +133,20 @@ class AgainstTheCommandLine(unittest.TestCase):
                     self.assertEqual(frame.dtype, np.uint8)
                     _, image = read_image(pattern.replace("####", f"{n:04d}"))
                     np.testing.assert_array_equal(frame, image.get_pixels(oiio.UINT8))
-                self.assertIn("frame_ms", pipeline.stats)
+                # the stats have bench-frame's keys, over the frames made
+                report = os.path.join(self.dir, name + ".json")
+                run("bench-frame", "--scene", self.scene_file(scene), "--size", "96x64", "--frames", "2",
+                    "--json", report)
+                with open(report) as file:
+                    theirs = json.load(file)
+                stats = pipeline.stats
+                self.assertEqual(set(stats) - {"last"}, set(theirs))
+                self.assertEqual(stats["stages"].keys(), theirs["stages"].keys())
+                for stage in theirs["stages"]:
+                    self.assertEqual(stats["stages"][stage].keys(), theirs["stages"][stage].keys())
+                self.assertEqual(stats["frames_rendered"], 3)
+                self.assertEqual(stats["last"]["frame"], 2)
+                self.assertEqual(stats["effects"], theirs["effects"])
 
 
 class BadInput(unittest.TestCase):

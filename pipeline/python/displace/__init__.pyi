@@ -46,6 +46,8 @@ class Pipeline:
         """Frame n as uint8 (height, width, 4) RGBA, row 0 at the top."""
     def frames(self, first: int = 0, count: Optional[int] = None) -> Iterator[Tuple[int, npt.NDArray[np.uint8]]]: ...
     @property
-    def stats(self) -> dict[str, Any]: ...
+    def stats(self) -> dict[str, Any]:
+        """bench-frame --json's keys over the last frames (up to 1,000; milliseconds); "last": the last
+        frame's record."""
     @property
     def scene(self) -> Scene: ...
