@@ -99,8 +99,12 @@ run_sanitize() {
   # renderer's suites in one process (render_pipeline: 4.7 minutes here under ASan, mostly the CPU
   # reference traces the tests compare with; the renderer's host code runs under ASan in the
   # pipeline/* entries and the CLI tests), the sea-state figure's script (a plotting script's runs of
-  # `displace sim`, whose code Cli.SimSaysWhatSeaItMade runs under ASan) and the fuzzers (run_fuzz)
-  local left_out='^report$|^soak$|^write/|^farm/|^render/shader_size$|^device_probe$|^render_pipeline$|^sea_states_figure$|^fuzz_(scene|obj|cli|image)$'
+  # `displace sim`, whose code Cli.SimSaysWhatSeaItMade runs under ASan), the fuzzers (run_fuzz), and
+  # the command-line tests that render the most frames and pictures through code the others run under
+  # it (sequences by shards and loops, the frame benchmark, sweeps, frame 0 against render, the window's
+  # frames, every tool's help text): 88 s under ASan, a tenth of its test time
+  local cli_left_out='SequenceShardsAndResumesGiveTheSameFilesBitForBit|RenderDrawsTheFrameZeroOfTheSequence|PlayRendersThePipelinesFramesInAWindow|OutputsForToolsShareOneStyleAndTheirHelpNamesEveryKey|BenchFrameWritesTheTableAndItsJson|SequenceOfALoopSaysSoAndComesBackToFrameZero|SweepsASceneFileAndSaysWhatItsConeMapsCost|RendersConeMethodsFromMapsBakedAtALooseTolerance'
+  local left_out="^report\$|^soak\$|^write/|^farm/|^render/shader_size\$|^device_probe\$|^render_pipeline\$|^sea_states_figure\$|^fuzz_(scene|obj|cli|image)\$|^Cli\.($cli_left_out)\$"
   (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R "$leak_checked" -E "$left_out")
   (cd "$root/build-asan" && ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --output-on-failure -j "$jobs" -E "$leak_checked|$left_out")

@@ -205,7 +205,7 @@ faults() {
 
 # interrupted_run DIR STATUS CLEAN LAST SIGNAL...: starts frames 0..LAST of a sequence with DIR's
 # flags into DIR in the background, sends the signals as soon as its frame 1 is written (frame 2 has
-# just begun), 0.1 s apart, and checks the status, what is left and a resumed run against CLEAN
+# just begun; signal_delay seconds later where set), 0.1 s apart, and checks the status, what is left and a resumed run against CLEAN
 interrupted_run() {
   local dir="$1" expected="$2" clean="$3" last="$4"
   shift 4
@@ -214,6 +214,8 @@ interrupted_run() {
     >/dev/null 2>"$dir.stderr" &
   local runner=$! waited=0 signal
   until [ -f "$dir/w_0001.png" ] || [ "$waited" -ge 3000 ]; do sleep 0.02; waited=$((waited + 1)); done
+  # (signal_delay: seconds more, so that frame 2 has begun: between frames one signal already ends the run)
+  sleep "${signal_delay:-0}"
   for signal in "$@"; do
     kill "-$signal" "$runner" || fail "the run ended before SIG$signal ($(cat "$dir.stderr"))"
     sleep 0.1  # apart, so that a second signal is not merged into a first still pending
@@ -242,7 +244,9 @@ signals() {
   run_flags=(--scene water --map-size 64 --size 1280x720 --pipeline-cache off)
   mkdir -p "$work/clean-large"
   "$displace" sequence "${run_flags[@]}" --frames 0:5 --output "$work/clean-large/w_####.png" >/dev/null
-  interrupted_run "$work/twice" 143 "$work/clean-large" 5 TERM TERM
+  # (0.15 s after frame 1 is written, frame 2 is rendering: under load the first signal once came
+  # between the two, where it ends the run before the second can arrive)
+  signal_delay=0.15 interrupted_run "$work/twice" 143 "$work/clean-large" 5 TERM TERM
   if grep -q "stopped by" "$work/twice.stderr"; then fail "the second SIGTERM did not end the run at once"; fi
   run_flags=("${sequence_flags[@]}")
   "$displace" sequence "${run_flags[@]}" --frames 0:20 --output "$work/twice/w_####.png" >/dev/null
