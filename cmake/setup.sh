@@ -115,7 +115,7 @@ run_sanitize() {
 run_fuzz() {
   configure_sanitized
   cmake --build "$root/build-asan" -j "$jobs" --target fuzz_scene fuzz_obj fuzz_cli fuzz_image
-  (cd "$root/build-asan" && ctest --output-on-failure -R '^fuzz_(scene|obj|cli|image)$')
+  (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R '^fuzz_(scene|obj|cli|image)$')
 }
 
 # ThreadSanitizer over the tests of the code that runs threads, in build-tsan/. Every thread here is

@@ -232,4 +232,44 @@ TEST(Cli, BakesABilinearPngThatDecodesConservatively) {
     }
 }
 
+// A relaxed cone map PNG for engines (issue 49), decoded: every ratio at most the relaxed ratio of
+// the definition (bake_relaxed_reference) for the heights it stores, on every texel and sector, with
+// 1 and 4 sectors, wrap and clamp; so what an engine decodes is never too wide.
+TEST(Cli, BakesARelaxedPngThatDecodesNeverTooWide) {
+  TempDir dir;
+  namespace bake = displace::bake;
+  std::mt19937 random(11);
+  std::vector<std::uint8_t> pixels(20 * 14);
+  for (auto& p : pixels) p = std::uint8_t(random() % 5 == 0 ? random() : 60 + random() % 30);
+  write_with_oiio(dir / "h.png", 20, 14, 1, OIIO::TypeDesc::UINT8, pixels.data());
+  for (const int sectors : {1, 4})
+    for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
+      const std::string address_word = address == bake::Address::wrap ? "wrap" : "clamp";
+      std::string name = "r";
+      name.append(std::to_string(sectors)).append(address_word).append(".png");
+      const fs::path file = dir / name;
+      const RunResult result = run_displace(dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " +
+                                                     std::to_string(sectors) + " --address " + address_word +
+                                                     " --relaxed --output '" + file.string() + "'");
+      ASSERT_EQ(result.exit_code, 0) << result.err;
+
+      const DecodedConeMap decoded = read_cone_png(file);
+      ASSERT_EQ(decoded.kind, ConeKind::center);
+      ASSERT_EQ(decoded.width, 20);
+      ASSERT_EQ(decoded.height, 14);
+      ASSERT_EQ(decoded.sector_count, sectors);
+      for (std::size_t k = 0; k < pixels.size(); ++k)
+        ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
+      std::vector<float> relaxed(pixels.size() * std::size_t(sectors));
+      bake::bake_relaxed_reference({decoded.heights.data(), 20, 14}, address, {relaxed.data(), 20, 14, sectors});
+      long long below = 0;
+      for (std::size_t k = 0; k < relaxed.size(); ++k) {
+        EXPECT_LE(decoded.ratios[k], relaxed[k]) << sectors << " " << address_word << " " << k;
+        EXPECT_EQ(encode_ratio(relaxed[k]), encode_ratio(decoded.ratios[k])) << "the byte of the relaxed ratio";
+        below += decoded.ratios[k] < relaxed[k];
+      }
+      EXPECT_GT(below, 0);  // the check compares against something, not against itself
+    }
+}
+
 }  // namespace

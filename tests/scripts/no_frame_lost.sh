@@ -24,7 +24,9 @@ fail() {
   exit 1
 }
 
-# one small sequence: 21 frames of the water scene, each a 320 x 180 PNG
+# one small sequence: frames 0..last of the water scene, each a 320 x 180 PNG (21 for the full disk,
+# which they must overflow; 11 where a fault or signal comes at frame 0 or 2)
+last=20
 sequence_flags=(--scene water --map-size 64 --size 320x180 --pipeline-cache off)
 # the other writers' commands: OUTPUT is replaced by the file each writes
 sim_command=("$displace" sim --scene water --map-size 64 --output OUTPUT)
@@ -78,7 +80,7 @@ same_as_clean() {
 # the clean runs everything is compared with
 clean_runs() {
   mkdir -p "$work/clean"
-  "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$work/clean/w_####.png" >/dev/null
+  "$displace" sequence "${sequence_flags[@]}" --frames "0:$last" --output "$work/clean/w_####.png" >/dev/null
   with_output "$work/clean/h.exr" "${sim_command[@]}" >/dev/null 2>>"$work/log"
   with_output "$work/clean/c.exr" "${bake_command[@]}" >/dev/null 2>>"$work/log"
   with_output "$work/clean/r.png" "${render_command[@]}" >/dev/null 2>>"$work/log"
@@ -97,22 +99,22 @@ full_disk() {
 
   # a sequence into 600 kB: it stops at the first frame that does not fit
   expect 1 "error: frame [0-9]+: cannot write '$disk/w_[0-9]{4}\.png': No space left on device" \
-    "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$disk/w_####.png"
+    "$displace" sequence "${sequence_flags[@]}" --frames "0:$last" --output "$disk/w_####.png"
   no_partials "$disk"
   local whole
   whole="$(same_as_clean "$disk" "$work/clean")"
-  [ "$whole" -ge 1 ] && [ "$whole" -lt 21 ] || fail "$whole frames fit in 600 kB: the disk was not full"
+  [ "$whole" -ge 1 ] && [ "$whole" -lt $((last + 1)) ] || fail "$whole frames fit in 600 kB: the disk was not full"
   # the CSV lists only frames that are there
   local listed
   listed="$(tail -n +2 "$disk/w.csv" | cut -d, -f1 | tr '\n' ' ')"
   for frame in $listed; do [ -f "$(printf '%s/w_%04d.png' "$disk" "$frame")" ] || fail "w.csv lists frame $frame"; done
   # space again: the resumed run gives the clean run's frames, and keeps the whole ones
   mount -o remount,size=64m "$disk"
-  "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$disk/w_####.png" --resume >"$work/stdout"
+  "$displace" sequence "${sequence_flags[@]}" --frames "0:$last" --output "$disk/w_####.png" --resume >"$work/stdout"
   grep -q "skipped $whole (present)" "$work/stdout" || fail "the resumed run did not keep the $whole whole frames: $(cat "$work/stdout")"
-  [ "$(same_as_clean "$disk" "$work/clean")" -eq 21 ] || fail "the resumed run did not give the 21 clean frames"
+  [ "$(same_as_clean "$disk" "$work/clean")" -eq $((last + 1)) ] || fail "the resumed run did not give the $((last + 1)) clean frames"
   no_partials "$disk"
-  echo "  sequence: $whole of 21 frames fit, exit 1 at the next; --resume made the other $((21 - whole)), all the clean run's"
+  echo "  sequence: $whole of $((last + 1)) frames fit, exit 1 at the next; --resume made the other $((last + 1 - whole)), all the clean run's"
 
   # the other writers into a disk with 4 kB left
   rm -f "$disk"/*
@@ -140,16 +142,17 @@ full_disk() {
 }
 
 faults() {
+  last=10
   clean_runs
   # a file size limit (ulimit -f, in 1 kB blocks; SIGXFSZ ignored so that the write fails)
   mkdir -p "$work/limited"
   expect 1 "error: frame 0: cannot write '$work/limited/w_0000\.png': File too large" \
     bash -c 'trap "" XFSZ; ulimit -f 8; exec "$@"' limit "$displace" sequence "${sequence_flags[@]}" \
-    --frames 0:20 --output "$work/limited/w_####.png"
+    --frames "0:$last" --output "$work/limited/w_####.png"
   no_partials "$work/limited"
   [ -z "$(find "$work/limited" -name '*.png')" ] || fail "a frame was left under the size limit"
-  "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$work/limited/w_####.png" --resume >/dev/null
-  [ "$(same_as_clean "$work/limited" "$work/clean")" -eq 21 ] || fail "the rerun after the size limit"
+  "$displace" sequence "${sequence_flags[@]}" --frames "0:$last" --output "$work/limited/w_####.png" --resume >/dev/null
+  [ "$(same_as_clean "$work/limited" "$work/clean")" -eq $((last + 1)) ] || fail "the rerun after the size limit"
   echo "  size limit: exit 1 at frame 0, nothing left; the rerun gave the clean frames"
   # the report's first table over a 1 kB limit (no rerun to compare: its tables hold timings)
   expect 1 "error: cannot write '$work/report/cost\.csv': File too large" \
@@ -186,7 +189,7 @@ faults() {
 
   # the directory removed while a sequence writes into it: it stops at the next frame
   mkdir -p "$work/gone"
-  "$displace" sequence "${sequence_flags[@]}" --frames 0:2000 --output "$work/gone/w_####.png" \
+  "$displace" sequence "${sequence_flags[@]}" --frames "0:$last"00 --output "$work/gone/w_####.png" \
     >/dev/null 2>"$work/gone.stderr" &
   local runner=$!
   local waited=0
@@ -233,12 +236,13 @@ interrupted_run() {
 }
 
 signals() {
+  last=10
   local run_flags=("${sequence_flags[@]}")
   mkdir -p "$work/clean"
-  "$displace" sequence "${run_flags[@]}" --frames 0:20 --output "$work/clean/w_####.png" >/dev/null
-  interrupted_run "$work/term" 143 "$work/clean" 20 TERM
+  "$displace" sequence "${run_flags[@]}" --frames "0:$last" --output "$work/clean/w_####.png" >/dev/null
+  interrupted_run "$work/term" 143 "$work/clean" "$last" TERM
   grep -q "displace: stopped by SIGTERM: stopped before frame" "$work/term.stderr" || fail "$(cat "$work/term.stderr")"
-  interrupted_run "$work/int" 130 "$work/clean" 20 INT
+  interrupted_run "$work/int" 130 "$work/clean" "$last" INT
   # a second signal while a frame renders (frames of about 0.5 s here) ends the run at once, and
   # says nothing of stopping between frames
   run_flags=(--scene water --map-size 64 --size 1280x720 --pipeline-cache off)
@@ -249,16 +253,16 @@ signals() {
   signal_delay=0.15 interrupted_run "$work/twice" 143 "$work/clean-large" 5 TERM TERM
   if grep -q "stopped by" "$work/twice.stderr"; then fail "the second SIGTERM did not end the run at once"; fi
   run_flags=("${sequence_flags[@]}")
-  "$displace" sequence "${run_flags[@]}" --frames 0:20 --output "$work/twice/w_####.png" >/dev/null
+  "$displace" sequence "${run_flags[@]}" --frames "0:$last" --output "$work/twice/w_####.png" >/dev/null
   # broken frames are rendered again: one emptied, one cut short, one with its bytes changed
   : >"$work/twice/w_0000.png"
   head -c 2000 "$work/clean/w_0001.png" >"$work/twice/w_0001.png"
   cp "$work/clean/w_0002.png" "$work/twice/w_0002.png"
   printf 'XXXX' | dd of="$work/twice/w_0002.png" bs=1 seek=3000 conv=notrunc status=none
-  "$displace" sequence "${sequence_flags[@]}" --frames 0:20 --output "$work/twice/w_####.png" --resume >"$work/stdout"
-  grep -q "rendered 3, skipped 18 (present)" "$work/stdout" || fail "resume over 3 broken frames: $(cat "$work/stdout")"
-  [ "$(same_as_clean "$work/twice" "$work/clean")" -eq 21 ] || fail "the broken frames were not made again"
-  echo "  an empty, a truncated and a corrupted frame: rendered again, the 18 whole ones skipped"
+  "$displace" sequence "${sequence_flags[@]}" --frames "0:$last" --output "$work/twice/w_####.png" --resume >"$work/stdout"
+  grep -q "rendered 3, skipped $((last - 2)) (present)" "$work/stdout" || fail "resume over 3 broken frames: $(cat "$work/stdout")"
+  [ "$(same_as_clean "$work/twice" "$work/clean")" -eq $((last + 1)) ] || fail "the broken frames were not made again"
+  echo "  an empty, a truncated and a corrupted frame: rendered again, the $((last - 2)) whole ones skipped"
 }
 
 case "$mode" in
