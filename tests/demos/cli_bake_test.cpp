@@ -248,9 +248,9 @@ TEST(Cli, BakesARelaxedPngThatDecodesNeverTooWide) {
       std::string name = "r";
       name.append(std::to_string(sectors)).append(address_word).append(".png");
       const fs::path file = dir / name;
-      const RunResult result = run_displace(dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " +
-                                                     std::to_string(sectors) + " --address " + address_word +
-                                                     " --relaxed --output '" + file.string() + "'");
+      const RunResult result = run_displace(
+          dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " + std::to_string(sectors) +
+                   " --address " + address_word + " --relaxed --output '" + file.string() + "'");
       ASSERT_EQ(result.exit_code, 0) << result.err;
 
       const DecodedConeMap decoded = read_cone_png(file);
@@ -261,11 +261,13 @@ TEST(Cli, BakesARelaxedPngThatDecodesNeverTooWide) {
       for (std::size_t k = 0; k < pixels.size(); ++k)
         ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
       std::vector<float> relaxed(pixels.size() * std::size_t(sectors));
-      bake::bake_relaxed_reference({decoded.heights.data(), 20, 14}, address, {relaxed.data(), 20, 14, sectors});
+      bake::bake_relaxed_reference({decoded.heights.data(), 20, 14}, address,
+                                   {relaxed.data(), 20, 14, sectors});
       long long below = 0;
       for (std::size_t k = 0; k < relaxed.size(); ++k) {
         EXPECT_LE(decoded.ratios[k], relaxed[k]) << sectors << " " << address_word << " " << k;
-        EXPECT_EQ(encode_ratio(relaxed[k]), encode_ratio(decoded.ratios[k])) << "the byte of the relaxed ratio";
+        EXPECT_EQ(encode_ratio(relaxed[k]), encode_ratio(decoded.ratios[k]))
+            << "the byte of the relaxed ratio";
         below += decoded.ratios[k] < relaxed[k];
       }
       EXPECT_GT(below, 0);  // the check compares against something, not against itself
