@@ -18,6 +18,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <string>
 #include <vector>
@@ -53,7 +55,10 @@ struct Candidate {
   int dx, dy;
   float height;
 };
-bool larger_key(const Candidate& a, const Candidate& b) { return a.key > b.key; }  // heap: smallest on top
+// heap order: smallest key on top (a function object, so that the heap's calls inline)
+struct LargerKey {
+  bool operator()(const Candidate& a, const Candidate& b) const { return a.key > b.key; }
+};
 
 // The maxima of aligned chunks: of row i's texels [b * 8, b * 8 + 8) at rows[i * row_chunks + b], of
 // column j's texels [b * 8, b * 8 + 8) at columns[b * W + j] (the last chunk may be shorter).
@@ -125,15 +130,66 @@ struct SectorSearch {
   void push(int dx, int dy, float d2, float hq) {
     const float gap = hq - hc;
     pending.push_back({d2 / (gap * gap), dx, dy, hq});
-    std::push_heap(pending.begin(), pending.end(), larger_key);
+    std::push_heap(pending.begin(), pending.end(), LargerKey{});
   }
 };
+
+// Bit q = (dx < 0) + 2 (dy < 0) of texel d's byte: no corner of the cell that a ray leaving d with
+// offset signs q enters first (the cell the ray walk of relaxed_ray.h picks: the + side along a 0
+// component) is below d, and that cell is on the map. A ray through d then stays inside the relief
+// in that cell: the bilinear surface there is never below d's height and the ray descends from it.
+std::vector<std::uint8_t> flat_ahead(HeightView heights, Address address) {
+  const int w = heights.width, h = heights.height;
+  std::vector<std::uint8_t> bits(std::size_t(w) * h, 0);
+  const auto at = [&](int i, int j, float& value) {
+    if (address == Address::clamp && (unsigned(i) >= unsigned(h) || unsigned(j) >= unsigned(w))) return false;
+    value = heights.data[std::size_t(((i % h) + h) % h) * w + ((j % w) + w) % w];
+    return true;
+  };
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const float* p = heights.data + std::size_t(i) * w + j;
+      const float hd = *p;
+      if (i > 0 && i + 1 < h && j > 0 && j + 1 < w) {  // inside: the eight neighbours without addressing
+        const float* up = p - w;
+        const float* down = p + w;
+        const bool left = p[-1] >= hd, right = p[1] >= hd, above = up[0] >= hd, below = down[0] >= hd;
+        bits[std::size_t(i) * w + j] =
+            std::uint8_t(int(right && below && down[1] >= hd) | int(left && below && down[-1] >= hd) << 1 |
+                         int(right && above && up[1] >= hd) << 2 | int(left && above && up[-1] >= hd) << 3);
+        continue;
+      }
+      for (int q = 0; q < 4; ++q) {
+        const int sx = q & 1 ? -1 : 1, sy = q & 2 ? -1 : 1;
+        float a = 0, b = 0, c = 0;
+        if (at(i, j + sx, a) && at(i + sy, j, b) && at(i + sy, j + sx, c) && a >= hd && b >= hd && c >= hd)
+          bits[std::size_t(i) * w + j] |= std::uint8_t(1u << q);
+      }
+    }
+  return bits;
+}
 
 struct RingSearch {
   const Grid& grid;
   const detail::RelaxedSurface& surface;
   const ChunkMaxima& maxima;
-  float map_max;  // the highest texel of the map
+  const std::uint8_t* ahead;  // flat_ahead()
+  float map_max;              // the highest texel of the map
+
+  // Whether blocker d, texel (i, j) at offset (dx, dy) with height hq, is proven unable to lower
+  // best without following its ray: its first cell does not drop (ahead), so the ray stays inside
+  // the relief up to that cell's end s1 (relaxed_ray.h's walk would go on from there), and the ray
+  // point's ratio at s1 is already >= best; it never decreases along the ray, so neither the exit's
+  // ratio nor V can be below best. s1 is the walk's own first-cell end, (n + 1) / n for the larger
+  // of |dx|, |dy|. Used before a candidate is queued.
+  bool stays_inside(const SectorSearch& t, int i, int j, int dx, int dy, float hq) const {
+    const int q = int(dx < 0) + 2 * int(dy < 0);
+    if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1) || !(hq < 1.0f)) return false;
+    const int steps = std::max(std::abs(dx), std::abs(dy));
+    if (steps >= surface.first_end_count) return false;
+    const double s1 = surface.first_ends[steps];
+    return detail::ray_point_ratio(grid, dx, dy, 1.0 - double(hq), t.hc, s1) >= t.best;
+  }
 
   int wrap_row(int i) const {
     return unsigned(i) < unsigned(grid.height) ? i : ((i % grid.height) + grid.height) % grid.height;
@@ -156,7 +212,8 @@ struct RingSearch {
       if (t.may_lower(nearest * nearest + y2, row_maxima[chunk]))
         for (int n = 0; n < count; ++n) {
           const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
-          if (t.may_lower(d2, row[j + n])) t.push(dx + n, dy, d2, row[j + n]);
+          if (t.may_lower(d2, row[j + n]) && !stays_inside(t, i, int(j) + n, dx + n, dy, row[j + n]))
+            t.push(dx + n, dy, d2, row[j + n]);
         }
       dx += count;
     }
@@ -174,7 +231,8 @@ struct RingSearch {
         for (int n = 0; n < count; ++n) {
           const float hq = surface.heights[std::size_t(i + n) * grid.width + j];
           const float y = float(dy + n) * grid.inv_height, d2 = x2 + y * y;
-          if (t.may_lower(d2, hq)) t.push(dx, dy + n, d2, hq);
+          if (t.may_lower(d2, hq) && !stays_inside(t, int(i) + n, j, dx, dy + n, hq))
+            t.push(dx, dy + n, d2, hq);
         }
       dy += count;
     }
@@ -200,7 +258,7 @@ struct RingSearch {
         t.pending.clear();
         return;
       }
-      std::pop_heap(t.pending.begin(), t.pending.end(), larger_key);
+      std::pop_heap(t.pending.begin(), t.pending.end(), LargerKey{});
       t.pending.pop_back();
       evaluate(t, d.dx, d.dy, d.height);
     }
@@ -283,12 +341,55 @@ struct RingSearch {
 
 namespace detail {
 
+CellLows make_cell_lows(const float* heights, int width, int height, Address address) {
+  CellLows lows;
+  const bool wrap = address == Address::wrap;
+  int columns = wrap ? width : width - 1, rows = wrap ? height : height - 1;
+  if (columns < 1 || rows < 1) return lows;
+  std::vector<float> level(std::size_t(columns) * rows);
+  for (int i = 0; i < rows; ++i) {
+    const float* row0 = heights + std::size_t(i) * width;
+    const float* row1 = heights + std::size_t(i + 1 < height ? i + 1 : 0) * width;
+    for (int j = 0; j < columns; ++j) {
+      const int next = j + 1 < width ? j + 1 : 0;
+      level[std::size_t(i) * columns + j] =
+          std::min(std::min(row0[j], row0[next]), std::min(row1[j], row1[next]));
+    }
+  }
+  for (;;) {
+    lows.columns.push_back(columns);
+    lows.rows.push_back(rows);
+    lows.lowest.push_back(std::move(level));
+    ++lows.levels;
+    if (columns == 1 && rows == 1) break;
+    const std::vector<float>& below = lows.lowest.back();
+    const int up_columns = (columns + 1) / 2, up_rows = (rows + 1) / 2;
+    level.assign(std::size_t(up_columns) * up_rows, 0.0f);
+    for (int i = 0; i < up_rows; ++i)
+      for (int j = 0; j < up_columns; ++j) {
+        float value = below[std::size_t(2 * i) * columns + 2 * j];
+        if (2 * j + 1 < columns) value = std::min(value, below[std::size_t(2 * i) * columns + 2 * j + 1]);
+        if (2 * i + 1 < rows) {
+          value = std::min(value, below[std::size_t(2 * i + 1) * columns + 2 * j]);
+          if (2 * j + 1 < columns)
+            value = std::min(value, below[std::size_t(2 * i + 1) * columns + 2 * j + 1]);
+        }
+        level[std::size_t(i) * up_columns + j] = value;
+      }
+    columns = up_columns;
+    rows = up_rows;
+  }
+  return lows;
+}
+
 struct RelaxedSearch::Impl {
   Impl(HeightView map, Address address, int sector_count)
       : heights(map),
         grid(map.width, map.height, sector_count, address),
         first_ends(std::size_t(std::max(map.width, map.height)) + 1),
-        maxima(chunk_maxima(map)) {
+        maxima(chunk_maxima(map)),
+        ahead(flat_ahead(map, address)),
+        lows(make_cell_lows(map.data, map.width, map.height, address)) {
     for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
   }
 
@@ -296,10 +397,12 @@ struct RelaxedSearch::Impl {
   Grid grid;
   std::vector<double> first_ends;
   ChunkMaxima maxima;
-  RelaxedSurface surface{heights.data, heights.width,     heights.height,
-                         grid.address, first_ends.data(), int(first_ends.size())};
+  std::vector<std::uint8_t> ahead;
+  CellLows lows;
+  RelaxedSurface surface{heights.data,      heights.width,          heights.height, grid.address,
+                         first_ends.data(), int(first_ends.size()), &lows};
   float map_max = *std::max_element(heights.data, heights.data + std::size_t(heights.width) * heights.height);
-  RingSearch search{grid, surface, maxima, map_max};
+  RingSearch search{grid, surface, maxima, ahead.data(), map_max};
 };
 
 RelaxedSearch::RelaxedSearch(HeightView heights, Address address, int sector_count)

@@ -34,7 +34,10 @@ BakeStats bake_relaxed_reference(HeightView heights, Address address, ConeView o
   const detail::Pyramid pyramid = detail::make_pyramid(heights);
   const detail::SearchContext context{grid, pyramid};
   const std::vector<detail::Node> roots = detail::root_nodes(context);
-  const detail::RelaxedSurface surface{heights.data, heights.width, heights.height, address};
+  // (the same walk as bake_relaxed's, block jumps included, so that a V both compute is the same float)
+  const detail::CellLows lows = detail::make_cell_lows(heights.data, heights.width, heights.height, address);
+  const detail::RelaxedSurface surface{heights.data, heights.width, heights.height, address, nullptr, 0,
+                                       &lows};
   const int sectors = out.sector_count;
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(progress, heights.height);

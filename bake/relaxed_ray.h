@@ -12,10 +12,23 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "bake/geometry.h"
 
 namespace displace::bake::detail {
+
+// The lowest corner of every cell (the square between four texel centres; with clamp only those on
+// the map, where the walk stays) and of aligned blocks of 2^L x 2^L cells, L < levels (cut at the
+// map's end, so that a block never crosses a wrap seam): the walk jumps over a block whose lowest
+// corner is above the ray where it enters the block.
+struct CellLows {
+  int levels = 0;
+  std::vector<int> columns, rows;          // blocks per row and per column, per level
+  std::vector<std::vector<float>> lowest;  // per level, row-major
+  float at(int level, int i, int j) const { return lowest[level][std::size_t(i) * columns[level] + j]; }
+};
+CellLows make_cell_lows(const float* heights, int width, int height, Address address);  // cone_relaxed.cpp
 
 // The bilinear surface of a height map, periodic (wrap) or ending at the texel centres (clamp; the
 // walk stops there). Texel (i, j) sits at (x, y) = (j, i).
@@ -27,18 +40,30 @@ struct RelaxedSurface {
   // where the ray leaves its first cell along an axis (exit_parameter); optional
   const double* first_ends = nullptr;
   int first_end_count = 0;
+  const CellLows* lows = nullptr;  // optional: block jumps (make_cell_lows of these heights)
 
-  double texel(int i, int j) const {
-    if (address == Address::wrap) {
-      if (unsigned(i) >= unsigned(height)) i = ((i % height) + height) % height;
-      if (unsigned(j) >= unsigned(width)) j = ((j % width) + width) % width;
-    } else {
-      i = std::clamp(i, 0, height - 1);
-      j = std::clamp(j, 0, width - 1);
-    }
-    return heights[std::size_t(i) * width + j];
+  // texel index a (of n along an axis) under the address mode
+  int address_texel(int a, int n) const {
+    if (unsigned(a) < unsigned(n)) return a;
+    return address == Address::wrap ? ((a % n) + n) % n : std::clamp(a, 0, n - 1);
+  }
+  // The corners h00 = (i, j), h01 = (i, j + 1), h10 = (i + 1, j), h11 = (i + 1, j + 1) of cell (i, j).
+  void corners(int i, int j, double& h00, double& h01, double& h10, double& h11) const {
+    const float* row0 = heights + std::size_t(address_texel(i, height)) * width;
+    const float* row1 = heights + std::size_t(address_texel(i + 1, height)) * width;
+    const int j0 = address_texel(j, width), j1 = address_texel(j + 1, width);
+    h00 = row0[j0];
+    h01 = row0[j1];
+    h10 = row1[j0];
+    h11 = row1[j1];
   }
 };
+
+// floor(x) for |x| < 2^31, without SSE4.1's rounding instruction (the baseline x86-64 target has none)
+inline int floor_to_int(double x) {
+  const int t = int(x);
+  return t - int(double(t) > x);
+}
 
 // The ray (x, y, z) = (x0 + s dx, y0 + s dy, 1 - drop s), s >= 1, starts on the surface at s = 1 (a
 // texel centre). Returns the first s > 1 where the bilinear surface is at or below the ray (the
@@ -57,7 +82,7 @@ double exit_parameter(const RelaxedSurface& surface, double x0, double y0, doubl
     if (surface.address == Address::clamp &&
         (px < 0.0 || py < 0.0 || px > surface.width - 1.0 || py > surface.height - 1.0))
       return s;  // off the map: nothing there
-    const int j = int(std::floor(px)), i = int(std::floor(py));
+    const int j = floor_to_int(px), i = floor_to_int(py);
     // parameter where the ray leaves this cell
     double s_end = s_stop;
     const int steps_x = int(std::fabs(dx)), steps_y = int(std::fabs(dy));
@@ -72,9 +97,46 @@ double exit_parameter(const RelaxedSurface& surface, double x0, double y0, doubl
       if (dy < 0) s_end = std::min(s_end, (i - y0) / dy);
     }
     ++work;
+    double h00, h01, h10, h11;
+    surface.corners(i, j, h00, h01, h10, h11);
+    // The bilinear surface in the cell is never below its lowest corner, and the ray only descends:
+    // when that corner is above the ray where it enters the cell, the ray stays inside the whole cell
+    // (flat tops and plateaus). In the first cell the ray starts on its blocker's corner, at z =
+    // 1 - drop = h(d) exactly, and is below it for every s > 1: inside when no corner is lower. Later,
+    // z = 1 - drop s is within 1e-15 of its rounded value: the margin covers it.
+    const double lowest = std::min(std::min(h00, h01), std::min(h10, h11));
+    if (s == 1.0) {
+      if (lowest >= 1.0 - drop) {
+        s = s_end;
+        continue;
+      }
+    } else if (const double z = 1.0 - drop * s + 1e-12; lowest > z) {
+      // and the largest aligned block around the cell whose lowest corner is above the ray there
+      const CellLows* lows = surface.lows;
+      const int iw = surface.address_texel(i, surface.height), jw = surface.address_texel(j, surface.width);
+      int level = 0;
+      if (lows && iw < lows->rows[0] && jw < lows->columns[0])
+        while (level + 1 < lows->levels && lows->at(level + 1, iw >> (level + 1), jw >> (level + 1)) > z)
+          ++level;
+      if (level > 0) {
+        // the block's edges where the ray is (the walk's x and y: unwrapped), cut at the map's end
+        const int row0 = iw >> level << level, column0 = jw >> level << level;
+        const int row1 = std::min(row0 + (1 << level), lows->rows[0]);
+        const int column1 = std::min(column0 + (1 << level), lows->columns[0]);
+        const double x_low = j - jw + column0, x_high = j - jw + column1;
+        const double y_low = i - iw + row0, y_high = i - iw + row1;
+        double s_block = s_stop;
+        if (dx > 0) s_block = std::min(s_block, (x_high - x0) / dx);
+        if (dx < 0) s_block = std::min(s_block, (x_low - x0) / dx);
+        if (dy > 0) s_block = std::min(s_block, (y_high - y0) / dy);
+        if (dy < 0) s_block = std::min(s_block, (y_low - y0) / dy);
+        s = std::max(s_block, s_end);  // (the same formulas as s_end's with edges no nearer: never less)
+      } else {
+        s = s_end;
+      }
+      continue;
+    }
     // f(s) = bilinear - z as a quadratic a s^2 + b s + c, with tx = x0 - j + s dx, ty = y0 - i + s dy
-    const double h00 = surface.texel(i, j), h01 = surface.texel(i, j + 1);
-    const double h10 = surface.texel(i + 1, j), h11 = surface.texel(i + 1, j + 1);
     const double ax = x0 - j, ay = y0 - i;
     // bilinear = h00 + (h01 - h00) tx + (h10 - h00) ty + k tx ty,  k = h00 - h01 - h10 + h11
     const double k = h00 - h01 - h10 + h11;
@@ -125,22 +187,10 @@ inline float relaxed_value(const RelaxedSurface& surface, const Grid& grid, int 
   if (!(hq < 1.0f)) return pair;         // a horizontal ray along the top leaves at once
   const double drop = 1.0 - double(hq);  // ray height lost per unit of the c -> d offset
   const double s_stop = (1.0 - double(hc)) / drop;
-  // past the first cell: where the ray point's ratio reaches the threshold (solved in doubles once,
-  // then checked in floats), or infinity
-  double s_give_up = threshold <= 1.0f ? -1.0 : std::numeric_limits<double>::infinity();
+  // past the first cell: given up where the ray point's own ratio reaches the threshold (it never
+  // decreases along the ray, so the exit's cannot be below it); never with a threshold above 1
   const auto give_up = [&](double s) {
-    if (s_give_up < 0.0) {
-      s_give_up = std::numeric_limits<double>::infinity();
-      const double u = double(dx) * grid.inv_width, v = double(dy) * grid.inv_height;
-      const double length = std::sqrt(u * u + v * v);
-      double at = double(threshold) * (1.0 - double(hc)) / (length + double(threshold) * drop);
-      for (int tries = 0; tries < 4 && at < s_stop; ++tries, at *= 1.0 + 1e-9)
-        if (ray_point_ratio(grid, dx, dy, drop, hc, at) >= threshold) {
-          s_give_up = at;
-          break;
-        }
-    }
-    return s >= s_give_up;
+    return threshold <= 1.0f && ray_point_ratio(grid, dx, dy, drop, hc, s) >= threshold;
   };
   const double s = exit_parameter(surface, cj, ci, dx, dy, drop, s_stop, give_up, work);
   if (s >= s_stop) return 1.0f;  // inside until below the apex (or given up): no constraint
