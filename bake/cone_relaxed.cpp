@@ -40,24 +40,11 @@ constexpr int chunk_texels = 8;   // texels in a chunk of a row or column whose 
 // the float whose root pair_ratio takes; if d2 >= fl(fl(gap * gap) * fl(fl(best * best) * (1 +
 // scan_margin))), then d2 >= gap^2 best^2 (1 + 1e-5) (1 - u)^4 (1 - 6e-8), so fl(sqrt(d2)) >= gap
 // best (1 + 4.6e-6) and fl(fl(sqrt(d2)) / gap) >= best (1 + 4.6e-6) (1 - u) > best: the float pair
-// ratio is >= best. The key d2 / gap^2 (one more rounding) against best^2 (1 + drop_margin) likewise.
+// ratio is >= best.
 constexpr float scan_margin = 1e-5f;
-constexpr float drop_margin = 2e-5f;
 
 struct Offset {
   int dx = 0, dy = 0;
-};
-
-// A blocker whose pair ratio may lower a ratio; its ray is not followed yet. key estimates the
-// square of the pair ratio: it orders the candidates, and drops them only with a margin (follow).
-struct Candidate {
-  float key;
-  int dx, dy;
-  float height;
-};
-// heap order: smallest key on top (a function object, so that the heap's calls inline)
-struct LargerKey {
-  bool operator()(const Candidate& a, const Candidate& b) const { return a.key > b.key; }
 };
 
 // The maxima of aligned chunks: of row i's texels [b * 8, b * 8 + 8) at rows[i * row_chunks + b], of
@@ -99,26 +86,21 @@ Extents ring_extents(const Grid& grid, int r) {
   return {r, int((long long)r * grid.height / grid.width)};
 }
 
-// One texel's search in one sector: its ratio so far, the offset that set it, the candidates not
-// yet followed (a heap).
+// One texel's search in one sector: its ratio so far and the offset that set it.
 struct SectorSearch {
-  SectorSearch(int i, int j, float h, std::vector<Candidate>& candidates, long long& work_done)
-      : ci(i), cj(j), hc(h), pending(candidates), work(work_done) {}
+  SectorSearch(int i, int j, float h, long long& work_done) : ci(i), cj(j), hc(h), work(work_done) {}
 
   int ci, cj;
   float hc;
-  std::vector<Candidate>& pending;
   long long& work;
   float best = 1.0f;
   Offset bound_by;
   float scan_limit = 1.0f + scan_margin;  // best^2 (1 + scan_margin)
-  float drop_limit = 1.0f + drop_margin;  // best^2 (1 + drop_margin)
 
   void lower(float value, Offset by) {
     best = value;
     bound_by = by;
     scan_limit = value * value * (1.0f + scan_margin);
-    drop_limit = value * value * (1.0f + drop_margin);
   }
   // Whether a texel at squared uv distance d2 (float products) and height hq may have a pair ratio
   // below best: false only when its float pair ratio is at least best, as the margin covers the
@@ -126,11 +108,6 @@ struct SectorSearch {
   bool may_lower(float d2, float hq) const {
     const float gap = std::max(hq - hc, 0.0f);
     return d2 < gap * gap * scan_limit;
-  }
-  void push(int dx, int dy, float d2, float hq) {
-    const float gap = hq - hc;
-    pending.push_back({d2 / (gap * gap), dx, dy, hq});
-    std::push_heap(pending.begin(), pending.end(), LargerKey{});
   }
 };
 
@@ -181,14 +158,15 @@ struct RingSearch {
   // the relief up to that cell's end s1 (relaxed_ray.h's walk would go on from there), and the ray
   // point's ratio at s1 is already >= best; it never decreases along the ray, so neither the exit's
   // ratio nor V can be below best. s1 is the walk's own first-cell end, (n + 1) / n for the larger
-  // of |dx|, |dy|. Used before a candidate is queued.
+  // of |dx|, |dy|.
   bool stays_inside(const SectorSearch& t, int i, int j, int dx, int dy, float hq) const {
     const int q = int(dx < 0) + 2 * int(dy < 0);
     if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1) || !(hq < 1.0f)) return false;
     const int steps = std::max(std::abs(dx), std::abs(dy));
     if (steps >= surface.first_end_count) return false;
     const double s1 = surface.first_ends[steps];
-    return detail::ray_point_ratio(grid, dx, dy, 1.0 - double(hq), t.hc, s1) >= t.best;
+    return detail::ray_point_at_least(detail::offset_length2(grid, dx, dy), detail::ratio_limit2(t.best),
+                                      1.0 - double(hq), t.hc, s1);
   }
 
   int wrap_row(int i) const {
@@ -213,7 +191,7 @@ struct RingSearch {
         for (int n = 0; n < count; ++n) {
           const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
           if (t.may_lower(d2, row[j + n]) && !stays_inside(t, i, int(j) + n, dx + n, dy, row[j + n]))
-            t.push(dx + n, dy, d2, row[j + n]);
+            evaluate(t, dx + n, dy, row[j + n]);
         }
       dx += count;
     }
@@ -232,7 +210,7 @@ struct RingSearch {
           const float hq = surface.heights[std::size_t(i + n) * grid.width + j];
           const float y = float(dy + n) * grid.inv_height, d2 = x2 + y * y;
           if (t.may_lower(d2, hq) && !stays_inside(t, int(i) + n, j, dx, dy + n, hq))
-            t.push(dx, dy + n, d2, hq);
+            evaluate(t, dx, dy + n, hq);
         }
       dy += count;
     }
@@ -247,21 +225,6 @@ struct RingSearch {
     const float value =
         detail::relaxed_value(surface, grid, t.ci, t.cj, t.hc, dx, dy, hq, pair, t.best, t.work);
     if (value < t.best) t.lower(value, {dx, dy});
-  }
-
-  // Follows the candidates whose key is below `limit`, smallest first, and drops them all once the
-  // smallest key proves that none can lower best (drop_margin covers the key's rounding).
-  void follow(SectorSearch& t, float limit) const {
-    while (!t.pending.empty() && t.pending.front().key < limit) {
-      const Candidate d = t.pending.front();
-      if (!(d.key < t.drop_limit)) {
-        t.pending.clear();
-        return;
-      }
-      std::pop_heap(t.pending.begin(), t.pending.end(), LargerKey{});
-      t.pending.pop_back();
-      evaluate(t, d.dx, d.dy, d.height);
-    }
   }
 
   // A first ratio from a blocker that limited a neighbour (any real offset in the window will do).
@@ -283,12 +246,7 @@ struct RingSearch {
       if (window.max_dx > inner.x || window.min_dx < -inner.x) reach = grid.distance(inner.x + 1, 0);
       if (window.max_dy > inner.y || window.min_dy < -inner.y)
         reach = std::min(reach, grid.distance(0, inner.y + 1));
-      const float bound = detail::pair_ratio(reach, map_max - t.hc);
-      follow(t, bound * bound);
-      if (!(bound < t.best)) {
-        follow(t, std::numeric_limits<float>::infinity());
-        return;
-      }
+      if (!(detail::pair_ratio(reach, map_max - t.hc) < t.best)) return;
       const Extents outer = ring_extents(grid, r);
       const int x0 = std::max(-outer.x, window.min_dx), x1 = std::min(outer.x, window.max_dx);
       const int y0 = std::max(-inner.y, window.min_dy), y1 = std::min(inner.y, window.max_dy);
@@ -305,7 +263,7 @@ struct RingSearch {
   // none). left and above (or null) hold those of texels (ci, cj - 1) and (ci - 1, cj): their
   // blockers are tried first.
   void texel(int ci, int cj, const Offset* left, const Offset* above, float* best, Offset* bound_by,
-             std::vector<Candidate>& pending, long long& work) const {
+             long long& work) const {
     const float hc = surface.heights[std::size_t(ci) * grid.width + cj];
     const bool clamp = grid.address == Address::clamp;
     constexpr int far = std::numeric_limits<int>::max() / 4;  // no end: every periodic image (wrap)
@@ -324,8 +282,7 @@ struct RingSearch {
         else
           window.max_dy = std::min(window.max_dy, 0);
       }
-      pending.clear();
-      SectorSearch t(ci, cj, hc, pending, work);
+      SectorSearch t(ci, cj, hc, work);
       if (map_max > hc) {
         if (left && (left[k].dx != 0 || left[k].dy != 0)) seed(t, window, {left[k].dx - 1, left[k].dy});
         if (above && (above[k].dx != 0 || above[k].dy != 0)) seed(t, window, {above[k].dx, above[k].dy - 1});
@@ -414,12 +371,12 @@ namespace {
 // Texels [first, last) of row i into `out`; above: the offsets that limited row i - 1's texels, or
 // null; bound_by receives this row's, from texel `first` on.
 void relax_texels(const RingSearch& search, int i, int first, int last, const Offset* above, Offset* bound_by,
-                  float* out, std::vector<Candidate>& pending, long long& work) {
+                  float* out, long long& work) {
   const int sectors = search.grid.sector_count;
   for (int j = first; j < last; ++j) {
     const std::size_t at = std::size_t(j - first) * sectors;
     search.texel(i, j, j > first ? &bound_by[at - sectors] : nullptr, above ? &above[at] : nullptr,
-                 out + (std::size_t(i) * search.grid.width + j) * sectors, &bound_by[at], pending, work);
+                 out + (std::size_t(i) * search.grid.width + j) * sectors, &bound_by[at], work);
   }
 }
 
@@ -428,12 +385,11 @@ void relax_texels(const RingSearch& search, int i, int first, int last, const Of
 long long RelaxedSearch::rows(int first, int last, float* out) const {
   const Impl& m = *impl_;
   long long work = 0;
-  std::vector<Candidate> pending;
   // the offsets that limited the previous row's texels and this row's
   std::vector<Offset> previous(std::size_t(m.grid.width) * m.grid.sector_count), current(previous.size());
   for (int i = first; i < last; ++i) {
     relax_texels(m.search, i, 0, m.grid.width, i > first ? previous.data() : nullptr, current.data(), out,
-                 pending, work);
+                 work);
     std::swap(previous, current);
   }
   return work;
@@ -442,9 +398,8 @@ long long RelaxedSearch::rows(int first, int last, float* out) const {
 long long RelaxedSearch::texels(int row, int first, int last, float* out) const {
   const Impl& m = *impl_;
   long long work = 0;
-  std::vector<Candidate> pending;
   std::vector<Offset> bound_by(std::size_t(std::max(last - first, 0)) * m.grid.sector_count);
-  relax_texels(m.search, row, first, last, nullptr, bound_by.data(), out, pending, work);
+  relax_texels(m.search, row, first, last, nullptr, bound_by.data(), out, work);
   return work;
 }
 

@@ -147,6 +147,19 @@ double exit_parameter(const RelaxedSurface& surface, double x0, double y0, doubl
     // first t in (s, s_end] with f(t) <= 0; f(s) >= 0 holds (inside, or on the surface at the start)
     const double probe = std::min(s_end, s + 1e-6 * (s_end - s) + 1e-12);
     if (f(probe) <= 0.0) return s;  // leaves right away
+    // f > 0 at probe and at s_end: it has a root in (s, s_end] only if it is convex with its vertex
+    // there and not above 0 at it; otherwise the ray stays inside the cell (no roots to solve)
+    if (f(s_end) > 0.0) {
+      if (!(qa > 0.0)) {
+        s = s_end;
+        continue;
+      }
+      const double vertex = -qb / (2.0 * qa);
+      if (!(vertex > s && vertex < s_end) || f(vertex) > 0.0) {
+        s = s_end;
+        continue;
+      }
+    }
     double roots[2];
     int root_count = 0;
     if (std::fabs(qa) < 1e-15) {
@@ -177,6 +190,20 @@ inline float ray_point_ratio(const Grid& grid, int dx, int dy, double drop, floa
   return float(std::min(1.0, std::sqrt(u * u + v * v) / (z - double(hc))));
 }
 
+// Whether ray_point_ratio(grid, dx, dy, drop, hc, s) >= threshold (threshold <= 1) is proven, on
+// squares: length2 = |(dx / W, dy / H)|^2 and limit2 = threshold^2 (1 + 1e-6) in doubles. The
+// relative margin covers the roundings of ray_point_ratio's doubles and of its float; a ray point at
+// or below hc's height (z <= hc: at or past s_stop) counts as proven, its exit's V being 1.
+inline bool ray_point_at_least(double length2, double limit2, double drop, float hc, double s) {
+  const double gap = 1.0 - drop * s - double(hc);
+  return gap <= 0.0 || s * s * length2 >= gap * gap * limit2;
+}
+inline double offset_length2(const Grid& grid, int dx, int dy) {
+  const double u = double(dx) * grid.inv_width, v = double(dy) * grid.inv_height;
+  return u * u + v * v;
+}
+inline double ratio_limit2(float threshold) { return double(threshold) * double(threshold) * (1.0 + 1e-6); }
+
 // The relaxed value V(c, d) of blocker d at texel offset (dx, dy) from texel c = (ci, cj), with
 // heights hq > hc: the ray from (c, 1) through (d, hq) leaves the relief at E, and V is E's ratio
 // |E - c| / (h(E) - hc) (1 when E is not above c), never below the pair ratio `pair`. With
@@ -189,8 +216,9 @@ inline float relaxed_value(const RelaxedSurface& surface, const Grid& grid, int 
   const double s_stop = (1.0 - double(hc)) / drop;
   // past the first cell: given up where the ray point's own ratio reaches the threshold (it never
   // decreases along the ray, so the exit's cannot be below it); never with a threshold above 1
+  const double length2 = offset_length2(grid, dx, dy), limit2 = ratio_limit2(threshold);
   const auto give_up = [&](double s) {
-    return threshold <= 1.0f && ray_point_ratio(grid, dx, dy, drop, hc, s) >= threshold;
+    return threshold <= 1.0f && ray_point_at_least(length2, limit2, drop, hc, s);
   };
   const double s = exit_parameter(surface, cj, ci, dx, dy, drop, s_stop, give_up, work);
   if (s >= s_stop) return 1.0f;  // inside until below the apex (or given up): no constraint
