@@ -6,8 +6,9 @@
 // so only a d whose pair ratio is below the ratio found so far can lower it. Per texel and sector,
 // the blockers that limited the texel's left and upper neighbours give a first ratio; then rings of
 // offsets are scanned, nearest first (a chunk of 8 texels whose maximum cannot lower the ratio is
-// skipped whole), and the rays of the candidates are followed in order of pair ratio, each only
-// until its ray point's own ratio reaches the ratio found. The search ends at the first ring whose
+// skipped whole), and the ray of each candidate is followed where the scan finds it, only until its
+// ray point's own ratio reaches the ratio found (or not at all when its first cell does not drop and
+// the ray point there already has that ratio). The search ends at the first ring whose
 // nearest offset could not lower the ratio even at the map's maximum height. Every test compares
 // monotone float formulas with a margin over their rounding, so none drops a blocker whose value
 // is below the ratio found. The proof is in docs/design/bakers.md, "Relaxed cones".
@@ -95,12 +96,14 @@ struct SectorSearch {
   long long& work;
   float best = 1.0f;
   Offset bound_by;
-  float scan_limit = 1.0f + scan_margin;  // best^2 (1 + scan_margin)
+  float scan_limit = 1.0f + scan_margin;       // best^2 (1 + scan_margin)
+  double limit2 = detail::ratio_limit2(1.0f);  // of best, for the ray walk's give-up test
 
   void lower(float value, Offset by) {
     best = value;
     bound_by = by;
     scan_limit = value * value * (1.0f + scan_margin);
+    limit2 = detail::ratio_limit2(value);
   }
   // Whether a texel at squared uv distance d2 (float products) and height hq may have a pair ratio
   // below best: false only when its float pair ratio is at least best, as the margin covers the
@@ -158,15 +161,13 @@ struct RingSearch {
   // the relief up to that cell's end s1 (relaxed_ray.h's walk would go on from there), and the ray
   // point's ratio at s1 is already >= best; it never decreases along the ray, so neither the exit's
   // ratio nor V can be below best. s1 is the walk's own first-cell end, (n + 1) / n for the larger
-  // of |dx|, |dy|.
-  bool stays_inside(const SectorSearch& t, int i, int j, int dx, int dy, float hq) const {
+  // of |dx|, |dy|. length2 = offset_length2(grid, dx, dy).
+  bool stays_inside(const SectorSearch& t, int i, int j, int dx, int dy, float hq, double length2) const {
     const int q = int(dx < 0) + 2 * int(dy < 0);
     if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1) || !(hq < 1.0f)) return false;
     const int steps = std::max(std::abs(dx), std::abs(dy));
     if (steps >= surface.first_end_count) return false;
-    const double s1 = surface.first_ends[steps];
-    return detail::ray_point_at_least(detail::offset_length2(grid, dx, dy), detail::ratio_limit2(t.best),
-                                      1.0 - double(hq), t.hc, s1);
+    return detail::ray_point_at_least(length2, t.limit2, 1.0 - double(hq), t.hc, surface.first_ends[steps]);
   }
 
   int wrap_row(int i) const {
@@ -190,8 +191,7 @@ struct RingSearch {
       if (t.may_lower(nearest * nearest + y2, row_maxima[chunk]))
         for (int n = 0; n < count; ++n) {
           const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
-          if (t.may_lower(d2, row[j + n]) && !stays_inside(t, i, int(j) + n, dx + n, dy, row[j + n]))
-            evaluate(t, dx + n, dy, row[j + n]);
+          if (t.may_lower(d2, row[j + n])) evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
         }
       dx += count;
     }
@@ -209,21 +209,22 @@ struct RingSearch {
         for (int n = 0; n < count; ++n) {
           const float hq = surface.heights[std::size_t(i + n) * grid.width + j];
           const float y = float(dy + n) * grid.inv_height, d2 = x2 + y * y;
-          if (t.may_lower(d2, hq) && !stays_inside(t, int(i) + n, j, dx, dy + n, hq))
-            evaluate(t, dx, dy + n, hq);
+          if (t.may_lower(d2, hq)) evaluate(t, int(i) + n, j, dx, dy + n, hq);
         }
       dy += count;
     }
   }
 
-  // Follows the ray through the blocker at (dx, dy), height hq > hc, when its pair ratio is below
-  // best, only as far as it can lower best.
-  void evaluate(SectorSearch& t, int dx, int dy, float hq) const {
+  // Follows the ray through the blocker at (dx, dy), texel (i, j), height hq > hc, when its pair
+  // ratio is below best and stays_inside does not settle it, only as far as it can lower best.
+  void evaluate(SectorSearch& t, int i, int j, int dx, int dy, float hq) const {
     const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - t.hc);
     if (!(pair < t.best)) return;
+    const double length2 = detail::offset_length2(grid, dx, dy);
+    if (stays_inside(t, i, j, dx, dy, hq, length2)) return;
     ++t.work;
-    const float value =
-        detail::relaxed_value(surface, grid, t.ci, t.cj, t.hc, dx, dy, hq, pair, t.best, t.work);
+    const float value = detail::relaxed_value(surface, grid, t.ci, t.cj, t.hc, dx, dy, hq, pair, t.best,
+                                              length2, t.limit2, t.work);
     if (value < t.best) t.lower(value, {dx, dy});
   }
 
@@ -232,9 +233,9 @@ struct RingSearch {
     if ((offset.dx == 0 && offset.dy == 0) || offset.dx < window.min_dx || offset.dx > window.max_dx ||
         offset.dy < window.min_dy || offset.dy > window.max_dy)
       return;
-    const float hq =
-        surface.heights[std::size_t(wrap_row(t.ci + offset.dy)) * grid.width + wrap_column(t.cj + offset.dx)];
-    if (hq > t.hc) evaluate(t, offset.dx, offset.dy, hq);
+    const int i = wrap_row(t.ci + offset.dy), j = wrap_column(t.cj + offset.dx);
+    const float hq = surface.heights[std::size_t(i) * grid.width + j];
+    if (hq > t.hc) evaluate(t, i, j, offset.dx, offset.dy, hq);
   }
 
   // Rings of offsets in the window, nearest first, until no offset outside those done has a pair

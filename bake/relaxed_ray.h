@@ -71,8 +71,9 @@ inline int floor_to_int(double x) {
 // inside at the start of a cell past the first at an s where give_up(s) is true. Exact per bilinear
 // cell: along a line the bilinear patch is a quadratic in s. `work` counts the cells visited.
 template <typename GiveUp>
-double exit_parameter(const RelaxedSurface& surface, double x0, double y0, double dx, double dy, double drop,
-                      double s_stop, const GiveUp& give_up, long long& work) {
+[[gnu::always_inline]] inline double exit_parameter(const RelaxedSurface& surface, double x0, double y0,
+                                                    double dx, double dy, double drop, double s_stop,
+                                                    const GiveUp& give_up, long long& work) {
   double s = 1.0;
   // the cell the ray enters just after s (a direction with 0 components stays on the cell edge)
   const double eps = 1e-9;
@@ -209,20 +210,26 @@ inline double ratio_limit2(float threshold) { return double(threshold) * double(
 // |E - c| / (h(E) - hc) (1 when E is not above c), never below the pair ratio `pair`. With
 // threshold <= 1, a blocker whose V is proven >= threshold may return any value >= threshold
 // (the ray is not followed further); pass a threshold above 1 for the exact V.
+// length2 = offset_length2(grid, dx, dy) and limit2 = ratio_limit2(threshold), as the caller has them.
 inline float relaxed_value(const RelaxedSurface& surface, const Grid& grid, int ci, int cj, float hc, int dx,
-                           int dy, float hq, float pair, float threshold, long long& work) {
+                           int dy, float hq, float pair, float threshold, double length2, double limit2,
+                           long long& work) {
   if (!(hq < 1.0f)) return pair;         // a horizontal ray along the top leaves at once
   const double drop = 1.0 - double(hq);  // ray height lost per unit of the c -> d offset
   const double s_stop = (1.0 - double(hc)) / drop;
   // past the first cell: given up where the ray point's own ratio reaches the threshold (it never
   // decreases along the ray, so the exit's cannot be below it); never with a threshold above 1
-  const double length2 = offset_length2(grid, dx, dy), limit2 = ratio_limit2(threshold);
   const auto give_up = [&](double s) {
     return threshold <= 1.0f && ray_point_at_least(length2, limit2, drop, hc, s);
   };
   const double s = exit_parameter(surface, cj, ci, dx, dy, drop, s_stop, give_up, work);
   if (s >= s_stop) return 1.0f;  // inside until below the apex (or given up): no constraint
   return std::max(pair, ray_point_ratio(grid, dx, dy, drop, hc, s));
+}
+inline float relaxed_value(const RelaxedSurface& surface, const Grid& grid, int ci, int cj, float hc, int dx,
+                           int dy, float hq, float pair, float threshold, long long& work) {
+  return relaxed_value(surface, grid, ci, cj, hc, dx, dy, hq, pair, threshold, offset_length2(grid, dx, dy),
+                       ratio_limit2(threshold), work);
 }
 
 }  // namespace displace::bake::detail
