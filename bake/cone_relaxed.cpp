@@ -83,7 +83,8 @@ struct Extents {
   int x = 0, y = 0;
 };
 Extents ring_extents(const Grid& grid, int r) {
-  if (grid.width >= grid.height) return {int((long long)r * grid.width / grid.height), r};
+  if (grid.width == grid.height) return {r, r};
+  if (grid.width > grid.height) return {int((long long)r * grid.width / grid.height), r};
   return {r, int((long long)r * grid.height / grid.width)};
 }
 
@@ -243,11 +244,18 @@ struct RingSearch {
   void search_rings(SectorSearch& t, const Window& window) const {
     Extents inner;  // done: the window's offsets within +-inner.x, +-inner.y
     for (int r = 1;; ++r) {
-      float reach = std::numeric_limits<float>::infinity();  // uv distance of the nearest offset left
-      if (window.max_dx > inner.x || window.min_dx < -inner.x) reach = grid.distance(inner.x + 1, 0);
-      if (window.max_dy > inner.y || window.min_dy < -inner.y)
-        reach = std::min(reach, grid.distance(0, inner.y + 1));
-      if (!(detail::pair_ratio(reach, map_max - t.hc) < t.best)) return;
+      // the squared uv distance of the nearest offset left (the float whose root its distance takes),
+      // tested at the map's maximum height as a chunk is
+      float reach2 = std::numeric_limits<float>::infinity();
+      if (window.max_dx > inner.x || window.min_dx < -inner.x) {
+        const float x = float(inner.x + 1) * grid.inv_width;
+        reach2 = x * x;
+      }
+      if (window.max_dy > inner.y || window.min_dy < -inner.y) {
+        const float y = float(inner.y + 1) * grid.inv_height;
+        reach2 = std::min(reach2, y * y);
+      }
+      if (!t.may_lower(reach2, map_max)) return;
       const Extents outer = ring_extents(grid, r);
       const int x0 = std::max(-outer.x, window.min_dx), x1 = std::min(outer.x, window.max_dx);
       const int y0 = std::max(-inner.y, window.min_dy), y1 = std::min(inner.y, window.max_dy);
