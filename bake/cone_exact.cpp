@@ -2,10 +2,7 @@
 // max pyramid. A block's lower bound is (distance from the texel centre to the block's texel
 // centres) / (block max - texel height); it never exceeds the pair ratio of any texel inside, bit for
 // bit (see geometry.h), so a pruned block cannot hold a better blocker and the result is exact.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
-#include <atomic>
 #include <chrono>
 
 #include "bake/progress.h"
@@ -163,25 +160,13 @@ BakeStats bake_exact(HeightView heights, Address address, ConeView out, const Pr
   const detail::SearchContext context{grid, pyramid};
   const std::vector<detail::Node> roots = detail::root_nodes(context);
   const int sectors = out.sector_count;
-  std::atomic<long long> total_work{0};
-  detail::RowProgress rows_done(progress, heights.height);
+  const long long work =
+      detail::search_every_texel(heights, sectors, out.data, progress, [&](int i, int j, float* best) {
+        return detail::search_texel(context, i, j, heights.data[std::size_t(i) * heights.width + j], roots,
+                                    best);
+      });
 
-  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
-    long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      for (int j = 0; j < heights.width; ++j) {
-        float* best = out.data + (std::size_t(i) * heights.width + j) * sectors;
-        std::fill(best, best + sectors, 1.0f);
-        work += detail::search_texel(context, i, j, heights.data[std::size_t(i) * heights.width + j], roots,
-                                     best);
-      }
-      rows_done.row_done();
-    }
-    total_work += work;
-  });
-  rows_done.finish();
-
-  return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
+  return detail::whole_map_stats(Mode::exact, heights, sectors, work, start, out.data);
 }
 
 }  // namespace displace::bake

@@ -2,11 +2,8 @@
 // preprocessing as published: for each texel, square rings of growing radius; each ring's texels
 // lower the ratios of the sectors they fall in, and the search short-circuits once no texel further
 // out can beat the largest current ratio. Exact (same pair formula as every baker); a speed baseline.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 
 #include "bake/progress.h"
@@ -67,22 +64,11 @@ BakeStats bake_original(HeightView heights, Address address, ConeView out, const
   const std::size_t count = std::size_t(heights.width) * heights.height;
   const float global_max = *std::max_element(heights.data, heights.data + count);
   const int sectors = out.sector_count;
-  std::atomic<long long> total_work{0};
-  detail::RowProgress rows_done(progress, heights.height);
-  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
-    long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      for (int j = 0; j < heights.width; ++j) {
-        float* best = out.data + (std::size_t(i) * heights.width + j) * sectors;
-        std::fill(best, best + sectors, 1.0f);
-        work += detail::ring_search(grid, heights.data, global_max, i, j, best);
-      }
-      rows_done.row_done();
-    }
-    total_work += work;
-  });
-  rows_done.finish();
-  return detail::whole_map_stats(Mode::original, heights, sectors, total_work, start, out.data);
+  const long long work =
+      detail::search_every_texel(heights, sectors, out.data, progress, [&](int i, int j, float* best) {
+        return detail::ring_search(grid, heights.data, global_max, i, j, best);
+      });
+  return detail::whole_map_stats(Mode::original, heights, sectors, work, start, out.data);
 }
 
 }  // namespace displace::bake

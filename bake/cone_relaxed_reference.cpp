@@ -11,8 +11,6 @@
 // E lies above c. Because E is beyond d and no higher than d, that bound is never below d's pair
 // ratio: the max pyramid search of the exact baker prunes the texels d (search.h), and follows the
 // ray of every texel it reaches to its exit.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -39,31 +37,21 @@ BakeStats bake_relaxed_reference(HeightView heights, Address address, ConeView o
   const detail::RelaxedSurface surface{heights.data, heights.width, heights.height, address, nullptr, 0,
                                        &lows};
   const int sectors = out.sector_count;
-  std::atomic<long long> total_work{0};
-  detail::RowProgress rows_done(progress, heights.height);
-
-  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
-    long long work = 0;
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      for (int j = 0; j < heights.width; ++j) {
-        const std::size_t t = std::size_t(i) * heights.width + j;
-        const float hc = heights.data[t];
+  const long long work =
+      detail::search_every_texel(heights, sectors, out.data, progress, [&](int i, int j, float* best) {
+        const float hc = heights.data[std::size_t(i) * heights.width + j];
+        long long walked = 0;  // cells of the rays followed
         // the exit point of the ray from (c, 1) through (d, hq), d at texel offset (dx, dy)
         const detail::LeafRatio leaf = [&](int dx, int dy, float hq) {
           const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - hc);
-          return detail::relaxed_value(surface, grid, i, j, hc, dx, dy, hq, pair, 2.0f, work);
+          return detail::relaxed_value(surface, grid, i, j, hc, dx, dy, hq, pair, 2.0f, walked);
         };
-        float* best = out.data + t * sectors;
-        std::fill_n(best, sectors, 1.0f);
-        work += detail::search_texel_leaves(context, i, j, hc, roots, 1.0f, best, nullptr, &leaf);
-      }
-      rows_done.row_done();
-    }
-    total_work += work;
-  });
-  rows_done.finish();
+        const long long searched =
+            detail::search_texel_leaves(context, i, j, hc, roots, 1.0f, best, nullptr, &leaf);
+        return searched + walked;
+      });
 
-  return detail::whole_map_stats(Mode::exact, heights, sectors, total_work, start, out.data);
+  return detail::whole_map_stats(Mode::exact, heights, sectors, work, start, out.data);
 }
 
 }  // namespace displace::bake

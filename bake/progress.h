@@ -1,13 +1,18 @@
-// bake/progress.h - throttled progress reports of a bake that works row by row on many threads
-// (internal to bake/; the contract is bake.h's Progress).
+// bake/progress.h - throttled progress reports of a bake that works row by row on many threads,
+// and the row loop of the bakers that search each texel on its own (internal to bake/; the
+// contract is bake.h's Progress).
 //
 // The one fact: reports are serialized by a mutex that a worker only try-locks (a busy reporter
 // is skipped, never waited for), and each report reads the rows-done counter inside the lock, so
 // the fractions strictly increase whichever thread reports.
 #pragma once
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cstddef>
 #include <mutex>
 
 #include "bake/bake.h"
@@ -49,5 +54,29 @@ class RowProgress {
   std::atomic<int> next_report_;  // rows done before the next report; raised under mutex_
   std::mutex mutex_;
 };
+
+// Every texel (i, j) of the map, rows spread over threads: its sectors' ratios in out set to 1,
+// then texel(i, j, ratios) searches them and returns the work it did; progress after each row,
+// and 1 at the end. Returns the work of all texels.
+template <typename Texel>
+long long search_every_texel(HeightView heights, int sectors, float* out, const Progress& progress,
+                             const Texel& texel) {
+  std::atomic<long long> total_work{0};
+  RowProgress rows_done(progress, heights.height);
+  tbb::parallel_for(tbb::blocked_range<int>(0, heights.height), [&](const tbb::blocked_range<int>& rows) {
+    long long work = 0;
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      for (int j = 0; j < heights.width; ++j) {
+        float* ratios = out + (std::size_t(i) * heights.width + j) * sectors;
+        std::fill(ratios, ratios + sectors, 1.0f);
+        work += texel(i, j, ratios);
+      }
+      rows_done.row_done();
+    }
+    total_work += work;
+  });
+  rows_done.finish();
+  return total_work;
+}
 
 }  // namespace displace::bake::detail
