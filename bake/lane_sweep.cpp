@@ -428,21 +428,31 @@ LaneSweepTotals sweep_sectors(const LanePlan& plan, const float* heights, int se
   return totals;
 }
 
-long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
-                                   const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
-                                   std::uint8_t* const passed[4], const std::uint16_t* bonus3,
-                                   std::uint8_t* const passed3[4], int level, bool stop_early,
-                                   int first_quadrant, int quadrant_count, bool split) {
-  if (level < 0) level = lane_sweep_best_level();
-  auto run = [&](LaneSweepJob& job) {
+namespace {
+
+// The bilinear sweeps of one call of sweep_bilinear_quadrants: its arguments, a quadrant's job, and
+// the two ways to run the quadrants (each whole, or each in two strips on two threads).
+struct QuadrantSweeps {
+  const LanePlan& cells;
+  int width, height;
+  const std::uint16_t* texel_bottom;
+  const std::uint16_t* bonus;
+  std::uint8_t* const* passed;
+  const std::uint16_t* bonus3;
+  std::uint8_t* const* passed3;
+  int level;
+  bool stop_early;
+
+  void run(LaneSweepJob& job) const {
     switch (level) {
       case 0: lane_sweep_generic(job); break;
       case 3: lane_sweep_avx2(job); break;
       default: lane_sweep_avx512(job); break;
     }
-  };
+  }
+
   // quadrant q's job with the buffers of scratch slot `slot` (their contents as they are)
-  auto job_for = [&](int quadrant, int slot) {
+  LaneSweepJob job_for(int quadrant, int slot) const {
     LaneScratch& kept = cells.scratch[std::size_t(slot)];
     LaneSweepJob job;
     job.width = cells.width;
@@ -473,9 +483,10 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     job.bonus3 = bonus3;
     job.stop_early = stop_early;
     return job;
-  };
+  }
+
   // a quadrant's whole sweep in one task, in slot q
-  auto sweep_whole = [&](int quadrant) {
+  long long whole(int quadrant) const {
     LaneScratch& kept = cells.scratch[std::size_t(quadrant)];
     LaneSweepJob job = job_for(quadrant, quadrant);
     kept.row_sums.assign(std::size_t(job.height / 2 + 2), 0);
@@ -487,94 +498,109 @@ long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
     run(job);
     kept.second_lap_rows = job.second_lap_rows;
     return job.work;
-  };
-  // a strip's second pass stops after depth + 3 equal rows (the kernel's stop test), and with wrap
-  // A's must read B's last depth rows: strips shorter than twice that would rarely meet
-  const int H = cells.height, depth = std::max(2, cells.column_reach);
-  if (!split || !stop_early || H < split_sweep_rows || H / 2 < 2 * (depth + 3)) {
-    long long works[4] = {};
-    parallel_for_each_region("sweeps", first_quadrant, first_quadrant + quadrant_count,
-                             [&](int quadrant) { works[quadrant] = sweep_whole(quadrant); });
-    return works[0] + works[1] + works[2] + works[3];
   }
 
-  // Split: each quadrant's rows in two strips, A = steps [0, half) and B = [half, H), in slots q and
+  // Each quadrant's rows in two strips, A = steps [0, half) and B = [half, H), in slots q and
   // q + 4. First passes, all in parallel: A as the first lap begins, B from nothing below its first
   // row, each keeping its rows' sums. Second passes, in parallel: B again from A's last rows (A's
   // buffers) until its rows meet its first pass's - then the rest of them stand, as the second lap's
   // stop test argues - and, with wrap, A's second lap from B's last rows (B's buffers) until it
   // meets A's first pass. Both meeting, every row holds what the whole sweep gives (the same least
   // solution of the rows' recurrence); where either does not, the quadrant is swept whole again.
-  const bool wrap = cells.wrap;
-  const int half = (H + 1) / 2;
-  long long works[4][2] = {};
-  int skipped[4][2] = {}, swept[4][2] = {};
-  bool met[4][2] = {};
-  auto strip = [&](int n, int& quadrant, bool& second) {
-    quadrant = first_quadrant + n / 2;
-    second = n % 2 == 1;
-  };
-  parallel_for_each_region("sweeps: first passes", 0, 2 * quadrant_count, [&](int n) {
-    int quadrant;
-    bool second;
-    strip(n, quadrant, second);
-    LaneScratch& kept = cells.scratch[std::size_t(quadrant + (second ? 4 : 0))];
-    LaneSweepJob job = job_for(quadrant, quadrant + (second ? 4 : 0));
-    job.split = true;
-    job.fresh = true;
-    job.first_step = second ? half : 0;
-    job.last_step = second ? H : half;
-    const int rows = job.last_step - job.first_step;
-    // box tests left to the second pass: the first three rows read rows not swept yet (with clamp,
-    // A's read nothing, truly), and as many more as the second pass took the last time
-    const int skip = wrap || second ? std::min(rows, std::max(3, kept.second_lap_rows)) : 0;
-    job.skip_until = job.first_step + skip;
-    kept.row_sums.assign(std::size_t(rows), 0);
-    job.record_sums = kept.row_sums.data();
-    job.sums_count = rows;
-    run(job);
-    works[quadrant][second] = job.work;
-    skipped[quadrant][second] = skip;
-  });
-  parallel_for_each_region("sweeps: second passes", 0, 2 * quadrant_count, [&](int n) {
-    int quadrant;
-    bool second;
-    strip(n, quadrant, second);
-    if (!second && !wrap) {  // with clamp, A's first pass is the sweep's
-      met[quadrant][0] = true;
-      return;
+  long long split(int first_quadrant, int quadrant_count) const {
+    const bool wrap = cells.wrap;
+    const int H = cells.height, half = (H + 1) / 2;
+    long long works[4][2] = {};
+    int skipped[4][2] = {}, swept[4][2] = {};
+    bool met[4][2] = {};
+    auto strip = [&](int n, int& quadrant, bool& second) {
+      quadrant = first_quadrant + n / 2;
+      second = n % 2 == 1;
+    };
+    parallel_for_each_region("sweeps: first passes", 0, 2 * quadrant_count, [&](int n) {
+      int quadrant;
+      bool second;
+      strip(n, quadrant, second);
+      LaneScratch& kept = cells.scratch[std::size_t(quadrant + (second ? 4 : 0))];
+      LaneSweepJob job = job_for(quadrant, quadrant + (second ? 4 : 0));
+      job.split = true;
+      job.fresh = true;
+      job.first_step = second ? half : 0;
+      job.last_step = second ? H : half;
+      const int rows = job.last_step - job.first_step;
+      // box tests left to the second pass: the first three rows read rows not swept yet (with clamp,
+      // A's read nothing, truly), and as many more as the second pass took the last time
+      const int skip = wrap || second ? std::min(rows, std::max(3, kept.second_lap_rows)) : 0;
+      job.skip_until = job.first_step + skip;
+      kept.row_sums.assign(std::size_t(rows), 0);
+      job.record_sums = kept.row_sums.data();
+      job.sums_count = rows;
+      run(job);
+      works[quadrant][second] = job.work;
+      skipped[quadrant][second] = skip;
+    });
+    parallel_for_each_region("sweeps: second passes", 0, 2 * quadrant_count, [&](int n) {
+      int quadrant;
+      bool second;
+      strip(n, quadrant, second);
+      if (!second && !wrap) {  // with clamp, A's first pass is the sweep's
+        met[quadrant][0] = true;
+        return;
+      }
+      // B goes on from A's buffers, A's second lap from B's; each against its own first pass
+      const int own = quadrant + (second ? 4 : 0), other = quadrant + (second ? 0 : 4);
+      LaneSweepJob job = job_for(quadrant, other);
+      job.split = true;
+      job.fresh = false;
+      job.first_step = second ? half : H;
+      job.last_step = second ? H : H + half;
+      job.compare_sums = cells.scratch[std::size_t(own)].row_sums.data();
+      job.sums_count = job.last_step - job.first_step;
+      job.compare_skip = skipped[quadrant][second];
+      run(job);
+      works[quadrant][second] += job.work;
+      // with clamp, B running to the map's end without meeting its first pass is the sweep itself
+      met[quadrant][second] = job.converged || !wrap;
+      swept[quadrant][second] = job.split_rows;
+    });
+    long long work = 0;
+    int unmet[4], unmet_count = 0;
+    for (int quadrant = first_quadrant; quadrant < first_quadrant + quadrant_count; ++quadrant) {
+      work += works[quadrant][0] + works[quadrant][1];
+      for (int part = 0; part < 2; ++part)
+        cells.scratch[std::size_t(quadrant + 4 * part)].second_lap_rows = swept[quadrant][part];
+      if (!met[quadrant][0] || !met[quadrant][1]) unmet[unmet_count++] = quadrant;
     }
-    // B goes on from A's buffers, A's second lap from B's; each against its own first pass
-    const int own = quadrant + (second ? 4 : 0), other = quadrant + (second ? 0 : 4);
-    LaneSweepJob job = job_for(quadrant, other);
-    job.split = true;
-    job.fresh = false;
-    job.first_step = second ? half : H;
-    job.last_step = second ? H : H + half;
-    job.compare_sums = cells.scratch[std::size_t(own)].row_sums.data();
-    job.sums_count = job.last_step - job.first_step;
-    job.compare_skip = skipped[quadrant][second];
-    run(job);
-    works[quadrant][second] += job.work;
-    // with clamp, B running to the map's end without meeting its first pass is the sweep itself
-    met[quadrant][second] = job.converged || !wrap;
-    swept[quadrant][second] = job.split_rows;
-  });
-  long long work = 0;
-  int unmet[4], unmet_count = 0;
-  for (int quadrant = first_quadrant; quadrant < first_quadrant + quadrant_count; ++quadrant) {
-    work += works[quadrant][0] + works[quadrant][1];
-    for (int part = 0; part < 2; ++part)
-      cells.scratch[std::size_t(quadrant + 4 * part)].second_lap_rows = swept[quadrant][part];
-    if (!met[quadrant][0] || !met[quadrant][1]) unmet[unmet_count++] = quadrant;
+    if (unmet_count > 0) {
+      long long again[4] = {};
+      parallel_for_each_region("sweeps: whole again", 0, unmet_count,
+                               [&](int n) { again[n] = whole(unmet[n]); });
+      for (int n = 0; n < unmet_count; ++n) work += again[n];
+    }
+    return work;
   }
-  if (unmet_count > 0) {
-    long long again[4] = {};
-    parallel_for_each_region("sweeps: whole again", 0, unmet_count,
-                             [&](int n) { again[n] = sweep_whole(unmet[n]); });
-    for (int n = 0; n < unmet_count; ++n) work += again[n];
-  }
-  return work;
+};
+
+}  // namespace
+
+long long sweep_bilinear_quadrants(const LanePlan& cells, int width, int height,
+                                   const std::uint16_t* texel_bottom, const std::uint16_t* bonus,
+                                   std::uint8_t* const passed[4], const std::uint16_t* bonus3,
+                                   std::uint8_t* const passed3[4], int level, bool stop_early,
+                                   int first_quadrant, int quadrant_count, bool split) {
+  const QuadrantSweeps sweeps{cells,        width,   height,
+                              texel_bottom, bonus,   passed,
+                              bonus3,       passed3, level < 0 ? lane_sweep_best_level() : level,
+                              stop_early};
+  // a strip's second pass stops after depth + 3 equal rows (the kernel's stop test), and with wrap
+  // A's must read B's last depth rows: strips shorter than twice that would rarely meet
+  const int H = cells.height, depth = std::max(2, cells.column_reach);
+  if (split && stop_early && H >= split_sweep_rows && H / 2 >= 2 * (depth + 3))
+    return sweeps.split(first_quadrant, quadrant_count);
+  long long works[4] = {};
+  parallel_for_each_region("sweeps", first_quadrant, first_quadrant + quadrant_count,
+                           [&](int quadrant) { works[quadrant] = sweeps.whole(quadrant); });
+  return works[0] + works[1] + works[2] + works[3];
 }
 
 }  // namespace displace::bake::detail
