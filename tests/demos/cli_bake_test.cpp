@@ -163,6 +163,26 @@ TEST(Cli, BilinearConesRefuseOtherModesWithOneError) {
   EXPECT_FALSE(fs::exists(dir / "c.exr"));
 }
 
+// `bake --input h.png` (20 x 14 8-bit heights `pixels` in dir) with `flags`, --sectors and --address,
+// to a PNG named after them; decoded, of the kind asked, holding those heights.
+void bake_png(const TempDir& dir, const std::vector<std::uint8_t>& pixels, int sectors,
+              const std::string& address_word, const std::string& flags, ConeKind kind,
+              DecodedConeMap& decoded) {
+  std::string name = "c";  // appended: GCC 12 warns (-Wrestrict) on "c" + std::string here
+  name.append(std::to_string(sectors)).append(address_word).append(".png");
+  const fs::path file = dir / name;
+  const RunResult result = run_displace(dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " +
+                                                 std::to_string(sectors) + " --address " + address_word +
+                                                 " " + flags + " --output '" + file.string() + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  decoded = read_cone_png(file);
+  ASSERT_EQ(decoded.kind, kind);
+  ASSERT_EQ(decoded.width, 20);
+  ASSERT_EQ(decoded.height, 14);
+  ASSERT_EQ(decoded.sector_count, sectors);
+  for (std::size_t k = 0; k < pixels.size(); ++k) ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
+}
+
 // A bilinear cone map PNG for engines, decoded: every ratio at most and every apex at least what
 // bake_bilinear_cones bakes for the heights it stores, on every texel; cone panels, then the height
 // panel, then the apex panel.
@@ -176,22 +196,12 @@ TEST(Cli, BakesABilinearPngThatDecodesConservatively) {
   for (const int sectors : {1, 4, 8})
     for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
       const std::string address_word = address == bake::Address::wrap ? "wrap" : "clamp";
-      std::string name = "c";  // appended: GCC 12 warns (-Wrestrict) on "c" + std::string here
+      DecodedConeMap decoded;
+      ASSERT_NO_FATAL_FAILURE(bake_png(dir, pixels, sectors, address_word, "--cones bilinear --mode full",
+                                       ConeKind::bilinear, decoded));
+      std::string name = "c";  // bake_png's file
       name.append(std::to_string(sectors)).append(address_word).append(".png");
       const fs::path file = dir / name;
-      const RunResult result =
-          run_displace(dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " +
-                                std::to_string(sectors) + " --address " + address_word +
-                                " --cones bilinear --mode full --output '" + file.string() + "'");
-      ASSERT_EQ(result.exit_code, 0) << result.err;
-
-      const DecodedConeMap decoded = read_cone_png(file);
-      ASSERT_EQ(decoded.kind, ConeKind::bilinear);
-      ASSERT_EQ(decoded.width, 20);
-      ASSERT_EQ(decoded.height, 14);
-      ASSERT_EQ(decoded.sector_count, sectors);
-      for (std::size_t k = 0; k < pixels.size(); ++k)
-        ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
       std::vector<float> ratios(pixels.size() * std::size_t(sectors)), apex(pixels.size());
       bake::bake_bilinear_cones({decoded.heights.data(), 20, 14}, address, {ratios.data(), 20, 14, sectors},
                                 apex);
@@ -245,21 +255,9 @@ TEST(Cli, BakesARelaxedPngThatDecodesNeverTooWide) {
   for (const int sectors : {1, 4})
     for (const bake::Address address : {bake::Address::wrap, bake::Address::clamp}) {
       const std::string address_word = address == bake::Address::wrap ? "wrap" : "clamp";
-      std::string name = "r";
-      name.append(std::to_string(sectors)).append(address_word).append(".png");
-      const fs::path file = dir / name;
-      const RunResult result = run_displace(
-          dir, "bake --input '" + (dir / "h.png").string() + "' --sectors " + std::to_string(sectors) +
-                   " --address " + address_word + " --relaxed --output '" + file.string() + "'");
-      ASSERT_EQ(result.exit_code, 0) << result.err;
-
-      const DecodedConeMap decoded = read_cone_png(file);
-      ASSERT_EQ(decoded.kind, ConeKind::center);
-      ASSERT_EQ(decoded.width, 20);
-      ASSERT_EQ(decoded.height, 14);
-      ASSERT_EQ(decoded.sector_count, sectors);
-      for (std::size_t k = 0; k < pixels.size(); ++k)
-        ASSERT_EQ(decoded.heights[k], float(pixels[k]) / 255.0f);
+      DecodedConeMap decoded;
+      ASSERT_NO_FATAL_FAILURE(
+          bake_png(dir, pixels, sectors, address_word, "--relaxed", ConeKind::center, decoded));
       std::vector<float> relaxed(pixels.size() * std::size_t(sectors));
       bake::bake_relaxed_reference({decoded.heights.data(), 20, 14}, address,
                                    {relaxed.data(), 20, 14, sectors});
