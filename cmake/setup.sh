@@ -102,9 +102,11 @@ run_sanitize() {
   # `displace sim`, whose code Cli.SimSaysWhatSeaItMade runs under ASan), the fuzzers (run_fuzz), and
   # the command-line tests that render the most frames and pictures through code the others run under
   # it (sequences by shards and loops, the frame benchmark, sweeps, frame 0 against render, the window's
-  # frames, every tool's help text): 88 s under ASan, a tenth of its test time
+  # frames, every tool's help text, and the help texts again in cli_docs), and the scripts' own
+  # checks (setup_checks, scripts_lint: bash, nothing compiled): 115 s under ASan, an eighth of its
+  # test time
   local cli_left_out='SequenceShardsAndResumesGiveTheSameFilesBitForBit|RenderDrawsTheFrameZeroOfTheSequence|PlayRendersThePipelinesFramesInAWindow|OutputsForToolsShareOneStyleAndTheirHelpNamesEveryKey|BenchFrameWritesTheTableAndItsJson|SequenceOfALoopSaysSoAndComesBackToFrameZero|SweepsASceneFileAndSaysWhatItsConeMapsCost|RendersConeMethodsFromMapsBakedAtALooseTolerance'
-  local left_out="^report\$|^soak\$|^write/|^farm/|^render/shader_size\$|^device_probe\$|^render_pipeline\$|^sea_states_figure\$|^fuzz_(scene|obj|cli|image)\$|^Cli\.($cli_left_out)\$"
+  local left_out="^report\$|^soak\$|^write/|^farm/|^render/shader_size\$|^device_probe\$|^render_pipeline\$|^sea_states_figure\$|^cli_docs\$|^setup_checks\$|^scripts_lint\$|^fuzz_(scene|obj|cli|image)\$|^Cli\.($cli_left_out)\$"
   (cd "$root/build-asan" && ctest --output-on-failure -j "$jobs" -R "$leak_checked" -E "$left_out")
   (cd "$root/build-asan" && ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --output-on-failure -j "$jobs" -E "$leak_checked|$left_out")
