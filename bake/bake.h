@@ -228,6 +228,18 @@ struct BilinearConeSettings {
 BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
                               std::span<float> apex_heights, const BilinearConeSettings& settings = {});
 
+// Relaxed cones for the bilinear surface, from anywhere in a texel's square: the same apex H_c and,
+// per sector k, a ratio R_k >= bake_bilinear_cones' r_k such that a ray from any point p of Q_c at a
+// height z >= H_c, descending in a direction of sector k at any slope, that takes the cone step to
+// the cone of apex (p, H_c) and ratio R_k lands at or before the first point where it leaves the
+// surface (a touch counts as a hit). So a step that lands above the surface crossed nothing, and one
+// that lands below brackets the first crossing. R_k bounds |x - p| / (s(x) - H_c) only over the
+// cells along whose sector's directions s may fall (where a ray can leave the surface): on a brick
+// map the far, falling edges of the bricks, not the near, rising ones. Proof: docs/design/bakers.md.
+BakeStats bake_bilinear_relaxed_cones(HeightView heights, Address address, ConeView out,
+                                      std::span<float> apex_heights,
+                                      const BilinearConeSettings& settings = {});
+
 // The renderer's cone maps within a frame budget: exactly bake_bilinear_cones' contract (apex H_c =
 // max of s over Q_c; r_k valid from every p in Q_c towards every x in sector k) for every ratio and
 // apex it emits, at every budget (0 ms, a clock that runs out mid-stage, a work limit of 0). Kept

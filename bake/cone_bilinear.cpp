@@ -93,6 +93,36 @@ struct Patch {
   }
 };
 
+// The sectors (of `sectors` in uv, each a closed wedge) with a direction w along which the patch may
+// fall somewhere on its cell: w . grad s < 0. ds/du ranges over W [min(e0, e1), max(e0, e1)] (e0, e1
+// its differences along u at the cell's two v edges; linear in between) and ds/dv likewise, so over
+// a closed quadrant of directions the least of w . grad s is at the box's corner that the quadrant's
+// signs pick, and over a wedge inside a quadrant at one of its two edges (w . g is a sinusoid in the
+// angle, negative on an arc of half a turn, which an arc of a quarter turn cannot hold without one of
+// its ends). So each sector is tested at its edges and at the axes inside it. The corner differences
+// are exact in sign (a difference of two floats in double), so a sector that falls along an axis is
+// never missed; along a diagonal (8 sectors) a sum within a relative 1e-12 of 0 counts as falling.
+detail::SectorMask falling_sectors(const Patch& patch, double width, double height, int sectors) {
+  const double e0 = patch.h[1] - patch.h[0], e1 = patch.h[3] - patch.h[2];
+  const double f0 = patch.h[2] - patch.h[0], f1 = patch.h[3] - patch.h[1];
+  const double du_min = width * std::min(e0, e1), du_max = width * std::max(e0, e1);
+  const double dv_min = height * std::min(f0, f1), dv_max = height * std::max(f0, f1);
+  // the eight directions at multiples of 45 degrees in uv, counterclockwise from +u
+  constexpr int dir_u[8] = {1, 1, 0, -1, -1, -1, 0, 1}, dir_v[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+  auto falls_along = [&](int d) {
+    const double gu = dir_u[d] > 0 ? du_min : du_max, gv = dir_v[d] > 0 ? dv_min : dv_max;
+    const double along = dir_u[d] * gu + dir_v[d] * gv;
+    const double size = std::abs(dir_u[d] * gu) + std::abs(dir_v[d] * gv);
+    return along < 1e-12 * size || along < 0.0;
+  };
+  detail::SectorMask mask = 0;
+  const int span = 8 / sectors;  // a sector's width in eighths of a turn
+  for (int k = 0; k < sectors; ++k)
+    for (int d = k * span; d <= (k + 1) * span; ++d)
+      if (falls_along(d % 8)) mask |= 1u << k;
+  return mask;
+}
+
 struct Context {
   HeightView heights;
   detail::Grid grid;
@@ -104,6 +134,11 @@ struct Context {
   detail::SectorMask beyond[4];        // sectors meeting the open half-planes u > 0, u < 0, v > 0, v < 0
   double half_texel_u = 0.0, half_texel_v = 0.0;  // uv per half texel
   bool prune = true;                              // BilinearConeSettings::prune
+  // bake_bilinear_relaxed_cones: only the cells where s may fall along a direction of the sector count
+  bool falling_only = false;
+  std::vector<detail::SectorMask> cell_falling =
+      {};                                     // per cell: the sectors along whose directions s may fall
+  std::vector<detail::Pyramid> falling = {};  // per sector: max pyramid over the maxima of those cells
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {
@@ -223,6 +258,9 @@ struct TexelSearch {
         ++work;
         const double cell_max = context.pyramid.max.levels[0][stored];
         if (!(cell_max > apex)) continue;
+        // every sector for the conservative cones; for the relaxed ones those along which s may fall
+        const detail::SectorMask falls = context.falling_only ? context.cell_falling[stored] : ~0u;
+        if (!falls) continue;
         const bool centre = (da == 0 || da == -1) && (db == 0 || db == -1);
         const int cu[2] = {U.begin(nu), U.end(nu)}, cv[2] = {V.begin(nv), V.end(nv)};
         if (!centre && context.prune) {
@@ -232,7 +270,7 @@ struct TexelSearch {
           // monotone. So when the cell's gap over its rise (with twice the margin) reaches the
           // largest ratio of its sectors, no piece can lower one: the same ratios, fewer pieces.
           const detail::SectorMask cell_sectors =
-              box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0);
+              box_sectors(context, cu[0] - qu1, cu[1] - qu0, cv[0] - qv1, cv[1] - qv0) & falls;
           const double gap = gap_distance(context, span_gap(j, cu[0], cu[1]), span_gap(i, cv[0], cv[1]));
           if (gap / (cell_max + 2.0 * height_margin - apex) >= largest_in(cell_sectors)) continue;
         }
@@ -268,7 +306,7 @@ struct TexelSearch {
             const double bound =
                 piece_bound(gap_distance(context, span_gap(j, u0, u1), span_gap(i, v0, v1)),
                             gap_distance(context, far_u, far_v), top + height_margin - apex, drop, slope);
-            detail::SectorMask mask = box_sectors(context, u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0);
+            detail::SectorMask mask = box_sectors(context, u0 - qu1, u1 - qu0, v0 - qv1, v1 - qv0) & falls;
             if (su != 0) mask &= context.beyond[su > 0 ? 0 : 1];
             if (sv != 0) mask &= context.beyond[sv > 0 ? 2 : 3];
             lower(mask, bound);
@@ -290,10 +328,10 @@ struct TexelSearch {
     detail::SectorMask mask;  // the sectors it could lower when examined
   };
 
-  void far_cells(std::vector<Entry>& stack) {
+  // (over `pyramid`, for the sectors of `only`)
+  void far_cells(std::vector<Entry>& stack, const detail::Pyramid& pyramid, detail::SectorMask only) {
     const Axis& U = context.along_u;
     const Axis& V = context.along_v;
-    const detail::Pyramid& pyramid = context.pyramid;
     const int R = context.window;
     // the window in unrolled cell indices (empty for R = 0)
     const int wu0 = U.cell_of_left_centre(j - R), wu1 = U.cell_of_left_centre(j + R - 1);
@@ -313,7 +351,7 @@ struct TexelSearch {
       // the sectors it can reach, and the largest ratio among them: the block is useful only if its
       // bound is below that
       const detail::SectorMask mask =
-          box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1));
+          box_sectors(context, u0 - (2 * j + 1), u1 - (2 * j - 1), v0 - (2 * i + 1), v1 - (2 * i - 1)) & only;
       const double largest = largest_in(mask);
       // the far bound (gap_distance over the rise, the same arithmetic), with a rejection first that
       // needs neither the root nor the division:
@@ -418,6 +456,10 @@ void prepare(Context& context) {
   std::vector<float>& cell_max = context.cell_max;
   cell_max.resize(std::size_t(U.cells) * V.cells);
   context.cell_rise.resize(cell_max.size());
+  if (context.falling_only) {
+    context.cell_falling.resize(cell_max.size());
+    context.falling.resize(std::size_t(context.grid.sector_count));
+  }
   tbb::parallel_for(tbb::blocked_range<int>(0, V.cells), [&](const tbb::blocked_range<int>& rows) {
     for (int nv = rows.begin(); nv < rows.end(); ++nv)
       for (int nu = 0; nu < U.cells; ++nu) {
@@ -425,10 +467,24 @@ void prepare(Context& context) {
         const std::size_t n = std::size_t(nv) * U.cells + nu;
         cell_max[n] = float(std::max(std::max(patch.h[0], patch.h[1]), std::max(patch.h[2], patch.h[3])));
         context.cell_rise[n] = patch.derivatives(0.0, 1.0, 0.0, 1.0, heights.width, heights.height);
+        if (context.falling_only)
+          context.cell_falling[n] =
+              falling_sectors(patch, heights.width, heights.height, context.grid.sector_count);
       }
   });
   build_max_pyramid({cell_max.data(), U.cells, V.cells}, context.pyramid.max);
   context.pyramid.levels = int(context.pyramid.max.levels.size());
+  if (context.falling_only) {
+    // a cell along whose sector's directions s never falls holds no exit there: -inf takes it out
+    std::vector<float> falling_max(cell_max.size());
+    for (int k = 0; k < context.grid.sector_count; ++k) {
+      for (std::size_t n = 0; n < cell_max.size(); ++n)
+        falling_max[n] =
+            context.cell_falling[n] >> k & 1u ? cell_max[n] : -std::numeric_limits<float>::infinity();
+      build_max_pyramid({falling_max.data(), U.cells, V.cells}, context.falling[std::size_t(k)].max);
+      context.falling[std::size_t(k)].levels = int(context.falling[std::size_t(k)].max.levels.size());
+    }
+  }
   // open half-planes as boxes of directions strictly on their side, long enough to reach every sector
   // they meet (sector edges lie at multiples of 45 degrees in uv)
   const int reach = 4 * std::max(heights.width, heights.height);
@@ -438,7 +494,8 @@ void prepare(Context& context) {
   context.beyond[3] = box_sectors(context, -reach, reach, -1, -1);
 }
 
-Context make_context(HeightView heights, Address address, int sectors, int window, bool prune = true) {
+Context make_context(HeightView heights, Address address, int sectors, int window, bool prune = true,
+                     bool falling_only = false) {
   Context context{heights,
                   detail::Grid(heights.width, heights.height, sectors, address),
                   Axis(heights.width, address),
@@ -449,6 +506,7 @@ Context make_context(HeightView heights, Address address, int sectors, int windo
                   {},
                   {}};
   context.prune = prune;
+  context.falling_only = falling_only;
   prepare(context);
   return context;
 }
@@ -463,15 +521,19 @@ long long search_texel(const Context& context, int i, int j, std::vector<double>
   best.assign(std::size_t(context.grid.sector_count), 1.0);
   TexelSearch search{context, i, j, double(apex), square, best.data()};
   if (context.window > 0) search.window_cells(hull);
-  search.far_cells(stack);
+  if (!context.falling_only) {
+    search.far_cells(stack, context.pyramid, ~0u);
+  } else {
+    for (int k = 0; k < context.grid.sector_count; ++k)
+      search.far_cells(stack, context.falling[std::size_t(k)], 1u << k);
+  }
   for (int k = 0; k < context.grid.sector_count; ++k) ratios[k] = stored_ratio(best[k]);
   return search.work;
 }
 
-}  // namespace
-
-BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
-                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
+// bake_bilinear_cones, or with falling_only bake_bilinear_relaxed_cones.
+BakeStats bake_bilinear(HeightView heights, Address address, ConeView out, std::span<float> apex_heights,
+                        const BilinearConeSettings& settings, bool falling_only) {
   validate(heights, out);
   const std::size_t texels = std::size_t(heights.width) * heights.height;
   if (apex_heights.size() != texels) {
@@ -485,7 +547,8 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   }
   const auto start = std::chrono::steady_clock::now();
   const int sectors = out.sector_count;
-  const Context context = make_context(heights, address, sectors, settings.slope_window, settings.prune);
+  const Context context =
+      make_context(heights, address, sectors, settings.slope_window, settings.prune, falling_only);
 
   std::atomic<long long> total_work{0};
   detail::RowProgress rows_done(settings.progress, heights.height);
@@ -505,6 +568,18 @@ BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
   rows_done.finish();
 
   return detail::whole_map_stats(Mode::bilinear, heights, sectors, total_work, start, out.data);
+}
+
+}  // namespace
+
+BakeStats bake_bilinear_cones(HeightView heights, Address address, ConeView out,
+                              std::span<float> apex_heights, const BilinearConeSettings& settings) {
+  return bake_bilinear(heights, address, out, apex_heights, settings, false);
+}
+
+BakeStats bake_bilinear_relaxed_cones(HeightView heights, Address address, ConeView out,
+                                      std::span<float> apex_heights, const BilinearConeSettings& settings) {
+  return bake_bilinear(heights, address, out, apex_heights, settings, true);
 }
 
 namespace detail {
