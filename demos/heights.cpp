@@ -114,20 +114,8 @@ std::string source_name(pipeline::SourceKind kind) {
   return "unknown";
 }
 
-bool wants_device(pipeline::Backend backend) {
-  if (backend == pipeline::Backend::cpu) return false;
-  if (backend == pipeline::Backend::device) return true;
-  try {
-    for (const render::DeviceInfo& device : render::list_devices()) {
-      if (pipeline::runs_on_device(backend, device)) return true;
-    }
-  } catch (const render::RenderError&) {
-  }
-  return false;
-}
-
 bool sim_wants_device(const pipeline::Scene& scene) {
-  return pipeline::simulates_on_device(scene.source) && wants_device(scene.sim_backend);
+  return pipeline::simulates_on_device(scene.source) && pipeline::runs_on_default_device(scene.sim_backend);
 }
 
 SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Renderer* device) {

@@ -33,11 +33,9 @@ struct SceneHeights {
 // resampled onto the grid, as the renderer draws them). Throws AppError.
 // With a renderer, a moving source (ocean, sinusoids) is simulated on its device and read back.
 SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Renderer* device = nullptr);
-// Whether the scene's [backend] sim puts its heights on a device: "device", or "auto" where a GPU is
-// present (the CPU driver alone keeps the CPU); static sources never.
+// Whether the scene's [backend] sim puts its heights on a device (pipeline::runs_on_default_device);
+// static sources never.
 bool sim_wants_device(const pipeline::Scene& scene);
-// Whether a stage set to `backend` runs on a device here: "device", or "auto" with a GPU present.
-bool wants_device(pipeline::Backend backend);
 
 // Raw metres to channel `height` with the source's attributes (what `displace sim` writes).
 void write_height_exr(const std::filesystem::path& file, const SceneHeights& heights);

@@ -12,6 +12,8 @@
 #include <numbers>
 #include <sstream>
 
+#include "render/render.h"
+
 namespace displace::pipeline {
 namespace {
 
@@ -77,6 +79,15 @@ std::string_view spreading_word(sim::Spreading model) {
 
 bool runs_on_device(Backend backend, const render::DeviceInfo& device) {
   return backend == Backend::device || (backend == Backend::automatic && device.type != "cpu");
+}
+
+bool runs_on_default_device(Backend backend) {
+  if (backend != Backend::automatic) return backend == Backend::device;
+  try {
+    return runs_on_device(backend, render::default_device());
+  } catch (const render::RenderError&) {
+    return false;
+  }
 }
 
 namespace {

@@ -72,6 +72,10 @@ std::string_view spectrum_word(sim::Spectrum spectrum);
 std::string_view spreading_word(sim::Spreading model);
 // Whether a stage set to `backend` runs on the device of `device`.
 bool runs_on_device(Backend backend, const render::DeviceInfo& device);
+// runs_on_device for the device a default Renderer picks (render::default_device), for a program
+// that has made no renderer yet: "auto" runs on it where it is not a CPU driver; with no device at
+// all, false (the renderer that cannot be made says why, where one is needed).
+bool runs_on_default_device(Backend backend);
 
 struct Scene {
   std::string name = "scene";

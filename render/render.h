@@ -64,6 +64,9 @@ std::string default_pipeline_cache_dir();
 
 // Devices the Vulkan loader sees. Throws RenderError (saying what to install) when there is none.
 std::vector<DeviceInfo> list_devices();
+// The device a Renderer made with default RendererOptions draws on (the best-ranked usable one),
+// without making it. Throws RenderError as that Renderer would when there is none.
+DeviceInfo default_device();
 
 class Renderer {
  public:

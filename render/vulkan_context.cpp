@@ -281,6 +281,18 @@ std::vector<DeviceInfo> list_devices() {
   return result;
 }
 
+DeviceInfo default_device() {
+  VkInstance instance = create_instance(false);
+  try {
+    const DeviceInfo info = choose_device(instance, RendererOptions{}).info;
+    vkDestroyInstance(instance, nullptr);
+    return info;
+  } catch (...) {
+    vkDestroyInstance(instance, nullptr);
+    throw;
+  }
+}
+
 Context::Context(const RendererOptions& options) {
   instance_ = create_instance(options.validate, options.instance_extensions);
   const bool present = !options.instance_extensions.empty();

@@ -132,10 +132,12 @@ void run_bake(const BakeSettings& settings, std::ostream& out) {
   }
   // the renderer's bilinear cones on the device ([backend] bake): the device's heights too where the sim
   // runs there
-  const bool on_device = settings.cones == ConeKind::bilinear && wants_device(scene.bake_backend);
+  const bool on_device =
+      settings.cones == ConeKind::bilinear && pipeline::runs_on_default_device(scene.bake_backend);
+  const bool sim_on_device = sim_wants_device(scene);
   std::optional<render::Renderer> renderer;
-  if (on_device || sim_wants_device(scene)) renderer.emplace(render::RendererOptions{});
-  SceneHeights input = scene_heights(scene, scene.start, sim_wants_device(scene) ? &*renderer : nullptr);
+  if (on_device || sim_on_device) renderer.emplace(render::RendererOptions{});
+  SceneHeights input = scene_heights(scene, scene.start, sim_on_device ? &*renderer : nullptr);
   if (image) {
     require_memory(
         bake_memory(input.width, input.height, settings.sector_count, settings.baker, settings.cones),
