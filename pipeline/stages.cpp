@@ -12,6 +12,18 @@ bool static_source(const Scene& scene) {
          (scene.source == SourceKind::image && !is_image_sequence(scene.image));
 }
 
+// What the host makes of `needs` where the placement puts the rest on the device: the levels follow a
+// device sim's heights (a static map's with its cones on the device get none: the host's chain would
+// need the host's cones).
+render::MapNeeds host_needs(render::MapNeeds needs, const Placement& placement) {
+  if (placement.sim_on_device || placement.cones_on_device) needs.levels = false;
+  if (placement.cones_on_device) {
+    needs.cone_sectors = 0;
+    needs.relaxed = false;
+  }
+  return needs;
+}
+
 }  // namespace
 
 Placement place_stages(const Scene& scene, const render::DeviceInfo& device) {
@@ -28,8 +40,10 @@ Placement place_stages(const Scene& scene, const render::DeviceInfo& device) {
     }
   }
   placement.levels_on_device = placement.sim_on_device && needs.levels && needs.cone_sectors > 0;
+  // the heights go to the CPU where the host makes a map of them
+  const render::MapNeeds host = host_needs(needs, placement);
   placement.heights_to_cpu =
-      (needs.cone_sectors > 0 && !placement.cones_on_device) || needs.max_pyramid || needs.distance;
+      host.cone_sectors > 0 || host.relaxed || host.levels || host.max_pyramid || host.distance;
   return placement;
 }
 
@@ -114,18 +128,6 @@ class DeviceHeights final : public HeightStage {
 };
 
 // ---- maps
-
-// What the host makes of `needs` where the placement puts the rest on the device: the levels follow a
-// device sim's heights (a static map's with its cones on the device get none: the host's chain would
-// need the host's cones).
-render::MapNeeds host_needs(render::MapNeeds needs, const Placement& placement) {
-  if (placement.sim_on_device || placement.cones_on_device) needs.levels = false;
-  if (placement.cones_on_device) {
-    needs.cone_sectors = 0;
-    needs.relaxed = false;
-  }
-  return needs;
-}
 
 MapHeights frame_heights(const HeightFrame& frame) {
   MapHeights heights = map_heights(frame.field, frame.version);
