@@ -51,8 +51,9 @@ if(NOT GLSLANG_VALIDATOR)
 endif()
 # the device path's FFTs: VkFFT (header only), which compiles its kernels with glslang's library
 displace_require_package(glslang glslang-dev CONFIG)
-# tests/render/shader_size_test.cpp: SPIRV-Tools' optimiser, to count what each specialised pipeline
-# holds (Debian's glslang-tools depends on the package)
+# SPIRV-Tools' optimiser: render/pipelines.cpp freezes each pipeline's specialization constants with
+# it, and tests/render/shader_size_test.cpp counts what each specialised pipeline holds (Debian's
+# glslang-tools depends on the package)
 displace_require_package(SPIRV-Tools-opt spirv-tools CONFIG)
 find_path(VKFFT_INCLUDE_DIR vkFFT.h)
 if(NOT VKFFT_INCLUDE_DIR)

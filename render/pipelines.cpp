@@ -1,6 +1,7 @@
 // render/pipelines.cpp - descriptor and pipeline layouts, the render pass, samplers, shader modules,
-// one graphics pipeline per method and surface (specialization constants METHOD and SURFACE), and
-// the VkPipelineCache kept on disk between runs so that a second process starts without compiling.
+// one graphics pipeline per method and surface (specialization constants METHOD, SURFACE and
+// FEATURES, frozen into the module before the driver sees it: specialised_shader), and the
+// VkPipelineCache kept on disk between runs so that a second process starts without compiling.
 #include <unistd.h>
 
 #include <array>
@@ -11,8 +12,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <span>
+#include <spirv-tools/optimizer.hpp>
 #include <string>
 #include <system_error>
+#include <unordered_map>
 #include <vector>
 
 #include "render/files.h"
@@ -37,6 +41,41 @@ VkShaderModule make_shader(VkDevice device, const std::uint32_t (&code)[size]) {
   VkShaderModule module = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
   return module;
+}
+
+// The module with the specialization constants (id k = constants[k]) frozen into it and the code they
+// rule out removed: SPIRV-Tools' folding of the constants, dead-branch and dead-code elimination,
+// none of which touches arithmetic, so the pipeline computes what the driver's own specialization
+// of the whole module would, bit for bit. The stages' interfaces are kept whole (an output that the
+// next stage no longer reads is a validation warning). The fragment module is the uber-shader of every
+// method: lavapipe translated all of it for each pipeline before dropping the other methods' code (1.3 s a
+// pipeline here, 0.13 s with the pruned module, docs/design/renderer.md).
+OwnedShaderModule specialised_shader(VkDevice device, std::span<const std::uint32_t> code,
+                                     std::span<const std::int32_t> constants) {
+  spvtools::Optimizer optimizer(SPV_ENV_VULKAN_1_2);
+  std::string failure;
+  optimizer.SetMessageConsumer(
+      [&](spv_message_level_t level, const char*, const spv_position_t&, const char* text) {
+        if (level <= SPV_MSG_ERROR) failure += text;
+      });
+  std::unordered_map<std::uint32_t, std::string> values;
+  for (std::size_t id = 0; id < constants.size(); ++id)
+    values[std::uint32_t(id)] = std::to_string(constants[id]);
+  optimizer.RegisterPass(spvtools::CreateSetSpecConstantDefaultValuePass(values));
+  optimizer.RegisterPass(spvtools::CreateFreezeSpecConstantValuePass());
+  optimizer.RegisterPass(spvtools::CreateFoldSpecConstantOpAndCompositePass());
+  optimizer.RegisterPass(spvtools::CreateDeadBranchElimPass());
+  optimizer.RegisterPass(spvtools::CreateAggressiveDCEPass(/*preserve_interface=*/true));
+  optimizer.RegisterPass(spvtools::CreateEliminateDeadFunctionsPass());
+  std::vector<std::uint32_t> specialised;
+  if (!optimizer.Run(code.data(), code.size(), &specialised))
+    throw RenderError("specialising a shader failed: " + failure);
+  VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  info.codeSize = specialised.size() * sizeof(std::uint32_t);
+  info.pCode = specialised.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
+  return OwnedShaderModule(device, module);
 }
 
 // SURFACE_* of a surface (specialization constant 1).
@@ -249,15 +288,6 @@ void Renderer::Impl::create_render_pass() {
 
   relief_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_relief_vert));
   reference_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_reference_vert));
-  planar_fragment =
-      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_planar_frag));
-  quadric_fragment =
-      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_surface_quadric_frag));
-  quadric_proxy_vertex =
-      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_proxy_vert));
-  quadric_reference_vertex =
-      OwnedShaderModule(context.device(), make_shader(context.device(), spirv_quadric_reference_vert));
-  mesh_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_mesh_vert));
 }
 
 VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface, int features) {
@@ -269,32 +299,30 @@ VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface, int
   const bool quadric = is_quadric(surface);
   const bool mesh = surface == Surface::mesh;
 
-  // specialization constants 0 (METHOD), 1 (SURFACE) and 2 (FEATURES; the fragment shaders only)
+  // specialization constants 0 (METHOD), 1 (SURFACE) and 2 (FEATURES; the fragment shaders only),
+  // frozen into the modules (alive until the pipeline is made)
   const std::array<std::int32_t, 3> constants = {info.shader_id, surface_id(surface), features};
-  const std::array<VkSpecializationMapEntry, 3> entries = {
-      VkSpecializationMapEntry{0, 0, sizeof(std::int32_t)},
-      VkSpecializationMapEntry{1, sizeof(std::int32_t), sizeof(std::int32_t)},
-      VkSpecializationMapEntry{2, 2 * sizeof(std::int32_t), sizeof(std::int32_t)}};
-  VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(), sizeof(constants),
-                                      constants.data()};
+  OwnedShaderModule vertex_module, fragment_module;
   std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
   stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
   if (quadric) {
-    stages[0].module = reference ? quadric_reference_vertex.get() : quadric_proxy_vertex.get();
-    stages[0].pSpecializationInfo = &specialization;
+    vertex_module = reference ? specialised_shader(context.device(), spirv_quadric_reference_vert, constants)
+                              : specialised_shader(context.device(), spirv_quadric_proxy_vert, constants);
+    stages[0].module = vertex_module.get();
   } else if (mesh) {
-    stages[0].module = mesh_vertex.get();
-    stages[0].pSpecializationInfo = &specialization;
+    vertex_module = specialised_shader(context.device(), spirv_mesh_vert, constants);
+    stages[0].module = vertex_module.get();
   } else {
     stages[0].module = reference ? reference_vertex.get() : relief_vertex.get();
   }
   stages[0].pName = "main";
+  fragment_module = quadric ? specialised_shader(context.device(), spirv_surface_quadric_frag, constants)
+                            : specialised_shader(context.device(), spirv_surface_planar_frag, constants);
   stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-  stages[1].module = quadric ? quadric_fragment.get() : planar_fragment.get();
+  stages[1].module = fragment_module.get();
   stages[1].pName = "main";
-  stages[1].pSpecializationInfo = &specialization;
 
   const VkVertexInputBindingDescription vertex_binding{0, sizeof(float) * 2, VK_VERTEX_INPUT_RATE_VERTEX};
   const VkVertexInputAttributeDescription vertex_attribute{0, 0, VK_FORMAT_R32G32_SFLOAT, 0};

@@ -156,10 +156,9 @@ struct Renderer::Impl {
   OwnedPipelineLayout pipeline_layout;
   OwnedDescriptorPool descriptor_pool;
   OwnedRenderPass render_pass;
+  // the plane's vertex shaders; the specialised ones (the fragment shaders, the quadrics' and meshes'
+  // vertex shaders) are made per pipeline (specialised_shader)
   OwnedShaderModule relief_vertex, reference_vertex;
-  // surface.frag.glsl built for the plane and meshes, and for the quadrics (root_search.inc.glsl)
-  OwnedShaderModule planar_fragment, quadric_fragment;
-  OwnedShaderModule quadric_proxy_vertex, quadric_reference_vertex, mesh_vertex;
   OwnedSampler linear_wrap, linear_clamp, nearest_wrap, nearest_clamp;
   OwnedSampler linear_wrap_u, nearest_wrap_u;  // quadrics with Address::clamp: u wraps, v clamps
   // by (shader id * 8 + surface id) * 128 + features (config.h, FEATURE_FLAGS)
