@@ -32,24 +32,23 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
   DISPLACE_VK_CHECK(vkCreatePipelineLayout(device_, &layout_info, nullptr, &layout));
   shared->layout = OwnedPipelineLayout(device_, layout);
 
-  VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-  module_info.codeSize = spirv.size_bytes();
-  module_info.pCode = spirv.data();
-  VkShaderModule module = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateShaderModule(device_, &module_info, nullptr, &module));
-  shared->module = OwnedShaderModule(device_, module);
+  // the specialization constants frozen into the module (specialised_shader), where there are any
+  if (!constants.empty()) {
+    shared->module = specialised_shader(device_, spirv, constants);
+  } else {
+    VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    module_info.codeSize = spirv.size_bytes();
+    module_info.pCode = spirv.data();
+    VkShaderModule module = VK_NULL_HANDLE;
+    DISPLACE_VK_CHECK(vkCreateShaderModule(device_, &module_info, nullptr, &module));
+    shared->module = OwnedShaderModule(device_, module);
+  }
 
   VkComputePipelineCreateInfo pipeline_info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   pipeline_info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   pipeline_info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  pipeline_info.stage.module = module;
+  pipeline_info.stage.module = shared->module.get();
   pipeline_info.stage.pName = "main";
-  std::vector<VkSpecializationMapEntry> entries;
-  for (std::uint32_t id = 0; id < constants.size(); ++id)
-    entries.push_back({id, id * std::uint32_t(sizeof(std::int32_t)), sizeof(std::int32_t)});
-  const VkSpecializationInfo specialization{std::uint32_t(entries.size()), entries.data(),
-                                            constants.size_bytes(), constants.data()};
-  if (!constants.empty()) pipeline_info.stage.pSpecializationInfo = &specialization;
   pipeline_info.layout = layout;
   VkPipeline pipeline = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &pipeline_info, nullptr, &pipeline));

@@ -12,11 +12,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <span>
-#include <spirv-tools/optimizer.hpp>
 #include <string>
 #include <system_error>
-#include <unordered_map>
 #include <vector>
 
 #include "render/files.h"
@@ -41,41 +38,6 @@ VkShaderModule make_shader(VkDevice device, const std::uint32_t (&code)[size]) {
   VkShaderModule module = VK_NULL_HANDLE;
   DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
   return module;
-}
-
-// The module with the specialization constants (id k = constants[k]) frozen into it and the code they
-// rule out removed: SPIRV-Tools' folding of the constants, dead-branch and dead-code elimination,
-// none of which touches arithmetic, so the pipeline computes what the driver's own specialization
-// of the whole module would, bit for bit. The stages' interfaces are kept whole (an output that the
-// next stage no longer reads is a validation warning). The fragment module is the uber-shader of every
-// method: lavapipe translated all of it for each pipeline before dropping the other methods' code (1.3 s a
-// pipeline here, 0.13 s with the pruned module, docs/design/renderer.md).
-OwnedShaderModule specialised_shader(VkDevice device, std::span<const std::uint32_t> code,
-                                     std::span<const std::int32_t> constants) {
-  spvtools::Optimizer optimizer(SPV_ENV_VULKAN_1_2);
-  std::string failure;
-  optimizer.SetMessageConsumer(
-      [&](spv_message_level_t level, const char*, const spv_position_t&, const char* text) {
-        if (level <= SPV_MSG_ERROR) failure += text;
-      });
-  std::unordered_map<std::uint32_t, std::string> values;
-  for (std::size_t id = 0; id < constants.size(); ++id)
-    values[std::uint32_t(id)] = std::to_string(constants[id]);
-  optimizer.RegisterPass(spvtools::CreateSetSpecConstantDefaultValuePass(values));
-  optimizer.RegisterPass(spvtools::CreateFreezeSpecConstantValuePass());
-  optimizer.RegisterPass(spvtools::CreateFoldSpecConstantOpAndCompositePass());
-  optimizer.RegisterPass(spvtools::CreateDeadBranchElimPass());
-  optimizer.RegisterPass(spvtools::CreateAggressiveDCEPass(/*preserve_interface=*/true));
-  optimizer.RegisterPass(spvtools::CreateEliminateDeadFunctionsPass());
-  std::vector<std::uint32_t> specialised;
-  if (!optimizer.Run(code.data(), code.size(), &specialised))
-    throw RenderError("specialising a shader failed: " + failure);
-  VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-  info.codeSize = specialised.size() * sizeof(std::uint32_t);
-  info.pCode = specialised.data();
-  VkShaderModule module = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
-  return OwnedShaderModule(device, module);
 }
 
 // SURFACE_* of a surface (specialization constant 1).
