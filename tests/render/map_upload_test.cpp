@@ -69,7 +69,7 @@ bool same_frame(const Frame& a, const Frame& b) {
 // the images it already has, a method of every map kind drawn each frame) renders every frame bit
 // for bit like a fresh renderer given the same maps. The fresh renderer of frame n draws one of the
 // methods (n modulo their count: each is compared on 3 or 4 frames), as a fresh device compiles
-// every pipeline again (about 0.5 s each here).
+// every pipeline again (about 0.15 s each here).
 // The fresh one copies every map through the staging ring (host_written_maps off), the kept one on
 // the CPU device writes them into linear images: the fast path against the slow one.
 TEST(Maps, AKeptRendererMatchesAFreshOneOnEveryFrame) {
