@@ -7,8 +7,8 @@
 // the blockers that limited the texel's left and upper neighbours give a first ratio; then rings of
 // offsets are scanned, nearest first (a chunk of 8 texels whose maximum cannot lower the ratio is
 // skipped whole), and the ray of each candidate is followed where the scan finds it, only until its
-// ray point's own ratio reaches the ratio found (or not at all when its first cell does not drop and
-// the ray point there already has that ratio). The search ends at the first ring whose
+// ray point's own ratio reaches the ratio found (or not at all when the ray provably stays inside
+// its first cell and the ray point there already has that ratio). The search ends at the first ring whose
 // nearest offset could not lower the ratio even at the map's maximum height. Every test compares
 // monotone float formulas with a margin over their rounding, so none drops a blocker whose value
 // is below the ratio found. The proof is in docs/design/bakers.md, "Relaxed cones".
@@ -150,24 +150,80 @@ std::vector<std::uint8_t> flat_ahead(HeightView heights, Address address) {
   return bits;
 }
 
+// Texel d's entry q (q as in flat_ahead) of four floats: how fast a ray leaving d's top with offset
+// signs q must descend (height per texel along its larger offset component) to stay inside the
+// relief through the cell it enters first; +inf where that cell is off the map (clamp). With d's
+// cell corners h0 = d, hx and hy its neighbours toward q along x and y, hxy the fourth: in the
+// cell, at t texels along the larger component and b t (0 <= b <= 1) along the other, the surface
+// minus the ray is t (g + k b t) with k = h0 - hx - hy + hxy and, x the larger, g = hx - h0 +
+// b (hy - h0) + D for a descent D (hx, hy swapped when y is). That is positive on (0, 1] when g and
+// g + k b are; both are linear in b, so at their ends: D > max(h0 - hx, h0 - hy, 2 h0 - hx - hy,
+// h0 - hxy) is enough.
+std::vector<float> first_cell_rises(HeightView heights, Address address) {
+  const int w = heights.width, h = heights.height;
+  std::vector<float> rises(std::size_t(w) * h * 4, std::numeric_limits<float>::infinity());
+  const auto at = [&](int i, int j, double& value) {
+    if (address == Address::clamp && (unsigned(i) >= unsigned(h) || unsigned(j) >= unsigned(w))) return false;
+    value = heights.data[std::size_t(((i % h) + h) % h) * w + ((j % w) + w) % w];
+    return true;
+  };
+  const auto rows = [&](int i) {
+    for (int j = 0; j < w; ++j) {
+      const float* p = heights.data + std::size_t(i) * w + j;
+      const double h0 = *p;
+      float* out = &rises[(std::size_t(i) * w + j) * 4];
+      if (i > 0 && i + 1 < h && j > 0 && j + 1 < w) {  // inside: the eight neighbours without addressing
+        const float* up = p - w;
+        const float* down = p + w;
+        const auto rise = [h0](double hx, double hy, double hxy) {
+          return float(std::max(std::max(h0 - hx, h0 - hy), std::max(2.0 * h0 - hx - hy, h0 - hxy)));
+        };
+        out[0] = rise(p[1], down[0], down[1]);
+        out[1] = rise(p[-1], down[0], down[-1]);
+        out[2] = rise(p[1], up[0], up[1]);
+        out[3] = rise(p[-1], up[0], up[-1]);
+        continue;
+      }
+      for (int q = 0; q < 4; ++q) {
+        const int sx = q & 1 ? -1 : 1, sy = q & 2 ? -1 : 1;
+        double hx = 0, hy = 0, hxy = 0;
+        if (!at(i, j + sx, hx) || !at(i + sy, j, hy) || !at(i + sy, j + sx, hxy)) continue;
+        out[q] = float(std::max(std::max(h0 - hx, h0 - hy), std::max(2.0 * h0 - hx - hy, h0 - hxy)));
+      }
+    }
+  };
+  tbb::parallel_for(tbb::blocked_range<int>(0, h, 32), [&](const tbb::blocked_range<int>& band) {
+    for (int i = band.begin(); i < band.end(); ++i) rows(i);
+  });
+  return rises;
+}
+
 struct RingSearch {
   const Grid& grid;
   const detail::RelaxedSurface& surface;
   const ChunkMaxima& maxima;
   const std::uint8_t* ahead;  // flat_ahead()
+  const float* rises;         // first_cell_rises()
   float map_max;              // the highest texel of the map
 
   // Whether blocker d, texel (i, j) at offset (dx, dy) with height hq, is proven unable to lower
-  // best without following its ray: its first cell does not drop (ahead), so the ray stays inside
-  // the relief up to that cell's end s1 (relaxed_ray.h's walk would go on from there), and the ray
-  // point's ratio at s1 is already >= best; it never decreases along the ray, so neither the exit's
-  // ratio nor V can be below best. s1 is the walk's own first-cell end, (n + 1) / n for the larger
-  // of |dx|, |dy|. length2 = offset_length2(grid, dx, dy).
+  // best without following its ray: its first cell does not drop (ahead), or the ray descends
+  // faster than that cell rises (rises, with a margin over the walk's own rounding:
+  // docs/design/bakers.md), so the ray stays inside the relief up to that cell's end s1 (the walk
+  // of relaxed_ray.h finds no exit there and would go on from s1), and the ray point's ratio at s1
+  // is already >= best; it never decreases along the ray, so neither the exit's ratio nor V can be
+  // below best. s1 is the walk's own first-cell end, (n + 1) / n for the larger n of |dx|, |dy|.
+  // length2 = offset_length2(grid, dx, dy).
   bool stays_inside(const SectorSearch& t, int i, int j, int dx, int dy, float hq, double length2) const {
     const int q = int(dx < 0) + 2 * int(dy < 0);
-    if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1) || !(hq < 1.0f)) return false;
+    if (!(hq < 1.0f)) return false;
     const int steps = std::max(std::abs(dx), std::abs(dy));
     if (steps >= surface.first_end_count) return false;
+    if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1)) {
+      const double descent = (1.0 - double(hq)) / double(steps);
+      const double rise = rises[(std::size_t(i) * grid.width + j) * 4 + q];
+      if (!(descent >= rise + 1e-6 * (1.0 + double(steps) * double(steps)))) return false;
+    }
     return detail::ray_point_at_least(length2, t.limit2, 1.0 - double(hq), t.hc, surface.first_ends[steps]);
   }
 
@@ -355,6 +411,7 @@ struct RelaxedSearch::Impl {
         first_ends(std::size_t(std::max(map.width, map.height)) + 1),
         maxima(chunk_maxima(map)),
         ahead(flat_ahead(map, address)),
+        rises(first_cell_rises(map, address)),
         lows(make_cell_lows(map.data, map.width, map.height, address)) {
     for (std::size_t n = 1; n < first_ends.size(); ++n) first_ends[n] = double(n + 1) / double(n);
   }
@@ -364,11 +421,12 @@ struct RelaxedSearch::Impl {
   std::vector<double> first_ends;
   ChunkMaxima maxima;
   std::vector<std::uint8_t> ahead;
+  std::vector<float> rises;
   CellLows lows;
   RelaxedSurface surface{heights.data,      heights.width,          heights.height, grid.address,
                          first_ends.data(), int(first_ends.size()), &lows};
   float map_max = *std::max_element(heights.data, heights.data + std::size_t(heights.width) * heights.height);
-  RingSearch search{grid, surface, maxima, ahead.data(), map_max};
+  RingSearch search{grid, surface, maxima, ahead.data(), rises.data(), map_max};
 };
 
 RelaxedSearch::RelaxedSearch(HeightView heights, Address address, int sector_count)
