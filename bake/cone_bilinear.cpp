@@ -113,7 +113,7 @@ detail::SectorMask falling_sectors(const Patch& patch, double width, double heig
     const double gu = dir_u[d] > 0 ? du_min : du_max, gv = dir_v[d] > 0 ? dv_min : dv_max;
     const double along = dir_u[d] * gu + dir_v[d] * gv;
     const double size = std::abs(dir_u[d] * gu) + std::abs(dir_v[d] * gv);
-    return along < 1e-12 * size || along < 0.0;
+    return along < 1e-12 * size;  // (size >= 0, so a negative `along` is below it)
   };
   detail::SectorMask mask = 0;
   const int span = 8 / sectors;  // a sector's width in eighths of a turn
@@ -136,9 +136,10 @@ struct Context {
   bool prune = true;                              // BilinearConeSettings::prune
   // bake_bilinear_relaxed_cones: only the cells where s may fall along a direction of the sector count
   bool falling_only = false;
-  std::vector<detail::SectorMask> cell_falling =
-      {};                                     // per cell: the sectors along whose directions s may fall
-  std::vector<detail::Pyramid> falling = {};  // per sector: max pyramid over the maxima of those cells
+  // per cell: the sectors along whose directions s may fall
+  std::vector<detail::SectorMask> cell_falling = {};
+  // per sector: max pyramid over the maxima of those cells
+  std::vector<detail::Pyramid> falling = {};
 
   float height(int i, int j) const { return heights.data[std::size_t(i) * heights.width + j]; }
   Patch patch(int nu, int nv) const {

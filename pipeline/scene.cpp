@@ -83,11 +83,16 @@ bool runs_on_device(Backend backend, const render::DeviceInfo& device) {
 
 bool runs_on_default_device(Backend backend) {
   if (backend != Backend::automatic) return backend == Backend::device;
-  try {
-    return runs_on_device(backend, render::default_device());
-  } catch (const render::RenderError&) {
-    return false;
-  }
+  // asked of Vulkan once a process (an instance each time otherwise: a program that resolves its sim
+  // and its bake would make two)
+  static const std::optional<render::DeviceInfo> device = []() -> std::optional<render::DeviceInfo> {
+    try {
+      return render::default_device();
+    } catch (const render::RenderError&) {
+      return std::nullopt;
+    }
+  }();
+  return device && runs_on_device(backend, *device);
 }
 
 namespace {

@@ -74,7 +74,8 @@ std::string_view spreading_word(sim::Spreading model);
 bool runs_on_device(Backend backend, const render::DeviceInfo& device);
 // runs_on_device for the device a default Renderer picks (render::default_device), for a program
 // that has made no renderer yet: "auto" runs on it where it is not a CPU driver; with no device at
-// all, false (the renderer that cannot be made says why, where one is needed).
+// all, false (the renderer that cannot be made says why, where one is needed). Vulkan is asked once
+// a process.
 bool runs_on_default_device(Backend backend);
 
 struct Scene {

@@ -33,16 +33,8 @@ ComputeKernel::ComputeKernel(const Context& context, std::span<const std::uint32
   shared->layout = OwnedPipelineLayout(device_, layout);
 
   // the specialization constants frozen into the module (specialised_shader), where there are any
-  if (!constants.empty()) {
-    shared->module = specialised_shader(device_, spirv, constants);
-  } else {
-    VkShaderModuleCreateInfo module_info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-    module_info.codeSize = spirv.size_bytes();
-    module_info.pCode = spirv.data();
-    VkShaderModule module = VK_NULL_HANDLE;
-    DISPLACE_VK_CHECK(vkCreateShaderModule(device_, &module_info, nullptr, &module));
-    shared->module = OwnedShaderModule(device_, module);
-  }
+  shared->module =
+      constants.empty() ? shader_module(device_, spirv) : specialised_shader(device_, spirv, constants);
 
   VkComputePipelineCreateInfo pipeline_info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   pipeline_info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};

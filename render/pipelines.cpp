@@ -30,16 +30,6 @@
 namespace displace::render {
 namespace {
 
-template <std::size_t size>
-VkShaderModule make_shader(VkDevice device, const std::uint32_t (&code)[size]) {
-  VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-  info.codeSize = sizeof(code);
-  info.pCode = code;
-  VkShaderModule module = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
-  return module;
-}
-
 // SURFACE_* of a surface (specialization constant 1).
 int surface_id(Surface surface) {
   switch (surface) {
@@ -248,8 +238,8 @@ void Renderer::Impl::create_render_pass() {
   DISPLACE_VK_CHECK(vkCreateRenderPass(context.device(), &info, nullptr, &pass));
   render_pass = OwnedRenderPass(context.device(), pass);
 
-  relief_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_relief_vert));
-  reference_vertex = OwnedShaderModule(context.device(), make_shader(context.device(), spirv_reference_vert));
+  relief_vertex = shader_module(context.device(), spirv_relief_vert);
+  reference_vertex = shader_module(context.device(), spirv_reference_vert);
 }
 
 VkPipeline Renderer::Impl::pipeline(const MethodInfo& info, Surface surface, int features) {

@@ -667,6 +667,15 @@ Image::~Image() {
   if (memory_) vkFreeMemory(device_, memory_, nullptr);
 }
 
+OwnedShaderModule shader_module(VkDevice device, std::span<const std::uint32_t> code) {
+  VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  info.codeSize = code.size_bytes();
+  info.pCode = code.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
+  return OwnedShaderModule(device, module);
+}
+
 // (vulkan_context.h) SPIRV-Tools' folding of the constants, dead-branch and dead-code elimination,
 // none of which touches arithmetic, so the pipeline computes what the driver's own specialization of
 // the whole module would, bit for bit; the stages' interfaces are kept whole (an output that the next
@@ -693,12 +702,7 @@ OwnedShaderModule specialised_shader(VkDevice device, std::span<const std::uint3
   std::vector<std::uint32_t> specialised;
   if (!optimizer.Run(code.data(), code.size(), &specialised))
     throw RenderError("specialising a shader failed: " + failure);
-  VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-  info.codeSize = specialised.size() * sizeof(std::uint32_t);
-  info.pCode = specialised.data();
-  VkShaderModule module = VK_NULL_HANDLE;
-  DISPLACE_VK_CHECK(vkCreateShaderModule(device, &info, nullptr, &module));
-  return OwnedShaderModule(device, module);
+  return shader_module(device, specialised);
 }
 
 }  // namespace displace::render

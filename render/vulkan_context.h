@@ -251,6 +251,8 @@ using OwnedQueryPool = Owned<VkQueryPool, vkDestroyQueryPool>;
 using OwnedSemaphore = Owned<VkSemaphore, vkDestroySemaphore>;
 using OwnedSwapchain = Owned<VkSwapchainKHR, vkDestroySwapchainKHR>;
 
+// A shader module of `code` as it is.
+OwnedShaderModule shader_module(VkDevice device, std::span<const std::uint32_t> code);
 // A shader module of `code` with its specialization constants (id k = constants[k], the 32 bits a
 // 4-byte VkSpecializationInfo entry would hand over) frozen into it and the code they rule out
 // removed, so that the driver never translates it (render/pipelines.cpp, render/compute.cpp).
