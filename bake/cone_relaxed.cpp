@@ -25,6 +25,10 @@
 #include <string>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "bake/progress.h"
 #include "bake/relaxed_ray.h"
 #include "bake/relaxed_search.h"
@@ -205,6 +209,7 @@ struct RingSearch {
   const std::uint8_t* ahead;  // flat_ahead()
   const float* rises;         // first_cell_rises()
   float map_max;              // the highest texel of the map
+  std::size_t texel_count;    // of the map (a chunk's vector loads stay inside it)
 
   // Whether blocker d, texel (i, j) at offset (dx, dy) with height hq, is proven unable to lower
   // best without following its ray: its first cell does not drop (ahead), or the ray descends
@@ -220,9 +225,8 @@ struct RingSearch {
     const int steps = std::max(std::abs(dx), std::abs(dy));
     if (steps >= surface.first_end_count) return false;
     if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1)) {
-      const double descent = (1.0 - double(hq)) / double(steps);
-      const double rise = rises[(std::size_t(i) * grid.width + j) * 4 + q];
-      if (!(descent >= rise + 1e-6 * (1.0 + double(steps) * double(steps)))) return false;
+      const double n = double(steps), rise = rises[(std::size_t(i) * grid.width + j) * 4 + q];
+      if (!(1.0 - double(hq) >= (rise + 1e-6 * (1.0 + n * n)) * n)) return false;
     }
     return detail::ray_point_at_least(length2, t.limit2, 1.0 - double(hq), t.hc, surface.first_ends[steps]);
   }
@@ -245,11 +249,36 @@ struct RingSearch {
       const unsigned j = unsigned(wrap_column(t.cj + dx)), chunk = j / chunk_texels;
       const int count = std::min(x1 - dx + 1, std::min(int(chunk + 1) * chunk_texels, grid.width) - int(j));
       const float nearest = float(detail::interval_gap(dx, dx + count - 1)) * grid.inv_width;
-      if (t.may_lower(nearest * nearest + y2, row_maxima[chunk]))
+      if (t.may_lower(nearest * nearest + y2, row_maxima[chunk])) {
+#if defined(__SSE2__)
+        if (std::size_t(i) * grid.width + j + chunk_texels <= texel_count) {
+          // the chunk's texel tests at once (the same float operations as may_lower's); a texel that
+          // a ratio lowered meanwhile would drop is evaluated anyway, and evaluate drops it exactly
+          const __m128 inv = _mm_set1_ps(grid.inv_width), y2s = _mm_set1_ps(y2), hcs = _mm_set1_ps(t.hc);
+          const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
+          unsigned mask = 0;
+          for (int half = 0; half < 2; ++half) {
+            const __m128 x = _mm_mul_ps(
+                _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dx + 4 * half), _mm_set_epi32(3, 2, 1, 0))),
+                inv);
+            const __m128 d2 = _mm_add_ps(_mm_mul_ps(x, x), y2s);
+            const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(row + j + 4 * half), hcs), zero);
+            mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
+                    << (4 * half);
+          }
+          for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
+            const int n = __builtin_ctz(mask);
+            evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
+          }
+          dx += count;
+          continue;
+        }
+#endif
         for (int n = 0; n < count; ++n) {
           const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
           if (t.may_lower(d2, row[j + n])) evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
         }
+      }
       dx += count;
     }
   }
@@ -262,12 +291,36 @@ struct RingSearch {
       const unsigned i = unsigned(wrap_row(t.ci + dy)), chunk = i / chunk_texels;
       const int count = std::min(y1 - dy + 1, std::min(int(chunk + 1) * chunk_texels, grid.height) - int(i));
       const float nearest = float(detail::interval_gap(dy, dy + count - 1)) * grid.inv_height;
-      if (t.may_lower(nearest * nearest + x2, maxima.columns[std::size_t(chunk) * grid.width + j]))
+      if (t.may_lower(nearest * nearest + x2, maxima.columns[std::size_t(chunk) * grid.width + j])) {
+#if defined(__SSE2__)
+        // as scan_row's chunks, the heights gathered from the column (the missing ones at 0)
+        const float* column = surface.heights + std::size_t(i) * grid.width + j;
+        const std::size_t stride = std::size_t(grid.width);
+        float gathered[chunk_texels] = {};
+        for (int n = 0; n < count; ++n) gathered[n] = column[std::size_t(n) * stride];
+        const __m128 inv = _mm_set1_ps(grid.inv_height), x2s = _mm_set1_ps(x2), hcs = _mm_set1_ps(t.hc);
+        const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
+        unsigned mask = 0;
+        for (int half = 0; half < 2; ++half) {
+          const __m128 y = _mm_mul_ps(
+              _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dy + 4 * half), _mm_set_epi32(3, 2, 1, 0))), inv);
+          const __m128 d2 = _mm_add_ps(x2s, _mm_mul_ps(y, y));
+          const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(gathered + 4 * half), hcs), zero);
+          mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
+                  << (4 * half);
+        }
+        for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
+          const int n = __builtin_ctz(mask);
+          evaluate(t, int(i) + n, j, dx, dy + n, gathered[n]);
+        }
+#else
         for (int n = 0; n < count; ++n) {
           const float hq = surface.heights[std::size_t(i + n) * grid.width + j];
           const float y = float(dy + n) * grid.inv_height, d2 = x2 + y * y;
           if (t.may_lower(d2, hq)) evaluate(t, int(i) + n, j, dx, dy + n, hq);
         }
+#endif
+      }
       dy += count;
     }
   }
@@ -275,10 +328,10 @@ struct RingSearch {
   // Follows the ray through the blocker at (dx, dy), texel (i, j), height hq > hc, when its pair
   // ratio is below best and stays_inside does not settle it, only as far as it can lower best.
   void evaluate(SectorSearch& t, int i, int j, int dx, int dy, float hq) const {
-    const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - t.hc);
-    if (!(pair < t.best)) return;
     const double length2 = detail::offset_length2(grid, dx, dy);
     if (stays_inside(t, i, j, dx, dy, hq, length2)) return;
+    const float pair = detail::pair_ratio(grid.distance(dx, dy), hq - t.hc);
+    if (!(pair < t.best)) return;
     ++t.work;
     const float value = detail::relaxed_value(surface, grid, t.ci, t.cj, t.hc, dx, dy, hq, pair, t.best,
                                               length2, t.limit2, t.work);
@@ -426,7 +479,13 @@ struct RelaxedSearch::Impl {
   RelaxedSurface surface{heights.data,      heights.width,          heights.height, grid.address,
                          first_ends.data(), int(first_ends.size()), &lows};
   float map_max = *std::max_element(heights.data, heights.data + std::size_t(heights.width) * heights.height);
-  RingSearch search{grid, surface, maxima, ahead.data(), rises.data(), map_max};
+  RingSearch search{grid,
+                    surface,
+                    maxima,
+                    ahead.data(),
+                    rises.data(),
+                    map_max,
+                    std::size_t(heights.width) * heights.height};
 };
 
 RelaxedSearch::RelaxedSearch(HeightView heights, Address address, int sector_count)
