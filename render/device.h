@@ -158,9 +158,7 @@ class DeviceCones {
   // none has, or the device has no timestamps.
   double device_milliseconds() const;
 
-  // render/'s own parts (not installed): what DeviceLevels reads of its levels' bakes.
   struct State;
-  const State& state() const { return *state_; }
 
  private:
   std::unique_ptr<State> state_;

@@ -265,11 +265,9 @@ void DeviceCones::State::make(const Image& heights, int sector_count, bake::Addr
   reduce_kernel = impl.cone_kernels->reduce.sibling();
   reduce_kernel.bind_buffer(0, pyramid.handle());
 
-  map = std::make_shared<DeviceConeImage>(DeviceConeImage{&impl, &cones, width, height, sectors, address});
-}
-
-LevelConeParts level_cone_parts(const DeviceCones::State& state) {
-  return {&state.cones, state.pyramid.handle(), VkDeviceSize(state.level_offset.back()) * 4};
+  map = std::make_shared<DeviceConeImage>(DeviceConeImage{&impl, &cones, width, height, sectors, address,
+                                                          pyramid.handle(),
+                                                          VkDeviceSize(level_offset.back()) * 4});
 }
 
 DeviceCones::DeviceCones(Renderer& renderer, std::shared_ptr<const DeviceHeightImages> heights,

@@ -164,9 +164,9 @@ void DeviceLevels::make(const DeviceConeBudget& budget) {
                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0, VK_ACCESS_TRANSFER_WRITE_BIT,
                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
   for (int level = 1; level <= s.count; ++level) {
-    const LevelConeParts parts = level_cone_parts(s.cones[std::size_t(level - 1)]->state());
+    const DeviceConeImage& parts = *s.cones[std::size_t(level - 1)]->map();
     const glm::ivec2 origin = level_atlas_origin(s.width, s.height, level);
-    image_barrier(commands, parts.cones->handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
+    image_barrier(commands, parts.image->handle(), layers, VK_IMAGE_LAYOUT_GENERAL,
                   VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT,
                   VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT);
@@ -175,9 +175,9 @@ void DeviceLevels::make(const DeviceConeBudget& budget) {
     region.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, layers};
     region.dstOffset = {origin.x, origin.y, 0};
     region.extent = {std::uint32_t(s.level_width(level)), std::uint32_t(s.level_height(level)), 1};
-    vkCmdCopyImage(commands, parts.cones->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+    vkCmdCopyImage(commands, parts.image->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                    s.atlas_cones.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-    image_barrier(commands, parts.cones->handle(), layers, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+    image_barrier(commands, parts.image->handle(), layers, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                   VK_IMAGE_LAYOUT_GENERAL, VK_ACCESS_TRANSFER_READ_BIT, read, VK_PIPELINE_STAGE_TRANSFER_BIT,
                   readers);
     const VkBufferCopy top{parts.top_offset, VkDeviceSize(level - 1) * 4, 4};

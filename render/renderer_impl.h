@@ -55,12 +55,6 @@ inline glm::ivec2 level_atlas_size(int width, int height, int level_count) {
 
 // device_cones.cpp, for DeviceLevels: what it copies from a level's DeviceCones after a bake - the
 // cone image (GENERAL layout) and where the max pyramid's top node lies (the largest height, a float).
-struct LevelConeParts {
-  const Image* cones = nullptr;
-  VkBuffer pyramid = VK_NULL_HANDLE;
-  VkDeviceSize top_offset = 0;  // bytes
-};
-LevelConeParts level_cone_parts(const DeviceCones::State& state);
 
 // memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
 void add_target_memory(std::vector<Allocation>& list, int width, int height);
@@ -124,6 +118,10 @@ struct DeviceConeImage {  // cone_format, a layer per sector
   const Image* image = nullptr;
   int width = 0, height = 0, sectors = 0;
   bake::Address address = bake::Address::wrap;
+  // the bake's max pyramid and the byte offset of its top (the map's highest height): what
+  // DeviceLevels copies into a frame's level tops
+  VkBuffer pyramid = VK_NULL_HANDLE;
+  VkDeviceSize top_offset = 0;
 };
 // Atlases laid out as level_heights' and level_cones', and each level's highest height at level_tops'
 // place in FrameUniforms (`tops`, 16 floats, copied into a frame's uniforms on the device).
