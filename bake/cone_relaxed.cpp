@@ -154,15 +154,8 @@ std::vector<std::uint8_t> flat_ahead(HeightView heights, Address address) {
   return bits;
 }
 
-// Texel d's entry q (q as in flat_ahead) of four floats: how fast a ray leaving d's top with offset
-// signs q must descend (height per texel along its larger offset component) to stay inside the
-// relief through the cell it enters first; +inf where that cell is off the map (clamp). With d's
-// cell corners h0 = d, hx and hy its neighbours toward q along x and y, hxy the fourth: in the
-// cell, at t texels along the larger component and b t (0 <= b <= 1) along the other, the surface
-// minus the ray is t (g + k b t) with k = h0 - hx - hy + hxy and, x the larger, g = hx - h0 +
-// b (hy - h0) + D for a descent D (hx, hy swapped when y is). That is positive on (0, 1] when g and
-// g + k b are; both are linear in b, so at their ends: D > max(h0 - hx, h0 - hy, 2 h0 - hx - hy,
-// h0 - hxy) is enough.
+// Texel d's entry q (q as in flat_ahead) of four floats: relaxed_ray.h's first_cell_rise of the
+// cell a ray with offset signs q enters first after d; +inf where that cell is off the map (clamp).
 std::vector<float> first_cell_rises(HeightView heights, Address address) {
   const int w = heights.width, h = heights.height;
   std::vector<float> rises(std::size_t(w) * h * 4, std::numeric_limits<float>::infinity());
@@ -180,7 +173,7 @@ std::vector<float> first_cell_rises(HeightView heights, Address address) {
         const float* up = p - w;
         const float* down = p + w;
         const auto rise = [h0](double hx, double hy, double hxy) {
-          return float(std::max(std::max(h0 - hx, h0 - hy), std::max(2.0 * h0 - hx - hy, h0 - hxy)));
+          return float(detail::first_cell_rise(h0, hx, hy, hxy));
         };
         out[0] = rise(p[1], down[0], down[1]);
         out[1] = rise(p[-1], down[0], down[-1]);
@@ -192,7 +185,7 @@ std::vector<float> first_cell_rises(HeightView heights, Address address) {
         const int sx = q & 1 ? -1 : 1, sy = q & 2 ? -1 : 1;
         double hx = 0, hy = 0, hxy = 0;
         if (!at(i, j + sx, hx) || !at(i + sy, j, hy) || !at(i + sy, j + sx, hxy)) continue;
-        out[q] = float(std::max(std::max(h0 - hx, h0 - hy), std::max(2.0 * h0 - hx - hy, h0 - hxy)));
+        out[q] = float(detail::first_cell_rise(h0, hx, hy, hxy));
       }
     }
   };
@@ -225,8 +218,9 @@ struct RingSearch {
     const int steps = std::max(std::abs(dx), std::abs(dy));
     if (steps >= surface.first_end_count) return false;
     if (!(ahead[std::size_t(i) * grid.width + j] >> q & 1)) {
-      const double n = double(steps), rise = rises[(std::size_t(i) * grid.width + j) * 4 + q];
-      if (!(1.0 - double(hq) >= (rise + 1e-6 * (1.0 + n * n)) * n)) return false;
+      // (the float rise is within 1.2e-7 of the double one: the margin, at least 10^-6, covers it)
+      const double rise = rises[(std::size_t(i) * grid.width + j) * 4 + q];
+      if (!detail::leaves_no_exit_in_first_cell(1.0 - double(hq), steps, rise)) return false;
     }
     return detail::ray_point_at_least(length2, t.limit2, 1.0 - double(hq), t.hc, surface.first_ends[steps]);
   }

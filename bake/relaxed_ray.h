@@ -205,6 +205,24 @@ inline double offset_length2(const Grid& grid, int dx, int dy) {
 }
 inline double ratio_limit2(float threshold) { return double(threshold) * double(threshold) * (1.0 + 1e-6); }
 
+// A ray leaving blocker d's top descends `drop` = 1 - h(d) per unit of its parameter s, n texels
+// along its larger offset component. first_cell_rise is how fast (height per texel along that
+// component) it must descend to stay inside the cell it enters first, whose corners are h0 = h(d),
+// hx and hy (d's neighbours in that cell along x and y) and hxy: at t texels along the larger
+// component and b t (0 <= b <= 1) along the other, surface minus ray is t (g + k b t), k = h0 - hx -
+// hy + hxy, g = hx - h0 + b (hy - h0) + D for a descent D (x the larger; hx and hy swap otherwise),
+// positive on (0, 1] when g and g + k b are, both linear in b. leaves_no_exit_in_first_cell adds a
+// margin of 10^-6 (1 + n^2) over the rounding of exit_parameter's own quadratic in that cell (terms
+// up to about 28 n^2, its first probe 10^-6 cell in): when it holds, exit_parameter finds no exit
+// before the cell's end. Proof: docs/design/bakers.md, "Relaxed cones".
+inline double first_cell_rise(double h0, double hx, double hy, double hxy) {
+  return std::max(std::max(h0 - hx, h0 - hy), std::max(2.0 * h0 - hx - hy, h0 - hxy));
+}
+inline bool leaves_no_exit_in_first_cell(double drop, int n, double rise) {
+  const double steps = double(n);
+  return drop >= (rise + 1e-6 * (1.0 + steps * steps)) * steps;
+}
+
 // The relaxed value V(c, d) of blocker d at texel offset (dx, dy) from texel c = (ci, cj), with
 // heights hq > hc: the ray from (c, 1) through (d, hq) leaves the relief at E, and V is E's ratio
 // |E - c| / (h(E) - hc) (1 when E is not above c), never below the pair ratio `pair`. With
