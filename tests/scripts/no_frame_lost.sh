@@ -243,9 +243,11 @@ signals() {
   interrupted_run "$work/term" 143 "$work/clean" "$last" TERM
   grep -q "displace: stopped by SIGTERM: stopped before frame" "$work/term.stderr" || fail "$(cat "$work/term.stderr")"
   interrupted_run "$work/int" 130 "$work/clean" "$last" INT
-  # a second signal while a frame renders (frames of about 0.5 s here) ends the run at once, and
-  # says nothing of stopping between frames
-  run_flags=(--scene water --map-size 64 --size 1280x720 --pipeline-cache off)
+  # a second signal while a frame renders ends the run at once, and says nothing of stopping between
+  # frames. The frames must outlast the 0.25 s from frame 1's file to the second signal: 1920 x 1080
+  # took 0.5 s on the faster of the machines this ran on (1280 x 720 took 0.26 s there, and the
+  # frame had ended before the second signal came)
+  run_flags=(--scene water --map-size 64 --size 1920x1080 --pipeline-cache off)
   mkdir -p "$work/clean-large"
   "$displace" sequence "${run_flags[@]}" --frames 0:5 --output "$work/clean-large/w_####.png" >/dev/null
   # (0.15 s after frame 1 is written, frame 2 is rendering: under load the first signal once came
