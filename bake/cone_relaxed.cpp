@@ -243,37 +243,39 @@ struct RingSearch {
       const unsigned j = unsigned(wrap_column(t.cj + dx)), chunk = j / chunk_texels;
       const int count = std::min(x1 - dx + 1, std::min(int(chunk + 1) * chunk_texels, grid.width) - int(j));
       const float nearest = float(detail::interval_gap(dx, dx + count - 1)) * grid.inv_width;
-      if (t.may_lower(nearest * nearest + y2, row_maxima[chunk])) {
-#if defined(__SSE2__)
-        if (std::size_t(i) * grid.width + j + chunk_texels <= texel_count) {
-          // the chunk's texel tests at once (the same float operations as may_lower's); a texel that
-          // a ratio lowered meanwhile would drop is evaluated anyway, and evaluate drops it exactly
-          const __m128 inv = _mm_set1_ps(grid.inv_width), y2s = _mm_set1_ps(y2), hcs = _mm_set1_ps(t.hc);
-          const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
-          unsigned mask = 0;
-          for (int half = 0; half < 2; ++half) {
-            const __m128 x = _mm_mul_ps(
-                _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dx + 4 * half), _mm_set_epi32(3, 2, 1, 0))),
-                inv);
-            const __m128 d2 = _mm_add_ps(_mm_mul_ps(x, x), y2s);
-            const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(row + j + 4 * half), hcs), zero);
-            mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
-                    << (4 * half);
-          }
-          for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
-            const int n = __builtin_ctz(mask);
-            evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
-          }
-          dx += count;
-          continue;
-        }
-#endif
-        for (int n = 0; n < count; ++n) {
-          const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
-          if (t.may_lower(d2, row[j + n])) evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
-        }
-      }
+      if (t.may_lower(nearest * nearest + y2, row_maxima[chunk])) row_chunk(t, i, row, j, dx, dy, y2, count);
       dx += count;
+    }
+  }
+
+  // The texels of a chunk of row i that passed: offsets dx .. dx + count - 1, texels j .. j + count - 1.
+  [[gnu::noinline]] void row_chunk(SectorSearch& t, int i, const float* row, unsigned j, int dx, int dy,
+                                   float y2, int count) const {
+#if defined(__SSE2__)
+    if (std::size_t(i) * grid.width + j + chunk_texels <= texel_count) {
+      // the chunk's texel tests at once (the same float operations as may_lower's); a texel that
+      // a ratio lowered meanwhile would drop is evaluated anyway, and evaluate drops it exactly
+      const __m128 inv = _mm_set1_ps(grid.inv_width), y2s = _mm_set1_ps(y2), hcs = _mm_set1_ps(t.hc);
+      const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
+      unsigned mask = 0;
+      for (int half = 0; half < 2; ++half) {
+        const __m128 x = _mm_mul_ps(
+            _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dx + 4 * half), _mm_set_epi32(3, 2, 1, 0))), inv);
+        const __m128 d2 = _mm_add_ps(_mm_mul_ps(x, x), y2s);
+        const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(row + j + 4 * half), hcs), zero);
+        mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
+                << (4 * half);
+      }
+      for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
+        const int n = __builtin_ctz(mask);
+        evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
+      }
+      return;
+    }
+#endif
+    for (int n = 0; n < count; ++n) {
+      const float x = float(dx + n) * grid.inv_width, d2 = x * x + y2;
+      if (t.may_lower(d2, row[j + n])) evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
     }
   }
 
