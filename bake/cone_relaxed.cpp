@@ -232,6 +232,27 @@ struct RingSearch {
     return unsigned(j) < unsigned(grid.width) ? j : ((j % grid.width) + grid.width) % grid.width;
   }
 
+#if defined(__SSE2__)
+  // Bits n < count of the chunk's texels that may lower best, four at a time: heights[n] at offset
+  // `first` + n along the chunk (uv `inv` a texel) and `across2` squared uv across it - may_lower's
+  // float operations on each lane (x * x + across2, then gap * gap * scan_limit).
+  static unsigned candidates(const SectorSearch& t, const float* heights, int first, float inv, float across2,
+                             int count) {
+    const __m128 scale = _mm_set1_ps(inv), across = _mm_set1_ps(across2), hcs = _mm_set1_ps(t.hc);
+    const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
+    unsigned mask = 0;
+    for (int half = 0; half < 2; ++half) {
+      const __m128 x = _mm_mul_ps(
+          _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(first + 4 * half), _mm_set_epi32(3, 2, 1, 0))), scale);
+      const __m128 d2 = _mm_add_ps(_mm_mul_ps(x, x), across);
+      const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(heights + 4 * half), hcs), zero);
+      mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
+              << (4 * half);
+    }
+    return mask & ((1u << count) - 1);
+  }
+#endif
+
   // The offsets (dx, dy), dx in [x0, x1], chunk by chunk: a chunk whose maximum at its nearest
   // offset cannot lower best holds no texel that can (the float products are monotone).
   void scan_row(SectorSearch& t, int dy, int x0, int x1) const {
@@ -255,18 +276,8 @@ struct RingSearch {
     if (std::size_t(i) * grid.width + j + chunk_texels <= texel_count) {
       // the chunk's texel tests at once (the same float operations as may_lower's); a texel that
       // a ratio lowered meanwhile would drop is evaluated anyway, and evaluate drops it exactly
-      const __m128 inv = _mm_set1_ps(grid.inv_width), y2s = _mm_set1_ps(y2), hcs = _mm_set1_ps(t.hc);
-      const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
-      unsigned mask = 0;
-      for (int half = 0; half < 2; ++half) {
-        const __m128 x = _mm_mul_ps(
-            _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dx + 4 * half), _mm_set_epi32(3, 2, 1, 0))), inv);
-        const __m128 d2 = _mm_add_ps(_mm_mul_ps(x, x), y2s);
-        const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(row + j + 4 * half), hcs), zero);
-        mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
-                << (4 * half);
-      }
-      for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
+      for (unsigned mask = candidates(t, row + j, dx, grid.inv_width, y2, count); mask != 0;
+           mask &= mask - 1) {
         const int n = __builtin_ctz(mask);
         evaluate(t, i, int(j) + n, dx + n, dy, row[j + n]);
       }
@@ -294,18 +305,9 @@ struct RingSearch {
         const std::size_t stride = std::size_t(grid.width);
         float gathered[chunk_texels] = {};
         for (int n = 0; n < count; ++n) gathered[n] = column[std::size_t(n) * stride];
-        const __m128 inv = _mm_set1_ps(grid.inv_height), x2s = _mm_set1_ps(x2), hcs = _mm_set1_ps(t.hc);
-        const __m128 limit = _mm_set1_ps(t.scan_limit), zero = _mm_setzero_ps();
-        unsigned mask = 0;
-        for (int half = 0; half < 2; ++half) {
-          const __m128 y = _mm_mul_ps(
-              _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(dy + 4 * half), _mm_set_epi32(3, 2, 1, 0))), inv);
-          const __m128 d2 = _mm_add_ps(x2s, _mm_mul_ps(y, y));
-          const __m128 gap = _mm_max_ps(_mm_sub_ps(_mm_loadu_ps(gathered + 4 * half), hcs), zero);
-          mask |= unsigned(_mm_movemask_ps(_mm_cmplt_ps(d2, _mm_mul_ps(_mm_mul_ps(gap, gap), limit))))
-                  << (4 * half);
-        }
-        for (mask &= (1u << count) - 1; mask != 0; mask &= mask - 1) {
+        // (x2 + y * y there: the same float as y * y + x2)
+        for (unsigned mask = candidates(t, gathered, dy, grid.inv_height, x2, count); mask != 0;
+             mask &= mask - 1) {
           const int n = __builtin_ctz(mask);
           evaluate(t, int(i) + n, j, dx, dy + n, gathered[n]);
         }
