@@ -5,26 +5,28 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "bake/device/device_cones.h"
 #include "demos/error.h"
 #include "pipeline/maps.h"
-#include "render/device.h"
+#include "sim/device/device_sim.h"
 
 namespace displace::app {
 
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
-                                   double budget_milliseconds, const render::DeviceFirstPass& first_pass) {
+                                   double budget_milliseconds, const bake::DeviceFirstPass& first_pass) {
   if (baker != Baker::budgeted && baker != Baker::full) {
     throw usage_error(std::string("bilinear cones bake with the budgeted or the full baker, not ") +
                       baker_name(baker));
   }
   const auto start = std::chrono::steady_clock::now();
-  render::DeviceCones cones(renderer, bake::HeightView{heights.data(), width, height}, sector_count, address);
+  bake::DeviceCones cones(renderer.frames(), bake::HeightView{heights.data(), width, height}, sector_count,
+                          address);
   bake::Budget budget;  // the full baker: unlimited
   if (baker == Baker::budgeted) budget.milliseconds = budget_milliseconds;
   cones.bake(pipeline::device_cone_budget(budget, first_pass));
   BakedCones baked;
-  const render::DeviceConeStats device_stats = cones.read_back(&baked.ratios, &baked.apex);
+  const bake::DeviceConeStats device_stats = cones.read_back(&baked.ratios, &baked.apex);
   baked.stats.mode = bake::Mode::bilinear;
   baked.stats.width = width;
   baked.stats.height = height;

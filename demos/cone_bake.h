@@ -7,10 +7,11 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/device/device_cones.h"
 #include "demos/cone_export.h"
 #include "pipeline/cone_bake.h"
-#include "render/device.h"
 #include "render/render.h"
+#include "sim/device/device_sim.h"
 
 namespace displace::app {
 
@@ -18,15 +19,14 @@ using pipeline::bake_bilinear;
 using pipeline::bake_cones;
 using pipeline::BakedCones;
 
-// Bilinear cones on `renderer`'s device (render::DeviceCones, the same contract), with the frame
+// Bilinear cones on `renderer`'s device (bake::DeviceCones, the same contract), with the frame
 // pipeline's rule (pipeline::device_cone_budget): Baker::full and a budgeted bake without a budget
 // search every texel to the cells, a budgeted bake with a budget (a dispatch cannot stop when it runs
 // out) makes the first pass only, of the shape `first_pass` says. Stats: mode bilinear, texels refined, wall
 // milliseconds, mean ratio.
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
-                                   double budget_milliseconds,
-                                   const render::DeviceFirstPass& first_pass = {});
+                                   double budget_milliseconds, const bake::DeviceFirstPass& first_pass = {});
 // The --stats JSON line (no trailing newline).
 std::string stats_json(const bake::BakeStats& stats, Baker baker, bake::Address address,
                        ConeKind kind = ConeKind::center);

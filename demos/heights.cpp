@@ -127,7 +127,7 @@ SceneHeights scene_heights(const pipeline::Scene& scene, double time, render::Re
       // on the device: the same effects, read back
       pipeline::DeviceSimInfo info;
       const pipeline::SourceSettings settings = pipeline::source_settings(scene);
-      const std::unique_ptr<render::DeviceSim> made = pipeline::make_device_sim(
+      const std::unique_ptr<sim::DeviceSim> made = pipeline::make_device_sim(
           *device, settings, pipeline::scene_effects(scene) & ~unsigned(pipeline::effect_foam), &info);
       const sim::HeightMapping mapping = info.mapping;
       result.loop_error = info.loop_error;

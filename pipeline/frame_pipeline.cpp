@@ -49,11 +49,11 @@ struct FramePipeline::State {
 
 namespace {
 
-void check_first_pass(const render::DeviceFirstPass& first_pass) {
-  if (first_pass.ring_radius < 0 || first_pass.ring_radius > render::max_first_pass_rings ||
-      first_pass.window_radius < 1 || first_pass.window_radius > render::max_first_pass_window) {
-    throw SceneError("backend.device_rings must be in [0, " + std::to_string(render::max_first_pass_rings) +
-                     "] and backend.device_window in [1, " + std::to_string(render::max_first_pass_window) +
+void check_first_pass(const bake::DeviceFirstPass& first_pass) {
+  if (first_pass.ring_radius < 0 || first_pass.ring_radius > bake::max_first_pass_rings ||
+      first_pass.window_radius < 1 || first_pass.window_radius > bake::max_first_pass_window) {
+    throw SceneError("backend.device_rings must be in [0, " + std::to_string(bake::max_first_pass_rings) +
+                     "] and backend.device_window in [1, " + std::to_string(bake::max_first_pass_window) +
                      "]");
   }
   if (first_pass.group && first_pass.ring_radius > 0)

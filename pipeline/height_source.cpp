@@ -158,8 +158,8 @@ bool simulates_on_device(SourceKind kind) {
   return kind == SourceKind::ocean || kind == SourceKind::sinusoids;
 }
 
-std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
-                                                   unsigned effects, DeviceSimInfo* info) {
+std::unique_ptr<sim::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
+                                                unsigned effects, DeviceSimInfo* info) {
   if (!simulates_on_device(settings.kind))
     throw SceneError("the device path simulates the ocean and sinusoids only");
   check_map_size(settings);
@@ -171,13 +171,13 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
       std::vector<float> values;
       for (const sim::Wave& wave : waves)
         values.insert(values.end(), {wave.kx, wave.ky, wave.amplitude, wave.omega, wave.phase});
-      render::SinusoidWavesView view;
+      sim::SinusoidWavesView view;
       view.size = settings.map_size;
       view.patch_size = settings.sinusoids.patch_size;
       view.waves = values;
       view.scale = mapping.scale;
       view.bias = mapping.bias;
-      return std::make_unique<render::DeviceSim>(renderer, view);
+      return std::make_unique<sim::DeviceSim>(renderer.frames(), view);
     }
     sim::OceanParams params = settings.ocean;
     params.size = settings.map_size;
@@ -185,7 +185,7 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
     const sim::Ocean::HalfSpectrum spectrum = ocean.half_spectrum();
     const sim::HeightMapping mapping = ocean.mapping();
     if (info) *info = {mapping, ocean.loop_error()};
-    render::OceanSpectrumView view;
+    sim::OceanSpectrumView view;
     view.size = params.size;
     view.patch_size = params.patch_size;
     view.choppiness = params.choppiness;
@@ -196,9 +196,9 @@ std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, c
     view.foam_start = settings.foam_start;
     view.foam_full = settings.foam_start - foam_width;
     const unsigned device_effects =
-        ((effects & effect_choppy) && params.choppiness > 0.0f ? render::device_choppy : 0u) |
-        ((effects & effect_foam) ? render::device_foam : 0u);
-    return std::make_unique<render::DeviceSim>(renderer, view, device_effects);
+        ((effects & effect_choppy) && params.choppiness > 0.0f ? sim::device_choppy : 0u) |
+        ((effects & effect_foam) ? sim::device_foam : 0u);
+    return std::make_unique<sim::DeviceSim>(renderer.frames(), view, device_effects);
   } catch (const std::invalid_argument& error) {
     throw SceneError(std::string("the scene's source: ") + error.what());
   }

@@ -22,9 +22,10 @@
 #include <span>
 #include <vector>
 
+#include "bake/device/device_cones.h"
 #include "pipeline/scene.h"
-#include "render/device.h"
 #include "render/render.h"
+#include "sim/device/device_sim.h"
 #include "sim/sim.h"
 
 namespace displace::pipeline {
@@ -101,7 +102,7 @@ class HeightSource {
   std::unique_ptr<State> state_;
 };
 
-// The source of `settings` on `renderer`'s device (render/device.h): the ocean's spectrum as
+// The source of `settings` on `renderer`'s device (sim/device/device_sim.h): the ocean's spectrum as
 // sim::Ocean draws it, or the sinusoids' waves, with the same mapping, the foam thresholds above and
 // the effects asked for. Throws SceneError unless the source is the ocean or sinusoids.
 bool simulates_on_device(SourceKind kind);
@@ -109,8 +110,8 @@ struct DeviceSimInfo {
   sim::HeightMapping mapping;  // raw -> [0, 1]
   double loop_error = 0.0;     // sim::Ocean::loop_error of the ocean's loop (0: none)
 };
-std::unique_ptr<render::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
-                                                   unsigned effects, DeviceSimInfo* info = nullptr);
+std::unique_ptr<sim::DeviceSim> make_device_sim(render::Renderer& renderer, const SourceSettings& settings,
+                                                unsigned effects, DeviceSimInfo* info = nullptr);
 // The time a source's heights are made for: `time` modulo the ocean's loop_seconds (the CPU's
 // sim::Ocean takes it so itself; the device is given it), else `time`.
 double source_time(const SourceSettings& settings, double time);

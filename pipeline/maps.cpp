@@ -499,13 +499,13 @@ const bake::BakeStats& MapMaker::cone_stats(int sector_count) const {
   return state_->slots[0].cones[std::size_t(render::cone_slot(sector_count))].stats;
 }
 
-render::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
-                                            const render::DeviceFirstPass& first_pass) {
-  render::DeviceConeBudget work;
+bake::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
+                                          const bake::DeviceFirstPass& first_pass) {
+  bake::DeviceConeBudget work;
   work.first_pass = first_pass;
   work.texels = budget.max_work >= 0                 ? budget.max_work
                 : std::isfinite(budget.milliseconds) ? 0
-                                                     : render::unlimited_texels;
+                                                     : bake::unlimited_texels;
   return work;
 }
 

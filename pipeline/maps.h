@@ -21,8 +21,9 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "render/device.h"
+#include "bake/device/device_cones.h"
 #include "render/render.h"
+#include "sim/device/device_sim.h"
 
 namespace displace::pipeline {
 
@@ -82,12 +83,12 @@ struct ConeSchedule {
   long long frame_index = 0;  // the frame the heights belong to (a lagged map's age)
 };
 
-// The one rule from a cone budget to a device bake's work (render/device.h), for the frame pipeline
-// and every command: a work budget (max_work) is that many cut texels searched again; a wall-clock
+// The one rule from a cone budget to a device bake's work (bake/device/device_cones.h), for the frame
+// pipeline and every command: a work budget (max_work) is that many cut texels searched again; a wall-clock
 // budget the first pass alone (a dispatch cannot stop when the time runs out); none, every texel
 // searched to the cells.
-render::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
-                                            const render::DeviceFirstPass& first_pass);
+bake::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
+                                          const bake::DeviceFirstPass& first_pass);
 
 // What make() did.
 struct MapStats {

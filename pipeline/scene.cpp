@@ -77,7 +77,7 @@ std::string_view spreading_word(sim::Spreading model) {
   return "cos2s";
 }
 
-bool runs_on_device(Backend backend, const render::DeviceInfo& device) {
+bool runs_on_device(Backend backend, const vulkan::DeviceInfo& device) {
   return backend == Backend::device || (backend == Backend::automatic && device.type != "cpu");
 }
 
@@ -85,7 +85,7 @@ bool runs_on_default_device(Backend backend) {
   if (backend != Backend::automatic) return backend == Backend::device;
   // asked of Vulkan once a process (an instance each time otherwise: a program that resolves its sim
   // and its bake would make two)
-  static const std::optional<render::DeviceInfo> device = []() -> std::optional<render::DeviceInfo> {
+  static const std::optional<vulkan::DeviceInfo> device = []() -> std::optional<vulkan::DeviceInfo> {
     try {
       return render::default_device();
     } catch (const render::RenderError&) {
@@ -816,11 +816,11 @@ void read_backend(const Reader& read, const toml::table& root, Scene& scene) {
       read.word(backend, "backend", "sim", backend_word(scene.sim_backend), {"auto", "cpu", "device"}));
   scene.bake_backend = backend_of(
       read.word(backend, "backend", "bake", backend_word(scene.bake_backend), {"auto", "cpu", "device"}));
-  render::DeviceFirstPass& first_pass = scene.device_first_pass;
+  bake::DeviceFirstPass& first_pass = scene.device_first_pass;
   first_pass.ring_radius = int(read.integer(backend, "backend", "device_rings", first_pass.ring_radius, 0,
-                                            render::max_first_pass_rings));
+                                            bake::max_first_pass_rings));
   first_pass.window_radius = int(read.integer(backend, "backend", "device_window", first_pass.window_radius,
-                                              1, render::max_first_pass_window));
+                                              1, bake::max_first_pass_window));
   first_pass.group = read.boolean(backend, "backend", "device_group", first_pass.group);
   // the group's first pass replaces the rings': turned on without a ring radius, it takes none
   if (backend && first_pass.group && backend->contains("device_group") && !backend->contains("device_rings"))

@@ -14,9 +14,10 @@
 #include <string_view>
 #include <vector>
 
-#include "render/device_info.h"
+#include "bake/device/first_pass.h"
 #include "render/view.h"
 #include "sim/sim.h"
+#include "vulkan/device_info.h"
 
 namespace displace::pipeline {
 
@@ -71,7 +72,7 @@ std::vector<sim::Spreading> spreading_models();
 std::string_view spectrum_word(sim::Spectrum spectrum);
 std::string_view spreading_word(sim::Spreading model);
 // Whether a stage set to `backend` runs on the device of `device`.
-bool runs_on_device(Backend backend, const render::DeviceInfo& device);
+bool runs_on_device(Backend backend, const vulkan::DeviceInfo& device);
 // runs_on_device for the device a default Renderer picks (render::default_device), for a program
 // that has made no renderer yet: "auto" runs on it where it is not a CPU driver; with no device at
 // all, false (the renderer that cannot be made says why, where one is needed). Vulkan is asked once
@@ -148,11 +149,11 @@ struct Scene {
   // (ocean, sinusoids); static ones (bricks, cliff, images) are made or read once on the CPU.
   Backend sim_backend = Backend::automatic;
   Backend bake_backend = Backend::automatic;
-  // How the device's cone bake makes its first pass (render::DeviceFirstPass): ring_radius 0
+  // How the device's cone bake makes its first pass (bake::DeviceFirstPass): ring_radius 0
   // searches the pyramid, r > 0 bounds rings of nodes (2 by default), group by 8 x 8 texel groups
   // (with ring_radius 0); window_radius cells around each texel are bounded by the slope window.
   // [backend] device_rings, device_window and device_group.
-  render::DeviceFirstPass device_first_pass{};
+  bake::DeviceFirstPass device_first_pass{};
 };
 
 // Where a scene's stages run on `device`, decided once for a pipeline or a command (the one place
@@ -168,7 +169,7 @@ struct Placement {
   // A stage on the device records into the renderer's next frame: its frames run on the render thread.
   bool records_into_frame() const { return sim_on_device || cones_on_device; }
 };
-Placement place_stages(const Scene& scene, const render::DeviceInfo& device);
+Placement place_stages(const Scene& scene, const vulkan::DeviceInfo& device);
 
 // The image file of frame n (SourceKind::image): each run of '#' replaced by n, zero-padded.
 std::filesystem::path image_for_frame(const std::filesystem::path& pattern, long long frame_index);

@@ -121,7 +121,7 @@ class DeviceHeights final : public HeightStage {
  private:
   SourceSettings settings_;
   DeviceSimInfo info_;
-  std::unique_ptr<render::DeviceSim> sim_;
+  std::unique_ptr<sim::DeviceSim> sim_;
   unsigned effects_;
   bool to_cpu_;
   double ahead_;
@@ -191,15 +191,15 @@ class DeviceMaps final : public MapStage {
         lag_frames_(lag_frames),
         ahead_(ahead) {
     if (cones_on_device_ && sim_)
-      cones_ = std::make_unique<render::DeviceCones>(renderer, sim_->maps(), needs.cone_sectors,
-                                                     needs.cone_address);
+      cones_ = std::make_unique<bake::DeviceCones>(renderer.frames(), sim_->maps(), needs.cone_sectors,
+                                                   needs.cone_address);
     if (placement.levels_on_device)
-      levels_ = std::make_unique<render::DeviceLevels>(renderer, sim_->maps(), needs.cone_sectors,
-                                                       needs.cone_address);
+      levels_ = std::make_unique<bake::DeviceLevels>(renderer.frames(), sim_->maps(), needs.cone_sectors,
+                                                     needs.cone_address);
   }
 
   void make(int slot, const HeightFrame& frame, const ConeSchedule& schedule, FrameRecord& record) override {
-    const render::DeviceConeBudget budget = device_cone_budget(schedule.budget, first_pass_);
+    const bake::DeviceConeBudget budget = device_cone_budget(schedule.budget, first_pass_);
     if (cones_on_device_) bake_cones(frame, budget, record);
     if (levels_) levels_->make(budget);  // of the frame's own heights (after ahead's)
     host_.make(slot, frame, schedule, record);
@@ -238,13 +238,13 @@ class DeviceMaps final : public MapStage {
 
  private:
   // The cone bake, recorded into the renderer's next frame after the sim: a device sim's heights every
-  // frame (lagged: a share of the next map, the last one served raised; render/device.h), a static
+  // frame (lagged: a share of the next map, the last one served raised; bake/device/device_cones.h), a static
   // map's once per version of its heights.
-  void bake_cones(const HeightFrame& frame, const render::DeviceConeBudget& budget, FrameRecord& record) {
+  void bake_cones(const HeightFrame& frame, const bake::DeviceConeBudget& budget, FrameRecord& record) {
     if (!cones_) {
       const bake::HeightView heights{frame.field.heights.data(), frame.field.width, frame.field.height};
-      cones_ =
-          std::make_unique<render::DeviceCones>(renderer_, heights, needs_.cone_sectors, needs_.cone_address);
+      cones_ = std::make_unique<bake::DeviceCones>(renderer_.frames(), heights, needs_.cone_sectors,
+                                                   needs_.cone_address);
     }
     if (sim_ || baked_from_ != frame.version) {
       if (ahead_) {  // the next frame's map from the next frame's heights, then this frame's heights
@@ -267,12 +267,12 @@ class DeviceMaps final : public MapStage {
   DeviceHeights* sim_;  // null: the heights are the host's (a static map)
   render::MapNeeds needs_;
   HostMaps host_;
-  render::DeviceFirstPass first_pass_;
+  bake::DeviceFirstPass first_pass_;
   bool cones_on_device_;
   int lag_frames_;
   bool ahead_;
-  std::unique_ptr<render::DeviceCones> cones_;
-  std::unique_ptr<render::DeviceLevels> levels_;
+  std::unique_ptr<bake::DeviceCones> cones_;
+  std::unique_ptr<bake::DeviceLevels> levels_;
   std::uint64_t baked_from_ = 0;  // the heights the cones were last baked from
 };
 

@@ -11,8 +11,9 @@
 
 #include <memory>
 
+#include "bake/device/device_cones.h"
 #include "pipeline/frame_pipeline.h"
-#include "render/device.h"
+#include "sim/device/device_sim.h"
 
 namespace displace::pipeline {
 

@@ -289,7 +289,7 @@ void Renderer::Impl::record_frame(FrameSlot& frame_slot, int slot_index, const V
   const auto width = std::uint32_t(view.camera.width), height = std::uint32_t(view.camera.height);
   const bool mesh = view.surface == Surface::mesh;
   const bool reference = info.family == MethodFamily::reference;
-  const VkCommandBuffer commands = frame_slot.commands;
+  const VkCommandBuffer commands = frames.begin();  // recording since begin_slot
   const VkQueryPool queries = timestamps.get();
   const auto first_query = std::uint32_t(2 * slot_index);
   if (queries) vkCmdResetQueryPool(commands, queries, first_query, 2);
@@ -465,7 +465,7 @@ void Renderer::Impl::render(const View& view, const MethodSettings& method, Fram
   ensure_targets(view.camera.width, view.camera.height);
 
   FrameSlot& frame_slot = begin_slot();
-  const int slot_index = slot;
+  const int slot_index = frames.slot();
   write_uniforms(frame_slot, view, method, info);
   write_descriptors(frame_slot, view, info);
   ensure_readbacks(frame_slot, view.camera.width, view.camera.height, outputs);

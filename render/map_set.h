@@ -12,15 +12,25 @@
 
 #include "bake/bake.h"
 #include "render/view.h"
+#include "vulkan/device_info.h"
 
-namespace displace::render {
+namespace displace::render {}  // namespace displace::render
 
-// Maps a compute stage wrote on the renderer's own device (render/device.h), named by the stage that
-// made them (DeviceSim::maps, DeviceCones::map, DeviceLevels::maps): the renderer samples them where
-// they are. Opaque; a frame that samples maps whose stage is gone fails with a RenderError.
+// Maps a compute stage wrote on the renderer's own device (Renderer::frames()), named by the stage
+// that made them (sim::DeviceSim::maps, bake::DeviceCones::map, bake::DeviceLevels::maps): the
+// renderer samples them where they are. Opaque; a frame that samples maps whose stage is gone fails
+// with a RenderError.
+namespace displace::vulkan {
 struct DeviceHeightImages;
 struct DeviceConeImage;
 struct DeviceLevelImages;
+}  // namespace displace::vulkan
+
+namespace displace::render {
+
+using vulkan::DeviceConeImage;
+using vulkan::DeviceHeightImages;
+using vulkan::DeviceLevelImages;
 
 // A height field on the CPU (the reference tracers' input and what map makers read).
 struct HeightField {
@@ -78,7 +88,8 @@ struct DistanceMapView {
   std::uint64_t version = 0;
 };
 
-inline constexpr int max_map_side = 16384;  // texels, MapSet::width and height (and Albedo's pixels)
+inline constexpr int max_map_side =
+    vulkan::max_map_side;  // texels, MapSet::width and height (and Albedo's pixels)
 
 struct MapSet {
   int width = 0, height = 0;       // of the height map and of every cone map

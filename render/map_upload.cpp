@@ -277,8 +277,8 @@ void reshape_values(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   const int width = maps.width, height = maps.height;
   impl.device_heights = maps.device_heights;
   if (const DeviceHeightImages* device = maps.device_heights.get()) {
-    if (device->owner != &impl || device->heights == nullptr || int(device->heights->width()) != width ||
-        int(device->heights->height()) != height) {
+    if (device->owner != &impl.frames || device->heights == nullptr ||
+        int(device->heights->width()) != width || int(device->heights->height()) != height) {
       impl.device_heights = nullptr;
       throw RenderError("maps: device_heights needs a DeviceSim of this renderer, alive, of " +
                         size_text(width, height) + " texels");
@@ -314,7 +314,7 @@ void reshape_cones(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
       continue;
     }
     if (const DeviceConeImage* device = view.device.get()) {  // nothing to upload, the host's map is stale
-      if (device->owner != &reshaper.impl || device->image == nullptr || device->width != width ||
+      if (device->owner != &reshaper.impl.frames || device->image == nullptr || device->width != width ||
           device->height != height || device->sectors != view.sector_count) {
         throw RenderError(
             "maps: cones[" + std::to_string(index) + "].device needs a " + std::to_string(view.sector_count) +
@@ -355,9 +355,10 @@ void reshape_levels(Reshaper& reshaper, const MapSet& maps, MapCopies& copies) {
   }
   if (const DeviceLevelImages* device =
           maps.device_levels.get()) {  // nothing to upload, the host's are stale
-    if (!maps.device_heights || device->owner != &impl || device->heights == nullptr ||
+    if (!maps.device_heights || device->owner != &impl.frames || device->heights == nullptr ||
         device->width != maps.width || device->height != maps.height || device->count != maps.level_count ||
-        device->sectors != maps.level_sectors || device->address != maps.level_address) {
+        device->sectors != maps.level_sectors ||
+        device->wrap != (maps.level_address == bake::Address::wrap)) {
       throw RenderError(
           "maps: device_levels needs device_heights and a DeviceLevels of this renderer, alive, of " +
           size_text(maps.width, maps.height) + " heights, with its level count, sector count and address");
@@ -773,7 +774,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   bool host_writes = false;  // a host-written map changes: wait for the frames that may read it
   const VkDeviceSize bytes = staging_bytes(*this, maps, copies, pyramid_bytes, whole_map, host_writes);
   if (bytes == 0 && !host_writes) return;
-  if (host_writes) wait_submitted();
+  if (host_writes) frames.wait_submitted();
   FrameSlot* frame_slot = &begin_slot();
   if (bytes > 0 && frame_slot->staging_used + bytes > frame_slot->staging.size()) {
     if (frame_slot->staging_used > 0) {  // copies already recorded read the old buffer: send them first
@@ -785,12 +786,9 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
   }
 
   // pack and record the copies
-  Upload upload{frame_slot,
-                static_cast<std::byte*>(frame_slot->staging.mapped()),
-                frame_slot->commands,
-                maps.width,
-                whole_map,
-                copy_regions};
+  Upload upload{frame_slot,     static_cast<std::byte*>(frame_slot->staging.mapped()),
+                frames.begin(), maps.width,
+                whole_map,      copy_regions};
   upload_values(upload, heights, copies.heights, maps.heights, maps.heights_dirty, maps.heights_version,
                 "heights");
   upload_values(upload, foam, copies.foam, maps.foam, {}, maps.foam_version, "foam coverage");
@@ -804,9 +802,7 @@ void Renderer::Impl::take_maps(const MapSet& maps) {
 int Renderer::Impl::traced_levels(const View& view, const MethodInfo& info) const {
   if (!traces_levels(info.method, view) || level_count == 0) return 0;
   if (device_levels) {
-    return device_levels->sectors == info.cone_sectors && device_levels->address == bake::Address::wrap
-               ? level_count
-               : 0;
+    return device_levels->sectors == info.cone_sectors && device_levels->wrap ? level_count : 0;
   }
   if (device_heights || !level_heights.held || !level_cones.held ||
       level_cones.sectors != info.cone_sectors || level_cones.address != bake::Address::wrap)
@@ -835,10 +831,11 @@ void Renderer::Impl::require_maps(const MapNeeds& needs, const MethodInfo& info)
     const std::string wanted = std::to_string(needs.cone_sectors) + "-sector cone map";
     if (needs.relaxed)
       throw RenderError(method + " needs the " + wanted + " with its relaxed ratios; DeviceCones makes none");
-    if (device.address != needs.cone_address) {
+    const bake::Address baked = device.wrap ? bake::Address::wrap : bake::Address::clamp;
+    if (baked != needs.cone_address) {
       throw RenderError(method + " needs a " + wanted + " baked with address " +
                         address_name(needs.cone_address) + "; the DeviceCones bakes with " +
-                        address_name(device.address));
+                        address_name(baked));
     }
   } else if (needs.cone_sectors > 0) {
     const DeviceMap& map = cones[std::size_t(cone_slot(needs.cone_sectors))];

@@ -6,12 +6,9 @@
 // tessellation) and bound them from above where they are not (a mesh reference, capped at
 // max_mesh_reference_vertices). Vulkan may round an allocation up to its alignment; the guard is
 // about gigabytes, not those few bytes.
-#include <unistd.h>
-
 #include <algorithm>
 #include <cinttypes>
 #include <cstdio>
-#include <fstream>
 #include <string>
 
 #include "render/renderer_impl.h"
@@ -74,28 +71,6 @@ std::string amount(std::uint64_t bytes, int decimals) {
 }  // namespace
 
 std::string memory_text(std::uint64_t bytes) { return amount(bytes, 0); }
-
-MemoryLimits host_memory_limits(std::uint64_t limit, const std::string& source) {
-  MemoryLimits limits;
-  std::ifstream meminfo("/proc/meminfo");
-  std::string line;
-  while (std::getline(meminfo, line)) {
-    std::uint64_t kilobytes = 0;
-    if (std::sscanf(line.c_str(), "MemAvailable: %" SCNu64 " kB", &kilobytes) == 1) {
-      limits.host = kilobytes * 1024;
-      break;
-    }
-  }
-  if (limits.host == 0) {
-    const long pages = ::sysconf(_SC_AVPHYS_PAGES), page_size = ::sysconf(_SC_PAGESIZE);
-    if (pages > 0 && page_size > 0) limits.host = std::uint64_t(pages) * std::uint64_t(page_size);
-  }
-  if (limit > 0 && (limits.host == 0 || limit < limits.host)) {
-    limits.host = limit;
-    limits.limited_by = source.empty() ? std::string("a memory limit") : source;
-  }
-  return limits;
-}
 
 void check_memory(std::span<const Allocation> allocations, const MemoryLimits& limits) {
   const std::string limited = limits.limited_by.empty() ? std::string() : " (" + limits.limited_by + ")";
@@ -269,7 +244,7 @@ void Renderer::Impl::check_frame_memory(const View& view, const MethodInfo& info
   const int width = view.camera.width, height = view.camera.height;
   const std::size_t pixels = std::size_t(pixels_of(width, height));
   const bool new_targets = targets.width != width || targets.height != height;
-  const FrameSlot& next = slots[std::size_t(slot)];
+  const FrameSlot& next = slots[std::size_t(frames.slot())];
   const bool same_readback = next.readback_width == width && next.readback_height == height;
   unsigned new_readback = 0;
   if ((outputs & output_color) && !(same_readback && next.color_readback.handle()))

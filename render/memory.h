@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "render/view.h"
+#include "vulkan/device_info.h"
 
 namespace displace::render {
 
@@ -37,23 +38,9 @@ inline constexpr const char* lower_frame_size = "Camera::width x Camera::height"
 inline constexpr const char* lower_map_size = "MapSet::width x MapSet::height";
 inline constexpr const char* lower_tile_or_map_size = "View::tile or MapSet::width x MapSet::height";
 
-// What the machine offers. A CPU device (lavapipe) allocates from the process's own memory and
-// reports a nominal heap (2 GiB on Mesa 22.3, whatever the machine has): there every byte counts
-// against `host` and the heap sizes are not used.
-struct MemoryLimits {
-  std::string device;                // the device's name, for the messages; empty: no device (host work only)
-  std::uint64_t host = 0;            // bytes of host memory available now
-  std::uint64_t device_local = 0;    // bytes of the heap device-local memory comes from
-  std::uint64_t host_visible = 0;    // bytes of the heap host-visible memory comes from
-  bool shared_heap = false;          // both come from one heap
-  bool device_is_host = false;       // a CPU device: device memory is host memory
-  std::uint64_t max_allocation = 0;  // bytes of one Vulkan allocation at most (maxMemoryAllocationSize)
-  std::string limited_by;            // non-empty: the limit was lowered by this (named in the messages)
-};
-
-// Host memory available now (MemAvailable of /proc/meminfo, else the free physical pages), lowered
-// to `limit` bytes when that is not 0 (`source` names the limit in the messages); no device.
-MemoryLimits host_memory_limits(std::uint64_t limit = 0, const std::string& source = {});
+// What the machine offers (vulkan/device_info.h).
+using vulkan::host_memory_limits;
+using vulkan::MemoryLimits;
 
 // Throws RenderError when `allocations` do not fit `limits`: one Vulkan allocation above the
 // device's largest, or a sum above the memory it comes from. The message names the largest item of

@@ -17,12 +17,16 @@
 #include <string>
 #include <vector>
 
-#include "render/device_info.h"
 #include "render/map_set.h"
 #include "render/memory.h"
 #include "render/mesh.h"
 #include "render/reference.h"
 #include "render/view.h"
+#include "vulkan/device_info.h"
+
+namespace displace::vulkan {
+class Frames;
+}
 
 namespace displace::render {
 
@@ -62,11 +66,11 @@ struct RendererOptions {
 // else $HOME/.cache/displace; "off" when none of them is set.
 std::string default_pipeline_cache_dir();
 
-// Devices the Vulkan loader sees. Throws RenderError (saying what to install) when there is none.
-std::vector<DeviceInfo> list_devices();
-// The device a Renderer made with default RendererOptions draws on (the best-ranked usable one),
-// without making it. Throws RenderError as that Renderer would when there is none.
-DeviceInfo default_device();
+// Devices the Vulkan loader sees, and the one a Renderer made with default RendererOptions draws on
+// (vulkan/device_info.h). Both throw RenderError (saying what to install) when there is none.
+using vulkan::default_device;
+using vulkan::DeviceInfo;
+using vulkan::list_devices;
 
 class Renderer {
  public:
@@ -116,7 +120,11 @@ class Renderer {
   // The memory this renderer's device and the host offer now (RendererOptions::memory_limit applied).
   MemoryLimits memory_limits() const;
 
-  // render/'s own parts (renderer_impl.h, not installed): what the swapchain and the device stages use.
+  // The device and its frames in flight, which the device stages (sim/device, bake/device) record
+  // into ahead of this renderer's draw.
+  vulkan::Frames& frames();
+
+  // render/'s own parts (renderer_impl.h, not installed): what the swapchain and the tests use.
   struct Impl;
   Impl& impl() { return *impl_; }
 

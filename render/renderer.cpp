@@ -1,10 +1,11 @@
-// render/renderer.cpp - the renderer object: the device (vulkan_context.cpp), the per-frame slots
-// (command buffer, fence, descriptor set, uniforms, staging, readback per frame in flight), set-up
-// uploads (albedo, mesh, the 1x1 stand-ins for maps a method does not read) and the counters.
+// render/renderer.cpp - the renderer object: the device and its frames in flight (vulkan::Frames,
+// shared with the device stages), the renderer's own part of each frame slot (descriptor set,
+// uniforms, staging, readback), set-up uploads (albedo, mesh, the 1x1 stand-ins for maps a method
+// does not read) and the counters.
 //
-// The frame cycle: the current slot begins recording when maps are handed over or a frame is
-// rendered (after waiting for that slot's previous frame), the frame ends it and submits it with
-// the slot's fence, and the next frame takes the next slot. Nothing is allocated in that cycle once
+// The frame cycle (vulkan/frames.h): the current slot begins recording when maps are handed over,
+// a device stage records or a frame is rendered (after waiting for that slot's previous frame), the
+// frame ends it and submits it with the slot's fence, and the next frame takes the next slot. Nothing is allocated in that cycle once
 // the sizes are known: command buffers are reset, not freed; staging and readback buffers grow only.
 #include <algorithm>
 #include <cstring>
@@ -28,21 +29,6 @@ static_assert(sizeof(gpu::MaxPyramidHeader) == 16 * (1 + MAX_PYRAMID_LEVELS),
               "MaxPyramidHeader must match std430");
 static_assert(offsetof(gpu::FrameUniforms, quadric) == 64 + 16 * 6);
 
-void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from,
-                   VkImageLayout to, VkAccessFlags src_access, VkAccessFlags dst_access,
-                   VkPipelineStageFlags src_stage, VkPipelineStageFlags dst_stage) {
-  VkImageMemoryBarrier barrier{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER};
-  barrier.srcAccessMask = src_access;
-  barrier.dstAccessMask = dst_access;
-  barrier.oldLayout = from;
-  barrier.newLayout = to;
-  barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  barrier.image = image;
-  barrier.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, layers};
-  vkCmdPipelineBarrier(commands, src_stage, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &barrier);
-}
-
 void Renderer::Impl::create_frame_slots() {
   const VkDevice device = context.device();
   if (context.has_timestamps()) {
@@ -54,13 +40,7 @@ void Renderer::Impl::create_frame_slots() {
     timestamps = OwnedQueryPool(device, query_pool);
   }
   const VkDescriptorSetLayout layout = set_layout.get();
-  frame_timeline = OwnedSemaphore(device, context.create_timeline());
-  deferred_async.reserve(4 * frames_in_flight);
-  async_timeline = OwnedSemaphore(device, context.create_timeline());
   for (FrameSlot& frame_slot : slots) {
-    frame_slot.commands = context.allocate_command_buffer();
-    frame_slot.spare = context.allocate_command_buffer();
-    frame_slot.fence = OwnedFence(device, context.create_fence(true));
     VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     allocate.descriptorPool = descriptor_pool.get();
     allocate.descriptorSetCount = 1;
@@ -90,121 +70,13 @@ void Renderer::Impl::create_frame_slots() {
 }
 
 FrameSlot& Renderer::Impl::begin_slot() {
-  FrameSlot& frame_slot = slots[std::size_t(slot)];
-  if (frame_slot.recording) return frame_slot;
-  const VkFence fence = frame_slot.fence.get();
-  DISPLACE_VK_CHECK(
-      vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
-  DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.commands, 0));
-  DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.spare, 0));
-  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  DISPLACE_VK_CHECK(vkBeginCommandBuffer(frame_slot.commands, &begin));
-  frame_slot.recording = true;
-  frame_slot.flushed = 0;
-  frame_slot.staging_used = 0;
+  FrameSlot& frame_slot = slots[std::size_t(frames.slot())];
+  if (!frames.recording()) frame_slot.staging_used = 0;  // its previous frame is waited for below
+  frames.begin();
   return frame_slot;
 }
 
-// The frame queue's submission of `commands`: after the async work it must wait for, signalling
-// the frame timeline's next value.
-static std::uint64_t submit_frame(Renderer::Impl& impl, VkCommandBuffer commands, VkFence fence) {
-  const bool waits = impl.frame_waits_for > impl.frame_waited;
-  if (waits) impl.release_async(impl.frame_waits_for);
-  submit_commands(impl.context.queue(), commands,
-                  {waits ? impl.async_timeline.get() : VK_NULL_HANDLE, impl.frame_waits_for},
-                  VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {impl.frame_timeline.get(), impl.frame_signalled + 1},
-                  fence);
-  if (waits) impl.frame_waited = impl.frame_waits_for;
-  return ++impl.frame_signalled;
-}
-
-void Renderer::Impl::submit_slot(bool wait) {
-  FrameSlot& frame_slot = slots[std::size_t(slot)];
-  if (!frame_slot.recording) return;
-  DISPLACE_VK_CHECK(vkEndCommandBuffer(frame_slot.commands));
-  frame_slot.recording = false;
-  const VkFence fence = frame_slot.fence.get();
-  DISPLACE_VK_CHECK(vkResetFences(context.device(), 1, &fence));
-  submit_frame(*this, frame_slot.commands, fence);
-  if (wait) {
-    DISPLACE_VK_CHECK(
-        vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
-  }
-  slot = (slot + 1) % frames_in_flight;
-}
-
-std::uint64_t Renderer::Impl::flush_slot() {
-  FrameSlot& frame_slot = begin_slot();
-  DISPLACE_VK_CHECK(vkEndCommandBuffer(frame_slot.commands));
-  if (frame_slot.flushed > 0) {  // a second flush of this recording: the spare holds the first
-    wait_timeline(frame_timeline.get(), frame_slot.flushed);
-    DISPLACE_VK_CHECK(vkResetCommandBuffer(frame_slot.spare, 0));
-  }
-  const std::uint64_t value = submit_frame(*this, frame_slot.commands, VK_NULL_HANDLE);
-  frame_slot.flushed = value;
-  std::swap(frame_slot.commands, frame_slot.spare);  // reset by begin_slot (or just above)
-  VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-  begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  DISPLACE_VK_CHECK(vkBeginCommandBuffer(frame_slot.commands, &begin));
-  return value;
-}
-
-void testing::hold_async_work(Renderer& renderer, bool hold) { renderer.impl().hold_async_work = hold; }
-
-std::uint64_t Renderer::Impl::submit_async(VkCommandBuffer commands, std::uint64_t after_frame) {
-  const std::uint64_t value = ++async_signalled;
-  if (!hold_async_work || context.async_apart()) {
-    submit_commands(context.async_queue(), commands,
-                    {after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, after_frame},
-                    VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {async_timeline.get(), value}, VK_NULL_HANDLE);
-  } else {
-    deferred_async.push_back({commands, after_frame, value});
-  }
-  return value;
-}
-
-void Renderer::Impl::release_async(std::uint64_t value) {
-  std::size_t released = 0;
-  for (; released < deferred_async.size() && deferred_async[released].value <= value; ++released) {
-    const DeferredAsync& work = deferred_async[released];
-    submit_commands(context.async_queue(), work.commands,
-                    {work.after_frame > 0 ? frame_timeline.get() : VK_NULL_HANDLE, work.after_frame},
-                    VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, {async_timeline.get(), work.value}, VK_NULL_HANDLE);
-  }
-  deferred_async.erase(deferred_async.begin(), deferred_async.begin() + std::ptrdiff_t(released));
-}
-
-bool Renderer::Impl::async_finished(std::uint64_t value) const {
-  std::uint64_t reached = 0;
-  DISPLACE_VK_CHECK(vkGetSemaphoreCounterValue(context.device(), async_timeline.get(), &reached));
-  return reached >= value;
-}
-
-void Renderer::Impl::wait_timeline(VkSemaphore semaphore, std::uint64_t value) const {
-  if (value == 0) return;
-  VkSemaphoreWaitInfo info{VK_STRUCTURE_TYPE_SEMAPHORE_WAIT_INFO};
-  info.semaphoreCount = 1;
-  info.pSemaphores = &semaphore;
-  info.pValues = &value;
-  DISPLACE_VK_CHECK(vkWaitSemaphores(context.device(), &info, std::numeric_limits<std::uint64_t>::max()));
-}
-
-void Renderer::Impl::wait_submitted() {
-  for (std::size_t index = 0; index < slots.size(); ++index) {
-    if (slots[index].recording) continue;  // nothing of it submitted since its fence was waited for
-    const VkFence fence = slots[index].fence.get();
-    DISPLACE_VK_CHECK(
-        vkWaitForFences(context.device(), 1, &fence, VK_TRUE, std::numeric_limits<std::uint64_t>::max()));
-  }
-  wait_async(async_signalled);
-}
-
-void Renderer::Impl::drain() {
-  submit_slot(false);
-  release_async(async_signalled);
-  DISPLACE_VK_CHECK(vkDeviceWaitIdle(context.device()));
-}
+void testing::hold_async_work(Renderer& renderer, bool hold) { renderer.impl().frames.hold_async_work(hold); }
 
 Image Renderer::Impl::upload_image_now(VkFormat format, int width, int height, int layers,
                                        VkImageViewType view_type, const void* data, std::size_t bytes) {
@@ -252,6 +124,7 @@ Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
 const DeviceInfo& Renderer::device() const { return impl_->context.info(); }
+vulkan::Frames& Renderer::frames() { return impl_->frames; }
 long long Renderer::validation_messages() const { return impl_->context.validation_messages(); }
 long long Renderer::memory_allocations() const { return impl_->context.memory_allocations(); }
 long long Renderer::pipelines_created() const { return impl_->pipelines_created; }

@@ -1,6 +1,6 @@
 // render/renderer_impl.h - what the renderer's files share (internal to render/): the state behind
 // Renderer, split by job across
-//   renderer.cpp       the renderer object: device, per-frame slots, albedo, mesh, counters
+//   renderer.cpp       the renderer object: its part of the frame slots, albedo, mesh, counters
 //   map_upload.cpp     maps handed over by the caller -> persistent device images through the staging ring
 //   pipelines.cpp      descriptor and pipeline layouts, render pass, samplers, pipelines, pipeline cache
 //   frame.cpp          one frame: validate, bind, record, submit, read back what was asked
@@ -16,16 +16,50 @@
 #include <string>
 #include <vector>
 
-#include "render/compute.h"
-#include "render/device.h"
 #include "render/mesh.h"
 #include "render/render.h"
-#include "render/vulkan_context.h"
+#include "vulkan/compute.h"
+#include "vulkan/device_maps.h"
+#include "vulkan/frames.h"
 
 namespace displace::render {
 
-using OwnedFence = Owned<VkFence, vkDestroyFence>;
+// the Vulkan base (vulkan/) by the names render/ has always used
+using vulkan::Buffer;
+using vulkan::compute_barrier;
+using vulkan::ComputeKernel;
+using vulkan::cone_format;
+using vulkan::cone_layer_count;
+using vulkan::cone_texel_bytes;
+using vulkan::Context;
+using vulkan::DeviceConeImage;
+using vulkan::DeviceHeightImages;
+using vulkan::DeviceLevelImages;
+using vulkan::host_read_barrier;
+using vulkan::Image;
+using vulkan::image_barrier;
+using vulkan::level_atlas_origin;
+using vulkan::level_atlas_size;
+using vulkan::Owned;
+using vulkan::OwnedDescriptorPool;
+using vulkan::OwnedDescriptorSetLayout;
+using vulkan::OwnedFence;
+using vulkan::OwnedFramebuffer;
+using vulkan::OwnedPipeline;
+using vulkan::OwnedPipelineLayout;
+using vulkan::OwnedQueryPool;
+using vulkan::OwnedRenderPass;
+using vulkan::OwnedSampler;
+using vulkan::OwnedSemaphore;
+using vulkan::OwnedShaderModule;
+using vulkan::OwnedSwapchain;
+using vulkan::rewrite_barrier;
+using vulkan::shader_module;
+using vulkan::specialised_shader;
+using vulkan::StageTimer;
+using vulkan::submit_commands;
 using OwnedPipelineCache = Owned<VkPipelineCache, vkDestroyPipelineCache>;
+static_assert(frames_in_flight == vulkan::frames_in_flight);
 
 inline constexpr VkFormat color_format = VK_FORMAT_R8G8B8A8_UNORM;
 inline constexpr VkFormat hit_format = VK_FORMAT_R32G32B32A32_SFLOAT;
@@ -33,38 +67,11 @@ inline constexpr VkFormat counters_format = VK_FORMAT_R32G32_SFLOAT;
 inline constexpr VkFormat depth_format = VK_FORMAT_D32_SFLOAT;
 inline constexpr std::array<float, 4> background = {0.08f, 0.08f, 0.10f, 1.0f};
 
-// Layers of the cone image (BINDING_CONES, cone_format): layer k < n holds (r_k, H_c); with n > 1 sectors
-// layer n holds (min over k of r_k, H_c), the isotropic bound the quadric cone march needs near a
-// step's start; with relaxed ratios one more layer holds (relaxed ratio, H_c).
-inline int cone_layer_count(int sectors, bool relaxed) {
-  return (sectors > 1 ? sectors + 1 : 1) + (relaxed ? 1 : 0);
-}
-// The cone image: per layer and texel (the ratio as a half float rounded down, the apex in 1 / 65535
-// rounded up) in 16 bits each (map_pack.h), read back by the shaders' cone_value
-constexpr VkFormat cone_format = VK_FORMAT_R16G16_UINT;
-constexpr std::size_t cone_texel_bytes = 4;
-
-// The levels of detail's atlases (shaders/config.h): level 1 from (0, 0), level l >= 2 from
-// (W / 2, H / 2 - (H >> (l - 1))), (W / 2 + W / 4) x (H / 2) texels in all (W / 2 wide with one level).
-inline glm::ivec2 level_atlas_origin(int width, int height, int level) {
-  return level == 1 ? glm::ivec2(0) : glm::ivec2(width / 2, height / 2 - (height >> (level - 1)));
-}
-inline glm::ivec2 level_atlas_size(int width, int height, int level_count) {
-  return {width / 2 + (level_count >= 2 ? width / 4 : 0), height / 2};
-}
-
-// device_cones.cpp, for DeviceLevels: what it copies from a level's DeviceCones after a bake - the
-// cone image (GENERAL layout) and where the max pyramid's top node lies (the largest height, a float).
-
 // memory.cpp: the items of frame_memory, one kind at a time, for the renderer's own checks
 void add_target_memory(std::vector<Allocation>& list, int width, int height);
 void add_readback_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
 void add_frame_vector_memory(std::vector<Allocation>& list, int width, int height, unsigned outputs);
 void add_reference_memory(std::vector<Allocation>& list, const View& view, int map_width, int map_height);
-
-void image_barrier(VkCommandBuffer commands, VkImage image, std::uint32_t layers, VkImageLayout from,
-                   VkImageLayout to, VkAccessFlags src_access, VkAccessFlags dst_access,
-                   VkPipelineStageFlags src_stage, VkPipelineStageFlags dst_stage);
 
 // A map kept on the device between frames: made again only when its shape changes.
 struct DeviceMap {
@@ -83,14 +90,10 @@ struct DeviceMap {
   }
 };
 
-// Per frame in flight: its command buffer, fence, descriptor set, uniforms, staging part of the
-// ring, and readback buffers. A slot is reused once its fence says the frame finished.
+// The renderer's own part of a frame in flight (vulkan::Frames holds its command buffers and fence):
+// its descriptor set, uniforms, staging part of the ring, and readback buffers. A slot is reused once
+// its frame finished.
 struct FrameSlot {
-  VkCommandBuffer commands = VK_NULL_HANDLE;  // the one recording (flush_slot swaps in `spare`)
-  VkCommandBuffer spare = VK_NULL_HANDLE;
-  std::uint64_t flushed = 0;  // the frame_timeline value of this recording's flush_slot (0: none)
-  OwnedFence fence;           // signalled: nothing of this slot is in flight
-  bool recording = false;     // commands begun (map copies or a frame), not yet submitted
   VkDescriptorSet descriptor_set = VK_NULL_HANDLE;
   Buffer uniforms;
   Buffer staging;
@@ -105,48 +108,20 @@ struct Targets {
   OwnedFramebuffer framebuffer;
 };
 
-// The maps a device stage wrote (map_set.h's handles; device.h): images in the GENERAL layout on this
-// renderer's device, each named with the renderer that owns them. A stage clears its images' pointers
-// when it goes, so that a stage still holding the handle sees that they are gone.
-struct DeviceHeightImages {
-  const Renderer::Impl* owner = nullptr;
-  const Image* heights = nullptr;
-  const Image* foam = nullptr;  // null: no foam
-};
-struct DeviceConeImage {  // cone_format, a layer per sector
-  const Renderer::Impl* owner = nullptr;
-  const Image* image = nullptr;
-  int width = 0, height = 0, sectors = 0;
-  bake::Address address = bake::Address::wrap;
-  // the bake's max pyramid and the byte offset of its top (the map's highest height): what
-  // DeviceLevels copies into a frame's level tops
-  VkBuffer pyramid = VK_NULL_HANDLE;
-  VkDeviceSize top_offset = 0;
-};
-// Atlases laid out as level_heights' and level_cones', and each level's highest height at level_tops'
-// place in FrameUniforms (`tops`, 16 floats, copied into a frame's uniforms on the device).
-struct DeviceLevelImages {
-  const Renderer::Impl* owner = nullptr;
-  const Image* heights = nullptr;
-  const Image* cones = nullptr;
-  VkBuffer tops = VK_NULL_HANDLE;
-  int width = 0, height = 0;  // level 0's
-  int count = 0, sectors = 0;
-  bake::Address address = bake::Address::wrap;
-};
-
 struct Renderer::Impl {
   explicit Impl(const RendererOptions& options)
-      : context(options),
+      : frames(vulkan::DeviceOptions{options.device, options.validate, options.instance_extensions,
+                                     options.can_present, options.async_compute}),
+        context(frames.context()),
         memory_limit(options.memory_limit),
         memory_limit_source(options.memory_limit_source),
         host_written_maps(options.host_written_maps) {}
 
-  Context context;
+  vulkan::Frames frames;  // the device and its frames in flight, shared with the device stages
+  Context& context;
   std::uint64_t memory_limit = 0;  // RendererOptions::memory_limit
   std::string memory_limit_source;
   bool host_written_maps = true;  // RendererOptions::host_written_maps
-  bool hold_async_work = false;   // render/testing.h
   MemoryLimits memory_limits() const { return context.memory_limits(memory_limit, memory_limit_source); }
 
   // pipelines.cpp
@@ -174,51 +149,15 @@ struct Renderer::Impl {
   // renderer.cpp: per-frame slots and set-up resources
   OwnedQueryPool timestamps;  // 2 per slot
   std::array<FrameSlot, frames_in_flight> slots;
-  int slot = 0;  // the slot the next frame records into
   Image dummy_cones, dummy_albedo, dummy_distance, dummy_foam;
   Buffer dummy_pyramid;
   Image albedo_image;
   bool has_albedo = false;
   void create_frame_slots();
-  FrameSlot& begin_slot();      // the current slot, recording (waits for its previous frame)
-  void submit_slot(bool wait);  // ends, submits the current slot; moves on to the next slot
-  void drain();                 // submits what is recorded, waits for every slot
-  // Whether the frame last submitted from `slot` has finished (and nothing is being recorded there).
-  bool slot_finished(int index) const {
-    const FrameSlot& frame_slot = slots[std::size_t(index)];
-    return !frame_slot.recording && vkGetFenceStatus(context.device(), frame_slot.fence.get()) == VK_SUCCESS;
-  }
-  void wait_submitted();  // waits for every frame submitted and every async submission
-  // Work beside the frame's (Context::async_queue): a timeline semaphore per queue; every submission
-  // of the frame's queue signals the next value of `frame_timeline`, every async one of `async_timeline`.
-  OwnedSemaphore frame_timeline, async_timeline;
-  std::uint64_t frame_signalled = 0, async_signalled = 0;
-  std::uint64_t frame_waits_for = 0;  // the async value the frame queue's next submission waits for
-  std::uint64_t frame_waited = 0;     // the largest one a submission waited for already
-  // Ends and submits what the current slot recorded so far (no fence: the slot's frame submission
-  // still follows) and goes on recording in the slot's other command buffer; returns the
-  // frame_timeline value that submission signals.
-  std::uint64_t flush_slot();
-  // Submits `commands` to the async queue, after the frame queue's value `after_frame` (0: nothing);
-  // returns the async_timeline value it signals.
-  std::uint64_t submit_async(VkCommandBuffer commands, std::uint64_t after_frame);
-  // The frame queue's next submission (and every later one) waits for async `value`.
-  void frame_waits_for_async(std::uint64_t value) { frame_waits_for = std::max(frame_waits_for, value); }
-  // hold_async_work (render/testing.h) where the async queue is the frame's own: an async submission
-  // is held on the host until a frame submission or a host wait needs it (then it and those before
-  // it go in), so that it runs as late as a GPU's other queue may run it.
-  struct DeferredAsync {
-    VkCommandBuffer commands;
-    std::uint64_t after_frame, value;
-  };
-  std::vector<DeferredAsync> deferred_async;  // in submission order
-  void release_async(std::uint64_t value);    // submits the deferred ones up to `value`
-  bool async_finished(std::uint64_t value) const;
-  void wait_async(std::uint64_t value) {  // on the host
-    release_async(value);
-    wait_timeline(async_timeline.get(), value);
-  }
-  void wait_timeline(VkSemaphore timeline, std::uint64_t value) const;
+  // The current slot, recording (frames.begin(): waits for its previous frame).
+  FrameSlot& begin_slot();
+  void submit_slot(bool wait) { frames.submit(wait); }  // ends, submits the current slot; moves on
+  void drain() { frames.drain(); }                      // submits what is recorded, waits for every slot
   Image upload_image_now(VkFormat format, int width, int height, int layers, VkImageViewType view_type,
                          const void* data, std::size_t bytes);
   template <typename T>
@@ -240,8 +179,7 @@ struct Renderer::Impl {
   std::shared_ptr<const DeviceHeightImages> device_heights;
   std::array<std::shared_ptr<const DeviceConeImage>, 3> device_cones;  // by cone_slot
   std::shared_ptr<const DeviceLevelImages> device_levels;
-  std::shared_ptr<struct DeviceConeKernels> cone_kernels;  // device_cones.cpp: compiled once
-  std::vector<VkBufferImageCopy> copy_regions;             // reused: cleared, never shrunk
+  std::vector<VkBufferImageCopy> copy_regions;  // reused: cleared, never shrunk
   void take_maps(const MapSet& maps);
   void check_map_memory(const MapSet& maps) const;  // before any map is made again
   void require_maps(const MapNeeds& needs, const MethodInfo& info) const;
@@ -293,13 +231,6 @@ Buffer Renderer::Impl::host_buffer(const std::vector<T>& data, VkBufferUsageFlag
   Buffer buffer(context, std::max<std::size_t>(data.size() * sizeof(T), 4), usage, host);
   std::memcpy(buffer.mapped(), data.data(), data.size() * sizeof(T));
   return buffer;
-}
-
-// A device stage's milliseconds (StageTimer), the timestamps of its last frame read first when that
-// frame has finished.
-inline double finished_milliseconds(StageTimer& timer, const Renderer::Impl& impl) {
-  if (timer.last_slot() >= 0 && impl.slot_finished(timer.last_slot())) timer.read(timer.last_slot());
-  return timer.milliseconds();
 }
 
 }  // namespace displace::render

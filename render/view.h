@@ -23,13 +23,13 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "vulkan/error.h"
 
 namespace displace::render {
 
-// What the environment or the caller got wrong: no Vulkan device, a failed Vulkan call, bad input.
-struct RenderError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// What the environment or the caller got wrong: no Vulkan device, a failed Vulkan call, bad input
+// (the error every device layer throws, vulkan/error.h).
+using RenderError = vulkan::Error;
 
 enum class Method {
   bump,

@@ -266,7 +266,7 @@ class Ocean {
   float omega(int i, int j) const;
 
   // The half spectrum evaluate() transforms, for a caller that evaluates it elsewhere (the device
-  // ocean, render/device.h): N x (N/2 + 1) modes, row i (wave numbers along y, unshifted order),
+  // ocean, sim/device/device_sim.h): N x (N/2 + 1) modes, row i (wave numbers along y, unshifted order),
   // column j (along x), h~(t) = (p c + q s) + i (r c + u s) with (c, s) = (cos, sin)(w t) and the
   // half-texel shift folded in, so that the inverse FFT gives the heights at the texel centres.
   struct HalfSpectrum {

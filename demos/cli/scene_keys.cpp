@@ -466,7 +466,7 @@ const std::vector<Entry>& entries() {
        "R",
        "the device cone bake's first pass: 0 searches the pyramid, R > 0 bounds the nodes more than R "
        "nodes from each texel's, level by level, the same for every texel (default 2)",
-       [] { return integer_in(0, render::max_first_pass_rings); }},
+       [] { return integer_in(0, bake::max_first_pass_rings); }},
       {"--device-group",
        scene_source,
        {"backend.device_group"},
@@ -481,7 +481,7 @@ const std::vector<Entry>& entries() {
        Kind::integer,
        "CELLS",
        "the device cone bake's first pass: cells around each texel bounded by the surface's slopes",
-       [] { return integer_in(1, render::max_first_pass_window); }},
+       [] { return integer_in(1, bake::max_first_pass_window); }},
       {"--cone-lag",
        scene_frames,
        {"budget.cone_lag_frames"},

@@ -11,7 +11,7 @@
 // iterations (means over the hit pixels), the lift, the hit pixels, and those that ended more than
 // 0.01 texel from where lag 0's did (rays whose 32 steps ran out elsewhere). Timed: the render alone.
 //
-// The sim on the device (render/device.h) next to the CPU's: BM_DeviceSim/ocean/<map size> and
+// The sim on the device (sim/device/device_sim.h) next to the CPU's: BM_DeviceSim/ocean/<map size> and
 // BM_CpuSim/ocean/<map size> make the water scene's heights (choppy crests resampled onto the grid,
 // foam) for successive frames; the device's frame is recorded, submitted and waited for. Counters:
 // the device's own milliseconds per frame (GPU timestamps), FFTs per frame, and (device) the largest
@@ -29,10 +29,11 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/device/device_cones.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/height_source.h"
 #include "pipeline/query.h"
-#include "render/device.h"
+#include "sim/device/device_sim.h"
 
 namespace {
 
@@ -190,7 +191,7 @@ void run_device_sim(benchmark::State& state) {
   render::Renderer& renderer = bench_renderer();
   unsigned effects = 0;
   const pipeline::SourceSettings settings = water_source(int(state.range(0)), effects);
-  const std::unique_ptr<render::DeviceSim> device = pipeline::make_device_sim(renderer, settings, effects);
+  const std::unique_ptr<sim::DeviceSim> device = pipeline::make_device_sim(renderer, settings, effects);
   double time = 0.0;
   device->simulate(time);
   device->finish();

@@ -6,7 +6,7 @@
 // device copy as on a discrete GPU. Counters: MB/s of the caller's bytes, and Vulkan allocations per
 // frame (must be 0 after the first).
 //
-// BM_DeviceBake/ocean/<N>: render::DeviceCones' bake of a device ocean's N x N heights (4 sectors,
+// BM_DeviceBake/ocean/<N>: bake::DeviceCones' bake of a device ocean's N x N heights (4 sectors,
 // wrap; the ocean simulated once), unlimited and (/first-pass) budget 0, each bake waited for. Counters:
 // mean_ratio_vs_full, the mean ratio read back over bake::bake_bilinear_cones' on the same heights
 // (not computed at 2048: minutes of CPU), and texels_refined.
@@ -20,9 +20,10 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/device/device_cones.h"
 #include "pipeline/height_source.h"
-#include "render/device.h"
 #include "render/render.h"
+#include "sim/device/device_sim.h"
 
 namespace {
 
@@ -133,7 +134,7 @@ BENCHMARK(run_memcpy)->Name("BM_UploadMaps/512/memcpy")->Unit(benchmark::kMillis
 constexpr int device_bake_sectors = 4;
 constexpr int full_reference_limit = 1024;  // texels a side: above, no CPU reference bake
 
-void run_device_bake(benchmark::State& state, render::DeviceConeBudget budget) {
+void run_device_bake(benchmark::State& state, bake::DeviceConeBudget budget) {
   const int side = int(state.range(0));
   static render::Renderer renderer([] {
     render::RendererOptions options;
@@ -143,12 +144,12 @@ void run_device_bake(benchmark::State& state, render::DeviceConeBudget budget) {
   pipeline::SourceSettings settings;
   settings.kind = pipeline::SourceKind::ocean;
   settings.map_size = side;
-  const std::unique_ptr<render::DeviceSim> made =
+  const std::unique_ptr<sim::DeviceSim> made =
       pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
-  render::DeviceSim& ocean = *made;
+  sim::DeviceSim& ocean = *made;
   ocean.simulate(3.0);
-  render::DeviceCones cones(renderer, ocean.maps(), device_bake_sectors, bake::Address::wrap);
-  render::DeviceConeStats stats;
+  bake::DeviceCones cones(renderer.frames(), ocean.maps(), device_bake_sectors, bake::Address::wrap);
+  bake::DeviceConeStats stats;
   for (auto _ : state) {
     cones.bake(budget);
     stats = cones.read_back(nullptr, nullptr);
@@ -172,7 +173,7 @@ void run_device_bake(benchmark::State& state, render::DeviceConeBudget budget) {
   state.SetLabel(renderer.device().name);
 }
 
-BENCHMARK_CAPTURE(run_device_bake, unlimited, render::DeviceConeBudget{render::unlimited_texels, {}})
+BENCHMARK_CAPTURE(run_device_bake, unlimited, bake::DeviceConeBudget{bake::unlimited_texels, {}})
     ->Name("BM_DeviceBake/ocean")
     ->Arg(256)
     ->Arg(512)
@@ -181,7 +182,7 @@ BENCHMARK_CAPTURE(run_device_bake, unlimited, render::DeviceConeBudget{render::u
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // the default first pass (rings of radius 2, the full window)
-BENCHMARK_CAPTURE(run_device_bake, first_pass, render::DeviceConeBudget{0, {}})
+BENCHMARK_CAPTURE(run_device_bake, first_pass, bake::DeviceConeBudget{0, {}})
     ->Name("BM_DeviceBake/ocean/first-pass")
     ->Arg(256)
     ->Arg(512)
@@ -190,7 +191,7 @@ BENCHMARK_CAPTURE(run_device_bake, first_pass, render::DeviceConeBudget{0, {}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // the first pass as a search of the pyramid (ring_radius 0)
-BENCHMARK_CAPTURE(run_device_bake, search, render::DeviceConeBudget{0, {4, 0}})
+BENCHMARK_CAPTURE(run_device_bake, search, bake::DeviceConeBudget{0, {4, 0}})
     ->Name("BM_DeviceBake/ocean/first-pass-search")
     ->Arg(256)
     ->Arg(512)
@@ -198,31 +199,31 @@ BENCHMARK_CAPTURE(run_device_bake, search, render::DeviceConeBudget{0, {4, 0}})
     ->Arg(2048)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-// the first pass as rings (render::DeviceFirstPass) of radius 1 with the full window, of radius 2 with
+// the first pass as rings (bake::DeviceFirstPass) of radius 1 with the full window, of radius 2 with
 // a window of 2 cells
-BENCHMARK_CAPTURE(run_device_bake, rings_1, render::DeviceConeBudget{0, {4, 1}})
+BENCHMARK_CAPTURE(run_device_bake, rings_1, bake::DeviceConeBudget{0, {4, 1}})
     ->Name("BM_DeviceBake/ocean/first-pass-rings-1")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, render::DeviceConeBudget{0, {2, 2}})
+BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, bake::DeviceConeBudget{0, {2, 2}})
     ->Name("BM_DeviceBake/ocean/first-pass-rings-2-window-2")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-// the group's first pass (render::DeviceFirstPass::group), the full window and a window of 2 cells
-BENCHMARK_CAPTURE(run_device_bake, group_4, render::DeviceConeBudget{0, {4, 0, true}})
+// the group's first pass (bake::DeviceFirstPass::group), the full window and a window of 2 cells
+BENCHMARK_CAPTURE(run_device_bake, group_4, bake::DeviceConeBudget{0, {4, 0, true}})
     ->Name("BM_DeviceBake/ocean/first-pass-group")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, group_2, render::DeviceConeBudget{0, {2, 0, true}})
+BENCHMARK_CAPTURE(run_device_bake, group_2, bake::DeviceConeBudget{0, {2, 0, true}})
     ->Name("BM_DeviceBake/ocean/first-pass-group-window-2")
     ->Arg(256)
     ->Arg(512)

@@ -125,13 +125,13 @@ TEST(Options, RejectsWhatDoesNotApply) {
     return std::any_cast<BakeSettings>(parse_command_line(bake_with(flag, value)).settings)
         .scene.device_first_pass;
   };
-  EXPECT_EQ(first_pass("--device-window", "3").ring_radius, displace::render::default_first_pass_rings);
+  EXPECT_EQ(first_pass("--device-window", "3").ring_radius, displace::bake::default_first_pass_rings);
   EXPECT_EQ(first_pass("--device-rings", "3").ring_radius, 3);
   EXPECT_EQ(first_pass("--device-window", "3").window_radius, 3);
   EXPECT_FALSE(first_pass("--device-window", "3").group);
   const std::vector<std::string_view> group{"bake",     "--sectors", "4",     "--mode",
                                             "budgeted", "--output",  "c.exr", "--device-group"};
-  const displace::render::DeviceFirstPass by_groups =
+  const displace::bake::DeviceFirstPass by_groups =
       std::any_cast<BakeSettings>(parse_command_line(group).settings).scene.device_first_pass;
   EXPECT_TRUE(by_groups.group);
   EXPECT_EQ(by_groups.ring_radius, 0);  // the group's first pass has no rings of its own

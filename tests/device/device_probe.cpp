@@ -14,7 +14,7 @@
 //    with every frame's own cone map and with maps lagged by up to 3 frames (`--cone-lag 3`): p50 of
 //    each stage and the frame's p50 and p95 in milliseconds, the maps' p50 age in frames, and Vulkan
 //    allocations after warm-up. Each with the sim and bake on the CPU, the sim on the device, and both
-//    on the device (lagged by 0, 1, 3 and 7 frames: render::DeviceCones::bake_lagged; 1 also with the
+//    on the device (lagged by 0, 1, 3 and 7 frames: bake::DeviceCones::bake_lagged; 1 also with the
 //    maps made ahead, Scene::cone_ahead), with
 //    the device's own milliseconds per stage (GPU timestamps) where the stage ran there; 2048 too, with
 //    fewer frames.
@@ -22,14 +22,14 @@
 //    16 threads (TBB arenas, up to the CPUs this process may use) on the water ocean's 256, 512 and 1024
 //    heights: the median of 5 bakes, to tell whether the bake scales past two cores on that machine,
 //    next to the bound that a recorded bake's work and span give (bake/work_span.h).
-// 4. The device's cone maps alone (render::DeviceCones of a device ocean, 512, 1024 and 2048),
+// 4. The device's cone maps alone (bake::DeviceCones of a device ocean, 512, 1024 and 2048),
 //    unlimited and budget 0 (each first pass shape): median wall and device milliseconds, texels
 //    refined, mean ratio.
 // DISPLACE_PROBE_QUICK=1 makes it small (one scene at 64 x 36 pixels, a 64 map, 5 frames): the
 // test suite runs it that way so that it keeps working. DISPLACE_PROBE_PART=frames runs part 2 only,
 // =threads part 3 only, =cones part 4 only; DISPLACE_PROBE_DEVICE_BAKE=1 keeps part 2's frame loops
 // with the bake on the device alone; DISPLACE_PROBE_DEVICE_RINGS=R gives the device bake's first
-// pass rings of radius R there (render::DeviceFirstPass; 0: the search; default 2), and
+// pass rings of radius R there (bake::DeviceFirstPass; 0: the search; default 2), and
 // DISPLACE_PROBE_DEVICE_GROUP=1 the group's first pass; DISPLACE_PROBE_CONE_MAPS=256,512 sets part 4's
 // map sides, DISPLACE_PROBE_FRAME_MAPS part 2's; DISPLACE_PROBE_ASYNC=0 keeps lagged maps' bands on
 // the frame's queue (RendererOptions::async_compute) where the device has a compute queue apart.
@@ -175,7 +175,7 @@ void frame_loop(render::Renderer& renderer, const Plan& plan) {
     const char* group = std::getenv("DISPLACE_PROBE_DEVICE_GROUP");  // 1: the group's first pass
     const bool group_first_pass = group && std::string(group) == "1";
     const int ring_radius =
-        rings && *rings ? std::atoi(rings) : (group_first_pass ? 0 : render::default_first_pass_rings);
+        rings && *rings ? std::atoi(rings) : (group_first_pass ? 0 : bake::default_first_pass_rings);
     for (const auto& [sim_backend, bake_backend] : backends) {
       if (only_device_bake && std::string(only_device_bake) == "1" && bake_backend != Backend::device)
         continue;
@@ -339,7 +339,7 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
   }
 }
 
-// The device's cone maps alone (render::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
+// The device's cone maps alone (bake::DeviceCones, 4 sectors, wrap) of a device ocean's heights,
 // unlimited and budget 0 (the first pass, in each of its shapes: the search, and rings of radius 1, 2
 // and 3 with the full window, 2 with a window of 2 cells, 1 with windows of 2 and 1, 2 with a window
 // of 1, the group's with windows of 4 and 2): each
@@ -348,9 +348,9 @@ void stage_l_threads(render::Renderer& renderer, const Plan& plan) {
 void device_cones(render::Renderer& renderer, const Plan& plan) {
   struct Shape {
     long long texels;
-    render::DeviceFirstPass first_pass;
+    bake::DeviceFirstPass first_pass;
   };
-  const Shape shapes[] = {{render::unlimited_texels, {}},
+  const Shape shapes[] = {{bake::unlimited_texels, {}},
                           {0, {4, 0}},
                           {0, {4, 1}},
                           {0, {4, 2}},
@@ -365,14 +365,14 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
     pipeline::SourceSettings settings;
     settings.kind = pipeline::SourceKind::ocean;
     settings.map_size = size;
-    const std::unique_ptr<render::DeviceSim> ocean =
+    const std::unique_ptr<sim::DeviceSim> ocean =
         pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
     ocean->simulate(3.0);
-    render::DeviceCones cones(renderer, ocean->maps(), 4, bake::Address::wrap);
+    bake::DeviceCones cones(renderer.frames(), ocean->maps(), 4, bake::Address::wrap);
     for (const Shape& shape : shapes) {
       const long long texels = shape.texels;
       std::vector<double> wall, device;
-      render::DeviceConeStats stats;
+      bake::DeviceConeStats stats;
       for (int r = 0; r <= plan.cone_repeats; ++r) {  // the first one warms up
         const auto start = std::chrono::steady_clock::now();
         cones.bake({texels, shape.first_pass});
@@ -386,7 +386,7 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
       cones.read_back(&ratios, nullptr);
       double sum = 0.0;
       for (float ratio : ratios) sum += double(ratio);
-      const render::DeviceFirstPass& pass = shape.first_pass;
+      const bake::DeviceFirstPass& pass = shape.first_pass;
       const std::string form = pass.ring_radius > 0 ? "rings " + std::to_string(pass.ring_radius)
                                                     : (pass.group ? "group" : "search");
       char first_pass[96];

@@ -1,8 +1,10 @@
-// tests/pipeline/device_cones_test.cpp - the cone maps made on the device (render/device.h,
+// tests/pipeline/device_cones_test.cpp - the cone maps made on the device (bake/device/device_cones.h,
 // DeviceCones) against bake.h's contract for the bilinear surface, checked by brute force
 // (tests/bake/bake_checks.h's check_bilinear) on what the renderer samples: hard, random, spike and
 // non-square maps, 1, 4 and 8 sectors, wrap and clamp, every budget; against the full CPU bake's mean
 // ratio; with a DeviceSim's heights and in a rendered frame.
+#include "bake/device/device_cones.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,9 +18,9 @@
 #include <vector>
 
 #include "pipeline/height_source.h"
-#include "render/device.h"
 #include "render/render.h"
 #include "render/testing.h"
+#include "sim/device/device_sim.h"
 #include "tests/bake/bake_checks.h"
 #include "tests/test_maps.h"
 
@@ -42,18 +44,18 @@ render::Renderer& cones_renderer() {
 struct DeviceBake {
   bake::ConeMap cones;
   std::vector<float> apex;
-  render::DeviceConeStats stats;
+  bake::DeviceConeStats stats;
 };
 
-DeviceBake read(render::DeviceCones& device, int width, int height) {
+DeviceBake read(bake::DeviceCones& device, int width, int height) {
   DeviceBake b;
   b.cones = {width, height, device.sector_count(), {}};
   b.stats = device.read_back(&b.cones.ratios, &b.apex);
   return b;
 }
 
-DeviceBake bake_on_device(render::DeviceCones& device, long long budget,
-                          render::DeviceFirstPass first_pass = {}) {
+DeviceBake bake_on_device(bake::DeviceCones& device, long long budget,
+                          bake::DeviceFirstPass first_pass = {}) {
   device.bake({budget, first_pass});
   return read(device, device.width(), device.height());
 }
@@ -61,18 +63,18 @@ DeviceBake bake_on_device(render::DeviceCones& device, long long budget,
 // The first passes tested: the default (rings of radius 2, the full window), the search, rings of
 // radius 1 with the full window (whose levels stop at 1), of radius 2 with a window of 2 cells (down to
 // the cells), of 3 with one cell; the group's first pass with the full window and with a window of 2.
-const render::DeviceFirstPass search{4, 0}, rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
-const render::DeviceFirstPass group_4{4, 0, true}, group_2{2, 0, true};
+const bake::DeviceFirstPass search{4, 0}, rings_1{4, 1}, rings_2{2, 2}, rings_3{1, 3};
+const bake::DeviceFirstPass group_4{4, 0, true}, group_2{2, 0, true};
 
 // The budgets every claim is tested at: the first pass alone, a few cut texels, unlimited; each
 // first pass alone, and a few cut texels after the one with the smallest window.
 struct Budget {
   long long texels;
-  render::DeviceFirstPass first_pass;
+  bake::DeviceFirstPass first_pass;
 };
 const Budget budgets[] = {{0, {}},      {0, search},  {0, rings_1},
                           {0, rings_2}, {0, group_4}, {7, search},
-                          {7, rings_3}, {7, group_2}, {render::unlimited_texels, {}}};
+                          {7, rings_3}, {7, group_2}, {bake::unlimited_texels, {}}};
 
 // Texels checked: all of a small map, every stride-th of a larger one (the check is O(texels x map)),
 // a third of those for the rings' first passes, and an eighth for a budget between the first pass and
@@ -81,7 +83,7 @@ const Budget budgets[] = {{0, {}},      {0, search},  {0, rings_1},
 int stride_for(const Map& map, const Budget& budget) {
   const int texels = map.width * map.height;
   const int stride = texels <= 100 ? 1 : (texels <= 250 ? 3 : 11);
-  if (budget.texels != 0 && budget.texels != render::unlimited_texels) return 8 * stride + 1;
+  if (budget.texels != 0 && budget.texels != bake::unlimited_texels) return 8 * stride + 1;
   return budget.first_pass.ring_radius > 0 || budget.first_pass.group ? 3 * stride + 1 : stride;
 }
 
@@ -100,7 +102,7 @@ void expect_contract(const std::vector<Map>& maps, long long& pairs) {
   for (const Map& map : maps)
     for (int sectors : {1, 4, 8})
       for (Address address : {Address::wrap, Address::clamp}) {
-        render::DeviceCones device(renderer, bake::view_of(map), sectors, address);
+        bake::DeviceCones device(renderer.frames(), bake::view_of(map), sectors, address);
         const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
         for (const Budget& budget : budgets) {
           const DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
@@ -169,7 +171,7 @@ TEST(DeviceCones, GroupFirstPassMeetsTheContractWhereItsFarRatiosCount) {
   for (const Case& c : cases)
     for (int sectors : c.sectors)
       for (Address address : {Address::wrap, Address::clamp}) {
-        render::DeviceCones device(renderer, bake::view_of(c.map), sectors, address);
+        bake::DeviceCones device(renderer.frames(), bake::view_of(c.map), sectors, address);
         for (const Budget& budget : {Budget{0, group_4}, Budget{0, group_2}, Budget{7, group_2}}) {
           const DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
           const std::string at = where(c.map, sectors, address, budget);
@@ -191,10 +193,10 @@ TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
        {test::make_ocean(64, 64), test::make_fractal_cliff(48, 40), test::make_bricks(40, 40)})
     for (int sectors : {1, 4, 8}) {
       const Address address = Address::wrap;
-      render::DeviceCones device(renderer, bake::view_of(map), sectors, address);
+      bake::DeviceCones device(renderer.frames(), bake::view_of(map), sectors, address);
       const bake::BilinearCones full = bake::bake_bilinear(map, sectors, address);
       const double full_mean = bake::mean_ratio(full.cones);
-      const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
+      const DeviceBake unlimited = bake_on_device(device, bake::unlimited_texels);
       const DeviceBake first = bake_on_device(device, 0, search);
       const DeviceBake ring_1 = bake_on_device(device, 0, {4, 1});
       const DeviceBake ring_2 = bake_on_device(device, 0, {4, 2});
@@ -233,8 +235,8 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
                          test::make_bricks(12, 8), bake::make_single_spike(7, 5)})
     for (Address address : {Address::wrap, Address::clamp})
       for (const Budget& budget : {Budget{0, {}}, Budget{0, search}, Budget{0, rings_1}, Budget{0, group_4},
-                                   Budget{render::unlimited_texels, {}}}) {
-        render::DeviceCones device(renderer, bake::view_of(map), 4, address);
+                                   Budget{bake::unlimited_texels, {}}}) {
+        bake::DeviceCones device(renderer.frames(), bake::view_of(map), 4, address);
         DeviceBake b = bake_on_device(device, budget.texels, budget.first_pass);
         ASSERT_EQ(bake::check_bilinear(map, address, b.cones, b.apex).violations, 0) << map.name;
         for (float& r : b.cones.ratios) r = std::min(1.0f, r * 1.1f);
@@ -250,9 +252,9 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
 TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   render::Renderer& renderer = cones_renderer();
   const Map map = test::make_fractal_cliff(40, 24);
-  render::DeviceCones device(renderer, bake::view_of(map), 4, Address::clamp);
-  const DeviceBake unlimited = bake_on_device(device, render::unlimited_texels);
-  for (const render::DeviceFirstPass first_pass : {render::DeviceFirstPass{}, search, rings_1, group_4}) {
+  bake::DeviceCones device(renderer.frames(), bake::view_of(map), 4, Address::clamp);
+  const DeviceBake unlimited = bake_on_device(device, bake::unlimited_texels);
+  for (const bake::DeviceFirstPass first_pass : {bake::DeviceFirstPass{}, search, rings_1, group_4}) {
     const std::string at =
         "rings " + std::to_string(first_pass.ring_radius) + (first_pass.group ? " group" : "");
     const DeviceBake first = bake_on_device(device, 0, first_pass);
@@ -276,7 +278,7 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
 }
 
 // A 32 x 32 device ocean (a 200 m patch, 12 m/s wind), heights only.
-std::unique_ptr<render::DeviceSim> small_ocean(render::Renderer& renderer, std::uint64_t seed) {
+std::unique_ptr<sim::DeviceSim> small_ocean(render::Renderer& renderer, std::uint64_t seed) {
   pipeline::SourceSettings settings;
   settings.kind = pipeline::SourceKind::ocean;
   settings.map_size = 32;
@@ -290,9 +292,9 @@ std::unique_ptr<render::DeviceSim> small_ocean(render::Renderer& renderer, std::
 // heights read back, the frame drawn from both device maps, and nothing allocated per frame.
 TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
   render::Renderer& renderer = cones_renderer();
-  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 7);
-  render::DeviceSim& ocean = *made;
-  render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
+  const std::unique_ptr<sim::DeviceSim> made = small_ocean(renderer, 7);
+  sim::DeviceSim& ocean = *made;
+  bake::DeviceCones cones(renderer.frames(), ocean.maps(), 4, Address::wrap);
   ASSERT_EQ(cones.width(), 32);
   render::MapSet maps;
   maps.width = maps.height = 32;
@@ -306,7 +308,7 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
   long long allocations = 0;
   for (int step = 0; step < 4; ++step) {
     ocean.simulate(2.0 + step / 30.0);
-    cones.bake({step % 2 == 0 ? 0 : render::unlimited_texels});
+    cones.bake({step % 2 == 0 ? 0 : bake::unlimited_texels});
     renderer.set_maps(maps);
     renderer.render(view, method, frame, render::output_uv);
     if (step == 1) allocations = renderer.memory_allocations();
@@ -332,10 +334,10 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
 // first.
 TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
   render::Renderer& renderer = cones_renderer();
-  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 11);
-  render::DeviceSim& ocean = *made;
+  const std::unique_ptr<sim::DeviceSim> made = small_ocean(renderer, 11);
+  sim::DeviceSim& ocean = *made;
   for (int lag : {1, 3}) {
-    render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
+    bake::DeviceCones cones(renderer.frames(), ocean.maps(), 4, Address::wrap);
     struct Served {
       std::vector<float> heights;
       DeviceBake bake;
@@ -376,7 +378,7 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
       // the map of the heights it began on, raised
       if (references.count(begun) == 0) {
         const Map old_map{"ocean-then", 32, 32, then};
-        render::DeviceCones whole(renderer, bake::view_of(old_map), 4, Address::wrap);
+        bake::DeviceCones whole(renderer.frames(), bake::view_of(old_map), 4, Address::wrap);
         references[begun] = bake_on_device(whole, 0);
       }
       const DeviceBake& reference = references[begun];
@@ -404,10 +406,10 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
 // (the brute-force checks of those whole bakes are GroupFirstPassMeetsTheContract's).
 TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
   render::Renderer& renderer = cones_renderer();
-  const std::unique_ptr<render::DeviceSim> made = small_ocean(renderer, 12);
-  render::DeviceSim& ocean = *made;
+  const std::unique_ptr<sim::DeviceSim> made = small_ocean(renderer, 12);
+  sim::DeviceSim& ocean = *made;
   const int lag = 3;
-  render::DeviceCones cones(renderer, ocean.maps(), 4, Address::wrap);
+  bake::DeviceCones cones(renderer.frames(), ocean.maps(), 4, Address::wrap);
   std::vector<std::vector<float>> heights;
   for (int f = 0; f < 2 * lag + 3; ++f) {
     ocean.simulate(1.0 + 0.4 * f);
@@ -416,7 +418,7 @@ TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
     const long long age = cones.bake_lagged({0, group_4}, lag);
     const DeviceBake served = read(cones, 32, 32);
     const Map then{"ocean-then", 32, 32, heights[std::size_t(f - age)]};
-    render::DeviceCones whole(renderer, bake::view_of(then), 4, Address::wrap);
+    bake::DeviceCones whole(renderer.frames(), bake::view_of(then), 4, Address::wrap);
     const DeviceBake reference = bake_on_device(whole, 0, group_4);
     ASSERT_EQ(served.cones.ratios, reference.cones.ratios) << "frame " << f << " age " << age;
   }
@@ -435,30 +437,31 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
     return "";
   };
   EXPECT_NE(message_of([&] {
-              render::DeviceCones(renderer, bake::HeightView{heights.data(), 0, 0}, 4, Address::wrap);
+              bake::DeviceCones(renderer.frames(), bake::HeightView{heights.data(), 0, 0}, 4, Address::wrap);
             }).find("between 1 and"),
             std::string::npos);
   heights[5] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_NE(message_of([&] {
-              render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
+              bake::DeviceCones(renderer.frames(), bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
             }).find("row 1, column 1"),
             std::string::npos);
   heights[5] = 1.5f;
-  EXPECT_THROW(render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap),
+  EXPECT_THROW(bake::DeviceCones(renderer.frames(), bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap),
                render::RenderError);
   heights[5] = 0.5f;
   EXPECT_NE(message_of([&] {
-              render::DeviceCones(renderer, bake::HeightView{heights.data(), 4, 4}, 3, Address::wrap);
+              bake::DeviceCones(renderer.frames(), bake::HeightView{heights.data(), 4, 4}, 3, Address::wrap);
             }).find("1, 4 or 8 sectors"),
             std::string::npos);
-  EXPECT_NE(message_of([&] { render::DeviceCones(renderer, nullptr, 4, Address::wrap); }).find("alive"),
-            std::string::npos);
+  EXPECT_NE(
+      message_of([&] { bake::DeviceCones(renderer.frames(), nullptr, 4, Address::wrap); }).find("alive"),
+      std::string::npos);
   {  // the heights of a DeviceSim that is gone: refused by a bake and by a frame that would read them
-    std::unique_ptr<render::DeviceSim> ocean = small_ocean(renderer, 3);
+    std::unique_ptr<sim::DeviceSim> ocean = small_ocean(renderer, 3);
     const std::shared_ptr<const render::DeviceHeightImages> handle = ocean->maps();
     ocean->simulate(1.0);
     ocean->finish();  // nothing recorded is left to run when it goes
-    render::DeviceCones cones(renderer, handle, 4, Address::wrap);
+    bake::DeviceCones cones(renderer.frames(), handle, 4, Address::wrap);
     render::MapSet maps;
     maps.width = maps.height = ocean->size();
     maps.device_heights = handle;
@@ -471,25 +474,26 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
                 renderer.render(view, {render::Method::pom, 8, 0});
               }).find("is gone"),
               std::string::npos);
-    EXPECT_NE(message_of([&] { render::DeviceCones(renderer, handle, 4, Address::wrap); }).find("alive"),
-              std::string::npos);
+    EXPECT_NE(
+        message_of([&] { bake::DeviceCones(renderer.frames(), handle, 4, Address::wrap); }).find("alive"),
+        std::string::npos);
     EXPECT_NE(message_of([&] { renderer.set_maps(maps); }).find("DeviceSim of this renderer, alive"),
               std::string::npos);
   }
   std::shared_ptr<const render::DeviceConeImage> gone;
   {
-    render::DeviceCones cones(renderer, bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
+    bake::DeviceCones cones(renderer.frames(), bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
     gone = cones.map();
     EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
     EXPECT_THROW(cones.bake_lagged({0}, -1), render::RenderError);
-    for (const render::DeviceFirstPass first_pass :
-         {render::DeviceFirstPass{0, 0}, render::DeviceFirstPass{5, 0}, render::DeviceFirstPass{4, -1},
-          render::DeviceFirstPass{4, 9}}) {
+    for (const bake::DeviceFirstPass first_pass :
+         {bake::DeviceFirstPass{0, 0}, bake::DeviceFirstPass{5, 0}, bake::DeviceFirstPass{4, -1},
+          bake::DeviceFirstPass{4, 9}}) {
       const std::string message = message_of([&] { cones.bake({0, first_pass}); });
       EXPECT_NE(message.find("radius"), std::string::npos) << message;
       EXPECT_THROW(cones.bake_lagged({0, first_pass}, 2), render::RenderError);
     }
-    const std::string both = message_of([&] { cones.bake({0, render::DeviceFirstPass{4, 1, true}}); });
+    const std::string both = message_of([&] { cones.bake({0, bake::DeviceFirstPass{4, 1, true}}); });
     EXPECT_NE(both.find("by rings or by its group"), std::string::npos) << both;
   }
   // a MapSet naming the cones of a DeviceCones that is gone

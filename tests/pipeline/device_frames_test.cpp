@@ -119,8 +119,8 @@ TEST(DeviceFrames, TheScenesFirstPassReachesTheDeviceBake) {
   EXPECT_GE(agreeing_share(search_frame, group_frame, scene.map_size), 0.999);
   std::printf("fetches: the group's first pass %.0f\n", fetches(group_frame));
   EXPECT_NE(fetches(group_frame), fetches(search_frame));
-  for (const render::DeviceFirstPass first_pass :
-       {render::DeviceFirstPass{0, 1}, render::DeviceFirstPass{4, 9}, render::DeviceFirstPass{4, 1, true}}) {
+  for (const bake::DeviceFirstPass first_pass :
+       {bake::DeviceFirstPass{0, 1}, bake::DeviceFirstPass{4, 9}, bake::DeviceFirstPass{4, 1, true}}) {
     scene.device_first_pass = first_pass;
     EXPECT_THROW(pipeline::FramePipeline(scene, renderer), pipeline::SceneError);
   }

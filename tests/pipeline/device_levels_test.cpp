@@ -1,8 +1,8 @@
-// tests/pipeline/device_levels_test.cpp - the levels of detail made on the device (render/device.h,
-// DeviceLevels) from a DeviceSim's heights: the chain is the CPU's chain of the same heights (heights
-// bit for bit, slope moments within a rounding, each level's top its highest height), every level's
-// cones keep the bilinear contract for that level's surface (brute force, 1, 4 and 8 sectors, the first
-// pass and unlimited), rays on each pinned level end at that level's exact first crossing, and the
+// tests/pipeline/device_levels_test.cpp - the levels of detail made on the device
+// (bake/device/device_cones.h, DeviceLevels) from a DeviceSim's heights: the chain is the CPU's chain of the
+// same heights (heights bit for bit, slope moments within a rounding, each level's top its highest height),
+// every level's cones keep the bilinear contract for that level's surface (brute force, 1, 4 and 8 sectors,
+// the first pass and unlimited), rays on each pinned level end at that level's exact first crossing, and the
 // frame pipeline's device path traces them on the unbounded sea with nothing allocated per frame.
 #include <gtest/gtest.h>
 
@@ -14,11 +14,12 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/device/device_cones.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/height_source.h"
 #include "pipeline/scene.h"
-#include "render/device.h"
 #include "render/render.h"
+#include "sim/device/device_sim.h"
 #include "tests/bake/bake_checks.h"
 #include "tests/render/level_checks.h"
 #include "tests/test_maps.h"
@@ -37,7 +38,7 @@ render::Renderer& levels_renderer() {
   return renderer;
 }
 
-std::unique_ptr<render::DeviceSim> device_ocean(render::Renderer& renderer, int size, std::uint64_t seed) {
+std::unique_ptr<sim::DeviceSim> device_ocean(render::Renderer& renderer, int size, std::uint64_t seed) {
   pipeline::SourceSettings settings;
   settings.kind = pipeline::SourceKind::ocean;
   settings.map_size = size;
@@ -47,7 +48,7 @@ std::unique_ptr<render::DeviceSim> device_ocean(render::Renderer& renderer, int 
   return pipeline::make_device_sim(renderer, settings, pipeline::effect_heights);
 }
 
-render::HeightField heights_of(render::DeviceSim& sim) {
+render::HeightField heights_of(sim::DeviceSim& sim) {
   render::HeightField field{sim.size(), sim.size(), {}};
   sim.read_back(&field.heights, nullptr, nullptr);
   return field;
@@ -72,8 +73,8 @@ std::vector<std::vector<float>> cpu_moments(const render::HeightField& field, in
 // apart); its top, where its rays start, is its highest height.
 TEST(DeviceLevels, TheChainIsTheCpusChainOfTheSameHeights) {
   render::Renderer& renderer = levels_renderer();
-  const std::unique_ptr<render::DeviceSim> sim = device_ocean(renderer, 64, 3);
-  render::DeviceLevels levels(renderer, sim->maps(), 4, Address::wrap);
+  const std::unique_ptr<sim::DeviceSim> sim = device_ocean(renderer, 64, 3);
+  bake::DeviceLevels levels(renderer.frames(), sim->maps(), 4, Address::wrap);
   ASSERT_EQ(levels.level_count(), 6);
   for (const double time : {0.0, 1.5}) {
     sim->simulate(time);
@@ -110,13 +111,13 @@ TEST(DeviceLevels, TheChainIsTheCpusChainOfTheSameHeights) {
 // default's rings) and unlimited.
 TEST(DeviceLevels, EveryLevelsConesKeepTheBilinearContract) {
   render::Renderer& renderer = levels_renderer();
-  const std::unique_ptr<render::DeviceSim> sim = device_ocean(renderer, 32, 11);
+  const std::unique_ptr<sim::DeviceSim> sim = device_ocean(renderer, 32, 11);
   sim->simulate(2.0);
   const render::HeightField field = heights_of(*sim);
   for (const int sectors : {1, 4, 8}) {
-    render::DeviceLevels levels(renderer, sim->maps(), sectors, Address::wrap);
+    bake::DeviceLevels levels(renderer.frames(), sim->maps(), sectors, Address::wrap);
     ASSERT_EQ(levels.level_count(), 5);
-    for (const long long budget : {0LL, render::unlimited_texels}) {
+    for (const long long budget : {0LL, bake::unlimited_texels}) {
       levels.make({budget, {}});
       for (int level = 1; level <= levels.level_count(); ++level) {
         const render::HeightField coarse = displace::testing::level_of(field, level);
@@ -139,9 +140,9 @@ TEST(DeviceLevels, EveryLevelsConesKeepTheBilinearContract) {
 TEST(DeviceLevels, RaysOnEachLevelEndAtThatLevelsFirstCrossing) {
   constexpr double tolerance = 1e-4;  // world units (a level-0 texel here is 0.016)
   render::Renderer& renderer = levels_renderer();
-  const std::unique_ptr<render::DeviceSim> sim = device_ocean(renderer, 64, 5);
-  render::DeviceCones cones(renderer, sim->maps(), 4, Address::wrap);
-  render::DeviceLevels levels(renderer, sim->maps(), 4, Address::wrap);
+  const std::unique_ptr<sim::DeviceSim> sim = device_ocean(renderer, 64, 5);
+  bake::DeviceCones cones(renderer.frames(), sim->maps(), 4, Address::wrap);
+  bake::DeviceLevels levels(renderer.frames(), sim->maps(), 4, Address::wrap);
   sim->simulate(3.0);
   cones.bake({0, {}});
   levels.make({0, {}});

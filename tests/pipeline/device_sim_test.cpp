@@ -1,6 +1,8 @@
-// tests/pipeline/device_sim_test.cpp - the ocean on the device (render/device.h) against the CPU
+// tests/pipeline/device_sim_test.cpp - the ocean on the device (sim/device/device_sim.h) against the CPU
 // ocean of pipeline::HeightSource: heights for every effect set, at t = 0, 1.5 s and 1e9 s, foam, FFT
 // counts, and nothing allocated per frame.
+#include "sim/device/device_sim.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,8 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "bake/device/device_cones.h"
 #include "pipeline/height_source.h"
-#include "render/device.h"
 #include "render/render.h"
 
 namespace {
@@ -74,9 +76,9 @@ TEST(DeviceSim, HeightsEqualTheCpuOceansForEveryEffectSet) {
     SCOPED_TRACE(effect_case.name);
     const pipeline::SourceSettings settings = ocean_settings(128, effect_case.choppiness);
     pipeline::HeightSource cpu(settings, effect_case.effects);
-    const std::unique_ptr<render::DeviceSim> made =
+    const std::unique_ptr<sim::DeviceSim> made =
         pipeline::make_device_sim(renderer, settings, effect_case.effects);
-    render::DeviceSim& device = *made;
+    sim::DeviceSim& device = *made;
     const bool choppy = (effect_case.effects & pipeline::effect_choppy) != 0;
     for (double time : {0.0, 1.5, 1e9}) {
       SCOPED_TRACE("t = " + std::to_string(time));
@@ -120,8 +122,8 @@ TEST(DeviceSim, MovesWithTimeAndAllocatesNothingPerFrame) {
   render::Renderer& renderer = device_renderer();
   const pipeline::SourceSettings settings = ocean_settings(32, 1.5f);
   const unsigned effects = pipeline::effect_heights | pipeline::effect_choppy | pipeline::effect_foam;
-  const std::unique_ptr<render::DeviceSim> made = pipeline::make_device_sim(renderer, settings, effects);
-  render::DeviceSim& device = *made;
+  const std::unique_ptr<sim::DeviceSim> made = pipeline::make_device_sim(renderer, settings, effects);
+  sim::DeviceSim& device = *made;
   std::vector<float> first, second;
   device.simulate(10.0);
   device.read_back(&first, nullptr, nullptr);
@@ -135,21 +137,21 @@ TEST(DeviceSim, MovesWithTimeAndAllocatesNothingPerFrame) {
 
 TEST(DeviceSim, RefusesWhatItCannotSimulate) {
   render::Renderer& renderer = device_renderer();
-  render::OceanSpectrumView view;
+  sim::OceanSpectrumView view;
   view.size = 3;
-  EXPECT_THROW(render::DeviceSim(renderer, view, 0), render::RenderError);
+  EXPECT_THROW(sim::DeviceSim(renderer.frames(), view, 0), render::RenderError);
   view.size = 4;
   view.patch_size = 10.0f;  // no modes given
-  EXPECT_THROW(render::DeviceSim(renderer, view, 0), render::RenderError);
+  EXPECT_THROW(sim::DeviceSim(renderer.frames(), view, 0), render::RenderError);
   pipeline::SourceSettings bricks;
   bricks.kind = pipeline::SourceKind::bricks;
   EXPECT_THROW(pipeline::make_device_sim(renderer, bricks, 0), pipeline::SceneError);
-  render::SinusoidWavesView waves;
+  sim::SinusoidWavesView waves;
   waves.size = 8;
   waves.patch_size = 4.0f;
   const float not_finite[] = {1.0f, 0.0f, std::nanf(""), 1.0f, 0.0f};
   waves.waves = not_finite;
-  EXPECT_THROW(render::DeviceSim(renderer, waves), render::RenderError);
+  EXPECT_THROW(sim::DeviceSim(renderer.frames(), waves), render::RenderError);
 }
 
 TEST(DeviceSim, SinusoidsEqualTheCpusAtEveryTime) {
@@ -162,7 +164,7 @@ TEST(DeviceSim, SinusoidsEqualTheCpusAtEveryTime) {
     settings.sinusoids.wave_count = 24;
     settings.sinusoids.tileable = tileable;
     pipeline::HeightSource cpu(settings);
-    const std::unique_ptr<render::DeviceSim> device = pipeline::make_device_sim(renderer, settings, 0);
+    const std::unique_ptr<sim::DeviceSim> device = pipeline::make_device_sim(renderer, settings, 0);
     for (double time : {0.0, 1.5, 1e9}) {
       SCOPED_TRACE("t = " + std::to_string(time));
       pipeline::HeightFrame expected;

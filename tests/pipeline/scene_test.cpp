@@ -58,7 +58,7 @@ TEST(Scene, EveryKeyRoundTripsThroughTheTomlItPrints) {
 // first pass's rings would make the bake refuse it); with one, both stay for the bake to refuse.
 TEST(Scene, TheGroupsFirstPassTakesNoRingsUnlessGiven) {
   const Scene base = pipeline::builtin_scene("water");
-  EXPECT_EQ(base.device_first_pass.ring_radius, render::default_first_pass_rings);
+  EXPECT_EQ(base.device_first_pass.ring_radius, bake::default_first_pass_rings);
   const Scene group = pipeline::apply_scene(base, "[backend]\ndevice_group = true\n", "group.toml");
   EXPECT_TRUE(group.device_first_pass.group);
   EXPECT_EQ(group.device_first_pass.ring_radius, 0);

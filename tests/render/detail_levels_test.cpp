@@ -208,7 +208,7 @@ TEST(DetailLevels, AStillSceneRendersIdenticalFrames) {
 // - with levels (View::level_auto), level 0 only, and a supersampled reference (level 0 only at 4 x 4
 // the pixels, box-averaged). With levels the far sea must cost fewer fetches than level 0's and
 // flicker no more than the reference. `backend`: where the sim and the bake run, and so where the
-// levels are made (the CPU's map maker, or render::DeviceLevels).
+// levels are made (the CPU's map maker, or bake::DeviceLevels).
 void far_sea_against_supersampled(pipeline::Backend backend) {
   constexpr int width = 128, height = 80, supersampling = 4, frames = 8;
   constexpr std::array<double, 3> band_ends = {0.5, 2.0, 6.0};  // world units (the patch: 200 m)

@@ -1,15 +1,15 @@
 // tests/render/queue_family_test.cpp - which queue family takes the work beside the frame's
-// (render/vulkan_context.h's pick_async_family): only a GPU has one apart, so the choice is checked
+// (vulkan/context.h's pick_async_family): only a GPU has one apart, so the choice is checked
 // here on the families such devices report.
 #include <gtest/gtest.h>
 
 #include <vector>
 
-#include "render/vulkan_context.h"
+#include "vulkan/context.h"
 
 namespace {
 
-using displace::render::pick_async_family;
+using displace::vulkan::pick_async_family;
 
 VkQueueFamilyProperties family(VkQueueFlags flags, std::uint32_t count, std::uint32_t timestamp_bits) {
   VkQueueFamilyProperties properties{};

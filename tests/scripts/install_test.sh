@@ -17,7 +17,8 @@ if grep -rlF -e "$source_dir" -e "$build_dir" "$prefix/lib/cmake/displace"; then
   echo "install_test: the package refers to the source or build tree (above)" >&2
   exit 1
 fi
-for header in sim/sim.h bake/bake.h render/render.h render/device.h pipeline/frame_pipeline.h pipeline/query.h; do
+for header in sim/sim.h sim/device/device_sim.h bake/bake.h bake/device/device_cones.h render/render.h \
+    pipeline/frame_pipeline.h pipeline/query.h vulkan/device_info.h vulkan/error.h; do
   test -f "$prefix/include/displace/$header" || { echo "install_test: $header not installed" >&2; exit 1; }
 done
 
@@ -35,9 +36,10 @@ while IFS= read -r header; do
   fi
   count=$((count + 1))
 done < <(find "$include_dir" -name '*.h' | sort)
-for header in pipeline/scene.h render/device_info.h sim/sim.h bake/bake.h render/files.h; do
+for header in pipeline/scene.h vulkan/device_info.h sim/sim.h sim/device/device_sim.h bake/bake.h \
+    bake/device/device_cones.h render/files.h; do
   dependencies="$(printf '#include "%s"\n' "$header" | "$compiler" -std=c++20 -M -I"$include_dir" -x c++ -)"
-  if [[ "$dependencies" == *vulkan* ]]; then
+  if [[ "$dependencies" == *vulkan/vulkan* ]]; then  # the Vulkan headers, not displace's vulkan/ base
     echo "install_test: $header includes Vulkan" >&2
     exit 1
   fi
