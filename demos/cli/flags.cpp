@@ -344,6 +344,8 @@ std::string flag_words(std::string_view message) {
       {"MethodSettings::refine", "--refine"},
       {"RendererOptions::validate", "--validate"},
       {"RendererOptions::device", "--device"},
+      {"DeviceOptions::validate", "--validate"},  // the renderer's device (vulkan/context.h)
+      {"DeviceOptions::device", "--device"},
       {"Budget::tolerance", "--tolerance"},
   };
   std::string text(message);

@@ -245,6 +245,10 @@ TEST(Cli, RenderRejectsBadInputWithOneError) {
                                                                        << result.err;
     EXPECT_EQ(result.err.find("displace: error: "), result.err.rfind("displace: error: ")) << result.err;
   }
+  // a device the loader lacks is named by the flag, not by the library's option
+  const RunResult no_device = run_displace(dir, ok + " --method pom --device no-such-device");
+  EXPECT_NE(no_device.err.find("--device 'no-such-device' matches no Vulkan device"), std::string::npos)
+      << no_device.err;
 }
 
 TEST(Cli, RendersAQuadricAndRefusesWhatItCannot) {
