@@ -5,8 +5,9 @@
 //
 // The frame cycle (vulkan/frames.h): the current slot begins recording when maps are handed over,
 // a device stage records or a frame is rendered (after waiting for that slot's previous frame), the
-// frame ends it and submits it with the slot's fence, and the next frame takes the next slot. Nothing is allocated in that cycle once
-// the sizes are known: command buffers are reset, not freed; staging and readback buffers grow only.
+// frame ends it and submits it with the slot's fence, and the next frame takes the next slot. Nothing is
+// allocated in that cycle once the sizes are known: command buffers are reset, not freed; staging and
+// readback buffers grow only.
 #include <algorithm>
 #include <cstring>
 #include <limits>
