@@ -24,19 +24,12 @@ BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const f
                           address);
   bake::Budget budget;  // the full baker: unlimited
   if (baker == Baker::budgeted) budget.milliseconds = budget_milliseconds;
-  cones.bake(pipeline::device_cone_budget(budget, first_pass));
+  cones.bake(budget, first_pass);
   BakedCones baked;
-  const bake::DeviceConeStats device_stats = cones.read_back(&baked.ratios, &baked.apex);
+  baked.stats = cones.read_back(&baked.ratios, &baked.apex);
   baked.stats.mode = bake::Mode::bilinear;
-  baked.stats.width = width;
-  baked.stats.height = height;
-  baked.stats.sector_count = sector_count;
-  baked.stats.texels_refined = device_stats.texels_refined;
-  baked.stats.milliseconds =
+  baked.stats.milliseconds =  // the command's wall time, as the CPU bakers report theirs
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  double sum = 0.0;
-  for (float ratio : baked.ratios) sum += double(ratio);
-  baked.stats.mean_ratio = baked.ratios.empty() ? 0.0 : sum / double(baked.ratios.size());
   return baked;
 }
 

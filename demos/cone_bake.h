@@ -20,10 +20,10 @@ using pipeline::bake_cones;
 using pipeline::BakedCones;
 
 // Bilinear cones on `renderer`'s device (bake::DeviceCones, the same contract), with the frame
-// pipeline's rule (pipeline::device_cone_budget): Baker::full and a budgeted bake without a budget
+// pipeline's rule (bake::device_refine_limit): Baker::full and a budgeted bake without a budget
 // search every texel to the cells, a budgeted bake with a budget (a dispatch cannot stop when it runs
-// out) makes the first pass only, of the shape `first_pass` says. Stats: mode bilinear, texels refined, wall
-// milliseconds, mean ratio.
+// out) makes the first pass only, of the shape `first_pass` says. Stats: DeviceCones::read_back's,
+// with mode bilinear and the wall milliseconds.
 BakedCones bake_bilinear_on_device(render::Renderer& renderer, std::span<const float> heights, int width,
                                    int height, int sector_count, Baker baker, bake::Address address,
                                    double budget_milliseconds, const bake::DeviceFirstPass& first_pass = {});

@@ -499,16 +499,6 @@ const bake::BakeStats& MapMaker::cone_stats(int sector_count) const {
   return state_->slots[0].cones[std::size_t(render::cone_slot(sector_count))].stats;
 }
 
-bake::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
-                                          const bake::DeviceFirstPass& first_pass) {
-  bake::DeviceConeBudget work;
-  work.first_pass = first_pass;
-  work.texels = budget.max_work >= 0                 ? budget.max_work
-                : std::isfinite(budget.milliseconds) ? 0
-                                                     : bake::unlimited_texels;
-  return work;
-}
-
 MapHeights map_heights(const render::HeightField& field, std::uint64_t version) {
   MapHeights heights;
   heights.heights = field.heights;

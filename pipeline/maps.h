@@ -83,13 +83,6 @@ struct ConeSchedule {
   long long frame_index = 0;  // the frame the heights belong to (a lagged map's age)
 };
 
-// The one rule from a cone budget to a device bake's work (bake/device/device_cones.h), for the frame
-// pipeline and every command: a work budget (max_work) is that many cut texels searched again; a wall-clock
-// budget the first pass alone (a dispatch cannot stop when the time runs out); none, every texel
-// searched to the cells.
-bake::DeviceConeBudget device_cone_budget(const bake::Budget& budget,
-                                          const bake::DeviceFirstPass& first_pass);
-
 // What make() did.
 struct MapStats {
   bake::BakeStats cones;   // the cone map served (sector_count 0: none)

@@ -199,9 +199,8 @@ class DeviceMaps final : public MapStage {
   }
 
   void make(int slot, const HeightFrame& frame, const ConeSchedule& schedule, FrameRecord& record) override {
-    const bake::DeviceConeBudget budget = device_cone_budget(schedule.budget, first_pass_);
-    if (cones_on_device_) bake_cones(frame, budget, record);
-    if (levels_) levels_->make(budget);  // of the frame's own heights (after ahead's)
+    if (cones_on_device_) bake_cones(frame, schedule.budget, record);
+    if (levels_) levels_->make(schedule.budget, first_pass_);  // of the frame's own heights (after ahead's)
     host_.make(slot, frame, schedule, record);
   }
 
@@ -240,7 +239,7 @@ class DeviceMaps final : public MapStage {
   // The cone bake, recorded into the renderer's next frame after the sim: a device sim's heights every
   // frame (lagged: a share of the next map, the last one served raised; bake/device/device_cones.h), a static
   // map's once per version of its heights.
-  void bake_cones(const HeightFrame& frame, const bake::DeviceConeBudget& budget, FrameRecord& record) {
+  void bake_cones(const HeightFrame& frame, const bake::Budget& budget, FrameRecord& record) {
     if (!cones_) {
       const bake::HeightView heights{frame.field.heights.data(), frame.field.width, frame.field.height};
       cones_ = std::make_unique<bake::DeviceCones>(renderer_.frames(), heights, needs_.cone_sectors,
@@ -248,13 +247,13 @@ class DeviceMaps final : public MapStage {
     }
     if (sim_ || baked_from_ != frame.version) {
       if (ahead_) {  // the next frame's map from the next frame's heights, then this frame's heights
-        cones_->advance_lagged(budget, 1);
+        cones_->advance_lagged(budget, 1, first_pass_);
         const long long ffts = sim_->fft_count();
         sim_->simulate(record.time);
         record.ffts += sim_->fft_count() - ffts;
         record.cone_lag = cones_->compose_lagged();
       } else {
-        record.cone_lag = cones_->bake_lagged(budget, lag_frames_);
+        record.cone_lag = cones_->bake_lagged(budget, lag_frames_, first_pass_);
       }
       baked_from_ = frame.version;
     }

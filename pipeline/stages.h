@@ -4,7 +4,7 @@
 // (place_stages, scene.h), makes one of each here, and then runs them without asking where they run.
 //
 // Both backends take the same budget (ConeSchedule: a bake::Budget, refinement, a lag) and fill the
-// same record (FrameRecord); a device backend turns the budget into work by maps.h's device_cone_budget.
+// same record (FrameRecord); a device backend turns the budget into work by bake::device_refine_limit.
 // A device backend records its work into the renderer's next frame, so its frames run on the thread
 // that renders (Placement::records_into_frame). Internal to pipeline/: not installed.
 #pragma once

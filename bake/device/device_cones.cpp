@@ -107,8 +107,15 @@ void validate_shape(int width, int height, int sector_count) {
     throw vulkan::Error("DeviceCones: a cone map has 1, 4 or 8 sectors, not " + std::to_string(sector_count));
 }
 
+// A bake's work: the cut texels searched again past the first pass (device_refine_limit) and the
+// first pass's shape.
+struct Work {
+  long long texels = unlimited_texels;
+  DeviceFirstPass first_pass = {};
+};
+
 // Throws vulkan::Error unless the first pass is one the search kernel takes.
-void validate_budget(const DeviceConeBudget& budget) {
+void validate_budget(const Work& budget) {
   const DeviceFirstPass& first = budget.first_pass;
   if (first.window_radius < 1 || first.window_radius > max_first_pass_window)
     throw vulkan::Error("DeviceCones: a first pass's window radius is 1 to " +
@@ -131,7 +138,7 @@ void validate_budget(const DeviceConeBudget& budget) {
 // largest path); and form 8, the groups' far ratios, the module built apart (cone_group_far_comp).
 constexpr int texel_forms = 9;
 constexpr int group_far_form = 8;
-int texel_form(const DeviceConeBudget& budget) {
+int texel_form(const Work& budget) {
   if (budget.texels < 0) return 0;  // every texel searched to the cells: the search, nothing refined
   return (budget.first_pass.ring_radius > 0 ? 1 : 0) | (budget.texels > 0 ? 2 : 0) |
          (budget.first_pass.group ? 4 : 0);
@@ -214,8 +221,8 @@ struct DeviceCones::State {
   void check_source() const;
   void record_pyramid(VkCommandBuffer commands, const ComputeKernel& cells);
   const ComputeKernel& texel_kernel(int heights, int form);
-  void record_texels(VkCommandBuffer commands, int heights, const DeviceConeBudget& budget,
-                     int first_group_row, int group_rows);
+  void record_texels(VkCommandBuffer commands, int heights, const Work& budget, int first_group_row,
+                     int group_rows);
   void record_to_image(VkCommandBuffer commands, VkBuffer values);
 };
 
@@ -405,7 +412,7 @@ const ComputeKernel& DeviceCones::State::texel_kernel(int heights, int form) {
 
 // The texels' searches for the groups of rows [first_group_row, + group_rows) of `heights` (0: the
 // source, 1 + k: snapshot k), into cone_values.
-void DeviceCones::State::record_texels(VkCommandBuffer commands, int heights, const DeviceConeBudget& budget,
+void DeviceCones::State::record_texels(VkCommandBuffer commands, int heights, const Work& budget,
                                        int first_group_row, int group_rows) {
   const ComputeKernel& texel = texel_kernel(heights, texel_form(budget));
   gpu::ConeTexelPush texel_push{};
@@ -455,7 +462,13 @@ void DeviceCones::State::record_to_image(VkCommandBuffer commands, VkBuffer valu
                 VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
 }
 
-void DeviceCones::bake(const DeviceConeBudget& budget) {
+long long device_refine_limit(const Budget& budget) {
+  if (budget.max_work >= 0) return budget.max_work;
+  return std::isfinite(budget.milliseconds) ? 0 : unlimited_texels;
+}
+
+void DeviceCones::bake(const Budget& frame_budget, const DeviceFirstPass& first_pass) {
+  const Work budget{device_refine_limit(frame_budget), first_pass};
   validate_budget(budget);
   State& s = *state_;
   s.check_source();
@@ -521,18 +534,20 @@ void DeviceCones::State::make_lagged() {
   });
 }
 
-long long DeviceCones::bake_lagged(const DeviceConeBudget& budget, int lag_frames) {
+long long DeviceCones::bake_lagged(const Budget& budget, int lag_frames, const DeviceFirstPass& first_pass) {
   State& s = *state_;
   if (lag_frames == 0) {
-    bake(budget);
+    bake(budget, first_pass);
     s.served_begun = -1;  // what was served is not this frame's map
     return 0;
   }
-  advance_lagged(budget, lag_frames);
+  advance_lagged(budget, lag_frames, first_pass);
   return compose_lagged();
 }
 
-void DeviceCones::advance_lagged(const DeviceConeBudget& budget, int lag_frames) {
+void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
+                                 const DeviceFirstPass& first_pass) {
+  const Work budget{device_refine_limit(frame_budget), first_pass};
   State& s = *state_;
   if (lag_frames < 1)
     throw vulkan::Error("DeviceCones: a lagged map's lag of " + std::to_string(lag_frames) +
@@ -684,7 +699,7 @@ double DeviceCones::device_milliseconds() const {
   return frame_part + compose_part + s.band_timer.milliseconds();
 }
 
-DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<float>* apex) {
+BakeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<float>* apex) {
   State& s = *state_;
   if (!s.baked) throw vulkan::Error("DeviceCones::read_back: nothing was baked");
   const VkDeviceSize image_bytes = s.texels() * VkDeviceSize(s.layers) * cone_texel_bytes;
@@ -719,10 +734,15 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
   if (counter_values[CONE_COUNTER_BAD] != 0)
     throw vulkan::Error(
         "DeviceCones: the heights hold a NaN or a value outside [0, 1]; the cone map is not valid");
-  DeviceConeStats stats;
-  const long long tickets = counter_values[CONE_COUNTER_TICKETS];
-  stats.texels_cut = s.refine_limit < 0 ? 0 : tickets;
-  stats.texels_refined = s.refine_limit < 0 ? (long long)s.texels() : std::min(tickets, s.refine_limit);
+  BakeStats stats;
+  stats.mode = s.refine_limit < 0 ? Mode::bilinear : Mode::bilinear_budgeted;
+  stats.width = s.width;
+  stats.height = s.height;
+  stats.sector_count = s.sectors;
+  const long long cut = s.refine_limit < 0 ? 0 : counter_values[CONE_COUNTER_TICKETS];
+  stats.texels_refined = s.refine_limit < 0 ? (long long)s.texels() : std::min(cut, s.refine_limit);
+  stats.texels_fallback = s.refine_limit < 0 ? 0 : cut - stats.texels_refined;
+  stats.milliseconds = device_milliseconds();
   // layer k < n: (r_k, H_c), decoded as the shaders read them
   const auto* values = reinterpret_cast<const std::uint32_t*>(bytes);
   if (ratios) {
@@ -731,6 +751,9 @@ DeviceConeStats DeviceCones::read_back(std::vector<float>* ratios, std::vector<f
       for (std::size_t t = 0; t < s.texels(); ++t)
         (*ratios)[t * std::size_t(s.sectors) + std::size_t(k)] =
             vulkan::decode_ratio(std::uint16_t(values[std::size_t(k) * s.texels() + t] & 0xffffu));
+    double sum = 0.0;
+    for (float ratio : *ratios) sum += ratio;
+    stats.mean_ratio = ratios->empty() ? 0.0 : sum / double(ratios->size());
   }
   if (apex) {
     apex->resize(s.texels());

@@ -29,20 +29,26 @@ struct DeviceLevelImages;
 
 namespace displace::bake {
 
-// How much of a DeviceCones bake goes beyond the first pass. A texel whose first pass bounded a node
-// whole is "cut", and up to `texels` cut texels (which ones: the order the device runs them in) are
-// searched again down to the cells (from the same window). unlimited_texels: no first pass, every
-// texel searched to the cells from the full window. Each is conservative on its own.
+// How much of a DeviceCones bake goes beyond its first pass, from the Budget every baker takes - the
+// one rule, for every caller: a work budget (max_work >= 0) is that many "cut" texels (whose first
+// pass bounded a node whole; which ones: the order the device runs them in) searched again down to
+// the cells from the same window; a wall-clock budget (finite milliseconds) is the first pass alone,
+// for a dispatch cannot stop when the time runs out; neither (Budget{}) is every texel searched to
+// the cells from the full window, no first pass. Each is conservative on its own. Returns the cut
+// texels searched again, or unlimited_texels for the last.
 inline constexpr long long unlimited_texels = -1;
-struct DeviceConeBudget {
-  long long texels = unlimited_texels;  // cut texels searched again per bake, at most; 0: the first pass only
-  DeviceFirstPass first_pass = {};
-};
+long long device_refine_limit(const Budget& budget);
+// The Budget of `texels` cut texels searched again (unlimited_texels: every texel to the cells).
+inline Budget work_budget(long long texels) {
+  Budget budget;
+  budget.max_work = texels;
+  return budget;
+}
 
-struct DeviceConeStats {
-  long long texels_refined = 0;  // texels searched down to the cells (all of them when unlimited)
-  long long texels_cut = 0;      // texels the first pass cut (0 when unlimited: no first pass)
-};
+// The stats of a device bake (BakeStats, as every baker's): texels_refined, the texels searched down
+// to the cells (all of them when unlimited); texels_fallback, the cut texels left at their first
+// pass's bound; milliseconds, the device's time where it has timestamps (0 otherwise); mean_ratio
+// where the ratios were read back. work is not counted on the device (0).
 
 class DeviceCones {
  public:
@@ -58,12 +64,12 @@ class DeviceCones {
 
   // Records the bake into the next frame of its Frames, after the ocean's simulate() recorded there and
   // ahead of the draw; frames whose MapSet has cones[cone_slot(sector_count)].device = map() sample it.
-  void bake(const DeviceConeBudget& budget = {});
+  void bake(const Budget& budget = {}, const DeviceFirstPass& first_pass = {});
   // Submits what is recorded, waits, and reads back what the renderer samples (either may be null):
   // ratios decoded, W x H x sectors interleaved (bake::ConeView's layout), and apex heights decoded.
   // Throws vulkan::Error where the heights held a NaN or a value outside [0, 1]. After bake_lagged()
   // the stats and the heights' check are those of the served map (nothing waits for a band in flight).
-  DeviceConeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
+  BakeStats read_back(std::vector<float>* ratios, std::vector<float>* apex);
 
   // Lagged maps (lag_frames = N > 0): one map's bake is spread over N calls - a snapshot of the
   // heights and its pyramid when it begins, then an even share of the texel rows a call, on the
@@ -73,14 +79,14 @@ class DeviceCones {
   // up): conservative for the frame's own heights, at most 2N - 1 calls old. The first call, and the
   // first after N changed, makes a whole map. Returns the age in calls of the map the frame samples;
   // 0 is bake(budget). docs/design/lagged-cone-maps.md.
-  long long bake_lagged(const DeviceConeBudget& budget, int lag_frames);
+  long long bake_lagged(const Budget& budget, int lag_frames, const DeviceFirstPass& first_pass = {});
   // bake_lagged(budget, N >= 1) in its two halves, so that the heights may change between them:
   // advance_lagged serves the map whose bands are done and begins the next from the heights as they
   // are (and records this frame's band); compose_lagged raises the served map by the lift over the
   // heights as they are then, for this frame's draw, and returns its age. A map made from heights
   // simulated at the next frame's time (the sim run again at this frame's own before compose) is
   // served the next frame with a lift of about 0: the frame's own map, baked beside the frame before.
-  void advance_lagged(const DeviceConeBudget& budget, int lag_frames);
+  void advance_lagged(const Budget& budget, int lag_frames, const DeviceFirstPass& first_pass = {});
   long long compose_lagged();
   // How far the apexes were raised in the last bake_lagged() frame that has finished (0: none yet,
   // or it was not lagged).
@@ -121,13 +127,13 @@ class DeviceLevels {
 
   // Records the chain of the heights as they are and every level's cone bake (each within `budget`)
   // into the next frame of its Frames, after the ocean's simulate() there and ahead of the draw.
-  void make(const DeviceConeBudget& budget = {});
+  void make(const Budget& budget = {}, const DeviceFirstPass& first_pass = {});
   // Submits what is recorded, waits, and reads back level `level` (1 .. level_count()) as the renderer
   // samples it (any may be null): heights, slope moments (3 a texel), ratios (W x H x sectors,
   // decoded), apex heights and the level's highest height (where its rays start); returns that
   // level's bake stats. Throws vulkan::Error as DeviceCones::read_back does, and for a level out of range.
-  DeviceConeStats read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
-                            std::vector<float>* ratios, std::vector<float>* apex, float* top = nullptr);
+  BakeStats read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
+                      std::vector<float>* ratios, std::vector<float>* apex, float* top = nullptr);
 
   std::shared_ptr<const vulkan::DeviceLevelImages> maps() const;  // the levels as a MapSet names them
   int level_count() const;                                        // 0 for a map with an odd side

@@ -145,7 +145,7 @@ DeviceLevels::~DeviceLevels() {
 
 std::shared_ptr<const DeviceLevelImages> DeviceLevels::maps() const { return state_->map; }
 
-void DeviceLevels::make(const DeviceConeBudget& budget) {
+void DeviceLevels::make(const Budget& budget, const DeviceFirstPass& first_pass) {
   State& s = *state_;
   if (s.source->heights == nullptr)
     throw vulkan::Error("DeviceLevels::make: the DeviceSim whose heights it reads is gone");
@@ -172,7 +172,7 @@ void DeviceLevels::make(const DeviceConeBudget& budget) {
         group_count(std::uint32_t(s.level_height(level)), CONE_TILE), 1, &push);
     compute_barrier(commands);  // the next level reads this one's heights and moments
   }
-  for (const std::unique_ptr<DeviceCones>& level : s.cones) level->bake(budget);
+  for (const std::unique_ptr<DeviceCones>& level : s.cones) level->bake(budget, first_pass);
   commands = s.frames.begin();  // the same recording
   // each level's cone image into its place in the atlas (in the transfer layouts, back to GENERAL
   // for the draw), and the top of its max pyramid into the tops
@@ -215,15 +215,15 @@ void DeviceLevels::make(const DeviceConeBudget& budget) {
   s.made = true;
 }
 
-DeviceConeStats DeviceLevels::read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
-                                        std::vector<float>* ratios, std::vector<float>* apex, float* top) {
+BakeStats DeviceLevels::read_back(int level, std::vector<float>* heights, std::vector<float>* slopes,
+                                  std::vector<float>* ratios, std::vector<float>* apex, float* top) {
   State& s = *state_;
   if (level < 1 || level > s.count)
     throw vulkan::Error("DeviceLevels::read_back: level " + std::to_string(level) + " of " +
                         std::to_string(s.count));
   if (!s.made) throw vulkan::Error("DeviceLevels::read_back: nothing was made");
   // the level's bake: its stats and the heights' check (this submits and waits)
-  const DeviceConeStats stats = s.cones[std::size_t(level - 1)]->read_back(nullptr, nullptr);
+  BakeStats stats = s.cones[std::size_t(level - 1)]->read_back(nullptr, nullptr);
   const int w = s.level_width(level), h = s.level_height(level);
   const auto texels = std::size_t(w) * std::size_t(h);
   const auto layers = std::uint32_t(cone_layer_count(s.sectors, false));
@@ -285,6 +285,9 @@ DeviceConeStats DeviceLevels::read_back(int level, std::vector<float>* heights, 
       for (std::size_t t = 0; t < texels; ++t)
         (*ratios)[t * std::size_t(s.sectors) + std::size_t(k)] =
             vulkan::decode_ratio(std::uint16_t(cone_values[std::size_t(k) * texels + t] & 0xffffu));
+    double sum = 0.0;
+    for (float ratio : *ratios) sum += ratio;
+    stats.mean_ratio = ratios->empty() ? 0.0 : sum / double(ratios->size());
   }
   if (apex) {
     apex->resize(texels);

@@ -134,7 +134,7 @@ BENCHMARK(run_memcpy)->Name("BM_UploadMaps/512/memcpy")->Unit(benchmark::kMillis
 constexpr int device_bake_sectors = 4;
 constexpr int full_reference_limit = 1024;  // texels a side: above, no CPU reference bake
 
-void run_device_bake(benchmark::State& state, bake::DeviceConeBudget budget) {
+void run_device_bake(benchmark::State& state, long long texels, bake::DeviceFirstPass first_pass) {
   const int side = int(state.range(0));
   static render::Renderer renderer([] {
     render::RendererOptions options;
@@ -149,15 +149,15 @@ void run_device_bake(benchmark::State& state, bake::DeviceConeBudget budget) {
   sim::DeviceSim& ocean = *made;
   ocean.simulate(3.0);
   bake::DeviceCones cones(renderer.frames(), ocean.maps(), device_bake_sectors, bake::Address::wrap);
-  bake::DeviceConeStats stats;
+  bake::BakeStats stats;
   for (auto _ : state) {
-    cones.bake(budget);
+    cones.bake(bake::work_budget(texels), first_pass);
     stats = cones.read_back(nullptr, nullptr);
   }
   std::vector<float> ratios, heights;
   cones.read_back(&ratios, nullptr);
   state.counters["texels_refined"] = double(stats.texels_refined);
-  state.counters["texels_cut"] = double(stats.texels_cut);
+  state.counters["texels_cut"] = double(stats.texels_fallback + stats.texels_refined);
   if (side <= full_reference_limit) {
     ocean.read_back(&heights, nullptr, nullptr);
     std::vector<float> full(ratios.size()), apex(heights.size());
@@ -173,7 +173,7 @@ void run_device_bake(benchmark::State& state, bake::DeviceConeBudget budget) {
   state.SetLabel(renderer.device().name);
 }
 
-BENCHMARK_CAPTURE(run_device_bake, unlimited, bake::DeviceConeBudget{bake::unlimited_texels, {}})
+BENCHMARK_CAPTURE(run_device_bake, unlimited, bake::unlimited_texels, bake::DeviceFirstPass{})
     ->Name("BM_DeviceBake/ocean")
     ->Arg(256)
     ->Arg(512)
@@ -182,7 +182,7 @@ BENCHMARK_CAPTURE(run_device_bake, unlimited, bake::DeviceConeBudget{bake::unlim
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // the default first pass (rings of radius 2, the full window)
-BENCHMARK_CAPTURE(run_device_bake, first_pass, bake::DeviceConeBudget{0, {}})
+BENCHMARK_CAPTURE(run_device_bake, first_pass, 0, bake::DeviceFirstPass{})
     ->Name("BM_DeviceBake/ocean/first-pass")
     ->Arg(256)
     ->Arg(512)
@@ -191,7 +191,7 @@ BENCHMARK_CAPTURE(run_device_bake, first_pass, bake::DeviceConeBudget{0, {}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // the first pass as a search of the pyramid (ring_radius 0)
-BENCHMARK_CAPTURE(run_device_bake, search, bake::DeviceConeBudget{0, {4, 0}})
+BENCHMARK_CAPTURE(run_device_bake, search, 0, bake::DeviceFirstPass{4, 0})
     ->Name("BM_DeviceBake/ocean/first-pass-search")
     ->Arg(256)
     ->Arg(512)
@@ -201,14 +201,14 @@ BENCHMARK_CAPTURE(run_device_bake, search, bake::DeviceConeBudget{0, {4, 0}})
     ->UseRealTime();
 // the first pass as rings (bake::DeviceFirstPass) of radius 1 with the full window, of radius 2 with
 // a window of 2 cells
-BENCHMARK_CAPTURE(run_device_bake, rings_1, bake::DeviceConeBudget{0, {4, 1}})
+BENCHMARK_CAPTURE(run_device_bake, rings_1, 0, bake::DeviceFirstPass{4, 1})
     ->Name("BM_DeviceBake/ocean/first-pass-rings-1")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, bake::DeviceConeBudget{0, {2, 2}})
+BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, 0, bake::DeviceFirstPass{2, 2})
     ->Name("BM_DeviceBake/ocean/first-pass-rings-2-window-2")
     ->Arg(256)
     ->Arg(512)
@@ -216,14 +216,14 @@ BENCHMARK_CAPTURE(run_device_bake, rings_2_window_2, bake::DeviceConeBudget{0, {
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // the group's first pass (bake::DeviceFirstPass::group), the full window and a window of 2 cells
-BENCHMARK_CAPTURE(run_device_bake, group_4, bake::DeviceConeBudget{0, {4, 0, true}})
+BENCHMARK_CAPTURE(run_device_bake, group_4, 0, bake::DeviceFirstPass{4, 0, true})
     ->Name("BM_DeviceBake/ocean/first-pass-group")
     ->Arg(256)
     ->Arg(512)
     ->Arg(1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(run_device_bake, group_2, bake::DeviceConeBudget{0, {2, 0, true}})
+BENCHMARK_CAPTURE(run_device_bake, group_2, 0, bake::DeviceFirstPass{2, 0, true})
     ->Name("BM_DeviceBake/ocean/first-pass-group-window-2")
     ->Arg(256)
     ->Arg(512)

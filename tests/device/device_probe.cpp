@@ -372,10 +372,10 @@ void device_cones(render::Renderer& renderer, const Plan& plan) {
     for (const Shape& shape : shapes) {
       const long long texels = shape.texels;
       std::vector<double> wall, device;
-      bake::DeviceConeStats stats;
+      bake::BakeStats stats;
       for (int r = 0; r <= plan.cone_repeats; ++r) {  // the first one warms up
         const auto start = std::chrono::steady_clock::now();
-        cones.bake({texels, shape.first_pass});
+        cones.bake(bake::work_budget(texels), shape.first_pass);
         stats = cones.read_back(nullptr, nullptr);
         if (r == 0) continue;
         wall.push_back(

@@ -44,7 +44,7 @@ render::Renderer& cones_renderer() {
 struct DeviceBake {
   bake::ConeMap cones;
   std::vector<float> apex;
-  bake::DeviceConeStats stats;
+  bake::BakeStats stats;
 };
 
 DeviceBake read(bake::DeviceCones& device, int width, int height) {
@@ -56,7 +56,7 @@ DeviceBake read(bake::DeviceCones& device, int width, int height) {
 
 DeviceBake bake_on_device(bake::DeviceCones& device, long long budget,
                           bake::DeviceFirstPass first_pass = {}) {
-  device.bake({budget, first_pass});
+  device.bake(bake::work_budget(budget), first_pass);
   return read(device, device.width(), device.height());
 }
 
@@ -205,8 +205,8 @@ TEST(DeviceCones, UnlimitedKeepsNineTenthsOfTheFullBakesMeanRatio) {
       std::printf(
           "%s sectors %d: device mean ratio / full bake's: unlimited %.4f, search %.4f (%lld of %d "
           "texels cut), rings 1 %.4f, rings 2 (the default) %.4f, group %.4f\n",
-          map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean, first.stats.texels_cut,
-          map.width * map.height, bake::mean_ratio(ring_1.cones) / full_mean,
+          map.name.c_str(), sectors, kept, bake::mean_ratio(first.cones) / full_mean,
+          first.stats.texels_fallback, map.width * map.height, bake::mean_ratio(ring_1.cones) / full_mean,
           bake::mean_ratio(ring_2.cones) / full_mean, bake::mean_ratio(group.cones) / full_mean);
       EXPECT_GE(kept, 0.9) << map.name << " sectors " << sectors;
       EXPECT_EQ(unlimited.stats.texels_refined, map.width * map.height);
@@ -249,6 +249,23 @@ TEST(DeviceCones, CheckCatchesRatiosTenPercentTooLarge) {
 
 // The budget bounds the refinement: at most `texels` cut texels are searched again, and every one
 // of them only raises ratios; the cut count does not depend on the budget.
+// The one rule from the Budget every baker takes to a device bake's work: a work budget is that many
+// cut texels searched again (whatever the clock says), a wall-clock budget the first pass alone,
+// neither every texel to the cells.
+TEST(DeviceCones, OneRuleTurnsABudgetIntoWork) {
+  EXPECT_EQ(bake::device_refine_limit(bake::Budget{}), bake::unlimited_texels);
+  bake::Budget timed;
+  timed.milliseconds = 5.0;
+  EXPECT_EQ(bake::device_refine_limit(timed), 0);
+  timed.milliseconds = 0.0;
+  EXPECT_EQ(bake::device_refine_limit(timed), 0);
+  bake::Budget work = timed;
+  work.max_work = 42;
+  EXPECT_EQ(bake::device_refine_limit(work), 42);
+  EXPECT_EQ(bake::device_refine_limit(bake::work_budget(0)), 0);
+  EXPECT_EQ(bake::device_refine_limit(bake::work_budget(bake::unlimited_texels)), bake::unlimited_texels);
+}
+
 TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
   render::Renderer& renderer = cones_renderer();
   const Map map = test::make_fractal_cliff(40, 24);
@@ -258,13 +275,14 @@ TEST(DeviceCones, TheBudgetBoundsTheTexelsRefined) {
     const std::string at =
         "rings " + std::to_string(first_pass.ring_radius) + (first_pass.group ? " group" : "");
     const DeviceBake first = bake_on_device(device, 0, first_pass);
-    ASSERT_GT(first.stats.texels_cut, 10) << at;
+    const long long cut = first.stats.texels_fallback;  // the first pass alone: every cut texel left
+    ASSERT_GT(cut, 10) << at;
     EXPECT_EQ(first.stats.texels_refined, 0) << at;
     double previous = bake::mean_ratio(first.cones);
     for (long long budget : {5ll, 50ll, 1000000ll}) {
       const DeviceBake b = bake_on_device(device, budget, first_pass);
-      EXPECT_EQ(b.stats.texels_cut, first.stats.texels_cut) << at;
-      EXPECT_EQ(b.stats.texels_refined, std::min(budget, first.stats.texels_cut)) << at;
+      EXPECT_EQ(b.stats.texels_fallback + b.stats.texels_refined, cut) << at;  // the cut texels
+      EXPECT_EQ(b.stats.texels_refined, std::min(budget, cut)) << at;
       for (std::size_t v = 0; v < b.cones.ratios.size(); ++v)
         ASSERT_GE(b.cones.ratios[v], first.cones.ratios[v]) << at;
       EXPECT_EQ(b.apex, first.apex) << at;
@@ -308,7 +326,7 @@ TEST(DeviceCones, OceanConesAreSampledAndAllocateNothingPerFrame) {
   long long allocations = 0;
   for (int step = 0; step < 4; ++step) {
     ocean.simulate(2.0 + step / 30.0);
-    cones.bake({step % 2 == 0 ? 0 : bake::unlimited_texels});
+    cones.bake(bake::work_budget(step % 2 == 0 ? 0 : bake::unlimited_texels));
     renderer.set_maps(maps);
     renderer.render(view, method, frame, render::output_uv);
     if (step == 1) allocations = renderer.memory_allocations();
@@ -349,7 +367,7 @@ TEST(DeviceCones, LaggedMapsAreOldMapsRaisedAndHoldForEachFramesHeights) {
     for (int f = 0; f < 2 * lag + 3; ++f) {  // two maps after the whole one: ages 0 to 2N - 1
       ocean.simulate(1.0 + 0.4 * f);         // a fast sea: the heights rise by up to a tenth of their range
       Served served;
-      served.age = cones.bake_lagged({0}, lag);
+      served.age = cones.bake_lagged(bake::work_budget(0), lag);
       // the frame submitted first, as a frame loop submits it. Nothing here waits for a band in
       // flight (read_back neither), and the renderer holds the bands back until something waits for
       // them (render::testing::hold_async_work): a wait that the serving frame lacks shows in its map.
@@ -415,7 +433,7 @@ TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
     ocean.simulate(1.0 + 0.4 * f);
     heights.emplace_back();
     ocean.read_back(&heights.back(), nullptr, nullptr);
-    const long long age = cones.bake_lagged({0, group_4}, lag);
+    const long long age = cones.bake_lagged(bake::work_budget(0), lag, group_4);
     const DeviceBake served = read(cones, 32, 32);
     const Map then{"ocean-then", 32, 32, heights[std::size_t(f - age)]};
     bake::DeviceCones whole(renderer.frames(), bake::view_of(then), 4, Address::wrap);
@@ -467,7 +485,7 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
     maps.device_heights = handle;
     renderer.set_maps(maps);
     ocean.reset();
-    EXPECT_NE(message_of([&] { cones.bake({0}); }).find("is gone"), std::string::npos);
+    EXPECT_NE(message_of([&] { cones.bake(bake::work_budget(0)); }).find("is gone"), std::string::npos);
     render::View view;
     view.camera.width = view.camera.height = 8;
     EXPECT_NE(message_of([&] {
@@ -485,15 +503,17 @@ TEST(DeviceCones, RefusesWhatItCannotBake) {
     bake::DeviceCones cones(renderer.frames(), bake::HeightView{heights.data(), 4, 4}, 4, Address::wrap);
     gone = cones.map();
     EXPECT_THROW(cones.read_back(nullptr, nullptr), render::RenderError);  // nothing baked yet
-    EXPECT_THROW(cones.bake_lagged({0}, -1), render::RenderError);
+    EXPECT_THROW(cones.bake_lagged(bake::work_budget(0), -1), render::RenderError);
     for (const bake::DeviceFirstPass first_pass :
          {bake::DeviceFirstPass{0, 0}, bake::DeviceFirstPass{5, 0}, bake::DeviceFirstPass{4, -1},
           bake::DeviceFirstPass{4, 9}}) {
-      const std::string message = message_of([&] { cones.bake({0, first_pass}); });
+      const std::string message = message_of([&] { cones.bake(bake::work_budget(0), first_pass); });
       EXPECT_NE(message.find("radius"), std::string::npos) << message;
-      EXPECT_THROW(cones.bake_lagged({0, first_pass}, 2), render::RenderError);
+      EXPECT_THROW(cones.bake_lagged(bake::work_budget(0), 2, first_pass), render::RenderError);
     }
-    const std::string both = message_of([&] { cones.bake({0, bake::DeviceFirstPass{4, 1, true}}); });
+    const std::string both = message_of([&] {
+      cones.bake(bake::work_budget(0), bake::DeviceFirstPass{4, 1, true});
+    });
     EXPECT_NE(both.find("by rings or by its group"), std::string::npos) << both;
   }
   // a MapSet naming the cones of a DeviceCones that is gone

@@ -78,7 +78,7 @@ TEST(DeviceLevels, TheChainIsTheCpusChainOfTheSameHeights) {
   ASSERT_EQ(levels.level_count(), 6);
   for (const double time : {0.0, 1.5}) {
     sim->simulate(time);
-    levels.make({0, {}});
+    levels.make(bake::work_budget(0));
     const render::HeightField field = heights_of(*sim);
     const std::vector<std::vector<float>> moments = cpu_moments(field, 6);
     for (int level = 1; level <= 6; ++level) {
@@ -118,7 +118,7 @@ TEST(DeviceLevels, EveryLevelsConesKeepTheBilinearContract) {
     bake::DeviceLevels levels(renderer.frames(), sim->maps(), sectors, Address::wrap);
     ASSERT_EQ(levels.level_count(), 5);
     for (const long long budget : {0LL, bake::unlimited_texels}) {
-      levels.make({budget, {}});
+      levels.make(bake::work_budget(budget));
       for (int level = 1; level <= levels.level_count(); ++level) {
         const render::HeightField coarse = displace::testing::level_of(field, level);
         bake::ConeMap cones{coarse.width, coarse.height, sectors, {}};
@@ -144,8 +144,8 @@ TEST(DeviceLevels, RaysOnEachLevelEndAtThatLevelsFirstCrossing) {
   bake::DeviceCones cones(renderer.frames(), sim->maps(), 4, Address::wrap);
   bake::DeviceLevels levels(renderer.frames(), sim->maps(), 4, Address::wrap);
   sim->simulate(3.0);
-  cones.bake({0, {}});
-  levels.make({0, {}});
+  cones.bake(bake::work_budget(0));
+  levels.make(bake::work_budget(0));
   const render::HeightField field = heights_of(*sim);
   render::MapSet maps;
   maps.width = maps.height = 64;
