@@ -18,24 +18,7 @@
 
 namespace displace::bake {
 
-using vulkan::Buffer;
-using vulkan::compute_barrier;
-using vulkan::ComputeKernel;
-using vulkan::cone_format;
-using vulkan::cone_layer_count;
-using vulkan::cone_texel_bytes;
-using vulkan::Context;
-using vulkan::DeviceConeImage;
-using vulkan::DeviceHeightImages;
-using vulkan::DeviceLevelImages;
-using vulkan::group_count;
-using vulkan::host_read_barrier;
-using vulkan::Image;
-using vulkan::image_barrier;
-using vulkan::level_atlas_origin;
-using vulkan::level_atlas_size;
-using vulkan::rewrite_barrier;
-using vulkan::StageTimer;
+using namespace vulkan;  // the Vulkan base (vulkan/): Context, Buffer, Image, kernels, barriers
 
 static_assert(sizeof(gpu::LevelDownPush) == 32);
 

@@ -14,8 +14,7 @@
 
 namespace displace::sim {
 
-using vulkan::Context;
-using vulkan::OwnedFence;
+using namespace vulkan;  // the Vulkan base (vulkan/): Context, Buffer, Image, kernels, barriers
 
 struct DeviceFft::State {
   VkFFTApplication app{};

@@ -24,17 +24,7 @@
 
 namespace displace::sim {
 
-using vulkan::Buffer;
-using vulkan::compute_barrier;
-using vulkan::ComputeKernel;
-using vulkan::Context;
-using vulkan::DeviceHeightImages;
-using vulkan::group_count;
-using vulkan::host_read_barrier;
-using vulkan::Image;
-using vulkan::image_barrier;
-using vulkan::rewrite_barrier;
-using vulkan::StageTimer;
+using namespace vulkan;  // the Vulkan base (vulkan/): Context, Buffer, Image, kernels, barriers
 
 static_assert(sizeof(gpu::OceanSpectrumPush) == 32);
 static_assert(sizeof(gpu::OceanAssemblePush) == 48);
