@@ -15,8 +15,6 @@
 #include <cstring>
 #include <glm/vec2.hpp>
 
-#include "vulkan/device_info.h"
-
 namespace displace::vulkan {
 
 class Frames;
