@@ -5,6 +5,7 @@
 # sim/device may use sim and vulkan, bake/device bake and vulkan; render bake and vulkan (it samples
 # what the device stages wrote through vulkan/device_maps.h, never their classes); pipeline all of
 # them. "spirv/" (the build's compiled shaders) and "displace/" (cmake/include) belong to no layer.
+# sim/ and bake/ outside their device/ include no Vulkan header and link no Vulkan.
 #   layers.sh SOURCE_DIR
 set -euo pipefail
 cd "$1"
@@ -45,8 +46,20 @@ while IFS= read -r file; do
   done < <(sed -n 's/^[[:space:]]*#include "\([^"]*\)".*/\1/p' "$file")
 done < <(find sim bake vulkan render pipeline demos \( -name '*.h' -o -name '*.cpp' -o -name '*.glsl' \) | sort)
 
+# the CPU layers use no Vulkan at all: they build and link without it
+while IFS= read -r file; do
+  if grep -q '^[[:space:]]*#include <vulkan/' "$file"; then
+    echo "layers: $file includes a Vulkan header; sim/ and bake/ (but their device/) are CPU only" >&2
+    failures=$((failures + 1))
+  fi
+done < <(find sim bake \( -path sim/device -o -path bake/device \) -prune -o \( -name '*.h' -o -name '*.cpp' \) -print)
+if grep -qi vulkan sim/CMakeLists.txt bake/CMakeLists.txt; then
+  echo "layers: sim/ or bake/ links Vulkan (their CMakeLists.txt)" >&2
+  failures=$((failures + 1))
+fi
+
 if ((failures > 0)); then
-  echo "layers: $failures includes run back up a layer" >&2
+  echo "layers: $failures includes run back up a layer or bring Vulkan into a CPU layer" >&2
   exit 1
 fi
 echo "layers: $checked includes checked, every one runs down"
