@@ -101,9 +101,8 @@ class DeviceCones {
   // none has, or the device has no timestamps.
   double device_milliseconds() const;
 
-  struct State;
-
  private:
+  struct State;
   std::unique_ptr<State> state_;
 };
 
@@ -143,9 +142,8 @@ class DeviceLevels {
   // level's bake); 0 where none has, or the device has no timestamps.
   double device_milliseconds() const;
 
-  struct State;
-
  private:
+  struct State;
   std::unique_ptr<State> state_;
 };
 

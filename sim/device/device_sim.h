@@ -84,9 +84,8 @@ class DeviceSim {
   // its kernels); 0 where the device has no timestamps or none has finished.
   double device_milliseconds() const;
 
-  struct State;
-
  private:
+  struct State;
   std::unique_ptr<State> state_;
 };
 
