@@ -2,20 +2,16 @@
 // the relaxed layer, the dual max pyramid and the distance map, per slot, from one height field.
 #include "pipeline/maps.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
-
 #include <algorithm>
 #include <atomic>
-#include <bit>
 #include <cmath>
 #include <optional>
+
+#include "bake/lagged.h"
 
 namespace displace::pipeline {
 namespace {
 
-constexpr std::size_t lift_grain = 1 << 15;  // texels per task of the lift's passes
 constexpr int sector_counts[3] = {1, 4, 8};  // by render::cone_slot
 
 }  // namespace
@@ -32,43 +28,6 @@ void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_s
 std::uint64_t next_map_version() {
   static std::atomic<std::uint64_t> counter{0};
   return ++counter;
-}
-
-// The lift and the raise. Conservative: the bilinear surface rose by at most lift = max over texels
-// of (h - h_made) anywhere (it interpolates the texels' differences), so s(x) <= s_made(x) + lift <=
-// (H_c + lift) + |x - p| / r_k for every p in Q_c and x in sector k - the same ratios hold from the
-// raised apex. apex + lift is rounded up past both roundings by taking the next float above the
-// rounded sum (both positive, so its bits plus one); 1 is above every height. The largest rise is
-// taken in eight independent maxima per task (a vector's worth).
-float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
-                   std::span<float> raised) {
-  const float lift = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, now.size(), lift_grain), 0.0f,
-      [&](const tbb::blocked_range<std::size_t>& range, float largest) {
-        float rise[8] = {};
-        const std::size_t first = range.begin(), whole = first + (range.size() / 8) * 8;
-        for (std::size_t t = first; t < whole; t += 8) {
-          for (int k = 0; k < 8; ++k) {
-            const float d = now[t + k] - made_from[t + k];
-            rise[k] = d > rise[k] ? d : rise[k];
-          }
-        }
-        for (std::size_t t = whole; t < range.end(); ++t) rise[0] = std::max(rise[0], now[t] - made_from[t]);
-        return std::max(largest, *std::max_element(std::begin(rise), std::end(rise)));
-      },
-      [](float a, float b) { return std::max(a, b); });
-  if (!(lift > 0.0f)) {
-    std::copy(apex.begin(), apex.end(), raised.begin());
-    return 0.0f;
-  }
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, apex.size(), lift_grain),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t t = range.begin(); t < range.end(); ++t) {
-                        raised[t] = std::min(
-                            1.0f, std::bit_cast<float>(std::bit_cast<std::uint32_t>(apex[t] + lift) + 1u));
-                      }
-                    });
-  return lift;
 }
 
 namespace {
@@ -109,25 +68,13 @@ struct Slot {
   render::MapSet set;
 };
 
-// A lagged cone map (ConeSchedule::lag_frames): as the baker emitted it (apexes not raised), with the
-// heights it was made from. Two per baker, the one served and the one the baker emits into, so that a
-// frame still uploading a map never sees it change.
-struct LaggedCones {
-  std::vector<float> ratios, apex;
-  std::vector<float> heights;
-  bake::BakeStats stats;
-  long long frame = 0;  // whose heights
-};
-
 // The baker of one sector count, kept between frames with where it emitted last.
 struct ConeBaker {
   std::optional<bake::BilinearBaker> baker;
   int width = 0, height = 0;
   bake::Address address = bake::Address::wrap;
-  int last_slot = -1;  // the slot it emitted into last (refinement continues from its map)
-  std::array<LaggedCones, 2> lagged;
-  int served = -1, building = 0;  // lagged maps: served (-1: none yet) and the one being made
-  int build_frames = 0;           // frames the map being made has had so far
+  int last_slot = -1;        // the slot it emitted into last (refinement continues from its map)
+  bake::LaggedCones lagged;  // lagged maps (bake/lagged.h)
 };
 
 bool holds(std::uint64_t made_for, bake::Address address, const MapHeights& heights, bake::Address wanted) {
@@ -247,36 +194,15 @@ void MapMaker::State::copy_from_other_slots(int index, const MapHeights& heights
 }
 
 // A lagged frame: the stage under way advances within the budget (a new one starts on this frame's
-// heights when none is), and the map made last is served, raised (raise_apexes).
+// heights when none is), and the map made last is served, raised (bake::LaggedCones).
 void MapMaker::State::make_lagged(int index, const MapHeights& heights, const render::MapNeeds& needs,
                                   const ConeSchedule& schedule, MapStats& stats) {
-  const int width = heights.width, height = heights.height;
-  const std::size_t texels = heights.heights.size();
   const int sectors = needs.cone_sectors;
-  ConeBaker& k = baker_for(needs, width, height);
+  ConeBaker& k = baker_for(needs, heights.width, heights.height);
   SlotCones& cones = slots[std::size_t(index)].cones[std::size_t(render::cone_slot(sectors))];
-  if (k.served >= 0 && k.lagged[std::size_t(k.served)].heights.size() != texels) k.served = -1;  // a new size
-  if (!k.baker->in_progress()) {
-    k.building = k.served < 0 ? 0 : 1 - k.served;
-    LaggedCones& next = k.lagged[std::size_t(k.building)];
-    next.heights.assign(heights.heights.begin(), heights.heights.end());
-    next.frame = schedule.frame_index;
-    next.ratios.resize(texels * std::size_t(sectors));
-    next.apex.resize(texels);
-    k.baker->begin(view_of(heights));
-    k.build_frames = 0;
-  }
-  LaggedCones& next = k.lagged[std::size_t(k.building)];
-  const bake::ConeView out{next.ratios.data(), width, height, sectors};
-  // an even share of the stage a frame (made by its begin frame + lag frames), more while the budget
-  // lasts; with no map to serve yet the first is made whole
-  const double due = k.served < 0 ? 1.0 : double(k.build_frames + 1) / double(schedule.lag_frames + 1);
-  const bool made = k.baker->advance(schedule.budget, out, next.apex, next.stats, std::min(due, 1.0));
-  ++k.build_frames;
-  if (made) k.served = k.building;
-  const LaggedCones& served = k.lagged[std::size_t(k.served)];
-  cones.apex.resize(texels);
-  const float lift = raise_apexes(served.heights, heights.heights, served.apex, cones.apex);
+  const bake::LaggedCones::Served served =
+      k.lagged.advance(*k.baker, view_of(heights), sectors, schedule.budget, schedule.lag_frames,
+                       schedule.frame_index, cones.apex);
   cones.served = served.ratios;
   cones.stats = served.stats;
   cones.made_for = heights.version;
@@ -284,8 +210,8 @@ void MapMaker::State::make_lagged(int index, const MapHeights& heights, const re
   cones.relaxed_for = 0;
   cones.version = next_map_version();
   k.last_slot = index;
-  stats.cone_lag = schedule.frame_index - served.frame;
-  stats.cone_lift = lift;
+  stats.cone_lag = served.age;
+  stats.cone_lift = served.lift;
 }
 
 void MapMaker::State::make_cones(int index, const MapHeights& heights, const render::MapNeeds& needs,

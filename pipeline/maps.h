@@ -47,12 +47,6 @@ void bake_distance(bake::HeightView heights, bake::Address address, int max_3d_s
 // and frame pipelines that share a renderer.
 std::uint64_t next_map_version();
 
-// The lagged cone maps' raise: lift = max(0, largest now[t] - made_from[t]), and `raised` = each apex
-// + lift rounded up (at most 1), so that a cone map made from `made_from` holds for `now` (proof in
-// maps.cpp). Returns the lift. All four spans one texel each, as many.
-float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
-                   std::span<float> raised);
-
 // One frame's heights as make() reads them: views that must stay valid while the returned set is used
 // (the set views the heights and the foam).
 struct MapHeights {
@@ -78,7 +72,8 @@ struct ConeSchedule {
   // > 0: lagged cone maps (moving heights, no relaxed layer; frame_pipeline.h): the baker's first
   // stage runs in steps on the heights of the frame it began on, an even share of it a frame over
   // at most lag_frames + 1 frames and more while the budget lasts, and each frame is served the map
-  // made last with every apex raised by raise_apexes for its own heights. The first map is made whole.
+  // made last with every apex raised by bake::raise_apexes for its own heights (bake::LaggedCones,
+  // bake/lagged.h). The first map is made whole.
   int lag_frames = 0;
   long long frame_index = 0;  // the frame the heights belong to (a lagged map's age)
 };

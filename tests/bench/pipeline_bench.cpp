@@ -30,6 +30,7 @@
 
 #include "bake/bake.h"
 #include "bake/device/device_cones.h"
+#include "bake/lagged.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/height_source.h"
 #include "pipeline/query.h"
@@ -109,7 +110,7 @@ void run_lagged(benchmark::State& state, int map_size, int lag) {
     none.milliseconds = 0.0;
     std::vector<float> made(texels);
     baker.bake({then.heights.data(), map_size, map_size}, none, {ratios.data(), map_size, map_size, 4}, made);
-    return pipeline::raise_apexes(then.heights, now.heights, made, apex);
+    return bake::raise_apexes(then.heights, now.heights, made, apex);
   };
   auto render_with = [&](const std::vector<float>& ratios, const std::vector<float>& apex,
                          std::uint64_t version, render::Frame& frame) {
