@@ -53,29 +53,71 @@ float raise_apexes(std::span<const float> made_from, std::span<const float> now,
   return lift;
 }
 
+LagSchedule::Share LagSchedule::next(long long frame, int lag_frames) {
+  Share share;
+  if (complete_) {  // its last share landed after the frame before's draw
+    served_ = begun_;
+    begun_ = -1;
+    complete_ = false;
+    share.serve = true;
+  }
+  if (begun_ < 0) {
+    begun_ = frame;
+    shares_ = 0;
+    whole_ = served_ < 0;
+    share.begin = true;
+  }
+  share.whole = whole_;
+  share.index = shares_++;
+  share.count = whole_ ? 1 : lands_ == Lands::before_draw ? lag_frames + 1 : lag_frames;
+  return share;
+}
+
+bool LagSchedule::finished(bool complete) {
+  if (!complete || begun_ < 0) return false;
+  if (whole_ || lands_ == Lands::before_draw) {
+    served_ = begun_;
+    begun_ = -1;
+    return true;
+  }
+  complete_ = true;  // served from the next frame on
+  return false;
+}
+
+void LagSchedule::drop_in_progress() {
+  begun_ = -1;
+  complete_ = false;
+}
+
+void LagSchedule::restart() {
+  drop_in_progress();
+  served_ = -1;
+}
+
 LaggedCones::Served LaggedCones::advance(BilinearBaker& baker, HeightView heights, int sector_count,
                                          const Budget& budget, int lag_frames, long long frame,
                                          std::vector<float>& raised) {
   const std::size_t texels = std::size_t(heights.width) * std::size_t(heights.height);
-  if (served_ >= 0 && maps_[std::size_t(served_)].heights.size() != texels) served_ = -1;  // a new size
-  if (!baker.in_progress()) {
+  if (served_ >= 0 && maps_[std::size_t(served_)].heights.size() != texels) {  // a new size
+    served_ = -1;
+    schedule_.restart();
+  }
+  if (!baker.in_progress()) schedule_.drop_in_progress();  // (a bake of the baker's own dropped it)
+  const LagSchedule::Share share = schedule_.next(frame, lag_frames);
+  if (share.begin) {
     building_ = served_ < 0 ? 0 : 1 - served_;
     Map& next = maps_[std::size_t(building_)];
     next.heights.assign(heights.data, heights.data + texels);
-    next.frame = frame;
     next.ratios.resize(texels * std::size_t(sector_count));
     next.apex.resize(texels);
     baker.begin(heights);
-    build_frames_ = 0;
   }
   Map& next = maps_[std::size_t(building_)];
   const ConeView out{next.ratios.data(), heights.width, heights.height, sector_count};
-  // an even share of the stage a frame (made by its begin frame + lag frames), more while the budget
-  // lasts; with no map to serve yet the first is made whole
-  const double due = served_ < 0 ? 1.0 : double(build_frames_ + 1) / double(lag_frames + 1);
+  // the share due by the end of this frame, more while the budget lasts
+  const double due = double(share.index + 1) / double(share.count);
   const bool made = baker.advance(budget, out, next.apex, next.stats, std::min(due, 1.0));
-  ++build_frames_;
-  if (made) served_ = building_;
+  if (schedule_.finished(made)) served_ = building_;
   const Map& served = maps_[std::size_t(served_)];
   raised.resize(texels);
   Served result;
@@ -83,7 +125,7 @@ LaggedCones::Served LaggedCones::advance(BilinearBaker& baker, HeightView height
       raise_apexes(served.heights, std::span<const float>(heights.data, texels), served.apex, raised);
   result.ratios = served.ratios;
   result.stats = served.stats;
-  result.age = frame - served.frame;
+  result.age = frame - schedule_.served_frame();
   return result;
 }
 

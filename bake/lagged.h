@@ -1,12 +1,19 @@
-// bake/lagged.h - lagged cone maps on the CPU: a BilinearBaker's first stage spread over frames while
-// every frame samples the map made last, its apexes raised for the frame's own heights, so that each
-// cone stays conservative (docs/design/lagged-cone-maps.md has the proof). The device's are
-// bake::DeviceCones::bake_lagged (bake/device/device_cones.h): the same contract, its own schedule.
+// bake/lagged.h - lagged cone maps: a map's bake spread over frames while every frame samples the
+// map made last, its apexes raised for the frame's own heights, so that each cone stays conservative
+// (docs/design/lagged-cone-maps.md has the proof).
 //
-// LaggedCones::advance, one call a frame: the map in progress takes an even share of the first stage
-// (k / (N + 1) after its k-th frame, more while the budget lasts; a new one begins on the frame's
-// heights when none is in progress, and the first is made whole), and the map made last is served
-// with every apex raised by raise_apexes: at most 2N frames old, a new one at least every N + 1.
+// LagSchedule is the one schedule both backends keep: the first map is made whole; after it a map
+// begun on frame b takes a share of its work each frame - at least (k + 1) / S of it done by the end
+// of its k-th, all of it by its share S - 1 - and is served from the first frame whose draw comes
+// after its last share: S = N + 1 shares where a frame's work is done before its draw (the CPU's),
+// S = N where it lands after (the device's, beside the draw). Either way it is served on frame b + N
+// (sooner where the CPU finishes early), the next begins once none is in progress, and a served map
+// is at most 2N (CPU) or 2N - 1 (device) frames old. A change of N keeps the map in progress; its
+// shares count on under the new N.
+//
+// LaggedCones::advance is the CPU's, one call a frame, on a BilinearBaker's first stage; the device's
+// is bake::DeviceCones::bake_lagged (bake/device/device_cones.h). raise_apexes is the raise in floats
+// (the device raises its 16-bit apexes in a compute pass, by the same rule).
 #pragma once
 
 #include <array>
@@ -22,6 +29,45 @@ namespace displace::bake {
 // spans one value a texel, as many.
 float raise_apexes(std::span<const float> made_from, std::span<const float> now, std::span<const float> apex,
                    std::span<float> raised);
+
+class LagSchedule {
+ public:
+  // Where a frame's share of a map is done: before the frame's draw, or only after it.
+  enum class Lands { before_draw, after_draw };
+  explicit LagSchedule(Lands lands) : lands_(lands) {}
+
+  // What a frame does, in this order: serve the map in progress (its last share landed after the
+  // frame before's draw), begin a map from this frame's heights (none in progress), run its share.
+  struct Share {
+    bool serve = false;
+    bool begin = false;
+    bool whole = false;  // no map served yet: the one begun is made whole now and served this frame
+    int index = 0;       // this frame's share of the map in progress (0 on the frame it began)
+    int count = 1;       // by the end of share `index`, at least (index + 1) / count of the map is done
+    bool last() const { return index + 1 >= count; }
+  };
+  // One call a frame before its work; `frame` numbers the frames (an age is a difference of them),
+  // lag N >= 1.
+  Share next(long long frame, int lag_frames);
+  // After the frame's share: whether the map in progress is complete (a whole one always is; one done
+  // before its last share: before_draw only). Returns whether this frame serves it.
+  bool finished(bool complete);
+
+  bool in_progress() const { return begun_ >= 0; }
+  // The frame the served map's heights are from (-1: none yet); a frame's age of it is the difference.
+  long long served_frame() const { return served_; }
+  // The map in progress is gone (its backend dropped it): the next frame begins another.
+  void drop_in_progress();
+  // Nothing served any more (heights of another size): the next map is whole.
+  void restart();
+
+ private:
+  Lands lands_;
+  long long begun_ = -1;   // the frame the map in progress began on (-1: none)
+  long long served_ = -1;  // the frame the served map began on (-1: none)
+  int shares_ = 0;         // shares the map in progress has had
+  bool whole_ = false, complete_ = false;
+};
 
 class LaggedCones {
  public:
@@ -45,11 +91,10 @@ class LaggedCones {
   struct Map {
     std::vector<float> ratios, apex, heights;
     BakeStats stats;
-    long long frame = 0;  // whose heights
   };
   std::array<Map, 2> maps_;
   int served_ = -1, building_ = 0;  // served (-1: none yet) and the one being made
-  int build_frames_ = 0;            // frames the map being made has had so far
+  LagSchedule schedule_{LagSchedule::Lands::before_draw};
 };
 
 }  // namespace displace::bake

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "bake/device/shaders/cones.h"
+#include "bake/lagged.h"
 #include "spirv/cone_cells_comp.h"
 #include "spirv/cone_compose_comp.h"
 #include "spirv/cone_group_far_comp.h"
@@ -179,13 +180,13 @@ struct DeviceCones::State {
   // the last bake was lagged: read_back reads served_counters, and its device time is three timers'
   bool lagged = false;
   ComputeKernel snapshot_cells[2], lift_kernel[2], compose_kernel;
-  int lag = 0;                  // N of the maps being made
-  int progress = 0;             // the snapshot the map in progress reads
-  int band = -1;                // the next band of texel rows of the map in progress; -1: none
-  long long calls = 0;          // bake_lagged calls so far
-  long long begun = 0;          // the call the map in progress began on
-  long long served_begun = -1;  // the call the served map began on; -1: none finished yet
-  int advanced_slot = -1;       // the frame slot of an advance_lagged() not yet composed
+  // their schedule (bake/lagged.h), by calls: a band of group rows a call beside the draw, served the
+  // call after the last
+  bake::LagSchedule schedule{bake::LagSchedule::Lands::after_draw};
+  int progress = 0;        // the snapshot the map in progress reads
+  int rows_done = 0;       // group rows of the map in progress whose band went in
+  long long calls = 0;     // bake_lagged calls so far
+  int advanced_slot = -1;  // the frame slot of an advance_lagged() not yet composed
   // the bands go to the async queue (Context::async_queue), beside the frame's draw: command buffers
   // taken in turn (one more than the frames in flight, so that the one taken was submitted three
   // frames before), the async value of each one's last submission, and the bands' own timer
@@ -469,7 +470,7 @@ void DeviceCones::bake(const Budget& frame_budget, const DeviceFirstPass& first_
   compute_barrier(commands);
   s.record_to_image(commands, s.cone_values.handle());
   s.timer.end(commands, slot);
-  s.band = -1;  // a lagged map in progress used the pyramid and counters that this bake rewrote
+  s.schedule.drop_in_progress();  // a lagged map in progress used the pyramid and counters rewritten here
   s.lagged = false;
   if (s.lift_host.handle() != VK_NULL_HANDLE) static_cast<float*>(s.lift_host.mapped())[slot] = 0.0f;
   s.baked = true;
@@ -523,7 +524,7 @@ long long DeviceCones::bake_lagged(const Budget& budget, int lag_frames, const D
   State& s = *state_;
   if (lag_frames == 0) {
     bake(budget, first_pass);
-    s.served_begun = -1;  // what was served is not this frame's map
+    s.schedule.restart();  // what was served is not this frame's map
     return 0;
   }
   advance_lagged(budget, lag_frames, first_pass);
@@ -544,16 +545,10 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
   s.advanced_slot = slot;
   VkCommandBuffer commands = s.frames.begin();
   s.timer.begin(commands, slot);
-  // the first map, and the first after the lag changed, is made whole in this frame (on the frame's
-  // queue, after any band of the map before)
-  const bool whole = s.served_begun < 0 || lag_frames != s.lag;
-  if (whole) {
-    s.lag = lag_frames;
-    s.band = -1;
-    s.frames.frame_waits_for_async(s.last_band);
-  }
+  // the first map is made whole in this frame (on the frame's queue, after any band of a map before)
+  const bake::LagSchedule::Share share = s.schedule.next(s.calls, lag_frames);
+  if (share.whole) s.frames.frame_waits_for_async(s.last_band);
   rewrite_barrier(commands);
-  const int bands = s.lag;  // a map's texel rows in N bands, one a frame
   const int group_rows = int(group_count(std::uint32_t(s.height), CONE_TILE));
   // Serves the map in progress from this frame on (its values are complete once `last_band` is).
   auto serve = [&] {
@@ -569,11 +564,10 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
     vkCmdPipelineBarrier(commands, VK_PIPELINE_STAGE_TRANSFER_BIT,
                          VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &copied,
                          0, nullptr, 0, nullptr);
-    s.served_begun = s.begun;
     s.progress ^= 1;
-    s.band = -1;
   };
-  // this frame's band of the map in progress on the async queue, after the frame queue's value
+  // this frame's band of the map in progress (its share of the group rows) on the async queue, after
+  // the frame queue's value
   // `after` (0: nothing): nothing in this frame waits for it (its command buffer was last submitted
   // three frames ago: waited for on the host, long done in a frame loop)
   auto submit_band = [&](std::uint64_t after) {
@@ -585,7 +579,8 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
     begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     DISPLACE_VK_CHECK(vkBeginCommandBuffer(band, &begin));
     s.band_timer.begin(band, int(index));
-    const int first = s.band * group_rows / bands, end = (s.band + 1) * group_rows / bands;
+    const int first = s.rows_done;
+    const int end = share.last() ? group_rows : std::max(first, (share.index + 1) * group_rows / share.count);
     if (end > first) {
       compute_to_compute_barrier(band);  // the band before read group_far, whose other rows this one writes
       s.record_texels(band, 1 + s.progress, budget, first, end - first);
@@ -593,14 +588,14 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
     s.band_timer.end(band, int(index));
     DISPLACE_VK_CHECK(vkEndCommandBuffer(band));
     s.band_value[index] = s.last_band = s.frames.submit_async(band, after);
-    ++s.band;
+    s.rows_done = end;
   };
-  if (s.band == bands) {  // every band of the map in progress went in a frame before: serve it
+  if (share.serve) {  // every band of the map in progress went in a frame before
     s.frames.frame_waits_for_async(s.last_band);
     serve();
   }
   std::uint64_t map_begun = 0;  // the frame queue's value once a map begun here has its snapshot and pyramid
-  if (s.band < 0) {             // a map begins: its heights' snapshot, then its pyramid
+  if (share.begin) {            // a map begins: its heights' snapshot, then its pyramid
     const VkImage source = s.source->handle(), snapshot = s.snapshots[s.progress].handle();
     const VkPipelineStageFlags transfer = VK_PIPELINE_STAGE_TRANSFER_BIT;
     const VkPipelineStageFlags readers =
@@ -620,11 +615,11 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
     image_barrier(commands, snapshot, 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL,
                   VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT, transfer, readers);
     s.record_pyramid(commands, s.snapshot_cells[s.progress]);
-    s.band = 0;
-    s.begun = s.calls;
-    if (whole) {  // every row now, served from this frame on
+    s.rows_done = 0;
+    if (share.whole) {  // every row now, served from this frame on
       s.record_texels(commands, 1 + s.progress, budget, 0, group_rows);
       compute_barrier(commands);
+      s.schedule.finished(true);
       serve();
     } else {  // submitted now, so that this frame's band can follow it on the async queue
       s.timer.end(commands, slot);
@@ -633,7 +628,10 @@ void DeviceCones::advance_lagged(const Budget& frame_budget, int lag_frames,
     }
   }
   if (map_begun == 0) s.timer.end(commands, slot);
-  if (!whole) submit_band(map_begun);
+  if (!share.whole) {
+    submit_band(map_begun);
+    s.schedule.finished(share.last());
+  }
 }
 
 long long DeviceCones::compose_lagged() {
@@ -661,7 +659,7 @@ long long DeviceCones::compose_lagged() {
   s.compose_timer.end(commands, slot);
   s.baked = true;
   s.lagged = true;
-  const long long age = s.calls - s.served_begun;
+  const long long age = s.calls - s.schedule.served_frame();
   ++s.calls;
   return age;
 }

@@ -76,9 +76,9 @@ class DeviceCones {
   // async queue (Context::async_queue, RendererOptions::async_compute: beside the frame's draw on a GPU) -
   // and served from the N-th call after it began, when the next one begins. Each call's frame samples the
   // served map with every apex raised by the most any texel rose since that map's heights (rounded
-  // up): conservative for the frame's own heights, at most 2N - 1 calls old. The first call, and the
-  // first after N changed, makes a whole map. Returns the age in calls of the map the frame samples;
-  // 0 is bake(budget). docs/design/lagged-cone-maps.md.
+  // up): conservative for the frame's own heights, at most 2N - 1 calls old (bake::LagSchedule,
+  // bake/lagged.h: the first call makes a whole map; a change of N keeps the map under way). Returns the age
+  // in calls of the map the frame samples; 0 is bake(budget). docs/design/lagged-cone-maps.md.
   long long bake_lagged(const Budget& budget, int lag_frames, const DeviceFirstPass& first_pass = {});
   // bake_lagged(budget, N >= 1) in its two halves, so that the heights may change between them:
   // advance_lagged serves the map whose bands are done and begins the next from the heights as they

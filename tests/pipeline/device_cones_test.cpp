@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -17,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "bake/lagged.h"
 #include "pipeline/height_source.h"
 #include "render/render.h"
 #include "render/testing.h"
@@ -440,6 +442,38 @@ TEST(DeviceCones, LaggedGroupMapsAreWholeBakesOfTheirHeights) {
     const DeviceBake reference = bake_on_device(whole, 0, group_4);
     ASSERT_EQ(served.cones.ratios, reference.cones.ratios) << "frame " << f << " age " << age;
   }
+  EXPECT_EQ(renderer.validation_messages(), 0);
+}
+
+// A lag that changes while a map is under way (play's L key): the map keeps its rows done and its
+// last share runs what is left, so every frame's map is still bit for bit the whole bake of the heights
+// it began on, and served on the frame its schedule (bake::LagSchedule) says.
+TEST(DeviceCones, ALagChangedMidMapKeepsEveryMapWhole) {
+  render::Renderer& renderer = cones_renderer();
+  const std::unique_ptr<sim::DeviceSim> made = small_ocean(renderer, 13);
+  sim::DeviceSim& ocean = *made;
+  bake::DeviceCones cones(renderer.frames(), ocean.maps(), 4, Address::wrap);
+  bake::LagSchedule schedule(bake::LagSchedule::Lands::after_draw);
+  const int lags[] = {3, 3, 3, 1, 1, 4, 4, 2, 2, 2, 5, 1, 1, 1};
+  std::vector<std::vector<float>> heights;
+  std::map<long long, DeviceBake> references;
+  for (int f = 0; f < int(std::size(lags)); ++f) {
+    ocean.simulate(1.0 + 0.4 * f);
+    heights.emplace_back();
+    ocean.read_back(&heights.back(), nullptr, nullptr);
+    const long long age = cones.bake_lagged(bake::work_budget(0), lags[f]);
+    schedule.finished(schedule.next(f, lags[f]).last());
+    ASSERT_EQ(age, f - schedule.served_frame()) << "frame " << f;
+    const DeviceBake served = read(cones, 32, 32);
+    const long long begun = f - age;
+    if (references.count(begun) == 0) {
+      const Map then{"ocean-then", 32, 32, heights[std::size_t(begun)]};
+      bake::DeviceCones whole(renderer.frames(), bake::view_of(then), 4, Address::wrap);
+      references[begun] = bake_on_device(whole, 0);
+    }
+    ASSERT_EQ(served.cones.ratios, references[begun].cones.ratios) << "frame " << f << " age " << age;
+  }
+  EXPECT_GE(references.size(), 4u);
   EXPECT_EQ(renderer.validation_messages(), 0);
 }
 
