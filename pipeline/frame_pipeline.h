@@ -42,6 +42,8 @@ struct FrameRecord {
   long long pending = 0;         // texels the cone baker would still refine
   long long cone_lag = 0;        // frames since the heights the cone map was made from (lagged maps)
   float cone_lift = 0.0f;        // how far its apexes were raised for this frame's heights
+  bool cones_updated = false;    // the cone map was updated where the heights changed (an image
+                                 // sequence's frame changed in places: HeightFrame::dirty), not baked whole
   double choppy_residual = 0.0;  // metres: the resampling's largest |p + D(p) - x|
   // The device path: where the sim and the bake ran, and the device's own milliseconds from GPU
   // timestamps (0 where none): this frame's when its outputs were read back (the frame finished),

@@ -3,7 +3,9 @@
 #include "pipeline/height_source.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -64,8 +66,14 @@ struct HeightSource::State {
   std::optional<sim::Ocean> ocean;
   std::vector<sim::Wave> waves;
 
+  // an image sequence's last frame and its version, to find what the next one changed
+  std::vector<float> last_image;
+  int last_width = 0, last_height = 0;
+  std::uint64_t last_version = 0;
+
   void make_ocean(double time, HeightFrame& out);
   void make_image(long long frame_index, HeightFrame& out);
+  void compare_with_last(HeightFrame& out);
 };
 
 HeightSource::HeightSource(const SourceSettings& settings, unsigned effects, HeightLoader loader)
@@ -120,6 +128,90 @@ void HeightSource::State::make_image(long long frame_index, HeightFrame& out) {
   out.field = loader(is_static ? settings.image : image_for_frame(settings.image, frame_index));
   out.raw = out.field.heights;
   out.clamped = 0;
+}
+
+namespace {
+
+constexpr int change_tile = 16;  // texels a side of the squares an image's changes are found in
+
+// The rectangles, on a grid of change_tile squares, that hold every texel where `now` differs from
+// `before` (both W x H): each tile row's runs of changed squares, merged with the run above where it
+// spans the same columns. Empty where nothing changed (`any` false) or more than half of the squares
+// did (a whole bake is as cheap).
+std::vector<bake::Rect> changed_rects(std::span<const float> before, std::span<const float> now, int W, int H,
+                                      bool& any) {
+  const int tiles_u = (W + change_tile - 1) / change_tile, tiles_v = (H + change_tile - 1) / change_tile;
+  std::vector<std::uint8_t> changed(std::size_t(tiles_u) * std::size_t(tiles_v), 0);
+  long long count = 0;
+  for (int i = 0; i < H; ++i) {
+    const std::size_t row = std::size_t(i) * std::size_t(W);
+    for (int j = 0; j < W; ++j) {
+      // bit for bit: -0 against 0 or one NaN against another is a change too
+      if (std::bit_cast<std::uint32_t>(before[row + std::size_t(j)]) ==
+          std::bit_cast<std::uint32_t>(now[row + std::size_t(j)]))
+        continue;
+      std::uint8_t& tile =
+          changed[std::size_t(i / change_tile) * std::size_t(tiles_u) + std::size_t(j / change_tile)];
+      count += tile == 0;
+      tile = 1;
+    }
+  }
+  any = count > 0;
+  std::vector<bake::Rect> rects;
+  if (count == 0 || 2 * count > static_cast<long long>(changed.size())) return rects;
+  // the rectangles the tile row above reached (their runs in column order) and this row's
+  std::vector<std::size_t> above, reached;
+  for (int tv = 0; tv < tiles_v; ++tv) {
+    const int y0 = tv * change_tile, y1 = std::min(H, y0 + change_tile);
+    const std::uint8_t* row = changed.data() + std::size_t(tv) * std::size_t(tiles_u);
+    reached.clear();
+    std::size_t next_above = 0;
+    for (int tu = 0; tu < tiles_u;) {
+      if (!row[tu]) {
+        ++tu;
+        continue;
+      }
+      int end = tu;
+      while (end < tiles_u && row[end]) ++end;
+      const int x0 = tu * change_tile, x1 = std::min(W, end * change_tile);
+      while (next_above < above.size() && rects[above[next_above]].x0 < x0) ++next_above;
+      if (next_above < above.size() && rects[above[next_above]].x0 == x0 &&
+          rects[above[next_above]].x1 == x1) {
+        rects[above[next_above]].y1 = y1;  // the same columns as the run above: one rectangle
+        reached.push_back(above[next_above]);
+      } else {
+        reached.push_back(rects.size());
+        rects.push_back({x0, y0, x1, y1});
+      }
+      tu = end;
+    }
+    std::swap(above, reached);
+  }
+  return rects;
+}
+
+}  // namespace
+
+// An image sequence's frame against the one before: the same content keeps its version; a change in
+// places gets the rectangles that hold it.
+void HeightSource::State::compare_with_last(HeightFrame& out) {
+  const int W = out.field.width, H = out.field.height;
+  out.dirty.clear();
+  out.dirty_since = 0;
+  bool any = true;
+  if (last_version != 0 && W == last_width && H == last_height) {
+    out.dirty = changed_rects(last_image, out.field.heights, W, H, any);
+    if (!any) {
+      out.version = last_version;
+      return;
+    }
+    if (!out.dirty.empty()) out.dirty_since = last_version;
+  }
+  out.version = next_map_version();
+  last_image.assign(out.field.heights.begin(), out.field.heights.end());
+  last_width = W;
+  last_height = H;
+  last_version = out.version;
 }
 
 void HeightSource::State::make_ocean(double time, HeightFrame& out) {
@@ -234,6 +326,8 @@ void HeightSource::make(double time, long long frame_index, HeightFrame& out) {
   if (s.is_static) {
     if (s.static_version == 0) s.static_version = next_map_version();
     out.version = s.static_version;
+  } else if (s.settings.kind == SourceKind::image) {
+    s.compare_with_last(out);
   } else {
     out.version = next_map_version();
   }

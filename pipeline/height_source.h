@@ -6,7 +6,9 @@
 // State made once (sim::Ocean with its FFT plans, the waves, the mapping) and kept; make() writes
 // into a HeightFrame the caller keeps (one per frame in flight), reusing its memory. Moving heights
 // draw a new version per make(); a static source keeps one, and make() into a frame that holds it
-// does nothing. Allocation and versions: docs/design/pipeline.md#pipelineheight_sourceh-the-source-switch
+// does nothing. An image sequence's frame equal to the one before keeps its version, and one that
+// changed in places says where (HeightFrame::dirty), so that its maps are updated there. Allocation and
+// versions: docs/design/pipeline.md#pipelineheight_sourceh-the-source-switch
 //
 //   pipeline::HeightSource source(pipeline::source_settings(scene), pipeline::scene_effects(scene));
 //   pipeline::HeightFrame heights;
@@ -64,8 +66,12 @@ SourceSettings source_settings(const Scene& scene);
 
 // One frame's heights and what came with them. The caller keeps it; make() reuses its memory.
 struct HeightFrame {
-  render::HeightField field;   // [0, 1], the source's fixed mapping applied
-  std::uint64_t version = 0;   // names the content (0: nothing made yet)
+  render::HeightField field;  // [0, 1], the source's fixed mapping applied
+  std::uint64_t version = 0;  // names the content (0: nothing made yet)
+  // an image sequence's frame that changed only in places since the one before it (version
+  // dirty_since): the rectangles that hold every change (empty: all of it, or not known)
+  std::uint64_t dirty_since = 0;
+  std::vector<bake::Rect> dirty;
   std::span<const float> raw;  // before the mapping (metres; images: `field`), views this frame's memory
   std::size_t clamped = 0;     // texels the mapping clamped into [0, 1]
   std::vector<float> foam;     // effect_foam: coverage in [0, 1] per texel, else empty

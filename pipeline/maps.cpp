@@ -74,6 +74,7 @@ struct ConeBaker {
   int width = 0, height = 0;
   bake::Address address = bake::Address::wrap;
   int last_slot = -1;        // the slot it emitted into last (refinement continues from its map)
+  std::uint64_t held = 0;    // the heights version the baker holds (bake, update; 0: none, or lagged)
   bake::LaggedCones lagged;  // lagged maps (bake/lagged.h)
 };
 
@@ -143,6 +144,7 @@ ConeBaker& MapMaker::State::baker_for(const render::MapNeeds& needs, int width, 
     k.height = height;
     k.address = needs.cone_address;
     k.last_slot = -1;
+    k.held = 0;
   }
   return k;
 }
@@ -210,6 +212,7 @@ void MapMaker::State::make_lagged(int index, const MapHeights& heights, const re
   cones.relaxed_for = 0;
   cones.version = next_map_version();
   k.last_slot = index;
+  k.held = 0;  // the baker holds the heights of the map in progress
   stats.cone_lag = served.age;
   stats.cone_lift = served.lift;
 }
@@ -224,11 +227,17 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
   if (schedule.lag_frames > 0) {
     make_lagged(index, heights, needs, schedule, stats);
   } else if (!holds(cones.made_for, cones.address, heights, needs.cone_address)) {
-    // new heights: a whole bake within the budget
+    // new heights: changed only in their dirty rectangles since the heights the baker holds, an
+    // update (stage L again, and the searched ratios the change cannot have lowered kept); else a
+    // whole bake. Either within the budget.
     cones.ratios.resize(texels * std::size_t(sectors));
     cones.apex.resize(texels);
-    cones.stats = k.baker->bake(view_of(heights), schedule.budget,
-                                {cones.ratios.data(), width, height, sectors}, cones.apex);
+    const bake::ConeView out{cones.ratios.data(), width, height, sectors};
+    const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
+    cones.stats = patch ? k.baker->update(view_of(heights), heights.dirty, schedule.budget, out, cones.apex)
+                        : k.baker->bake(view_of(heights), schedule.budget, out, cones.apex);
+    k.held = heights.version;
+    stats.cones_updated = patch;
     cones.served = cones.ratios;
     cones.made_for = heights.version;
     cones.address = needs.cone_address;

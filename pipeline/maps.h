@@ -6,7 +6,9 @@
 // Conventions: maps are made the first time a method needs them (render::map_needs) and kept, with
 // their version, for as long as the heights keep theirs; new heights bump every version and drop what
 // was baked for the old ones. Cone maps come from bake::BilinearBaker within the cone budget
-// (conservative at any budget: a starved bake costs cone steps, never a wrong hit).
+// (conservative at any budget: a starved bake costs cone steps, never a wrong hit); heights that
+// changed only in their dirty rectangles since those the baker holds are updated there
+// (BilinearBaker::update), not baked whole.
 //
 // Two ways in. One-off: set_heights() then maps(needs) (slot 0, the cone budget of set_cone_budget).
 // Per frame: make(slot, heights, needs, schedule) with the frame's heights, its cone budget and how
@@ -53,7 +55,8 @@ struct MapHeights {
   std::span<const float> heights;  // width x height in [0, 1], bake conventions
   int width = 0, height = 0;
   std::uint64_t version = 0;  // names the content (next_map_version): equal versions, equal heights
-  // the rectangles that changed since version `dirty_since` (empty: all of it), for the renderer
+  // the rectangles that changed since version `dirty_since` (empty: all of it), for the renderer's
+  // copy and the cone baker's update
   std::uint64_t dirty_since = 0;
   std::span<const bake::Rect> dirty;
   std::span<const float> foam;  // the source's foam coverage, passed on (empty: none)
@@ -80,10 +83,11 @@ struct ConeSchedule {
 
 // What make() did.
 struct MapStats {
-  bake::BakeStats cones;   // the cone map served (sector_count 0: none)
-  long long pending = 0;   // texels the cone baker would still refine
-  long long cone_lag = 0;  // frames since the heights the served cone map was made from (lagged maps)
-  float cone_lift = 0.0f;  // how far its apexes were raised for these heights
+  bake::BakeStats cones;       // the cone map served (sector_count 0: none)
+  long long pending = 0;       // texels the cone baker would still refine
+  long long cone_lag = 0;      // frames since the heights the served cone map was made from (lagged maps)
+  float cone_lift = 0.0f;      // how far its apexes were raised for these heights
+  bool cones_updated = false;  // the cone map was updated where the heights' dirty rectangles say
 };
 
 class MapMaker {
@@ -110,7 +114,8 @@ class MapMaker {
 
   // ---- one-off (slot 0)
   // New heights (validated as the bakers do; throws bake::BakeError). `dirty`: the rectangles that
-  // changed since the last heights of the same size (empty: all of it), passed on to the renderer.
+  // changed since the last heights of the same size (empty: all of it), passed on to the renderer
+  // and, where the cone baker holds those last heights, to its update().
   void set_heights(const render::HeightField& field, std::span<const bake::Rect> dirty = {});
   void set_heights(render::HeightField&& field, std::span<const bake::Rect> dirty = {});
   // The cone budget of the next cone bakes (unlimited by default).

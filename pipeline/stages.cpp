@@ -131,6 +131,8 @@ class DeviceHeights final : public HeightStage {
 
 MapHeights frame_heights(const HeightFrame& frame) {
   MapHeights heights = map_heights(frame.field, frame.version);
+  heights.dirty_since = frame.dirty_since;
+  heights.dirty = frame.dirty;
   heights.foam = frame.foam;
   heights.foam_version = frame.foam_version;
   return heights;
@@ -151,6 +153,7 @@ class HostMaps {
       record.pending = stats.pending;
       record.cone_lag = stats.cone_lag;
       record.cone_lift = stats.cone_lift;
+      record.cones_updated = stats.cones_updated;
     }
   }
   const render::MapSet& made(int slot) const { return maker_.made(slot); }

@@ -6,7 +6,9 @@
 // bakes another map - cones for the bilinear surface from a texel's whole square, with apex
 // heights - so its tightness is only a comparison of means and it counts no violations. Maps have
 // 4 sectors; BM_Bake8 is the budgeted baker with 8 (octant sweeps). BM_Update times one update()
-// after a local change, with the repair the baker picks and with the incremental one forced.
+// after a local change, with the repair the baker picks and with the incremental one forced;
+// BM_UpdateBilinear the bilinear baker's update() (the frame pipeline's, for an image sequence's
+// frame that changed in places) against a whole bake of the same heights.
 // BM_BakeNonSquare/<map>/<W>x<H> (4 sectors) and BM_BakeNonSquare8 (8): the budgeted baker, no
 // limit, on non-square maps next to the square map of about as many texels (2048x1024, 1024x2048
 // and 1448x1448; 1024x512, 512x1024 and 724x724; 4096x256, 256x4096 and 1024x1024); the ocean is
@@ -156,6 +158,19 @@ void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 
   run_map(state, kind, baker, size, size, sector_count);
 }
 
+// Frame `frame`'s local change: a rect x rect patch raised and lowered in a checkerboard by 0.05
+// (the other way round every other frame), at a place that moves from frame to frame.
+bake::Rect change_patch(std::vector<float>& heights, int size, int rect, int frame) {
+  const int x0 = (37 * frame) % (size - rect), y0 = (53 * frame) % (size - rect);
+  const float sign = frame % 2 == 0 ? 1.0f : -1.0f;
+  for (int i = y0; i < y0 + rect; ++i)
+    for (int j = x0; j < x0 + rect; ++j) {
+      float& h = heights[std::size_t(i) * size + j];
+      h = std::clamp(h + sign * ((i + j) % 2 == 0 ? 0.05f : -0.05f), 0.0f, 1.0f);
+    }
+  return {x0, y0, x0 + rect, y0 + rect};
+}
+
 // One frame of update() after a local change: a rect x rect patch raised and lowered in a
 // checkerboard, moved every iteration; the baker picks its repair (cheaper) or is told to repair
 // incrementally (with no limit, so it also refines what the change left loose).
@@ -169,14 +184,7 @@ void run_update(benchmark::State& state, MapKind kind, bake::BudgetedBaker::Upda
   int frame = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    const int x0 = (37 * frame) % (size - rect), y0 = (53 * frame) % (size - rect);
-    const float sign = frame % 2 == 0 ? 1.0f : -1.0f;
-    for (int i = y0; i < y0 + rect; ++i)
-      for (int j = x0; j < x0 + rect; ++j) {
-        float& h = heights[std::size_t(i) * size + j];
-        h = std::clamp(h + sign * ((i + j) % 2 == 0 ? 0.05f : -0.05f), 0.0f, 1.0f);
-      }
-    const bake::Rect dirty{x0, y0, x0 + rect, y0 + rect};
+    const bake::Rect dirty = change_patch(heights, size, rect, frame);
     state.ResumeTiming();
     stats = baker.update({heights.data(), size, size}, std::span<const bake::Rect>(&dirty, 1), {},
                          {cones.data(), size, size, 4}, policy);
@@ -348,6 +356,33 @@ void run_bilinear_map(benchmark::State& state, MapKind kind, int width, int heig
     benchmark::DoNotOptimize(cones.data());
   }
   state.counters["mean_ratio"] = stats.mean_ratio;
+}
+
+// One frame of BilinearBaker::update after a local change (what the frame pipeline runs for an image
+// sequence's frame that changed in places), no limit: the same moving checkerboard patch as
+// run_update, repaired by update() or baked whole (`whole`) by the same kept baker.
+void run_bilinear_update(benchmark::State& state, MapKind kind, bool whole) {
+  const int size = int(state.range(0)), rect = int(state.range(1));
+  std::vector<float> heights = make_heights(kind, size, size);
+  std::vector<float> cones(std::size_t(size) * size * 4), apex(std::size_t(size) * size);
+  const bake::ConeView out{cones.data(), size, size, 4};
+  bake::BilinearBaker baker(size, size, 4, bake::Address::wrap);
+  baker.bake({heights.data(), size, size}, {}, out, apex);
+  bake::BakeStats stats;
+  int frame = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const bake::Rect dirty = change_patch(heights, size, rect, frame);
+    state.ResumeTiming();
+    const bake::HeightView view{heights.data(), size, size};
+    stats = whole ? baker.bake(view, {}, out, apex)
+                  : baker.update(view, std::span<const bake::Rect>(&dirty, 1), {}, out, apex);
+    benchmark::DoNotOptimize(cones.data());
+    ++frame;
+  }
+  state.counters["mean_ratio"] = stats.mean_ratio;
+  state.counters["searched_frac"] = double(stats.texels_refined) / double(size * size);
+  state.counters["violations"] = double(sampled_violations(heights, size, cones, apex));
 }
 
 // ---- relaxed cone maps: BM_BakeRelaxed/<map>/<baker>/<size>
@@ -547,6 +582,17 @@ struct Registration {
             (std::string("BM_Update/") + kind_name(kind) + "/" + name).c_str(),
             [kind, policy = policy](benchmark::State& state) { run_update(state, kind, policy); });
         b->Args({512, 4})->Args({512, 16})->Args({512, 64})->Unit(benchmark::kMillisecond)->UseRealTime();
+      }
+    // BM_UpdateBilinear/<map>/<update|whole>/<size>/<rect>: the bilinear baker's update() against a
+    // whole bake of the same heights
+    for (MapKind kind : {MapKind::ocean, MapKind::bricks})
+      for (bool whole : {false, true}) {
+        auto* b = benchmark::RegisterBenchmark(
+            (std::string("BM_UpdateBilinear/") + kind_name(kind) + "/" + (whole ? "whole" : "update"))
+                .c_str(),
+            [kind, whole](benchmark::State& state) { run_bilinear_update(state, kind, whole); });
+        b->Args({256, 16})->Args({512, 4})->Args({512, 16})->Args({512, 64});
+        b->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(whole ? 2 : 6);
       }
     // 8 sectors (octant sweeps): BM_Bake8/<map>/budgeted/<size>
     for (MapKind kind : map_kinds) {

@@ -172,13 +172,14 @@ TEST(Pipeline, TheBakeKeepsToItsShareOfTheFrameBudget) {
 
 // Every cone ray of `pipeline`'s frames ends at or before its exact first crossing (render::cpu_trace
 // on the frame's heights).
-void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames,
-                                           pipeline::HeightLoader loader = {}) {
+void expect_no_ray_past_the_first_crossing(const Scene& scene, int frames, pipeline::HeightLoader loader = {},
+                                           std::vector<pipeline::FrameRecord>* records = nullptr) {
   FramePipeline pipeline(scene, shared_renderer(), {}, std::move(loader));
   render::Frame frame;
   long long compared = 0, beyond = 0;
   for (int n = 0; n < frames; ++n) {
-    pipeline.run(n, frame, render::output_uv | render::output_depth);
+    const pipeline::FrameRecord record = pipeline.run(n, frame, render::output_uv | render::output_depth);
+    if (records != nullptr) records->push_back(record);
     const render::View view = pipeline::scene_view(scene, pipeline::frame_time(scene, n));
     for (int py = 0; py < frame.height; ++py) {
       for (int px = 0; px < frame.width; ++px) {
@@ -233,6 +234,47 @@ TEST(Pipeline, StarvedBakesStayConservativeOnEveryFrame) {
       scene.cone_lag_frames = 4;
       expect_no_ray_past_the_first_crossing(scene, 9, loader);
     }
+  }
+}
+
+// An image sequence that changes in places (a terrain being edited: a bump added each frame, one
+// frame repeated): each changed frame's cone map is updated where the heights changed, with a
+// fraction of a whole bake's searches, the repeated frame bakes nothing, and no ray of a cone method
+// ends past its exact first crossing on any frame.
+TEST(Pipeline, ImageSequencesChangedInPlacesUpdateTheirCones) {
+  auto heights_of = [](int frame) {
+    return displace::testing::field_of(128, 128, [&](int i, int j) {
+      double h = 0.3 + 0.1 * std::sin(0.2 * i) * std::cos(0.15 * j);
+      for (int bump = 1; bump <= frame; ++bump) {
+        if (bump == 3) continue;  // frame 3 repeats frame 2
+        const double di = i - (24 + 18 * bump), dj = j - (40 + 10 * bump);
+        h += 0.15 * std::max(0.0, 1.0 - (di * di + dj * dj) / 9.0);
+      }
+      return std::min(h, 1.0);
+    });
+  };
+  const pipeline::HeightLoader loader = [&](const std::filesystem::path& file) {
+    return heights_of(std::stoi(file.stem().string().substr(2)));
+  };
+  for (const render::Method method : {render::Method::csm, render::Method::acm4}) {
+    Scene scene = small_scene("bricks", 128, 40);
+    scene.source = pipeline::SourceKind::image;
+    scene.image = "e_##.png";
+    scene.method = method;
+    scene.steps = 8;
+    std::vector<pipeline::FrameRecord> records;
+    expect_no_ray_past_the_first_crossing(scene, 6, loader, &records);
+    const std::string name = render::method_info(method).name;
+    ASSERT_EQ(records.size(), 6u);
+    EXPECT_FALSE(records[0].cones_updated) << name;
+    for (const int frame : {1, 2, 4, 5}) {
+      EXPECT_TRUE(records[std::size_t(frame)].cones_updated) << name << " frame " << frame;
+      EXPECT_LT(records[std::size_t(frame)].cones.texels_refined, records[0].cones.texels_refined / 2)
+          << name << " frame " << frame;
+    }
+    EXPECT_FALSE(records[3].cones_updated) << name;  // frame 2's map, handed over again
+    EXPECT_EQ(records[3].cones.work, records[2].cones.work) << name;
+    EXPECT_EQ(records[3].cones.texels_refined, records[2].cones.texels_refined) << name;
   }
 }
 
