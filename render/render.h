@@ -124,9 +124,16 @@ class Renderer {
   // into ahead of this renderer's draw.
   vulkan::Frames& frames();
 
-  // render/'s own parts (renderer_impl.h, not installed): what the swapchain and the tests use.
-  struct Impl;
-  Impl& impl() { return *impl_; }
+  // The last frame's colour target, for a presenter that blits it on this renderer's queue after
+  // that frame (Swapchain): TRANSFER_SRC_OPTIMAL after every frame; a null image before the first.
+  // Valid until a frame of another size.
+  struct ColorTarget {
+    VkImage image = VK_NULL_HANDLE;
+    int width = 0, height = 0;
+  };
+  ColorTarget color_target() const;
+
+  struct Impl;  // render/'s own (renderer_impl.h, not installed)
 
  private:
   std::unique_ptr<Impl> impl_;

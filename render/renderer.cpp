@@ -77,7 +77,12 @@ FrameSlot& Renderer::Impl::begin_slot() {
   return frame_slot;
 }
 
-void testing::hold_async_work(Renderer& renderer, bool hold) { renderer.impl().frames.hold_async_work(hold); }
+void testing::hold_async_work(Renderer& renderer, bool hold) { renderer.frames().hold_async_work(hold); }
+
+Renderer::ColorTarget Renderer::color_target() const {
+  const Targets& targets = impl_->targets;
+  return {targets.color.handle(), targets.width, targets.height};
+}
 
 Image Renderer::Impl::upload_image_now(VkFormat format, int width, int height, int layers,
                                        VkImageViewType view_type, const void* data, std::size_t bytes) {

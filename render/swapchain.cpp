@@ -69,7 +69,7 @@ struct Swapchain::Impl {
     OwnedSemaphore acquired;
   };
 
-  Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted);
+  Impl(Renderer& r, const SurfaceFactory& make_surface, bool vsync_wanted);
   ~Impl();
   void recreate(int width, int height);
   void make_overlay_framebuffers();
@@ -78,7 +78,7 @@ struct Swapchain::Impl {
   void copy_shown(Frame& shown);
   bool present(int width, int height, Frame* shown);
 
-  Renderer::Impl& renderer;
+  Renderer& renderer;
   const Context& context;
   Surface surface;
   bool vsync = false;
@@ -101,8 +101,8 @@ struct Swapchain::Impl {
   Buffer shown_readback;  // present(..., shown): the presented picture, per swapchain size
 };
 
-Swapchain::Impl::Impl(Renderer::Impl& r, const SurfaceFactory& make_surface, bool vsync_wanted)
-    : renderer(r), context(r.context), vsync(vsync_wanted) {
+Swapchain::Impl::Impl(Renderer& r, const SurfaceFactory& make_surface, bool vsync_wanted)
+    : renderer(r), context(r.frames().context()), vsync(vsync_wanted) {
   const VkDevice device = context.device();
   surface.instance = context.instance();
   surface.handle = make_surface(context.instance());
@@ -326,8 +326,8 @@ void Swapchain::Impl::copy_shown(Frame& shown) {
 
 bool Swapchain::Impl::present(int width, int height, Frame* shown) {
   if (width <= 0 || height <= 0) return false;
-  const Targets& targets = renderer.targets;
-  if (targets.width == 0 || !targets.color.handle()) return false;  // nothing rendered yet
+  const Renderer::ColorTarget target = renderer.color_target();
+  if (target.width == 0 || target.image == VK_NULL_HANDLE) return false;  // nothing rendered yet
   if (stale || !swapchain.get() || width != requested_width || height != requested_height)
     recreate(width, height);
   if (!swapchain.get() || extent.width == 0 || extent.height == 0) return false;
@@ -363,10 +363,10 @@ bool Swapchain::Impl::present(int width, int height, Frame* shown) {
                 VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
   VkImageBlit blit{};
   blit.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-  blit.srcOffsets[1] = {targets.width, targets.height, 1};
+  blit.srcOffsets[1] = {target.width, target.height, 1};
   blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
   blit.dstOffsets[1] = {std::int32_t(extent.width), std::int32_t(extent.height), 1};
-  vkCmdBlitImage(commands, targets.color.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image,
+  vkCmdBlitImage(commands, target.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image,
                  VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_NEAREST);
   VkImageLayout layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
   VkAccessFlags written = VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -418,7 +418,7 @@ bool Swapchain::Impl::present(int width, int height, Frame* shown) {
 
 Swapchain::Swapchain(Renderer& renderer, const SurfaceFactory& make_surface, int width, int height,
                      bool vsync)
-    : impl_(std::make_unique<Impl>(renderer.impl(), make_surface, vsync)) {
+    : impl_(std::make_unique<Impl>(renderer, make_surface, vsync)) {
   impl_->recreate(width, height);
 }
 Swapchain::~Swapchain() = default;
