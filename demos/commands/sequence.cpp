@@ -109,18 +109,18 @@ constexpr double manifest_save_seconds = 5.0;
 const std::string sequence_csv_header =
     "frame,time_s,sim_ms,bake_ms,upload_ms,render_ms,frame_ms,bake_budget_ms,overrun,ffts,effects,cone_"
     "mean_ratio,texels_pending,cone_lag_frames,cone_lift,sim_backend,bake_backend,sim_device_ms,"
-    "bake_device_ms,render_device_ms\n";
+    "bake_device_ms,render_device_ms,cones_updated\n";
 
 std::string sequence_csv_row(long long n, const pipeline::FrameRecord& record) {
   return fmt::format(
       "{},{:.17g},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{},{},{},{},{:.6f},{},{},{:.6f},{},{},{:.3f},{:.3f},{:."
-      "3f}\n",
+      "3f},{}\n",
       n, record.time, record.sim_ms, record.bake_ms, record.upload_ms, record.render_ms, record.frame_ms,
       std::isfinite(record.bake_budget_ms) ? fmt::format("{:.3f}", record.bake_budget_ms) : "inf",
       record.overrun ? 1 : 0, record.ffts, fmt::join(effect_names(record.effects), "+"),
       record.cones.mean_ratio, record.pending, record.cone_lag, record.cone_lift,
       record.sim_on_device ? "device" : "cpu", record.bake_on_device ? "device" : "cpu", record.sim_device_ms,
-      record.bake_device_ms, record.render_device_ms);
+      record.bake_device_ms, record.render_device_ms, record.cones_updated ? 1 : 0);
 }
 
 // Frame n's picture and AOVs, each written whole by the checked writer and entered in the manifest.
@@ -332,7 +332,9 @@ Finish add_sequence_command(CLI::App& command) {
       "frame), bake_budget_ms (the bake's share; inf: unlimited), overrun (1: the frame took longer than\n"
       "the budget), ffts, effects (+-joined), cone_mean_ratio, texels_pending (left to refine),\n"
       "cone_lag_frames, cone_lift (apexes raised, fraction of the height range), sim_backend, bake_backend\n"
-      "(cpu, device), sim_device_ms, bake_device_ms, render_device_ms (GPU timestamps; 0: none).\n"
+      "(cpu, device), sim_device_ms, bake_device_ms, render_device_ms (GPU timestamps; 0: none),\n"
+      "cones_updated (1: the cone map was updated where an image sequence's frame changed, not baked "
+      "whole).\n"
       "It lists only frames written whole, as does OUTPUT_STEM.manifest (each file's size, time and\n"
       "checksum: what --resume trusts); both are saved every few seconds and when the run ends.\n"
       "Every file is written whole or not at all (a temporary, fsync, rename): the first frame that\n"

@@ -477,6 +477,7 @@ class Pipeline {
       record["pending"] = last.pending;
       record["cone_lag_frames"] = last.cone_lag;
       record["cone_lift"] = last.cone_lift;
+      record["cones_updated"] = last.cones_updated;
     }
     out["last"] = record;
     return out;

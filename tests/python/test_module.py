@@ -148,6 +148,7 @@ class AgainstTheCommandLine(unittest.TestCase):
                     self.assertEqual(stats["stages"][stage].keys(), theirs["stages"][stage].keys())
                 self.assertEqual(stats["frames_rendered"], 3)
                 self.assertEqual(stats["last"]["frame"], 2)
+                self.assertFalse(stats["last"]["cones_updated"])  # the sea changes everywhere: baked whole
                 self.assertEqual(stats["effects"], theirs["effects"])
 
 
