@@ -92,6 +92,7 @@ struct LevelBakers {
   std::array<std::optional<bake::BilinearBaker>, bake::max_detail_levels> bakers;
   int width = 0, height = 0, sectors = 0;
   bake::Address address = bake::Address::wrap;
+  std::uint64_t held = 0;  // the heights version whose levels the bakers hold (0: none)
 };
 
 // What the levels' bakes may spend after the level-0 bake spent `spent` of the frame's budget; with
@@ -108,7 +109,9 @@ struct MapMaker::State {
   std::vector<Slot> slots;
   std::array<ConeBaker, 3> bakers;  // by render::cone_slot
   LevelBakers level_bakers;
-  std::vector<float> slope_scratch;  // level 0's gradient moments while the levels are made
+  std::vector<float> slope_scratch;     // level 0's gradient moments while the levels are made
+  std::vector<bake::Rect> level_rects;  // a level's dirty rectangles while the levels are updated
+  bool levels_updated = false;          // the last make_levels updated them (MapStats::levels_updated)
 
   // the one-off heights (slot 0)
   render::HeightField field;
@@ -272,18 +275,26 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
 void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs,
                                   bake::Budget budget) {
   SlotLevels& levels = slot.levels;
+  levels_updated = false;
   if (holds_levels(levels, heights, needs)) return;
   const int sectors = needs.cone_sectors;
   LevelBakers& k = level_bakers;
   if (k.width != heights.width || k.height != heights.height || k.sectors != sectors ||
       k.address != needs.cone_address) {
     for (auto& baker : k.bakers) baker.reset();
+    k.held = 0;
     k.width = heights.width;
     k.height = heights.height;
     k.sectors = sectors;
     k.address = needs.cone_address;
   }
   levels.count = bake::detail_level_count(heights.width, heights.height);
+  // heights changed only in their dirty rectangles since the levels the bakers hold: a level's
+  // texel is the mean of a 2 x 2 block of the one below, so its rectangles are those below halved
+  // (rounded outwards), and each level's cones are updated there
+  const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
+  std::vector<bake::Rect>& rects = level_rects;
+  rects.assign(heights.dirty.begin(), heights.dirty.end());
   bake::HeightView below = view_of(heights);
   std::vector<float>& level0_slopes = slope_scratch;
   if (levels.count > 0) {
@@ -303,10 +314,15 @@ void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const r
     levels.ratios[index].resize(texels * std::size_t(sectors));
     levels.apex[index].resize(texels);
     if (!k.bakers[index]) k.bakers[index].emplace(width, height, sectors, needs.cone_address);
-    const bake::BakeStats stats = k.bakers[index]->bake(
-        below, budget, {levels.ratios[index].data(), width, height, sectors}, levels.apex[index]);
+    for (bake::Rect& rect : rects) rect = {rect.x0 / 2, rect.y0 / 2, (rect.x1 + 1) / 2, (rect.y1 + 1) / 2};
+    const bake::ConeView out{levels.ratios[index].data(), width, height, sectors};
+    const bake::BakeStats stats = patch
+                                      ? k.bakers[index]->update(below, rects, budget, out, levels.apex[index])
+                                      : k.bakers[index]->bake(below, budget, out, levels.apex[index]);
     spend(budget, stats);
   }
+  k.held = heights.version;
+  levels_updated = patch && levels.count > 0;
   levels.made_for = heights.version;
   levels.sectors = sectors;
   levels.address = needs.cone_address;
@@ -399,6 +415,7 @@ const render::MapSet& MapMaker::make(int slot, const MapHeights& heights, const 
       spend(left, stats.cones);
     }
     s.make_levels(made, heights, needs, left);
+    stats.levels_updated = s.levels_updated;
   }
   s.make_pyramid_and_distance(made, heights, needs);
   return s.assemble(made, heights);

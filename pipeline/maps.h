@@ -8,7 +8,7 @@
 // was baked for the old ones. Cone maps come from bake::BilinearBaker within the cone budget
 // (conservative at any budget: a starved bake costs cone steps, never a wrong hit); heights that
 // changed only in their dirty rectangles since those the baker holds are updated there
-// (BilinearBaker::update), not baked whole.
+// (BilinearBaker::update), not baked whole, and so are the levels of detail's cones.
 //
 // Two ways in. One-off: set_heights() then maps(needs) (slot 0, the cone budget of set_cone_budget).
 // Per frame: make(slot, heights, needs, schedule) with the frame's heights, its cone budget and how
@@ -83,11 +83,12 @@ struct ConeSchedule {
 
 // What make() did.
 struct MapStats {
-  bake::BakeStats cones;       // the cone map served (sector_count 0: none)
-  long long pending = 0;       // texels the cone baker would still refine
-  long long cone_lag = 0;      // frames since the heights the served cone map was made from (lagged maps)
-  float cone_lift = 0.0f;      // how far its apexes were raised for these heights
-  bool cones_updated = false;  // the cone map was updated where the heights' dirty rectangles say
+  bake::BakeStats cones;        // the cone map served (sector_count 0: none)
+  long long pending = 0;        // texels the cone baker would still refine
+  long long cone_lag = 0;       // frames since the heights the served cone map was made from (lagged maps)
+  float cone_lift = 0.0f;       // how far its apexes were raised for these heights
+  bool cones_updated = false;   // the cone map was updated where the heights' dirty rectangles say
+  bool levels_updated = false;  // and so were the levels of detail's cones
 };
 
 class MapMaker {

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pipeline/height_source.h"
@@ -114,6 +115,72 @@ TEST(MapMaker, HeightsChangedInAPatchUpdateTheConesThere) {
     maps.set_heights(field_of(outside), std::span<const bake::Rect>(&patch, 1));
     EXPECT_THROW(maps.maps(needs), bake::BakeError) << at;
   }
+}
+
+// The levels of detail (an unbounded view's) of heights changed in a patch: each level's cones are
+// updated in the rectangles of the level below halved (rounded outwards) - bit for bit what each
+// level's baker gives when called directly on the levels of both heights - and a level's map keeps
+// the contract (brute force on level 3). Rectangles relative to other heights: every level baked
+// whole.
+TEST(MapMaker, LevelsOfHeightsChangedInAPatchAreUpdatedThere) {
+  const Map map = test::make_ocean(side, side);
+  const bake::Rect patch{40, 30, 47, 37};
+  const Map changed = with_patch(map, patch, 0.1f);
+  const render::HeightField before = field_of(map), after = field_of(changed);
+  render::MapNeeds needs;
+  needs.cone_sectors = 4;
+  needs.levels = true;
+  MapMaker maps;
+  MapStats stats;
+  const std::uint64_t first = next_map_version();
+  maps.make(0, map_heights(before, first), needs, {}, stats);
+  EXPECT_FALSE(stats.levels_updated);
+  MapHeights heights = map_heights(after, next_map_version());
+  heights.dirty_since = first;
+  heights.dirty = std::span<const bake::Rect>(&patch, 1);
+  const render::MapSet& set = maps.make(0, heights, needs, {}, stats);
+  EXPECT_TRUE(stats.cones_updated);
+  EXPECT_TRUE(stats.levels_updated);
+  ASSERT_EQ(set.level_count, bake::detail_level_count(side, side));
+
+  std::vector<float> level_before = map.values, level_after = changed.values;
+  bake::Rect rect = patch;
+  for (int level = 1; level <= set.level_count; ++level) {
+    const int w = side >> level;
+    const std::string at = "level " + std::to_string(level);
+    std::vector<float> coarse_before(std::size_t(w) * w), coarse_after(std::size_t(w) * w);
+    bake::downsample_heights({level_before.data(), 2 * w, 2 * w}, coarse_before);
+    bake::downsample_heights({level_after.data(), 2 * w, 2 * w}, coarse_after);
+    level_before = std::move(coarse_before);
+    level_after = std::move(coarse_after);
+    rect = {rect.x0 / 2, rect.y0 / 2, (rect.x1 + 1) / 2, (rect.y1 + 1) / 2};
+    bake::BilinearBaker baker(w, w, 4, Address::wrap);
+    bake::ConeMap direct{w, w, 4, std::vector<float>(std::size_t(w) * w * 4)};
+    std::vector<float> apex(std::size_t(w) * w);
+    baker.bake({level_before.data(), w, w}, {}, direct.view(), apex);
+    baker.update({level_after.data(), w, w}, std::span<const bake::Rect>(&rect, 1), {}, direct.view(), apex);
+    const render::MapSet::Level& made = set.levels[std::size_t(level - 1)];
+    ASSERT_TRUE(std::equal(made.heights.begin(), made.heights.end(), level_after.begin(), level_after.end()))
+        << at;
+    EXPECT_TRUE(
+        std::equal(made.ratios.begin(), made.ratios.end(), direct.ratios.begin(), direct.ratios.end()))
+        << at;
+    EXPECT_TRUE(std::equal(made.apex.begin(), made.apex.end(), apex.begin(), apex.end())) << at;
+    if (level == 3) {
+      const Map level_map{"level-3", w, w, level_after};
+      const bake::ConeMap cones{w, w, 4, {made.ratios.begin(), made.ratios.end()}};
+      EXPECT_EQ(bake::check_bilinear(level_map, Address::wrap, cones, {made.apex.begin(), made.apex.end()})
+                    .violations,
+                0);
+    }
+  }
+  // rectangles relative to heights the bakers never held
+  MapHeights stale = map_heights(before, next_map_version());
+  stale.dirty_since = first;
+  stale.dirty = std::span<const bake::Rect>(&patch, 1);
+  maps.make(0, stale, needs, {}, stats);
+  EXPECT_FALSE(stats.cones_updated);
+  EXPECT_FALSE(stats.levels_updated);
 }
 
 // An image sequence's frame against the one before (HeightSource): the rectangles, on a grid of 16
