@@ -237,6 +237,7 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
     cones.apex.resize(texels);
     const bake::ConeView out{cones.ratios.data(), width, height, sectors};
     const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
+    k.held = 0;  // until the bake returns (one that throws leaves no claim behind)
     cones.stats = patch ? k.baker->update(view_of(heights), heights.dirty, schedule.budget, out, cones.apex)
                         : k.baker->bake(view_of(heights), schedule.budget, out, cones.apex);
     k.held = heights.version;
@@ -295,6 +296,7 @@ void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const r
   const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
   std::vector<bake::Rect>& rects = level_rects;
   rects.assign(heights.dirty.begin(), heights.dirty.end());
+  k.held = 0;  // until every level is made (a bake that throws leaves no claim behind)
   bake::HeightView below = view_of(heights);
   std::vector<float>& level0_slopes = slope_scratch;
   if (levels.count > 0) {
