@@ -82,6 +82,12 @@ bool holds(std::uint64_t made_for, bake::Address address, const MapHeights& heig
   return made_for == heights.version && address == wanted;
 }
 
+// Heights that changed only in their dirty rectangles since the heights version a baker holds: what
+// it may update rather than bake whole (0: it holds none).
+bool updates(std::uint64_t held, const MapHeights& heights) {
+  return !heights.dirty.empty() && held != 0 && held == heights.dirty_since;
+}
+
 bool holds_levels(const SlotLevels& levels, const MapHeights& heights, const render::MapNeeds& needs) {
   return levels.made_for == heights.version && levels.sectors == needs.cone_sectors &&
          levels.address == needs.cone_address;
@@ -111,7 +117,6 @@ struct MapMaker::State {
   LevelBakers level_bakers;
   std::vector<float> slope_scratch;     // level 0's gradient moments while the levels are made
   std::vector<bake::Rect> level_rects;  // a level's dirty rectangles while the levels are updated
-  bool levels_updated = false;          // the last make_levels updated them (MapStats::levels_updated)
 
   // the one-off heights (slot 0)
   render::HeightField field;
@@ -126,7 +131,8 @@ struct MapMaker::State {
                   const ConeSchedule& schedule, MapStats& stats);
   void make_lagged(int slot, const MapHeights& heights, const render::MapNeeds& needs,
                    const ConeSchedule& schedule, MapStats& stats);
-  void make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs, bake::Budget budget);
+  // Returns whether the levels were updated in the heights' dirty rectangles (not made whole, not kept).
+  bool make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs, bake::Budget budget);
   void make_pyramid_and_distance(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs);
   const render::MapSet& assemble(Slot& slot, const MapHeights& heights);
 };
@@ -236,7 +242,7 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
     cones.ratios.resize(texels * std::size_t(sectors));
     cones.apex.resize(texels);
     const bake::ConeView out{cones.ratios.data(), width, height, sectors};
-    const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
+    const bool patch = updates(k.held, heights);
     k.held = 0;  // until the bake returns (one that throws leaves no claim behind)
     cones.stats = patch ? k.baker->update(view_of(heights), heights.dirty, schedule.budget, out, cones.apex)
                         : k.baker->bake(view_of(heights), schedule.budget, out, cones.apex);
@@ -273,11 +279,10 @@ void MapMaker::State::make_cones(int index, const MapHeights& heights, const ren
 // The levels of detail of new heights: each level the box mean of the one below
 // (bake::downsample_heights), its cones baked by that level's BilinearBaker within what is left of
 // the budget. Made whole when the heights change and kept (not refined) while they stay.
-void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs,
+bool MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const render::MapNeeds& needs,
                                   bake::Budget budget) {
   SlotLevels& levels = slot.levels;
-  levels_updated = false;
-  if (holds_levels(levels, heights, needs)) return;
+  if (holds_levels(levels, heights, needs)) return false;
   const int sectors = needs.cone_sectors;
   LevelBakers& k = level_bakers;
   if (k.width != heights.width || k.height != heights.height || k.sectors != sectors ||
@@ -293,7 +298,7 @@ void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const r
   // heights changed only in their dirty rectangles since the levels the bakers hold: a level's
   // texel is the mean of a 2 x 2 block of the one below, so its rectangles are those below halved
   // (rounded outwards), and each level's cones are updated there
-  const bool patch = !heights.dirty.empty() && k.held != 0 && k.held == heights.dirty_since;
+  const bool patch = updates(k.held, heights);
   std::vector<bake::Rect>& rects = level_rects;
   rects.assign(heights.dirty.begin(), heights.dirty.end());
   k.held = 0;  // until every level is made (a bake that throws leaves no claim behind)
@@ -324,11 +329,11 @@ void MapMaker::State::make_levels(Slot& slot, const MapHeights& heights, const r
     spend(budget, stats);
   }
   k.held = heights.version;
-  levels_updated = patch && levels.count > 0;
   levels.made_for = heights.version;
   levels.sectors = sectors;
   levels.address = needs.cone_address;
   levels.version = next_map_version();
+  return patch && levels.count > 0;
 }
 
 void MapMaker::State::make_pyramid_and_distance(Slot& slot, const MapHeights& heights,
@@ -416,8 +421,7 @@ const render::MapSet& MapMaker::make(int slot, const MapHeights& heights, const 
     } else {
       spend(left, stats.cones);
     }
-    s.make_levels(made, heights, needs, left);
-    stats.levels_updated = s.levels_updated;
+    stats.levels_updated = s.make_levels(made, heights, needs, left);
   }
   s.make_pyramid_and_distance(made, heights, needs);
   return s.assemble(made, heights);

@@ -158,9 +158,11 @@ void run(benchmark::State& state, MapKind kind, Baker baker, int sector_count = 
   run_map(state, kind, baker, size, size, sector_count);
 }
 
-// Frame `frame`'s local change: a rect x rect patch raised and lowered in a checkerboard by 0.05
-// (the other way round every other frame), at a place that moves from frame to frame.
-bake::Rect change_patch(std::vector<float>& heights, int size, int rect, int frame) {
+// Frame `frame`'s local change, outside the timing: a rect x rect patch raised and lowered in a
+// checkerboard by 0.05 (the other way round every other frame), at a place that moves from frame to
+// frame.
+bake::Rect change_patch(benchmark::State& state, std::vector<float>& heights, int size, int rect, int frame) {
+  state.PauseTiming();
   const int x0 = (37 * frame) % (size - rect), y0 = (53 * frame) % (size - rect);
   const float sign = frame % 2 == 0 ? 1.0f : -1.0f;
   for (int i = y0; i < y0 + rect; ++i)
@@ -168,6 +170,7 @@ bake::Rect change_patch(std::vector<float>& heights, int size, int rect, int fra
       float& h = heights[std::size_t(i) * size + j];
       h = std::clamp(h + sign * ((i + j) % 2 == 0 ? 0.05f : -0.05f), 0.0f, 1.0f);
     }
+  state.ResumeTiming();
   return {x0, y0, x0 + rect, y0 + rect};
 }
 
@@ -183,9 +186,7 @@ void run_update(benchmark::State& state, MapKind kind, bake::BudgetedBaker::Upda
   bake::BakeStats stats;
   int frame = 0;
   for (auto _ : state) {
-    state.PauseTiming();
-    const bake::Rect dirty = change_patch(heights, size, rect, frame);
-    state.ResumeTiming();
+    const bake::Rect dirty = change_patch(state, heights, size, rect, frame);
     stats = baker.update({heights.data(), size, size}, std::span<const bake::Rect>(&dirty, 1), {},
                          {cones.data(), size, size, 4}, policy);
     ++frame;
@@ -371,9 +372,7 @@ void run_bilinear_update(benchmark::State& state, MapKind kind, bool whole) {
   bake::BakeStats stats;
   int frame = 0;
   for (auto _ : state) {
-    state.PauseTiming();
-    const bake::Rect dirty = change_patch(heights, size, rect, frame);
-    state.ResumeTiming();
+    const bake::Rect dirty = change_patch(state, heights, size, rect, frame);
     const bake::HeightView view{heights.data(), size, size};
     stats = whole ? baker.bake(view, {}, out, apex)
                   : baker.update(view, std::span<const bake::Rect>(&dirty, 1), {}, out, apex);
